@@ -1,0 +1,121 @@
+//! The orchestrator's view of one participant, the same for every transport.
+
+use crate::msg::{Kind, Message, PROTOCOL_VERSION};
+use crate::participant::{answer, Participant, Role};
+
+/// Why an exchange with a participant failed. Every variant names the participant and step.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum LinkError {
+    /// No reply within the deadline.
+    #[error("participant {role} (pid {pid}) did not answer step {step} within {deadline_ms} ms")]
+    Timeout { role: Role, pid: u32, step: u64, deadline_ms: u64 },
+    /// The participant's process ended.
+    #[error("participant {role} (pid {pid}) exited ({status}) while step {step} was pending")]
+    Exited { role: Role, pid: u32, step: u64, status: String },
+    /// A reply for an older step arrived (a stale or duplicated sample).
+    #[error("participant {role}: stale sample for step {got} while waiting for step {expected}")]
+    Stale { role: Role, expected: u64, got: u64 },
+    /// A reply for a later step arrived (out of order).
+    #[error("participant {role}: sample for step {got} arrived out of order, expected step {expected}")]
+    OutOfOrder { role: Role, expected: u64, got: u64 },
+    /// More than one reply for the same step.
+    #[error("participant {role}: duplicated sample for step {step}")]
+    Duplicate { role: Role, step: u64 },
+    /// A reply of the wrong kind or protocol version.
+    #[error("participant {role}: malformed sample for step {step}: {what}")]
+    Malformed { role: Role, step: u64, what: String },
+    /// A NaN or infinite value.
+    #[error("participant {role}: non-finite value in field `{field}` of {sample} at step {step}")]
+    NonFinite { role: Role, step: u64, sample: &'static str, field: &'static str },
+    /// The transport itself failed.
+    #[error("transport to participant {role} failed: {what}")]
+    Transport { role: Role, what: String },
+}
+
+/// Checks a reply against the request it answers.
+pub fn check_reply<O: Message>(role: Role, reply: &O, step: u64, kind: Kind) -> Result<(), LinkError> {
+    let h = reply.header();
+    if h.version != PROTOCOL_VERSION {
+        return Err(LinkError::Malformed {
+            role,
+            step,
+            what: format!("protocol version {} (expected {PROTOCOL_VERSION})", h.version),
+        });
+    }
+    if h.step < step {
+        return Err(LinkError::Stale { role, expected: step, got: h.step });
+    }
+    if h.step > step {
+        return Err(LinkError::OutOfOrder { role, expected: step, got: h.step });
+    }
+    if h.kind != kind as u32 {
+        return Err(LinkError::Malformed { role, step, what: format!("kind {} (expected {kind:?})", h.kind) });
+    }
+    if let Some(field) = reply.first_non_finite() {
+        return Err(LinkError::NonFinite { role, step, sample: O::NAME, field });
+    }
+    Ok(())
+}
+
+/// How a participant ended, as reported after the run.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct ExitReport {
+    /// Exit status in words ("exit code 0", "signal 9", "in-process").
+    pub status: String,
+    /// CPU time the process used, user + system (s); `None` in-process.
+    pub cpu_s: Option<f64>,
+}
+
+/// The orchestrator's handle on one participant.
+pub trait Endpoint<I: Message, O: Message> {
+    /// Role of the participant.
+    fn role(&self) -> Role;
+    /// Process id (the orchestrator's own pid in-process).
+    fn pid(&self) -> u32;
+    /// Sends a request; its header says which step and kind.
+    fn send(&mut self, req: &I) -> Result<(), LinkError>;
+    /// Waits for the reply to the request for `step` of `kind` and checks it.
+    fn receive(&mut self, step: u64, kind: Kind) -> Result<O, LinkError>;
+    /// Asks the participant to end, waits for it (bounded), reports how it ended.
+    fn shutdown(&mut self) -> ExitReport;
+}
+
+/// In-process transport: the model runs inside the orchestrator's process, on `send`.
+pub struct InProcess<P: Participant> {
+    model: P,
+    pending: Option<P::Output>,
+}
+
+impl<P: Participant> InProcess<P> {
+    /// Wraps a model.
+    pub fn new(model: P) -> Self {
+        InProcess { model, pending: None }
+    }
+}
+
+impl<P: Participant> Endpoint<P::Input, P::Output> for InProcess<P> {
+    fn role(&self) -> Role {
+        P::ROLE
+    }
+    fn pid(&self) -> u32 {
+        std::process::id()
+    }
+    fn send(&mut self, req: &P::Input) -> Result<(), LinkError> {
+        if self.pending.is_some() {
+            let step = req.header().step;
+            return Err(LinkError::Duplicate { role: P::ROLE, step });
+        }
+        self.pending = Some(answer(&mut self.model, req));
+        Ok(())
+    }
+    fn receive(&mut self, step: u64, kind: Kind) -> Result<P::Output, LinkError> {
+        let Some(reply) = self.pending.take() else {
+            return Err(LinkError::Transport { role: P::ROLE, what: format!("no request pending for step {step}") });
+        };
+        check_reply(P::ROLE, &reply, step, kind)?;
+        Ok(reply)
+    }
+    fn shutdown(&mut self) -> ExitReport {
+        ExitReport { status: "in-process".into(), cpu_s: None }
+    }
+}

@@ -1,0 +1,221 @@
+//! Samples exchanged between the orchestrator and the participants, one type per direction.
+//!
+//! Every sample starts with a [`Header`] carrying the global step index (tick) it belongs to,
+//! its [`Kind`] and the protocol version. The receiving side checks all three; a missing,
+//! stale, duplicated or foreign sample is an error, never silently reused.
+//!
+//! Timing semantics (see `docs/architecture.md`): a request for step `k` carries inputs valid
+//! over `[t_k, t_{k+1})`; the reply for step `k` carries the participant's outputs at
+//! `t_{k+1}`. The reply to [`Kind::Init`] carries the outputs at `t_0`.
+
+use iceoryx2::prelude::ZeroCopySend;
+
+/// Version of the sample layouts below. Bumped whenever a field changes.
+pub const PROTOCOL_VERSION: u32 = 1;
+
+/// What a sample asks for or answers.
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Kind {
+    /// Request the outputs at `t_0` (no stepping).
+    #[default]
+    Init = 1,
+    /// Request one step from `t_k` to `t_{k+1}`.
+    Step = 2,
+    /// Ask the participant to exit cleanly.
+    Stop = 3,
+}
+
+impl Kind {
+    /// Decodes the raw value carried in a header.
+    pub fn from_raw(v: u32) -> Option<Kind> {
+        match v {
+            1 => Some(Kind::Init),
+            2 => Some(Kind::Step),
+            3 => Some(Kind::Stop),
+            _ => None,
+        }
+    }
+}
+
+/// Common prefix of every sample.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+pub struct Header {
+    /// Global step index (tick of the base period) this sample belongs to.
+    pub step: u64,
+    /// [`Kind`] as raw `u32`.
+    pub kind: u32,
+    /// [`PROTOCOL_VERSION`] of the sender.
+    pub version: u32,
+    /// Wall-clock nanoseconds the participant spent in its model's step (replies only;
+    /// measurement only, never written to `timeseries.csv`).
+    pub compute_ns: u64,
+}
+
+impl Header {
+    /// A header for step `step` of kind `kind` at the current protocol version.
+    pub fn new(step: u64, kind: Kind) -> Self {
+        Header { step, kind: kind as u32, version: PROTOCOL_VERSION, compute_ns: 0 }
+    }
+}
+
+/// A sample type: plain old data with a [`Header`].
+pub trait Message:
+    Copy + Default + core::fmt::Debug + ZeroCopySend + Send + 'static
+{
+    /// Name used in error messages and service names.
+    const NAME: &'static str;
+    /// The header.
+    fn header(&self) -> &Header;
+    /// The header, mutably.
+    fn header_mut(&mut self) -> &mut Header;
+    /// Name of the first non-finite value, if any (bad data is caught where it arrives).
+    fn first_non_finite(&self) -> Option<&'static str>;
+}
+
+macro_rules! message {
+    ($(#[$m:meta])* $name:ident, $label:literal { $($(#[$fm:meta])* $f:ident : $t:ty),* $(,)? }) => {
+        $(#[$m])*
+        #[repr(C)]
+        #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+        pub struct $name {
+            /// Step index, kind and version.
+            pub header: Header,
+            $($(#[$fm])* pub $f: $t,)*
+        }
+        impl Message for $name {
+            const NAME: &'static str = $label;
+            fn header(&self) -> &Header { &self.header }
+            fn header_mut(&mut self) -> &mut Header { &mut self.header }
+            fn first_non_finite(&self) -> Option<&'static str> {
+                $( if !FiniteCheck::all_finite(&self.$f) { return Some(stringify!($f)); } )*
+                None
+            }
+        }
+    };
+}
+
+trait FiniteCheck {
+    fn all_finite(&self) -> bool;
+}
+impl FiniteCheck for f64 {
+    fn all_finite(&self) -> bool {
+        self.is_finite()
+    }
+}
+impl FiniteCheck for u32 {
+    fn all_finite(&self) -> bool {
+        true
+    }
+}
+impl<const N: usize> FiniteCheck for [f64; N] {
+    fn all_finite(&self) -> bool {
+        self.iter().all(|v| v.is_finite())
+    }
+}
+
+message!(
+    /// Orchestrator → plant: the achieved anti-roll-bar angle held over the step.
+    ToPlant, "to_plant" {
+        /// Achieved bar angle δ_a (rad), held over `[t_k, t_{k+1})`.
+        delta_a: f64,
+    }
+);
+
+message!(
+    /// Plant → orchestrator: vehicle state, track and sensor values at the sample time.
+    FromPlant, "from_plant" {
+        /// Simulated time (s).
+        t: f64,
+        /// Distance along the track (m).
+        s: f64,
+        /// Track curvature 1/R (1/m), deterministic design value.
+        curvature: f64,
+        /// Total track cant θ_o including irregularity (rad).
+        cant: f64,
+        /// State x = [y_v, θ_v, y_b, θ_b, ẏ_v, θ̇_v, ẏ_b, θ̇_b, θ_r] (m, rad, m/s, rad/s), eq 14.
+        x: [f64; 9],
+        /// Body-to-bogie roll ψ = θ_v − θ_b (rad), the twist the anti-roll bar sees.
+        psi: f64,
+        /// Passenger lateral acceleration, eq 13 (m/s²).
+        lat_acc: f64,
+        /// Measured body roll θ_v with sensor noise (rad), eq 15.
+        theta_v_meas: f64,
+    }
+);
+
+message!(
+    /// Orchestrator → actuator: tilt command and the bar's twist.
+    ToActuator, "to_actuator" {
+        /// Commanded bar angle δ_a,cmd (rad).
+        delta_a_cmd: f64,
+        /// Body-to-bogie roll ψ (rad) at `t_k`, for the bar's reaction torque.
+        psi: f64,
+    }
+);
+
+message!(
+    /// Actuator → orchestrator: achieved bar angle and drive telemetry.
+    FromActuator, "from_actuator" {
+        /// Achieved bar angle δ_a (rad).
+        delta_a: f64,
+        /// Electromagnetic torque (N·m).
+        motor_torque: f64,
+        /// Rotor speed (rad/s).
+        motor_speed: f64,
+        /// Motor current (A), see the actuator's docs for its definition.
+        motor_current: f64,
+        /// Power drawn from the DC link (W).
+        dc_power: f64,
+        /// Bit set of active limits (actuator-specific).
+        limits: u32,
+    }
+);
+
+message!(
+    /// Orchestrator → controller: measurement and the vehicle's position on the track.
+    ToController, "to_controller" {
+        /// Simulated time (s).
+        t: f64,
+        /// Vehicle position along the track (m), as odometry would give it.
+        s: f64,
+        /// Measured body roll θ_v (rad).
+        theta_v_meas: f64,
+    }
+);
+
+message!(
+    /// Controller → orchestrator: bar command, reference and estimate.
+    FromController, "from_controller" {
+        /// Commanded bar angle δ_a,cmd (rad).
+        delta_a_cmd: f64,
+        /// Body roll reference θ_v^d of eq 18 (rad).
+        theta_ref: f64,
+        /// Estimated body roll θ̂_v (rad); the measurement where no estimator runs.
+        theta_v_hat: f64,
+    }
+);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn non_finite_values_are_named() {
+        let mut s = FromPlant::default();
+        assert_eq!(s.first_non_finite(), None);
+        s.x[3] = f64::NAN;
+        assert_eq!(s.first_non_finite(), Some("x"));
+        let c = FromController { delta_a_cmd: f64::INFINITY, ..Default::default() };
+        assert_eq!(c.first_non_finite(), Some("delta_a_cmd"));
+    }
+
+    #[test]
+    fn kinds_round_trip() {
+        for k in [Kind::Init, Kind::Step, Kind::Stop] {
+            assert_eq!(Kind::from_raw(k as u32), Some(k));
+        }
+        assert_eq!(Kind::from_raw(0), None);
+    }
+}

@@ -1,0 +1,275 @@
+//! The `tiltsim` command line.
+//!
+//! Exit codes: 0 success; 1 the run failed (a participant died, stalled or sent bad data);
+//! 2 invalid input (command line or scenario file); 130 interrupted by Ctrl-C.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use clap::{Parser, Subcommand, ValueEnum};
+use cosim::wait::WaitStrategy;
+
+use crate::engine::{self, RunOptions, Status};
+use crate::scenario::{Master, Scenario, Transport};
+
+/// Exit code: the run failed.
+pub const EXIT_FAILED: i32 = 1;
+/// Exit code: invalid input.
+pub const EXIT_INVALID: i32 = 2;
+/// Exit code: interrupted.
+pub const EXIT_INTERRUPTED: i32 = 130;
+
+#[derive(Parser, Debug)]
+#[command(name = "tiltsim", version, about = "Co-simulator for active tilt control of railway vehicles")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+    /// More log output (repeat for more).
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Run a scenario and write DIR/timeseries.csv, DIR/summary.json, DIR/scenario.toml.
+    Run(RunArgs),
+    /// Check a scenario file without running it.
+    Validate {
+        /// Scenario file (TOML).
+        scenario: PathBuf,
+    },
+}
+
+#[derive(clap::Args, Debug)]
+struct RunArgs {
+    /// Scenario file (TOML).
+    scenario: PathBuf,
+    /// Output directory [default: out/<scenario name>].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Transport, overriding run.transport.
+    #[arg(long, value_enum)]
+    transport: Option<TransportArg>,
+    /// Seed, overriding run.seed.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Master algorithm, overriding run.master.
+    #[arg(long, value_enum)]
+    master: Option<MasterArg>,
+    /// Wait strategy, overriding run.wait.
+    #[arg(long, value_enum)]
+    wait: Option<WaitArg>,
+    /// Stall deadline in ms, overriding run.deadline_ms.
+    #[arg(long)]
+    deadline_ms: Option<u64>,
+    /// Simulated duration in s, overriding run.duration_s.
+    #[arg(long)]
+    duration: Option<f64>,
+    /// iceoryx2 file prefix for this run (default: unique per run).
+    #[arg(long, hide = true)]
+    ipc_prefix: Option<String>,
+    /// Print nothing but errors.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+enum TransportArg {
+    Ipc,
+    InProcess,
+}
+#[derive(ValueEnum, Clone, Copy, Debug)]
+enum MasterArg {
+    GaussSeidel,
+    Jacobi,
+}
+#[derive(ValueEnum, Clone, Copy, Debug)]
+enum WaitArg {
+    Spin,
+    Adaptive,
+    Sleep,
+}
+
+/// Runs the program; returns the exit code.
+pub fn main() -> i32 {
+    let args: Vec<String> = std::env::args().collect();
+    if args.get(1).map(String::as_str) == Some("participant") {
+        return participant(&args[2..]);
+    }
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() { EXIT_INVALID } else { 0 };
+        }
+    };
+    let level = match cli.verbose {
+        0 => "warn",
+        1 => "info",
+        _ => "debug",
+    };
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| level.into()))
+        .with_writer(std::io::stderr)
+        .try_init();
+    match cli.command {
+        Command::Validate { scenario } => match Scenario::load(&scenario) {
+            Ok(s) => {
+                println!(
+                    "{}: valid ({} s at {} km/h, {} steps of {} ms, controller {:?}, actuator {:?})",
+                    scenario.display(),
+                    s.duration(),
+                    s.track.speed_kmh,
+                    s.steps(),
+                    s.run.dt_s * 1e3,
+                    s.controller.mode,
+                    s.actuator.model
+                );
+                0
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                EXIT_INVALID
+            }
+        },
+        Command::Run(a) => run(a),
+    }
+}
+
+fn participant(args: &[String]) -> i32 {
+    let Some(role) = args.first().and_then(|r| cosim::Role::parse(r)) else {
+        eprintln!("usage: tiltsim participant plant|actuator|controller --params JSON --prefix P [--wait W]");
+        return EXIT_INVALID;
+    };
+    let rest = &args[1..];
+    let r = match role {
+        cosim::Role::Plant => plant_proc::serve(rest),
+        cosim::Role::Actuator => actuator_proc::serve(rest),
+        cosim::Role::Controller => controller_proc::serve(rest),
+    };
+    match r {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("{e}");
+            EXIT_FAILED
+        }
+    }
+}
+
+fn run(a: RunArgs) -> i32 {
+    let mut s = match Scenario::load(&a.scenario) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_INVALID;
+        }
+    };
+    if let Some(t) = a.transport {
+        s.run.transport = match t {
+            TransportArg::Ipc => Transport::Ipc,
+            TransportArg::InProcess => Transport::InProcess,
+        };
+    }
+    if let Some(m) = a.master {
+        s.run.master = match m {
+            MasterArg::GaussSeidel => Master::GaussSeidel,
+            MasterArg::Jacobi => Master::Jacobi,
+        };
+    }
+    if let Some(w) = a.wait {
+        s.run.wait = match w {
+            WaitArg::Spin => WaitStrategy::Spin,
+            WaitArg::Adaptive => WaitStrategy::Adaptive,
+            WaitArg::Sleep => WaitStrategy::Sleep,
+        };
+    }
+    if let Some(seed) = a.seed {
+        s.run.seed = seed;
+    }
+    if let Some(d) = a.deadline_ms {
+        s.run.deadline_ms = d;
+    }
+    if let Some(d) = a.duration {
+        s.run.duration_s = Some(d);
+    }
+    let errors = s.validate();
+    if !errors.is_empty() {
+        for e in errors {
+            eprintln!("error: command line: {e}");
+        }
+        return EXIT_INVALID;
+    }
+    let out = a.out.unwrap_or_else(|| PathBuf::from("out").join(&s.name));
+    let interrupt = Arc::new(AtomicBool::new(false));
+    {
+        let flag = interrupt.clone();
+        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    }
+    let exe = match std::env::current_exe() {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("error: cannot find the tiltsim executable to start participants: {e}");
+            return EXIT_FAILED;
+        }
+    };
+    let opts = RunOptions { out_dir: out.clone(), participant_exe: exe, ipc_prefix: a.ipc_prefix, interrupt };
+    let summary = match engine::run(&s, &a.scenario.display().to_string(), &opts) {
+        Ok(sum) => sum,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_FAILED;
+        }
+    };
+    let path = out.join("summary.json");
+    if let Err(e) = std::fs::write(&path, serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n") {
+        eprintln!("error: {}: {e}", path.display());
+        return EXIT_FAILED;
+    }
+    if !a.quiet {
+        print_report(&summary, &out);
+    }
+    match summary.status {
+        Status::Completed => 0,
+        Status::Failed => {
+            eprintln!(
+                "error: {}; {} of {} steps recorded in {}",
+                summary.error.as_deref().unwrap_or("run failed"),
+                summary.steps_completed,
+                summary.steps_planned,
+                out.join("timeseries.csv").display()
+            );
+            EXIT_FAILED
+        }
+        Status::Interrupted => {
+            eprintln!("interrupted: {} of {} steps recorded", summary.steps_completed, summary.steps_planned);
+            EXIT_INTERRUPTED
+        }
+    }
+}
+
+fn print_report(s: &engine::Summary, out: &std::path::Path) {
+    println!(
+        "{}: {:?}, {} steps ({:.3} s simulated) in {:.3} s wall ({:.1}x real time)",
+        s.scenario, s.status, s.steps_completed, s.simulated_time_s, s.wall_time_s, s.realtime_factor
+    );
+    println!(
+        "  transport {}, master {}, wait {}; pids: {}",
+        s.transport,
+        s.master_algorithm,
+        s.wait_strategy,
+        s.participants.iter().map(|p| format!("{}={}", p.process, p.pid)).collect::<Vec<_>>().join(" ")
+    );
+    println!(
+        "  coordination overhead per tick: p50 {:.2} us, p99 {:.2} us, max {:.1} us; CPU: orchestrator {:.2} s, participants {:.2} s",
+        s.timing.p50, s.timing.p99, s.timing.max, s.timing.cpu_s.orchestrator, s.timing.cpu_s.participants
+    );
+    println!(
+        "  lateral acceleration: peak {:.3} m/s², mid-curve {:.3} m/s²; body roll mid-curve {:.3} deg; peak delta_a {:.3} deg",
+        s.results.lat_acc_peak,
+        s.results.lat_acc_mid_curve,
+        s.results.theta_v_mid_curve.to_degrees(),
+        s.results.delta_a_peak.to_degrees()
+    );
+    println!("  wrote {}/timeseries.csv, summary.json, scenario.toml", out.display());
+}

@@ -1,0 +1,10 @@
+//! `orchestrator`: scenario, lock-step scheduling, recording and reporting, and the `tiltsim`
+//! command-line program.
+
+pub mod cli;
+pub mod engine;
+pub mod record;
+pub mod scenario;
+
+pub use engine::{run, RunOptions, Summary};
+pub use scenario::{Master, Scenario, Transport};

@@ -1,0 +1,229 @@
+//! Scenario files: TOML mapped onto validated settings. Unknown keys are errors; every default
+//! is the paper's value and documented on its field.
+
+use std::path::{Path, PathBuf};
+
+use actuator_proc::ActuatorSettings;
+use controller_proc::ControllerSettings;
+use cosim::settings::{Checker, FieldError};
+use cosim::wait::WaitStrategy;
+use plant_proc::{SensorParams, TrackParams, VehicleParams};
+use serde::{Deserialize, Serialize};
+
+/// Master algorithm of the lock-step (docs/architecture.md, "Coupling").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Master {
+    /// Sequential: controller, then actuator, then plant, each seeing the others' newest
+    /// outputs. One tick of delay on the feedback links (plant → controller, plant → actuator),
+    /// none on the forward links.
+    #[default]
+    GaussSeidel,
+    /// Parallel: all participants step at once on the previous tick's outputs. One tick of
+    /// delay on every link.
+    Jacobi,
+}
+
+impl Master {
+    /// Kebab-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Master::GaussSeidel => "gauss-seidel",
+            Master::Jacobi => "jacobi",
+        }
+    }
+}
+
+/// Transport between the orchestrator and the participants.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Transport {
+    /// Separate processes, iceoryx2 shared memory.
+    #[default]
+    Ipc,
+    /// Every participant stepped inside the orchestrator's process.
+    InProcess,
+}
+
+impl Transport {
+    /// Kebab-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Transport::Ipc => "ipc",
+            Transport::InProcess => "in-process",
+        }
+    }
+}
+
+/// Run settings (section `[run]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunSettings {
+    /// Base tick = plant step = actuator exchange period (s). Default 1 ms.
+    pub dt_s: f64,
+    /// Simulated duration (s). Default: the track's length at the vehicle's speed.
+    pub duration_s: Option<f64>,
+    /// Seed of the track irregularity and the sensor noise.
+    pub seed: u64,
+    /// Master algorithm.
+    pub master: Master,
+    /// Transport.
+    pub transport: Transport,
+    /// How waiting processes spend their time between polls.
+    pub wait: WaitStrategy,
+    /// A participant that does not answer a step within this time is declared stalled (ms).
+    pub deadline_ms: u64,
+    /// Time allowed for a participant process to start and connect (ms).
+    pub startup_ms: u64,
+    /// Pin the orchestrator to one CPU and the participants to another (ipc transport).
+    pub pin_cpus: bool,
+}
+
+impl Default for RunSettings {
+    fn default() -> Self {
+        RunSettings {
+            dt_s: 1e-3,
+            duration_s: None,
+            seed: 1,
+            master: Master::GaussSeidel,
+            transport: Transport::Ipc,
+            wait: WaitStrategy::Adaptive,
+            deadline_ms: 500,
+            startup_ms: 5000,
+            pin_cpus: true,
+        }
+    }
+}
+
+/// A whole scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct Scenario {
+    /// Short name (defaults to the file stem).
+    pub name: String,
+    /// What the scenario is for.
+    pub description: String,
+    /// Run settings.
+    pub run: RunSettings,
+    /// Vehicle parameters.
+    pub vehicle: VehicleParams,
+    /// Track and speed.
+    pub track: TrackParams,
+    /// Body roll sensor.
+    pub sensor: SensorParams,
+    /// Actuator.
+    pub actuator: ActuatorSettings,
+    /// Controller.
+    pub controller: ControllerSettings,
+}
+
+/// Why a scenario was rejected. Displayed messages name the file.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The file could not be read.
+    #[error("{file}: cannot read: {source}")]
+    Read { file: PathBuf, source: std::io::Error },
+    /// Syntax, wrong type or unknown key (toml's message names the key and line).
+    #[error("{file}: {message}")]
+    Parse { file: PathBuf, message: String },
+    /// Values out of range.
+    #[error("{file}: invalid settings:\n{}", errors.iter().map(|e| format!("  {e}")).collect::<Vec<_>>().join("\n"))]
+    Invalid { file: PathBuf, errors: Vec<FieldError> },
+}
+
+impl Scenario {
+    /// Reads, parses and validates a scenario file.
+    pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Read { file: path.into(), source })?;
+        let mut s = Scenario::parse(&text, path)?;
+        if s.name.is_empty() {
+            s.name = path.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        }
+        Ok(s)
+    }
+
+    /// Parses and validates scenario text; `file` is used in messages.
+    pub fn parse(text: &str, file: &Path) -> Result<Scenario, ScenarioError> {
+        let s: Scenario = toml::from_str(text).map_err(|e| ScenarioError::Parse {
+            file: file.into(),
+            message: e.to_string().trim_end().to_string(),
+        })?;
+        let errors = s.validate();
+        if errors.is_empty() {
+            Ok(s)
+        } else {
+            Err(ScenarioError::Invalid { file: file.into(), errors })
+        }
+    }
+
+    /// Every rule, with the field's dotted path.
+    pub fn validate(&self) -> Vec<FieldError> {
+        let mut c = Checker::new("run");
+        let r = &self.run;
+        c.range("dt_s", r.dt_s, 1e-5, 0.01, "s");
+        if let Some(d) = r.duration_s {
+            c.positive("duration_s", d, 3600.0, "s");
+        }
+        c.require((1..=60_000).contains(&r.deadline_ms), "deadline_ms", r.deadline_ms, "an integer in [1, 60000] ms");
+        c.require((100..=120_000).contains(&r.startup_ms), "startup_ms", r.startup_ms, "an integer in [100, 120000] ms");
+        let mut all = c;
+        all.merge(self.vehicle.validate("vehicle"));
+        all.merge(self.track.validate("track"));
+        all.merge(self.sensor.validate("sensor"));
+        all.merge(self.actuator.validate("actuator"));
+        all.merge(self.controller.validate("controller"));
+        let mut c = Checker::new("controller");
+        let ratio = self.controller.period_s / r.dt_s;
+        c.require(
+            (ratio - ratio.round()).abs() < 1e-9 && ratio.round() >= 1.0,
+            "period_s",
+            self.controller.period_s,
+            &format!("a whole multiple of run.dt_s = {} s", r.dt_s),
+        );
+        all.merge(c);
+        all.errors
+    }
+
+    /// Simulated duration (s).
+    pub fn duration(&self) -> f64 {
+        self.run.duration_s.unwrap_or_else(|| self.track.length() / self.track.speed())
+    }
+
+    /// Number of base ticks.
+    pub fn steps(&self) -> u64 {
+        (self.duration() / self.run.dt_s).round() as u64
+    }
+
+    /// Controller period in ticks.
+    pub fn controller_period_ticks(&self) -> u64 {
+        (self.controller.period_s / self.run.dt_s).round().max(1.0) as u64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(t: &str) -> Result<Scenario, ScenarioError> {
+        Scenario::parse(t, Path::new("x.toml"))
+    }
+
+    #[test]
+    fn defaults_are_valid_and_last_the_track() {
+        let s = parse("").unwrap();
+        assert!((s.duration() - 16.8).abs() < 1e-9);
+        assert_eq!(s.steps(), 16_800);
+    }
+
+    #[test]
+    fn unknown_key_wrong_type_and_range_are_named() {
+        let e = parse("[vehicle]\nm_vv = 3.0\n").unwrap_err().to_string();
+        assert!(e.starts_with("x.toml:") && e.contains("m_vv"), "{e}");
+        let e = parse("[vehicle]\nm_v = \"heavy\"\n").unwrap_err().to_string();
+        assert!(e.contains("m_v") && e.contains("invalid type"), "{e}");
+        let e = parse("[vehicle]\nm_v = -5.0\n[run]\ndt_s = 1.0\n").unwrap_err().to_string();
+        assert!(e.contains("field `vehicle.m_v` = -5") && e.contains("field `run.dt_s` = 1"), "{e}");
+        let e = parse("[controller]\nperiod_s = 0.0015\n").unwrap_err().to_string();
+        assert!(e.contains("controller.period_s") && e.contains("whole multiple"), "{e}");
+    }
+}

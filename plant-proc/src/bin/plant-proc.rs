@@ -1,0 +1,8 @@
+//! Thin binary: serves the plant over iceoryx2 (normally started by `tiltsim`).
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if let Err(e) = plant_proc::serve(&args) {
+        eprintln!("{e}");
+        std::process::exit(1);
+    }
+}

@@ -1,0 +1,227 @@
+//! The track: deterministic curve geometry plus the seeded cant irregularity.
+//!
+//! Curvature κ = 1/R and cant θ_o ramp linearly in the transitions (paper section 2.3), so the
+//! cant rate θ̇_o jumps at the four corners of the ramps and θ̈_o is a Dirac impulse there.
+//! [`Track::corners`] lists those jumps so the plant can apply them exactly as velocity jumps
+//! (model-notes 6); between corners the deterministic θ̈_o is zero.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::params::TrackParams;
+
+/// Track values at one position.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TrackPoint {
+    /// Design curvature 1/R (1/m), without irregularity.
+    pub curvature: f64,
+    /// Design cant (rad), without irregularity.
+    pub cant_design: f64,
+    /// Total cant θ_o including irregularity (rad).
+    pub cant: f64,
+    /// dθ_o/ds including irregularity (rad/m); design part is the ramp slope.
+    pub dcant_ds: f64,
+    /// Smooth part of d²θ_o/ds² (irregularity only; the ramp corners are impulses) (rad/m²).
+    pub d2cant_ds2: f64,
+}
+
+/// A corner of a linear ramp: the cant slope changes by `dslope` (rad/m) at `s` (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Corner {
+    /// Position (m).
+    pub s: f64,
+    /// Change of dθ_o/ds across the corner (rad/m).
+    pub dslope: f64,
+}
+
+/// The track of a run.
+#[derive(Debug, Clone)]
+pub struct Track {
+    p: TrackParams,
+    s1: f64,
+    s2: f64,
+    s3: f64,
+    s4: f64,
+    kappa: f64,
+    cant: f64,
+    knots: Vec<f64>,
+}
+
+/// Quintic blend S(u) = 10u³ − 15u⁴ + 6u⁵ and its first two derivatives: S(0)=0, S(1)=1,
+/// S' and S'' vanish at both ends, and S stays in [0, 1].
+fn quintic(u: f64) -> (f64, f64, f64) {
+    let u2 = u * u;
+    let u3 = u2 * u;
+    (
+        u3 * (10.0 - 15.0 * u + 6.0 * u2),
+        30.0 * u2 * (1.0 - 2.0 * u + u2),
+        60.0 * u * (1.0 - 3.0 * u + 2.0 * u2),
+    )
+}
+
+impl Track {
+    /// Builds the track; the irregularity knots are drawn from `seed`.
+    pub fn new(p: &TrackParams, seed: u64) -> Self {
+        let s1 = p.straight_before_m;
+        let s2 = s1 + p.transition_m;
+        let s3 = s2 + p.curve_m;
+        let s4 = s3 + p.transition_m;
+        let amp = p.irregularity.amplitude_deg.to_radians();
+        // Knots cover the track plus margin; a dedicated stream keeps them independent of the
+        // sensor noise drawn from the same seed.
+        let n = (p.length() / p.irregularity.knot_spacing_m).ceil() as usize + 3;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        rng.set_stream(1);
+        let knots = if amp > 0.0 {
+            (0..n).map(|i| if i == 0 { 0.0 } else { rng.random_range(-amp..=amp) }).collect()
+        } else {
+            Vec::new()
+        };
+        Track {
+            p: p.clone(),
+            s1,
+            s2,
+            s3,
+            s4,
+            kappa: 1.0 / p.radius_m,
+            cant: p.cant_deg.to_radians(),
+            knots,
+        }
+    }
+
+    /// Settings it was built from.
+    pub fn params(&self) -> &TrackParams {
+        &self.p
+    }
+
+    /// Design ramp r(s) in [0, 1] and its slope dr/ds.
+    fn ramp(&self, s: f64) -> (f64, f64) {
+        let lt = self.p.transition_m;
+        if s <= self.s1 || s >= self.s4 {
+            (0.0, 0.0)
+        } else if s < self.s2 {
+            ((s - self.s1) / lt, 1.0 / lt)
+        } else if s <= self.s3 {
+            (1.0, 0.0)
+        } else {
+            ((self.s4 - s) / lt, -1.0 / lt)
+        }
+    }
+
+    /// Irregularity and its first two derivatives with respect to s.
+    fn irregularity(&self, s: f64) -> (f64, f64, f64) {
+        if self.knots.is_empty() || s <= 0.0 {
+            return (0.0, 0.0, 0.0);
+        }
+        let h = self.p.irregularity.knot_spacing_m;
+        let x = s / h;
+        let i = (x.floor() as usize).min(self.knots.len() - 2);
+        let u = (x - i as f64).clamp(0.0, 1.0);
+        let (a, b) = (self.knots[i], self.knots[i + 1]);
+        let (sv, ds, d2s) = quintic(u);
+        (a + (b - a) * sv, (b - a) * ds / h, (b - a) * d2s / (h * h))
+    }
+
+    /// Design-only values (the onboard track database of the controller sees these).
+    pub fn design(&self, s: f64) -> (f64, f64) {
+        let (r, _) = self.ramp(s);
+        (self.kappa * r, self.cant * r)
+    }
+
+    /// Everything at position `s`.
+    pub fn at(&self, s: f64) -> TrackPoint {
+        let (r, dr) = self.ramp(s);
+        let (e, de, d2e) = self.irregularity(s);
+        TrackPoint {
+            curvature: self.kappa * r,
+            cant_design: self.cant * r,
+            cant: self.cant * r + e,
+            dcant_ds: self.cant * dr + de,
+            d2cant_ds2: d2e,
+        }
+    }
+
+    /// The four ramp corners with their slope jumps.
+    pub fn corners(&self) -> [Corner; 4] {
+        let k = self.cant / self.p.transition_m;
+        [
+            Corner { s: self.s1, dslope: k },
+            Corner { s: self.s2, dslope: -k },
+            Corner { s: self.s3, dslope: -k },
+            Corner { s: self.s4, dslope: k },
+        ]
+    }
+
+    /// Section name at `s`, for plots and reports.
+    pub fn section(&self, s: f64) -> &'static str {
+        if s < self.s1 {
+            "straight"
+        } else if s < self.s2 {
+            "transition-in"
+        } else if s <= self.s3 {
+            "curve"
+        } else if s < self.s4 {
+            "transition-out"
+        } else {
+            "straight"
+        }
+    }
+
+    /// Section boundaries s1..s4 (m).
+    pub fn boundaries(&self) -> [f64; 4] {
+        [self.s1, self.s2, self.s3, self.s4]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ramps_and_corners_match_the_geometry() {
+        let p = TrackParams::default();
+        let t = Track::new(&p, 1);
+        let mid = t.at(135.0 + 54.0);
+        assert!((mid.cant - 3f64.to_radians()).abs() < 1e-12);
+        assert!((mid.curvature - 0.5e-3).abs() < 1e-15);
+        assert!((t.at(135.0 + 108.0 + 100.0).cant - 6f64.to_radians()).abs() < 1e-12);
+        assert_eq!(t.at(10.0).cant, 0.0);
+        let total: f64 = t.corners().iter().map(|c| c.dslope).sum();
+        assert!(total.abs() < 1e-15, "slope jumps cancel over the curve");
+    }
+
+    #[test]
+    fn irregularity_is_bounded_smooth_and_seeded() {
+        let mut p = TrackParams::default();
+        p.irregularity.amplitude_deg = 0.6;
+        let a = Track::new(&p, 7);
+        let b = Track::new(&p, 7);
+        let c = Track::new(&p, 8);
+        let amp = 0.6f64.to_radians();
+        let mut differs = false;
+        let mut prev = a.at(0.0);
+        for i in 1..60_000 {
+            let s = i as f64 * 0.01;
+            let pa = a.at(s);
+            let e = pa.cant - pa.cant_design;
+            assert!(e.abs() <= amp + 1e-15);
+            assert_eq!(pa, b.at(s));
+            differs |= c.at(s) != pa;
+            // the cant is continuous at 1 cm resolution (no steps)
+            assert!((pa.cant - prev.cant).abs() < 1e-3, "jump at s = {s}");
+            prev = pa;
+        }
+        assert!(differs, "a different seed gives a different track");
+    }
+
+    #[test]
+    fn quintic_derivatives_match_finite_differences() {
+        for &u in &[0.1, 0.37, 0.5, 0.81] {
+            let h = 1e-6;
+            let (_, d, dd) = quintic(u);
+            let fd = (quintic(u + h).0 - quintic(u - h).0) / (2.0 * h);
+            let fdd = (quintic(u + h).1 - quintic(u - h).1) / (2.0 * h);
+            assert!((d - fd).abs() < 1e-6 && (dd - fdd).abs() < 1e-5);
+        }
+    }
+}
