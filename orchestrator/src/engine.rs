@@ -432,7 +432,7 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
             compute_us: percentiles(&mut comp[i]),
         })
         .collect::<Vec<_>>();
-    let cpu_participants = exits.iter().filter_map(|e| e.cpu_s).sum();
+    let cpu_participants = exits.iter().filter_map(|e| e.cpu_s).fold(0.0, |a, b| a + b);
     let results = quick_look(s, &csv);
     Ok(Summary {
         tiltsim_version: env!("CARGO_PKG_VERSION"),

@@ -3,7 +3,9 @@
 //! Integration: classical RK4 at the plant step (1 ms default). The fastest mode of the
 //! vehicle (bogie lateral on the primary suspension, about 27 Hz, |λ| ≈ 170 s⁻¹) gives
 //! |λ·h| ≈ 0.17, where RK4's local error is about (λh)⁵/120 ≈ 1e-6 of the state per step and
-//! the method is far inside its stability region; a test compares 1 ms against 0.25 ms. The
+//! the method is far inside its stability region. On the irregular track a test measures
+//! 7e-7 rad of difference in θ_v between 1 ms and 0.25 ms steps (the knots of the
+//! irregularity's blend cost RK4 some order), 1000x below the 1 mrad sensor noise. The
 //! track is a known function of time, so RK4 evaluates it at its stage times; δ_a is held
 //! (zero-order hold) over the step. The cant-rate jumps at the ramp corners are applied as
 //! exact velocity jumps at their instants, splitting the step there.

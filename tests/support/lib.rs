@@ -1,1 +1,147 @@
+//! Helpers shared by tiltsim's integration tests (`tests/*.rs`).
 
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// The workspace root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A scenario shipped in `scenarios/`.
+pub fn scenario(name: &str) -> PathBuf {
+    root().join("scenarios").join(name)
+}
+
+/// The `tiltsim` executable built by the same `cargo test` invocation (the orchestrator's own
+/// integration tests make cargo build it next to the test executables).
+pub fn tiltsim() -> PathBuf {
+    if let Some(p) = option_env!("CARGO_BIN_EXE_tiltsim") {
+        return PathBuf::from(p);
+    }
+    let exe = std::env::current_exe().expect("test executable path");
+    let dir = exe.parent().and_then(Path::parent).expect("target/<profile>");
+    let p = dir.join("tiltsim");
+    assert!(p.exists(), "{} not built: run the README's test command (cargo test --release --workspace)", p.display());
+    p
+}
+
+/// A fresh, empty directory for one test.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join("tiltsim-tests").join(format!("{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("create temp dir");
+    d
+}
+
+/// A unique iceoryx2 prefix for one test.
+pub fn prefix(name: &str) -> String {
+    format!("tiltsim_test_{}_{}_", name, std::process::id())
+}
+
+/// Starts `tiltsim ARGS`, capturing its output.
+pub fn spawn(args: &[&str]) -> Child {
+    Command::new(tiltsim())
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start tiltsim")
+}
+
+/// Runs `tiltsim ARGS` to completion: (exit code, stdout, stderr).
+pub fn run(args: &[&str]) -> (i32, String, String) {
+    let out = spawn(args).wait_with_output().expect("wait for tiltsim");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Child processes of `pid` as (pid, comm), read from /proc.
+pub fn children_of(pid: u32) -> Vec<(u32, String)> {
+    let mut out = Vec::new();
+    let Ok(entries) = std::fs::read_dir("/proc") else { return out };
+    for e in entries.flatten() {
+        let Ok(p) = e.file_name().to_string_lossy().parse::<u32>() else { continue };
+        let Ok(stat) = std::fs::read_to_string(format!("/proc/{p}/stat")) else { continue };
+        // pid (comm) state ppid ...
+        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else { continue };
+        let comm = stat[open + 1..close].to_string();
+        let ppid = stat[close + 2..].split_whitespace().nth(1).and_then(|v| v.parse::<u32>().ok());
+        if ppid == Some(pid) {
+            out.push((p, comm));
+        }
+    }
+    out
+}
+
+/// Waits until `f` returns `Some`, at most `limit`.
+pub fn wait_for<T>(limit: Duration, mut f: impl FnMut() -> Option<T>) -> Option<T> {
+    let t0 = Instant::now();
+    while t0.elapsed() < limit {
+        if let Some(v) = f() {
+            return Some(v);
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    None
+}
+
+/// Waits for a child with a time limit; kills it and panics past the limit (a test must never hang).
+pub fn wait_with_limit(mut child: Child, limit: Duration) -> (i32, String, String) {
+    let t0 = Instant::now();
+    loop {
+        if let Ok(Some(_)) = child.try_wait() {
+            let out = child.wait_with_output().expect("output");
+            return (
+                out.status.code().unwrap_or(-1),
+                String::from_utf8_lossy(&out.stdout).into_owned(),
+                String::from_utf8_lossy(&out.stderr).into_owned(),
+            );
+        }
+        if t0.elapsed() > limit {
+            let _ = child.kill();
+            panic!("tiltsim did not end within {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// A recorded time series.
+pub struct Series {
+    /// Column names.
+    pub header: Vec<String>,
+    /// Rows of numbers.
+    pub rows: Vec<Vec<f64>>,
+}
+
+impl Series {
+    /// Reads `timeseries.csv`.
+    pub fn read(path: &Path) -> Series {
+        let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let mut lines = text.lines();
+        let header = lines.next().unwrap_or_default().split(',').map(str::to_string).collect();
+        let rows = lines.map(|l| l.split(',').map(|v| v.parse().expect("number")).collect()).collect();
+        Series { header, rows }
+    }
+    /// One column.
+    pub fn col(&self, name: &str) -> Vec<f64> {
+        let i = self.header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name}"));
+        self.rows.iter().map(|r| r[i]).collect()
+    }
+}
+
+/// Reads `summary.json`.
+pub fn summary(dir: &Path) -> serde_json::Value {
+    let p = dir.join("summary.json");
+    serde_json::from_str(&std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))).expect("json")
+}
+
+/// Files the run with `prefix` left in shared memory or the iceoryx2 directories.
+pub fn leftovers(prefix: &str) -> Vec<PathBuf> {
+    cosim::ipc::leftover_files(prefix)
+}

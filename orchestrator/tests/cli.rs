@@ -1,0 +1,60 @@
+//! The `tiltsim` command line: bad input gets a clear message and exit code 2, never a panic.
+
+use std::process::Command;
+
+fn tiltsim(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_tiltsim")).args(args).output().expect("run tiltsim");
+    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+}
+
+fn scenario_file(name: &str, text: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("tiltsim-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn shipped_scenarios_validate() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().join("scenarios");
+    for e in std::fs::read_dir(root).unwrap() {
+        let p = e.unwrap().path();
+        let (code, out, err) = tiltsim(&["validate", p.to_str().unwrap()]);
+        assert_eq!(code, 0, "{}: {err}", p.display());
+        assert!(out.contains("valid"));
+    }
+}
+
+#[test]
+fn malformed_scenarios_are_rejected_with_file_field_and_allowed_values() {
+    let cases = [
+        ("unknown.toml", "[vehicle]\nmass = 3\n", "unknown field `mass`"),
+        ("type.toml", "[track]\nspeed_kmh = \"fast\"\n", "speed_kmh"),
+        ("range.toml", "[track]\nspeed_kmh = -10.0\n", "field `track.speed_kmh` = -10: allowed a number in (0, 400] km/h"),
+        ("enum.toml", "[run]\ntransport = \"carrier-pigeon\"\n", "carrier-pigeon"),
+        ("syntax.toml", "[run\n", "TOML parse error"),
+    ];
+    for (file, text, needle) in cases {
+        let p = scenario_file(file, text);
+        for cmd in ["validate", "run"] {
+            let (code, _, err) = tiltsim(&[cmd, p.to_str().unwrap()]);
+            assert_eq!(code, 2, "{cmd} {file}: {err}");
+            assert!(err.contains(file) && err.contains(needle), "{cmd} {file}: {err}");
+            assert!(!err.contains("panicked"), "{err}");
+        }
+    }
+    let (code, _, err) = tiltsim(&["validate", "/nonexistent/x.toml"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("/nonexistent/x.toml") && err.contains("cannot read"), "{err}");
+}
+
+#[test]
+fn bad_command_line_values_exit_2() {
+    let p = scenario_file("ok.toml", "");
+    let (code, _, err) = tiltsim(&["run", p.to_str().unwrap(), "--duration=-1", "--transport", "in-process"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("run.duration_s"), "{err}");
+    let (code, _, _) = tiltsim(&["run", p.to_str().unwrap(), "--transport", "smoke-signals"]);
+    assert_eq!(code, 2);
+}
