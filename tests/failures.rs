@@ -3,17 +3,37 @@
 
 use std::time::Duration;
 
-use tiltsim_suite::{children_of, leftovers, prefix, scenario, spawn, summary, temp_dir, wait_for, wait_with_limit, Series};
+use tiltsim_suite::{
+    children_of, leftovers, prefix, scenario, spawn, summary, temp_dir, wait_for, wait_with_limit,
+    Series,
+};
 
 /// Starts a long IPC run, waits until `victim` runs and rows are being written; returns the
 /// child, its participants and the output directory.
-fn start_long_run(name: &str, extra: &[&str]) -> (std::process::Child, Vec<(u32, String)>, std::path::PathBuf, String) {
+fn start_long_run(
+    name: &str,
+    extra: &[&str],
+) -> (
+    std::process::Child,
+    Vec<(u32, String)>,
+    std::path::PathBuf,
+    String,
+) {
     let dir = temp_dir(name);
     let pfx = prefix(name);
     let sc = scenario("paper-passive.toml");
     let mut args = vec![
-        "run", sc.to_str().unwrap(), "--out", dir.to_str().unwrap(), "--transport", "ipc", "--ipc-prefix", &pfx,
-        "--duration", "3600", "-q",
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--transport",
+        "ipc",
+        "--ipc-prefix",
+        &pfx,
+        "--duration",
+        "3600",
+        "-q",
     ];
     args.extend(extra);
     let child = spawn(&args);
@@ -24,13 +44,18 @@ fn start_long_run(name: &str, extra: &[&str]) -> (std::process::Child, Vec<(u32,
     })
     .expect("three participant processes");
     let csv = dir.join("timeseries.csv");
-    wait_for(Duration::from_secs(10), || (std::fs::metadata(&csv).ok()?.len() > 100_000).then_some(()))
-        .expect("rows being recorded");
+    wait_for(Duration::from_secs(10), || {
+        (std::fs::metadata(&csv).ok()?.len() > 100_000).then_some(())
+    })
+    .expect("rows being recorded");
     (child, kids, dir, pfx)
 }
 
 fn pid_of(kids: &[(u32, String)], comm: &str) -> u32 {
-    kids.iter().find(|(_, c)| c == comm).unwrap_or_else(|| panic!("no {comm} in {kids:?}")).0
+    kids.iter()
+        .find(|(_, c)| c == comm)
+        .unwrap_or_else(|| panic!("no {comm} in {kids:?}"))
+        .0
 }
 
 fn assert_clean_end(dir: &std::path::Path, pfx: &str, kids: &[(u32, String)], status: &str) -> u64 {
@@ -41,9 +66,16 @@ fn assert_clean_end(dir: &std::path::Path, pfx: &str, kids: &[(u32, String)], st
     // every row that the summary counts is on disk, complete
     let series = Series::read(&dir.join("timeseries.csv"));
     assert_eq!(series.rows.len() as u64, rows);
-    assert!(leftovers(pfx).is_empty(), "shared-memory files left: {:?}", leftovers(pfx));
+    assert!(
+        leftovers(pfx).is_empty(),
+        "shared-memory files left: {:?}",
+        leftovers(pfx)
+    );
     for (pid, comm) in kids {
-        assert!(!std::path::Path::new(&format!("/proc/{pid}")).exists(), "{comm} ({pid}) still exists");
+        assert!(
+            !std::path::Path::new(&format!("/proc/{pid}")).exists(),
+            "{comm} ({pid}) still exists"
+        );
     }
     rows
 }
@@ -55,7 +87,12 @@ fn a_killed_participant_is_detected_named_and_the_run_ends_cleanly() {
     unsafe { libc::kill(victim as i32, libc::SIGKILL) };
     let (code, _, err) = wait_with_limit(child, Duration::from_secs(10));
     assert_eq!(code, 1, "stderr: {err}");
-    assert!(err.contains("participant actuator") && err.contains(&victim.to_string()) && err.contains("step"), "{err}");
+    assert!(
+        err.contains("participant actuator")
+            && err.contains(&victim.to_string())
+            && err.contains("step"),
+        "{err}"
+    );
     assert!(err.contains("signal 9"), "{err}");
     assert_clean_end(&dir, &pfx, &kids, "failed");
 }
@@ -67,7 +104,12 @@ fn a_stalled_participant_is_declared_at_its_deadline() {
     unsafe { libc::kill(victim as i32, libc::SIGSTOP) };
     let (code, _, err) = wait_with_limit(child, Duration::from_secs(10));
     assert_eq!(code, 1, "stderr: {err}");
-    assert!(err.contains("participant plant") && err.contains("did not answer step") && err.contains("200 ms"), "{err}");
+    assert!(
+        err.contains("participant plant")
+            && err.contains("did not answer step")
+            && err.contains("200 ms"),
+        "{err}"
+    );
     assert_clean_end(&dir, &pfx, &kids, "failed");
 }
 

@@ -10,12 +10,23 @@ fn run_with(name: &str, scen: &str, transport: &str, master: &str, extra: &[&str
     let dir = temp_dir(name);
     let pfx = prefix(name);
     let sc = scenario(scen);
-    let mut args = vec!["run", sc.to_str().unwrap(), "--out", dir.to_str().unwrap(), "--transport", transport];
+    let mut args = vec![
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--transport",
+        transport,
+    ];
     args.extend(["--master", master, "--ipc-prefix", &pfx, "-q"]);
     args.extend(extra);
     let (code, _, err) = run(&args);
     assert_eq!(code, 0, "tiltsim failed: {err}");
-    assert!(leftovers(&pfx).is_empty(), "shared-memory files left: {:?}", leftovers(&pfx));
+    assert!(
+        leftovers(&pfx).is_empty(),
+        "shared-memory files left: {:?}",
+        leftovers(&pfx)
+    );
     dir
 }
 
@@ -26,15 +37,35 @@ fn bytes(dir: &std::path::Path) -> Vec<u8> {
 #[test]
 fn both_transports_give_byte_identical_timeseries_for_each_master() {
     for master in ["gauss-seidel", "jacobi"] {
-        let a = run_with(&format!("ipc-{master}"), "irregular-track.toml", "ipc", master, &[]);
-        let b = run_with(&format!("inproc-{master}"), "irregular-track.toml", "in-process", master, &[]);
-        assert!(bytes(&a) == bytes(&b), "{master}: ipc and in-process differ");
+        let a = run_with(
+            &format!("ipc-{master}"),
+            "irregular-track.toml",
+            "ipc",
+            master,
+            &[],
+        );
+        let b = run_with(
+            &format!("inproc-{master}"),
+            "irregular-track.toml",
+            "in-process",
+            master,
+            &[],
+        );
+        assert!(
+            bytes(&a) == bytes(&b),
+            "{master}: ipc and in-process differ"
+        );
         let s = summary(&a);
         assert_eq!(s["transport"], "ipc");
         assert_eq!(s["master_algorithm"], master);
         assert_eq!(s["status"], "completed");
         // three separate participant processes, none of them the orchestrator
-        let pids: Vec<u64> = s["participants"].as_array().unwrap().iter().map(|p| p["pid"].as_u64().unwrap()).collect();
+        let pids: Vec<u64> = s["participants"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["pid"].as_u64().unwrap())
+            .collect();
         assert_eq!(pids.len(), 3);
         assert!(pids[0] != pids[1] && pids[1] != pids[2] && pids[0] != pids[2]);
         for k in ["p50", "p99", "max"] {
@@ -45,18 +76,54 @@ fn both_transports_give_byte_identical_timeseries_for_each_master() {
 
 #[test]
 fn two_runs_with_the_same_seed_are_byte_identical_and_another_seed_differs() {
-    let a = run_with("seed-a", "irregular-track.toml", "ipc", "gauss-seidel", &["--seed", "5"]);
-    let b = run_with("seed-b", "irregular-track.toml", "ipc", "gauss-seidel", &["--seed", "5"]);
-    let c = run_with("seed-c", "irregular-track.toml", "in-process", "gauss-seidel", &["--seed", "6"]);
+    let a = run_with(
+        "seed-a",
+        "irregular-track.toml",
+        "ipc",
+        "gauss-seidel",
+        &["--seed", "5"],
+    );
+    let b = run_with(
+        "seed-b",
+        "irregular-track.toml",
+        "ipc",
+        "gauss-seidel",
+        &["--seed", "5"],
+    );
+    let c = run_with(
+        "seed-c",
+        "irregular-track.toml",
+        "in-process",
+        "gauss-seidel",
+        &["--seed", "6"],
+    );
     assert!(bytes(&a) == bytes(&b));
     assert!(bytes(&a) != bytes(&c));
 }
 
 #[test]
 fn timeseries_has_one_row_per_plant_step_with_the_documented_columns() {
-    let d = run_with("columns", "paper-passive.toml", "in-process", "gauss-seidel", &[]);
+    let d = run_with(
+        "columns",
+        "paper-passive.toml",
+        "in-process",
+        "gauss-seidel",
+        &[],
+    );
     let s = Series::read(&d.join("timeseries.csv"));
-    for c in ["t", "curvature", "cant", "theta_v", "theta_b", "y_v", "y_b", "theta_ref", "delta_a_cmd", "delta_a", "lat_acc"] {
+    for c in [
+        "t",
+        "curvature",
+        "cant",
+        "theta_v",
+        "theta_b",
+        "y_v",
+        "y_b",
+        "theta_ref",
+        "delta_a_cmd",
+        "delta_a",
+        "lat_acc",
+    ] {
         assert!(s.header.iter().any(|h| h == c), "missing column {c}");
     }
     // 16.8 s at 1 ms; row k is the state at t_{k+1} = (k+1)·1 ms
@@ -66,7 +133,11 @@ fn timeseries_has_one_row_per_plant_step_with_the_documented_columns() {
     // passive: no command, and the reference of eq 18 at mid-curve is ρ·(v²/(gR) − θ_o)-ish
     assert!(s.col("delta_a_cmd").iter().all(|&v| v == 0.0));
     let r = s.col("theta_ref")[9000];
-    assert!((r.to_degrees() - 1.75).abs() < 0.05, "theta_ref mid-curve {} deg", r.to_degrees());
+    assert!(
+        (r.to_degrees() - 1.75).abs() < 0.05,
+        "theta_ref mid-curve {} deg",
+        r.to_degrees()
+    );
 }
 
 #[test]
@@ -76,11 +147,24 @@ fn a_slow_controller_is_held_between_its_updates() {
     for transport in ["in-process", "ipc"] {
         let d = temp_dir(&format!("multirate-{transport}"));
         let sc = d.join("slow.toml");
-        std::fs::write(&sc, "[controller]\nperiod_s = 0.05\n[run]\nduration_s = 2.0\n").unwrap();
+        std::fs::write(
+            &sc,
+            "[controller]\nperiod_s = 0.05\n[run]\nduration_s = 2.0\n",
+        )
+        .unwrap();
         let pfx = prefix(&format!("mr{transport}"));
         let (code, _, err) = run(&[
-            "run", sc.to_str().unwrap(), "--out", d.to_str().unwrap(), "--transport", transport, "--ipc-prefix", &pfx, "-q",
-            "--duration", "8",
+            "run",
+            sc.to_str().unwrap(),
+            "--out",
+            d.to_str().unwrap(),
+            "--transport",
+            transport,
+            "--ipc-prefix",
+            &pfx,
+            "-q",
+            "--duration",
+            "8",
         ]);
         assert_eq!(code, 0, "{err}");
         let s = Series::read(&d.join("timeseries.csv"));
@@ -90,10 +174,18 @@ fn a_slow_controller_is_held_between_its_updates() {
         for i in 1..r.len() {
             if r[i] != r[i - 1] {
                 changes += 1;
-                assert_eq!(steps[i] as u64 % 50, 0, "reference changed at step {}", steps[i]);
+                assert_eq!(
+                    steps[i] as u64 % 50,
+                    0,
+                    "reference changed at step {}",
+                    steps[i]
+                );
             }
         }
-        assert!(changes > 10, "the reference must move along the transition ({changes} changes)");
+        assert!(
+            changes > 10,
+            "the reference must move along the transition ({changes} changes)"
+        );
         assert!(leftovers(&pfx).is_empty());
     }
 }

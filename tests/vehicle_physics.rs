@@ -28,7 +28,8 @@ fn static_equilibrium(p: &VehicleParams, v: f64, kappa: f64, cant: f64) -> Vecto
         a[(2, j)] = 2.0 * p.k_py * dp[j] - 2.0 * p.k_sy * ds[j];
         // bogie roll: 2 h2 k_sy Δs + 2 h3 k_py Δp + k_vr ψ + 2 d1² (…) − 2 d2² k_pz θ_b = 0
         let thb = [0.0, 0.0, 0.0, 1.0, 0.0][j];
-        a[(3, j)] = 2.0 * p.h2 * p.k_sy * ds[j] + 2.0 * p.h3 * p.k_py * dp[j]
+        a[(3, j)] = 2.0 * p.h2 * p.k_sy * ds[j]
+            + 2.0 * p.h3 * p.k_py * dp[j]
             + p.k_vr * psi[j]
             + 2.0 * p.d1 * p.d1 * (p.k_az * psi[j] + p.k_sz * air[j])
             - 2.0 * p.d2 * p.d2 * p.k_pz * thb;
@@ -41,9 +42,17 @@ fn static_equilibrium(p: &VehicleParams, v: f64, kappa: f64, cant: f64) -> Vecto
 }
 
 fn long_curve() -> PlantSettings {
-    let mut s = PlantSettings { dt_s: 1e-3, seed: 3, ..Default::default() };
+    let mut s = PlantSettings {
+        dt_s: 1e-3,
+        seed: 3,
+        ..Default::default()
+    };
     s.sensor.theta_v_noise_std_rad = 0.0;
-    s.track = TrackParams { straight_before_m: 10.0, curve_m: 3000.0, ..TrackParams::default() };
+    s.track = TrackParams {
+        straight_before_m: 10.0,
+        curve_m: 3000.0,
+        ..TrackParams::default()
+    };
     s
 }
 
@@ -61,12 +70,26 @@ fn passive_vehicle_settles_at_the_closed_form_equilibrium_on_the_steady_curve() 
         plant.advance(0.0);
     }
     let x = plant.state();
-    let sim = [x[ix::Y_V], x[ix::TH_V], x[ix::Y_B], x[ix::TH_B], x[ix::TH_R]];
-    for (i, name) in ["y_v", "theta_v", "y_b", "theta_b", "theta_r"].iter().enumerate() {
+    let sim = [
+        x[ix::Y_V],
+        x[ix::TH_V],
+        x[ix::Y_B],
+        x[ix::TH_B],
+        x[ix::TH_R],
+    ];
+    for (i, name) in ["y_v", "theta_v", "y_b", "theta_b", "theta_r"]
+        .iter()
+        .enumerate()
+    {
         // After 40 s every mode has decayed by more than e^-10 (slowest |Re λ| > 0.5 s⁻¹,
         // checked below), so the simulation must agree with the solve to 1e-4 relative.
         let tol = 1e-4 * eq[i].abs().max(1e-5);
-        assert!((sim[i] - eq[i]).abs() < tol, "{name}: simulated {} vs closed form {}", sim[i], eq[i]);
+        assert!(
+            (sim[i] - eq[i]).abs() < tol,
+            "{name}: simulated {} vs closed form {}",
+            sim[i],
+            eq[i]
+        );
     }
     // The body rolls outwards (negative) and the passengers feel the paper's ~1.18 m/s²
     // (section 2.3, Fig. 8; read off a plot, so ±0.03 m/s²).
@@ -74,7 +97,10 @@ fn passive_vehicle_settles_at_the_closed_form_equilibrium_on_the_steady_curve() 
     let out = plant.output();
     let a_closed = Vehicle::new(s.vehicle.clone(), v).lateral_acceleration(eq[1], kappa, cant);
     assert!((out.lat_acc - a_closed).abs() < 1e-5);
-    assert!((a_closed - 1.18).abs() < 0.03, "steady-curve lateral acceleration {a_closed} m/s²");
+    assert!(
+        (a_closed - 1.18).abs() < 0.03,
+        "steady-curve lateral acceleration {a_closed} m/s²"
+    );
 }
 
 #[test]
@@ -83,11 +109,16 @@ fn every_mode_of_the_vehicle_is_stable_and_the_primary_lateral_mode_is_where_phy
     let ss = veh.state_space();
     let eig = ss.a.complex_eigenvalues();
     let slowest = eig.iter().map(|l| -l.re).fold(f64::INFINITY, f64::min);
-    assert!(slowest > 0.5, "slowest decay rate {slowest} s⁻¹; eigenvalues {eig:?}");
+    assert!(
+        slowest > 0.5,
+        "slowest decay rate {slowest} s⁻¹; eigenvalues {eig:?}"
+    );
     // Bogie lateral mode on the primary springs: ω ≈ sqrt(2 k_py / m_b) ≈ 167 rad/s.
     let p = VehicleParams::default();
     let w = (2.0 * p.k_py / p.m_b).sqrt();
-    let found = eig.iter().any(|l| (l.norm() - w).abs() / w < 0.15 && l.im.abs() > 0.0);
+    let found = eig
+        .iter()
+        .any(|l| (l.norm() - w).abs() / w < 0.15 && l.im.abs() > 0.0);
     assert!(found, "no mode near {w} rad/s in {eig:?}");
 }
 
@@ -95,10 +126,24 @@ fn every_mode_of_the_vehicle_is_stable_and_the_primary_lateral_mode_is_where_phy
 fn state_space_matches_the_simulation_model() {
     let veh = Vehicle::new(VehicleParams::default(), 45.0);
     let ss = veh.state_space();
-    let x = plant_proc::vehicle::State::from_fn(|i, _| 0.01 * (i as f64 + 1.0) * if i % 2 == 0 { 1.0 } else { -1.0 });
-    let w = plant_proc::TrackInput { curvature: 1e-3, cant: 0.1, cant_acc: 0.3, ..Default::default() };
+    let x = plant_proc::vehicle::State::from_fn(|i, _| {
+        0.01 * (i as f64 + 1.0) * if i % 2 == 0 { 1.0 } else { -1.0 }
+    });
+    let w = plant_proc::TrackInput {
+        curvature: 1e-3,
+        cant: 0.1,
+        cant_acc: 0.3,
+        ..Default::default()
+    };
     let f = veh.deriv(&x, 0.02, &w);
-    let wv = nalgebra::SVector::<f64, 6>::from_column_slice(&[w.curvature, w.cant, w.cant_rate, w.cant_acc, w.y_o, w.dy_o]);
+    let wv = nalgebra::SVector::<f64, 6>::from_column_slice(&[
+        w.curvature,
+        w.cant,
+        w.cant_rate,
+        w.cant_acc,
+        w.y_o,
+        w.dy_o,
+    ]);
     let lin = ss.a * x + ss.b * 0.02 + ss.g * wv;
     assert!((f - lin).norm() < 1e-9 * f.norm());
 }
@@ -106,7 +151,11 @@ fn state_space_matches_the_simulation_model() {
 #[test]
 fn rk4_at_one_millisecond_agrees_with_a_four_times_finer_step() {
     let run = |dt: f64| {
-        let mut s = PlantSettings { dt_s: dt, seed: 11, ..Default::default() };
+        let mut s = PlantSettings {
+            dt_s: dt,
+            seed: 11,
+            ..Default::default()
+        };
         s.sensor.theta_v_noise_std_rad = 0.0;
         s.track.irregularity.amplitude_deg = 0.6;
         let mut plant = Plant::new(&s);
@@ -124,7 +173,10 @@ fn rk4_at_one_millisecond_agrees_with_a_four_times_finer_step() {
     let coarse = run(1e-3);
     let fine = run(2.5e-4);
     let peak = fine.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let err = coarse.iter().zip(&fine).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    let err = coarse
+        .iter()
+        .zip(&fine)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
     // The irregularity's quintic blend has a discontinuous third derivative at its knots,
     // which costs RK4 some order; the 1 ms error must still be 100x below the 1 mrad sensor
     // noise (measured: 7e-7 rad on a 0.04 rad peak).

@@ -28,7 +28,9 @@ pub struct ActuatorSettings {
 
 impl Default for ActuatorSettings {
     fn default() -> Self {
-        ActuatorSettings { model: ActuatorModel::Ideal }
+        ActuatorSettings {
+            model: ActuatorModel::Ideal,
+        }
     }
 }
 
@@ -58,14 +60,20 @@ pub struct Actuator {
 impl Actuator {
     /// A bar at neutral.
     pub fn new(init: &ActuatorInit) -> Self {
-        Actuator { settings: init.actuator.clone(), delta_a: 0.0 }
+        Actuator {
+            settings: init.actuator.clone(),
+            delta_a: 0.0,
+        }
     }
     /// Settings.
     pub fn settings(&self) -> &ActuatorSettings {
         &self.settings
     }
     fn output(&self) -> FromActuator {
-        FromActuator { delta_a: self.delta_a, ..Default::default() }
+        FromActuator {
+            delta_a: self.delta_a,
+            ..Default::default()
+        }
     }
 }
 

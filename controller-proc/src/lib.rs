@@ -35,7 +35,11 @@ pub struct ControllerSettings {
 
 impl Default for ControllerSettings {
     fn default() -> Self {
-        ControllerSettings { mode: Mode::Passive, rho: 0.30, period_s: 1e-3 }
+        ControllerSettings {
+            mode: Mode::Passive,
+            rho: 0.30,
+            period_s: 1e-3,
+        }
     }
 }
 
@@ -80,7 +84,11 @@ impl Controller {
     pub fn new(init: &ControllerInit) -> Self {
         let mut db = init.track.clone();
         db.irregularity.amplitude_deg = 0.0;
-        Controller { s: init.controller.clone(), track: Track::new(&db, 0), v: db.speed() }
+        Controller {
+            s: init.controller.clone(),
+            track: Track::new(&db, 0),
+            v: db.speed(),
+        }
     }
 
     fn compute(&mut self, input: &ToController) -> FromController {
@@ -89,7 +97,12 @@ impl Controller {
         let delta_a_cmd = match self.s.mode {
             Mode::Passive => 0.0,
         };
-        FromController { header: Default::default(), delta_a_cmd, theta_ref, theta_v_hat: input.theta_v_meas }
+        FromController {
+            header: Default::default(),
+            delta_a_cmd,
+            theta_ref,
+            theta_v_hat: input.theta_v_meas,
+        }
     }
 }
 

@@ -8,15 +8,27 @@ use crate::participant::{answer, Participant, Role};
 pub enum LinkError {
     /// No reply within the deadline.
     #[error("participant {role} (pid {pid}) did not answer step {step} within {deadline_ms} ms")]
-    Timeout { role: Role, pid: u32, step: u64, deadline_ms: u64 },
+    Timeout {
+        role: Role,
+        pid: u32,
+        step: u64,
+        deadline_ms: u64,
+    },
     /// The participant's process ended.
     #[error("participant {role} (pid {pid}) exited ({status}) while step {step} was pending")]
-    Exited { role: Role, pid: u32, step: u64, status: String },
+    Exited {
+        role: Role,
+        pid: u32,
+        step: u64,
+        status: String,
+    },
     /// A reply for an older step arrived (a stale or duplicated sample).
     #[error("participant {role}: stale sample for step {got} while waiting for step {expected}")]
     Stale { role: Role, expected: u64, got: u64 },
     /// A reply for a later step arrived (out of order).
-    #[error("participant {role}: sample for step {got} arrived out of order, expected step {expected}")]
+    #[error(
+        "participant {role}: sample for step {got} arrived out of order, expected step {expected}"
+    )]
     OutOfOrder { role: Role, expected: u64, got: u64 },
     /// More than one reply for the same step.
     #[error("participant {role}: duplicated sample for step {step}")]
@@ -26,33 +38,63 @@ pub enum LinkError {
     Malformed { role: Role, step: u64, what: String },
     /// A NaN or infinite value.
     #[error("participant {role}: non-finite value in field `{field}` of {sample} at step {step}")]
-    NonFinite { role: Role, step: u64, sample: &'static str, field: &'static str },
+    NonFinite {
+        role: Role,
+        step: u64,
+        sample: &'static str,
+        field: &'static str,
+    },
     /// The transport itself failed.
     #[error("transport to participant {role} failed: {what}")]
     Transport { role: Role, what: String },
 }
 
 /// Checks a reply against the request it answers.
-pub fn check_reply<O: Message>(role: Role, reply: &O, step: u64, kind: Kind) -> Result<(), LinkError> {
+pub fn check_reply<O: Message>(
+    role: Role,
+    reply: &O,
+    step: u64,
+    kind: Kind,
+) -> Result<(), LinkError> {
     let h = reply.header();
     if h.version != PROTOCOL_VERSION {
         return Err(LinkError::Malformed {
             role,
             step,
-            what: format!("protocol version {} (expected {PROTOCOL_VERSION})", h.version),
+            what: format!(
+                "protocol version {} (expected {PROTOCOL_VERSION})",
+                h.version
+            ),
         });
     }
     if h.step < step {
-        return Err(LinkError::Stale { role, expected: step, got: h.step });
+        return Err(LinkError::Stale {
+            role,
+            expected: step,
+            got: h.step,
+        });
     }
     if h.step > step {
-        return Err(LinkError::OutOfOrder { role, expected: step, got: h.step });
+        return Err(LinkError::OutOfOrder {
+            role,
+            expected: step,
+            got: h.step,
+        });
     }
     if h.kind != kind as u32 {
-        return Err(LinkError::Malformed { role, step, what: format!("kind {} (expected {kind:?})", h.kind) });
+        return Err(LinkError::Malformed {
+            role,
+            step,
+            what: format!("kind {} (expected {kind:?})", h.kind),
+        });
     }
     if let Some(field) = reply.first_non_finite() {
-        return Err(LinkError::NonFinite { role, step, sample: O::NAME, field });
+        return Err(LinkError::NonFinite {
+            role,
+            step,
+            sample: O::NAME,
+            field,
+        });
     }
     Ok(())
 }
@@ -89,7 +131,10 @@ pub struct InProcess<P: Participant> {
 impl<P: Participant> InProcess<P> {
     /// Wraps a model.
     pub fn new(model: P) -> Self {
-        InProcess { model, pending: None }
+        InProcess {
+            model,
+            pending: None,
+        }
     }
 }
 
@@ -103,19 +148,28 @@ impl<P: Participant> Endpoint<P::Input, P::Output> for InProcess<P> {
     fn send(&mut self, req: &P::Input) -> Result<(), LinkError> {
         if self.pending.is_some() {
             let step = req.header().step;
-            return Err(LinkError::Duplicate { role: P::ROLE, step });
+            return Err(LinkError::Duplicate {
+                role: P::ROLE,
+                step,
+            });
         }
         self.pending = Some(answer(&mut self.model, req));
         Ok(())
     }
     fn receive(&mut self, step: u64, kind: Kind) -> Result<P::Output, LinkError> {
         let Some(reply) = self.pending.take() else {
-            return Err(LinkError::Transport { role: P::ROLE, what: format!("no request pending for step {step}") });
+            return Err(LinkError::Transport {
+                role: P::ROLE,
+                what: format!("no request pending for step {step}"),
+            });
         };
         check_reply(P::ROLE, &reply, step, kind)?;
         Ok(reply)
     }
     fn shutdown(&mut self) -> ExitReport {
-        ExitReport { status: "in-process".into(), cpu_s: None }
+        ExitReport {
+            status: "in-process".into(),
+            cpu_s: None,
+        }
     }
 }

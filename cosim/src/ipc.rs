@@ -44,7 +44,11 @@ pub enum IpcError {
     Iceoryx(String),
     /// A participant process could not be started.
     #[error("cannot start participant {role} ({program}): {source}")]
-    Spawn { role: Role, program: String, source: std::io::Error },
+    Spawn {
+        role: Role,
+        program: String,
+        source: std::io::Error,
+    },
     /// A participant did not connect in time.
     #[error(transparent)]
     Link(#[from] LinkError),
@@ -69,16 +73,25 @@ pub fn allowed_cpus() -> Vec<usize> {
         if libc::sched_getaffinity(0, core::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
             return Vec::new();
         }
-        (0..libc::CPU_SETSIZE as usize).filter(|&c| libc::CPU_ISSET(c, &set)).collect()
+        (0..libc::CPU_SETSIZE as usize)
+            .filter(|&c| libc::CPU_ISSET(c, &set))
+            .collect()
     }
 }
 
 /// Pins the calling process to `cpu`. Returns false if the kernel refused.
 pub fn pin_to_cpu(cpu: usize) -> bool {
+    set_cpus(&[cpu])
+}
+
+/// Restricts the calling process to `cpus` (used to undo [`pin_to_cpu`]).
+pub fn set_cpus(cpus: &[usize]) -> bool {
     // SAFETY: as above; sched_setaffinity reads the set.
     unsafe {
         let mut set: libc::cpu_set_t = core::mem::zeroed();
-        libc::CPU_SET(cpu, &mut set);
+        for &c in cpus {
+            libc::CPU_SET(c, &mut set);
+        }
         libc::sched_setaffinity(0, core::mem::size_of::<libc::cpu_set_t>(), &set) == 0
     }
 }
@@ -105,7 +118,12 @@ pub fn unique_prefix() -> String {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.subsec_nanos())
         .unwrap_or(0);
-    format!("tiltsim_{}_{:08x}_{}_", std::process::id(), nonce, COUNTER.fetch_add(1, Ordering::Relaxed))
+    format!(
+        "tiltsim_{}_{:08x}_{}_",
+        std::process::id(),
+        nonce,
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    )
 }
 
 fn node(cfg: &Config, name: &str) -> Result<Node<ipc::Service>, IpcError> {
@@ -118,7 +136,10 @@ fn node(cfg: &Config, name: &str) -> Result<Node<ipc::Service>, IpcError> {
         .map_err(iox("create node"))
 }
 
-fn service<T: Message>(node: &Node<ipc::Service>, name: &str) -> Result<PubSubFactory<ipc::Service, T, ()>, IpcError> {
+fn service<T: Message>(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<PubSubFactory<ipc::Service, T, ()>, IpcError> {
     let name: ServiceName = name.try_into().map_err(iox("service name"))?;
     node.service_builder(&name)
         .publish_subscribe::<T>()
@@ -138,19 +159,33 @@ fn reply_service(role: Role) -> String {
 }
 
 /// Drains `sub` and returns the one sample for `step`, or an error for any other sample.
-fn drain<T: Message>(role: Role, sub: &Subscriber<ipc::Service, T, ()>, step: u64, found: &mut Option<T>) -> Result<(), LinkError> {
+fn drain<T: Message>(
+    role: Role,
+    sub: &Subscriber<ipc::Service, T, ()>,
+    step: u64,
+    found: &mut Option<T>,
+) -> Result<(), LinkError> {
     loop {
-        let sample = sub
-            .receive()
-            .map_err(|e| LinkError::Transport { role, what: format!("receive: {e:?}") })?;
+        let sample = sub.receive().map_err(|e| LinkError::Transport {
+            role,
+            what: format!("receive: {e:?}"),
+        })?;
         let Some(sample) = sample else { return Ok(()) };
         let value: T = *sample;
         let got = value.header().step;
         if got < step {
-            return Err(LinkError::Stale { role, expected: step, got });
+            return Err(LinkError::Stale {
+                role,
+                expected: step,
+                got,
+            });
         }
         if got > step {
-            return Err(LinkError::OutOfOrder { role, expected: step, got });
+            return Err(LinkError::OutOfOrder {
+                role,
+                expected: step,
+                got,
+            });
         }
         if found.is_some() {
             return Err(LinkError::Duplicate { role, step });
@@ -181,7 +216,11 @@ impl IpcHub {
         quiet_iceoryx_logs();
         let cfg = config(&settings.prefix)?;
         let node = node(&cfg, "orchestrator")?;
-        Ok(IpcHub { settings, cfg, node })
+        Ok(IpcHub {
+            settings,
+            cfg,
+            node,
+        })
     }
 
     /// The run's settings.
@@ -190,11 +229,22 @@ impl IpcHub {
     }
 
     /// Creates the participant's services, starts its process and waits until it is connected.
-    pub fn spawn<I: Message, O: Message>(&self, role: Role, launch: &Launch, startup: Duration) -> Result<IpcEndpoint<I, O>, IpcError> {
+    pub fn spawn<I: Message, O: Message>(
+        &self,
+        role: Role,
+        launch: &Launch,
+        startup: Duration,
+    ) -> Result<IpcEndpoint<I, O>, IpcError> {
         let req = service::<I>(&self.node, &request_service(role))?;
         let rep = service::<O>(&self.node, &reply_service(role))?;
-        let publisher = req.publisher_builder().create().map_err(iox("create publisher"))?;
-        let subscriber = rep.subscriber_builder().create().map_err(iox("create subscriber"))?;
+        let publisher = req
+            .publisher_builder()
+            .create()
+            .map_err(iox("create publisher"))?;
+        let subscriber = rep
+            .subscriber_builder()
+            .create()
+            .map_err(iox("create subscriber"))?;
 
         let mut cmd = Command::new(&launch.program);
         cmd.args(&launch.args)
@@ -300,7 +350,12 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
                 return Ok(());
             }
             if let Some(status) = self.exited() {
-                return Err(LinkError::Exited { role: self.role, pid: self.pid, step: 0, status });
+                return Err(LinkError::Exited {
+                    role: self.role,
+                    pid: self.pid,
+                    step: 0,
+                    status,
+                });
             }
             if started.elapsed() > startup {
                 return Err(LinkError::Timeout {
@@ -335,7 +390,10 @@ fn try_reap(pid: u32, block: bool) -> Option<ExitReport> {
     } else {
         format!("wait status {status}")
     };
-    Some(ExitReport { status, cpu_s: Some(tv(usage.ru_utime) + tv(usage.ru_stime)) })
+    Some(ExitReport {
+        status,
+        cpu_s: Some(tv(usage.ru_utime) + tv(usage.ru_stime)),
+    })
 }
 
 impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
@@ -349,7 +407,10 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         self.publisher
             .send_copy(*req)
             .map(|_| ())
-            .map_err(|e| LinkError::Transport { role: self.role, what: format!("send: {e:?}") })
+            .map_err(|e| LinkError::Transport {
+                role: self.role,
+                what: format!("send: {e:?}"),
+            })
     }
     fn receive(&mut self, step: u64, kind: Kind) -> Result<O, LinkError> {
         let mut backoff = Backoff::new(self.wait);
@@ -363,7 +424,12 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
             // A dead process is noticed within ~1k polls; a stalled one at the deadline.
             if backoff.polls() % 1024 == 1023 || backoff.elapsed() > self.deadline {
                 if let Some(status) = self.exited() {
-                    return Err(LinkError::Exited { role: self.role, pid: self.pid, step, status });
+                    return Err(LinkError::Exited {
+                        role: self.role,
+                        pid: self.pid,
+                        step,
+                        status,
+                    });
                 }
                 if backoff.elapsed() > self.deadline {
                     return Err(LinkError::Timeout {
@@ -382,7 +448,10 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
             return report.clone();
         }
         let Some(mut child) = self.child.take() else {
-            return ExitReport { status: "unknown".into(), cpu_s: None };
+            return ExitReport {
+                status: "unknown".into(),
+                cpu_s: None,
+            };
         };
         // Ask politely, then insist: a stopped or hung participant is killed.
         let _ = self.publisher.send_copy({
@@ -401,7 +470,10 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         let report = report.unwrap_or_else(|| {
             // SIGKILL also ends a stopped (SIGSTOP) or hung process.
             let _ = child.kill();
-            try_reap(self.pid, true).unwrap_or(ExitReport { status: "unknown".into(), cpu_s: None })
+            try_reap(self.pid, true).unwrap_or(ExitReport {
+                status: "unknown".into(),
+                cpu_s: None,
+            })
         });
         self.exit = Some(report.clone());
         report
@@ -434,14 +506,20 @@ pub fn remove_run_files(prefix: &str) -> usize {
 }
 
 fn remove_prefixed(dir: &std::path::Path, prefix: &str) -> usize {
-    let Ok(entries) = std::fs::read_dir(dir) else { return 0 };
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return 0;
+    };
     let mut n = 0;
     for e in entries.flatten() {
         let name = e.file_name();
         let name = name.to_string_lossy();
         let path = e.path();
         if name.starts_with(prefix) {
-            let ok = if path.is_dir() { std::fs::remove_dir_all(&path).is_ok() } else { std::fs::remove_file(&path).is_ok() };
+            let ok = if path.is_dir() {
+                std::fs::remove_dir_all(&path).is_ok()
+            } else {
+                std::fs::remove_file(&path).is_ok()
+            };
             n += usize::from(ok);
         } else if path.is_dir() && !path.is_symlink() && dir != std::path::Path::new("/dev/shm") {
             n += remove_prefixed(&path, prefix);
@@ -453,7 +531,9 @@ fn remove_prefixed(dir: &std::path::Path, prefix: &str) -> usize {
 /// Lists the files a run's prefix still has on disk (for tests and leak reports).
 pub fn leftover_files(prefix: &str) -> Vec<PathBuf> {
     fn walk(dir: &std::path::Path, prefix: &str, out: &mut Vec<PathBuf>, depth: u32) {
-        let Ok(entries) = std::fs::read_dir(dir) else { return };
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
         for e in entries.flatten() {
             let path = e.path();
             if e.file_name().to_string_lossy().starts_with(prefix) {
@@ -466,7 +546,12 @@ pub fn leftover_files(prefix: &str) -> Vec<PathBuf> {
     let mut out = Vec::new();
     walk(std::path::Path::new("/dev/shm"), prefix, &mut out, 3);
     if let Ok(cfg) = config(prefix) {
-        walk(std::path::Path::new(&cfg.global.root_path().to_string()), prefix, &mut out, 0);
+        walk(
+            std::path::Path::new(&cfg.global.root_path().to_string()),
+            prefix,
+            &mut out,
+            0,
+        );
     }
     out
 }
@@ -475,7 +560,13 @@ pub fn leftover_files(prefix: &str) -> Vec<PathBuf> {
 ///
 /// Returns an error if the orchestrator disappears (its requests stop for `idle_limit` and it
 /// is no longer our parent) or the transport fails.
-pub fn serve<P: Participant>(mut p: P, prefix: &str, wait: WaitStrategy, spin_polls: u32, idle_limit: Duration) -> Result<(), IpcError> {
+pub fn serve<P: Participant>(
+    mut p: P,
+    prefix: &str,
+    wait: WaitStrategy,
+    spin_polls: u32,
+    idle_limit: Duration,
+) -> Result<(), IpcError> {
     quiet_iceoryx_logs();
     let role = P::ROLE;
     set_process_name(role.process_name());
@@ -484,8 +575,14 @@ pub fn serve<P: Participant>(mut p: P, prefix: &str, wait: WaitStrategy, spin_po
     let node = node(&cfg, role.process_name())?;
     let req = service::<P::Input>(&node, &request_service(role))?;
     let rep = service::<P::Output>(&node, &reply_service(role))?;
-    let subscriber = req.subscriber_builder().create().map_err(iox("create subscriber"))?;
-    let publisher = rep.publisher_builder().create().map_err(iox("create publisher"))?;
+    let subscriber = req
+        .subscriber_builder()
+        .create()
+        .map_err(iox("create subscriber"))?;
+    let publisher = rep
+        .publisher_builder()
+        .create()
+        .map_err(iox("create publisher"))?;
 
     let mut expected: Option<u64> = None;
     loop {
@@ -507,13 +604,23 @@ pub fn serve<P: Participant>(mut p: P, prefix: &str, wait: WaitStrategy, spin_po
             Some(Kind::Step) => {
                 if let Some(e) = expected {
                     if h.step != e {
-                        return Err(LinkError::OutOfOrder { role, expected: e, got: h.step }.into());
+                        return Err(LinkError::OutOfOrder {
+                            role,
+                            expected: e,
+                            got: h.step,
+                        }
+                        .into());
                     }
                 }
                 expected = Some(h.step + 1);
             }
             None => {
-                return Err(LinkError::Malformed { role, step: h.step, what: format!("kind {}", h.kind) }.into());
+                return Err(LinkError::Malformed {
+                    role,
+                    step: h.step,
+                    what: format!("kind {}", h.kind),
+                }
+                .into());
             }
         }
         // Multi-rate participants skip steps: the next request may be any later step.
@@ -557,19 +664,31 @@ impl ParticipantArgs {
         let mut cpu = None;
         let mut it = args.iter();
         while let Some(a) = it.next() {
-            let mut value = |name: &str| it.next().cloned().ok_or_else(|| format!("{name} needs a value"));
+            let mut value = |name: &str| {
+                it.next()
+                    .cloned()
+                    .ok_or_else(|| format!("{name} needs a value"))
+            };
             match a.as_str() {
                 "--params" => params = Some(value("--params")?),
                 "--prefix" => prefix = Some(value("--prefix")?),
                 "--wait" => {
                     let w = value("--wait")?;
-                    wait = WaitStrategy::parse(&w).ok_or_else(|| format!("--wait {w}: allowed spin, adaptive, sleep"))?;
+                    wait = WaitStrategy::parse(&w)
+                        .ok_or_else(|| format!("--wait {w}: allowed spin, adaptive, sleep"))?;
                 }
                 "--cpu" => {
                     let c = value("--cpu")?;
-                    cpu = Some(c.parse().map_err(|_| format!("--cpu {c}: expected a CPU number"))?);
+                    cpu = Some(
+                        c.parse()
+                            .map_err(|_| format!("--cpu {c}: expected a CPU number"))?,
+                    );
                 }
-                other => return Err(format!("unknown argument `{other}`; expected --params, --prefix, --wait, --cpu")),
+                other => {
+                    return Err(format!(
+                        "unknown argument `{other}`; expected --params, --prefix, --wait, --cpu"
+                    ))
+                }
             }
         }
         Ok(ParticipantArgs {
@@ -586,18 +705,27 @@ pub const IDLE_LIMIT: Duration = Duration::from_secs(2);
 
 /// Entry point of a participant process: parses the arguments, builds the model from its JSON
 /// settings with `make`, and serves until stopped.
-pub fn participant_main<S, P>(args: &[String], make: impl FnOnce(S) -> Result<P, String>) -> Result<(), String>
+pub fn participant_main<S, P>(
+    args: &[String],
+    make: impl FnOnce(S) -> Result<P, String>,
+) -> Result<(), String>
 where
     S: serde::de::DeserializeOwned,
     P: Participant,
 {
     let a = ParticipantArgs::parse(args)?;
-    let settings: S = serde_json::from_str(&a.params).map_err(|e| format!("{}: bad --params: {e}", P::ROLE.process_name()))?;
+    let settings: S = serde_json::from_str(&a.params)
+        .map_err(|e| format!("{}: bad --params: {e}", P::ROLE.process_name()))?;
     let model = make(settings)?;
     if let Some(cpu) = a.cpu {
         pin_to_cpu(cpu);
     }
     // Participants pinned together share a CPU: they yield at once instead of spinning.
-    let spin = if a.cpu.is_some() { 0 } else { crate::wait::SPIN_POLLS };
-    serve(model, &a.prefix, a.wait, spin, IDLE_LIMIT).map_err(|e| format!("{}: {e}", P::ROLE.process_name()))
+    let spin = if a.cpu.is_some() {
+        0
+    } else {
+        crate::wait::SPIN_POLLS
+    };
+    serve(model, &a.prefix, a.wait, spin, IDLE_LIMIT)
+        .map_err(|e| format!("{}: {e}", P::ROLE.process_name()))
 }

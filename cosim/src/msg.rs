@@ -56,14 +56,17 @@ pub struct Header {
 impl Header {
     /// A header for step `step` of kind `kind` at the current protocol version.
     pub fn new(step: u64, kind: Kind) -> Self {
-        Header { step, kind: kind as u32, version: PROTOCOL_VERSION, compute_ns: 0 }
+        Header {
+            step,
+            kind: kind as u32,
+            version: PROTOCOL_VERSION,
+            compute_ns: 0,
+        }
     }
 }
 
 /// A sample type: plain old data with a [`Header`].
-pub trait Message:
-    Copy + Default + core::fmt::Debug + ZeroCopySend + Send + 'static
-{
+pub trait Message: Copy + Default + core::fmt::Debug + ZeroCopySend + Send + 'static {
     /// Name used in error messages and service names.
     const NAME: &'static str;
     /// The header.
@@ -207,7 +210,10 @@ mod tests {
         assert_eq!(s.first_non_finite(), None);
         s.x[3] = f64::NAN;
         assert_eq!(s.first_non_finite(), Some("x"));
-        let c = FromController { delta_a_cmd: f64::INFINITY, ..Default::default() };
+        let c = FromController {
+            delta_a_cmd: f64::INFINITY,
+            ..Default::default()
+        };
         assert_eq!(c.first_non_finite(), Some("delta_a_cmd"));
     }
 

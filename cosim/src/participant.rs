@@ -40,7 +40,9 @@ impl Role {
 
     /// Parses a short name.
     pub fn parse(s: &str) -> Option<Role> {
-        Role::ALL.into_iter().find(|r| r.name() == s || r.process_name() == s)
+        Role::ALL
+            .into_iter()
+            .find(|r| r.name() == s || r.process_name() == s)
     }
 }
 
@@ -82,6 +84,11 @@ pub fn answer<P: Participant>(p: &mut P, req: &P::Input) -> P::Output {
         _ => P::Output::default(),
     };
     let compute_ns = u64::try_from(started.elapsed().as_nanos()).unwrap_or(u64::MAX);
-    *out.header_mut() = Header { step: h.step, kind: h.kind, version: PROTOCOL_VERSION, compute_ns };
+    *out.header_mut() = Header {
+        step: h.step,
+        kind: h.kind,
+        version: PROTOCOL_VERSION,
+        compute_ns,
+    };
     out
 }

@@ -14,7 +14,11 @@ pub struct FieldError {
 
 impl core::fmt::Display for FieldError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "field `{}` = {}: allowed {}", self.field, self.value, self.allowed)
+        write!(
+            f,
+            "field `{}` = {}: allowed {}",
+            self.field, self.value, self.allowed
+        )
     }
 }
 
@@ -29,7 +33,10 @@ pub struct Checker {
 impl Checker {
     /// A checker whose fields are reported under `prefix` (may be empty).
     pub fn new(prefix: &str) -> Self {
-        Checker { prefix: prefix.to_string(), errors: Vec::new() }
+        Checker {
+            prefix: prefix.to_string(),
+            errors: Vec::new(),
+        }
     }
 
     fn path(&self, field: &str) -> String {
@@ -46,7 +53,9 @@ impl Checker {
             self.errors.push(FieldError {
                 field: self.path(field),
                 value: format!("{value}"),
-                allowed: format!("a number in [{lo}, {hi}] {unit}").trim_end().to_string(),
+                allowed: format!("a number in [{lo}, {hi}] {unit}")
+                    .trim_end()
+                    .to_string(),
             });
         }
     }
@@ -57,15 +66,27 @@ impl Checker {
             self.errors.push(FieldError {
                 field: self.path(field),
                 value: format!("{value}"),
-                allowed: format!("a number in (0, {hi}] {unit}").trim_end().to_string(),
+                allowed: format!("a number in (0, {hi}] {unit}")
+                    .trim_end()
+                    .to_string(),
             });
         }
     }
 
     /// Records an arbitrary rule.
-    pub fn require(&mut self, ok: bool, field: &str, value: impl core::fmt::Display, allowed: &str) {
+    pub fn require(
+        &mut self,
+        ok: bool,
+        field: &str,
+        value: impl core::fmt::Display,
+        allowed: &str,
+    ) {
         if !ok {
-            self.errors.push(FieldError { field: self.path(field), value: value.to_string(), allowed: allowed.to_string() });
+            self.errors.push(FieldError {
+                field: self.path(field),
+                value: value.to_string(),
+                allowed: allowed.to_string(),
+            });
         }
     }
 
@@ -86,7 +107,12 @@ mod tests {
         c.positive("dt_s", f64::NAN, 1.0, "s");
         c.range("ok", 3.0, 1.0, 5.0, "");
         assert_eq!(c.errors.len(), 2);
-        assert_eq!(c.errors[0].to_string(), "field `vehicle.m_v` = -1: allowed a number in [1, 1000000] kg");
-        assert!(c.errors[1].to_string().starts_with("field `vehicle.dt_s` = NaN"));
+        assert_eq!(
+            c.errors[0].to_string(),
+            "field `vehicle.m_v` = -1: allowed a number in [1, 1000000] kg"
+        );
+        assert!(c.errors[1]
+            .to_string()
+            .starts_with("field `vehicle.dt_s` = NaN"));
     }
 }

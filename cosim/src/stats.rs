@@ -42,7 +42,10 @@ mod tests {
     fn nearest_rank_on_1_to_100() {
         let mut v: Vec<f64> = (1..=100).rev().map(f64::from).collect();
         let p = percentiles(&mut v);
-        assert_eq!((p.n, p.p50, p.p99, p.max, p.mean), (100, 50.0, 99.0, 100.0, 50.5));
+        assert_eq!(
+            (p.n, p.p50, p.p99, p.max, p.mean),
+            (100, 50.0, 99.0, 100.0, 50.5)
+        );
         assert_eq!(percentiles(&mut []).n, 0);
     }
 }

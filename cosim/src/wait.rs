@@ -65,7 +65,12 @@ impl Backoff {
     /// Starts a wait that spins `spin_polls` polls before yielding (adaptive). Waiters that
     /// share a CPU with the process they wait for use 0: spinning would only delay it.
     pub fn with_spin(strategy: WaitStrategy, spin_polls: u32) -> Self {
-        Backoff { strategy, polls: 0, spin_polls, started: Instant::now() }
+        Backoff {
+            strategy,
+            polls: 0,
+            spin_polls,
+            started: Instant::now(),
+        }
     }
     /// Time since the wait started.
     pub fn elapsed(&self) -> Duration {

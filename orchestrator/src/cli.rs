@@ -21,7 +21,11 @@ pub const EXIT_INVALID: i32 = 2;
 pub const EXIT_INTERRUPTED: i32 = 130;
 
 #[derive(Parser, Debug)]
-#[command(name = "tiltsim", version, about = "Co-simulator for active tilt control of railway vehicles")]
+#[command(
+    name = "tiltsim",
+    version,
+    about = "Co-simulator for active tilt control of railway vehicles"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -110,7 +114,9 @@ pub fn main() -> i32 {
         _ => "debug",
     };
     let _ = tracing_subscriber::fmt()
-        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| level.into()))
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| level.into()),
+        )
         .with_writer(std::io::stderr)
         .try_init();
     match cli.command {
@@ -213,7 +219,12 @@ fn run(a: RunArgs) -> i32 {
             return EXIT_FAILED;
         }
     };
-    let opts = RunOptions { out_dir: out.clone(), participant_exe: exe, ipc_prefix: a.ipc_prefix, interrupt };
+    let opts = RunOptions {
+        out_dir: out.clone(),
+        participant_exe: exe,
+        ipc_prefix: a.ipc_prefix,
+        interrupt,
+    };
     let summary = match engine::run(&s, &a.scenario.display().to_string(), &opts) {
         Ok(sum) => sum,
         Err(e) => {
@@ -222,7 +233,10 @@ fn run(a: RunArgs) -> i32 {
         }
     };
     let path = out.join("summary.json");
-    if let Err(e) = std::fs::write(&path, serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n") {
+    if let Err(e) = std::fs::write(
+        &path,
+        serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n",
+    ) {
         eprintln!("error: {}: {e}", path.display());
         return EXIT_FAILED;
     }
@@ -242,7 +256,10 @@ fn run(a: RunArgs) -> i32 {
             EXIT_FAILED
         }
         Status::Interrupted => {
-            eprintln!("interrupted: {} of {} steps recorded", summary.steps_completed, summary.steps_planned);
+            eprintln!(
+                "interrupted: {} of {} steps recorded",
+                summary.steps_completed, summary.steps_planned
+            );
             EXIT_INTERRUPTED
         }
     }
@@ -251,14 +268,23 @@ fn run(a: RunArgs) -> i32 {
 fn print_report(s: &engine::Summary, out: &std::path::Path) {
     println!(
         "{}: {:?}, {} steps ({:.3} s simulated) in {:.3} s wall ({:.1}x real time)",
-        s.scenario, s.status, s.steps_completed, s.simulated_time_s, s.wall_time_s, s.realtime_factor
+        s.scenario,
+        s.status,
+        s.steps_completed,
+        s.simulated_time_s,
+        s.wall_time_s,
+        s.realtime_factor
     );
     println!(
         "  transport {}, master {}, wait {}; pids: {}",
         s.transport,
         s.master_algorithm,
         s.wait_strategy,
-        s.participants.iter().map(|p| format!("{}={}", p.process, p.pid)).collect::<Vec<_>>().join(" ")
+        s.participants
+            .iter()
+            .map(|p| format!("{}={}", p.process, p.pid))
+            .collect::<Vec<_>>()
+            .join(" ")
     );
     println!(
         "  coordination overhead per tick: p50 {:.2} us, p99 {:.2} us, max {:.1} us; CPU: orchestrator {:.2} s, participants {:.2} s",
@@ -271,5 +297,8 @@ fn print_report(s: &engine::Summary, out: &std::path::Path) {
         s.results.theta_v_mid_curve.to_degrees(),
         s.results.delta_a_peak.to_degrees()
     );
-    println!("  wrote {}/timeseries.csv, summary.json, scenario.toml", out.display());
+    println!(
+        "  wrote {}/timeseries.csv, summary.json, scenario.toml",
+        out.display()
+    );
 }

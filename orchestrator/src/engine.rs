@@ -11,7 +11,9 @@ use actuator_proc::{Actuator, ActuatorInit};
 use controller_proc::{Controller, ControllerInit};
 use cosim::endpoint::ExitReport;
 use cosim::ipc::{IpcHub, IpcSettings, Launch};
-use cosim::msg::{FromActuator, FromController, FromPlant, Header, ToActuator, ToController, ToPlant};
+use cosim::msg::{
+    FromActuator, FromController, FromPlant, Header, ToActuator, ToController, ToPlant,
+};
 use cosim::stats::{percentiles, Percentiles};
 use cosim::{Endpoint, InProcess, Kind, LinkError, Role};
 use plant_proc::{Plant, PlantSettings};
@@ -152,7 +154,10 @@ pub struct QuickLook {
 pub enum RunError {
     /// Output directory or files.
     #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     /// Transport set-up.
     #[error(transparent)]
     Ipc(#[from] cosim::ipc::IpcError),
@@ -183,8 +188,14 @@ impl Inits {
                 dt_s: s.run.dt_s,
                 seed: s.run.seed,
             },
-            actuator: ActuatorInit { actuator: s.actuator.clone(), dt_s: s.run.dt_s },
-            controller: ControllerInit { controller: s.controller.clone(), track: s.track.clone() },
+            actuator: ActuatorInit {
+                actuator: s.actuator.clone(),
+                dt_s: s.run.dt_s,
+            },
+            controller: ControllerInit {
+                controller: s.controller.clone(),
+                track: s.track.clone(),
+            },
         }
     }
 }
@@ -195,7 +206,8 @@ fn cpu_self() -> f64 {
     let mut u: libc::rusage = unsafe { core::mem::zeroed() };
     // SAFETY: RUSAGE_SELF with a valid pointer.
     unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) };
-    (u.ru_utime.tv_sec + u.ru_stime.tv_sec) as f64 + (u.ru_utime.tv_usec + u.ru_stime.tv_usec) as f64 * 1e-6
+    (u.ru_utime.tv_sec + u.ru_stime.tv_sec) as f64
+        + (u.ru_utime.tv_usec + u.ru_stime.tv_usec) as f64 * 1e-6
 }
 
 struct Participants {
@@ -215,7 +227,11 @@ fn start(s: &Scenario, opts: &RunOptions, prefix: &str) -> Result<Participants, 
             hub: None,
         }),
         Transport::Ipc => {
-            let plan = if s.run.pin_cpus { cosim::ipc::cpu_plan() } else { None };
+            let plan = if s.run.pin_cpus {
+                cosim::ipc::cpu_plan()
+            } else {
+                None
+            };
             let hub = IpcHub::new(IpcSettings {
                 prefix: prefix.to_string(),
                 wait: s.run.wait,
@@ -228,18 +244,35 @@ fn start(s: &Scenario, opts: &RunOptions, prefix: &str) -> Result<Participants, 
             let startup = Duration::from_millis(s.run.startup_ms);
             let launch = |role: Role, params: String| Launch {
                 program: opts.participant_exe.clone(),
-                args: vec!["participant".into(), role.name().into(), "--params".into(), params.into()],
+                args: vec![
+                    "participant".into(),
+                    role.name().into(),
+                    "--params".into(),
+                    params.into(),
+                ],
             };
             let json = |v: &dyn erased::Json| v.json();
-            let plant = hub.spawn::<ToPlant, FromPlant>(Role::Plant, &launch(Role::Plant, json(&inits.plant)), startup)?;
-            let actuator =
-                hub.spawn::<ToActuator, FromActuator>(Role::Actuator, &launch(Role::Actuator, json(&inits.actuator)), startup)?;
+            let plant = hub.spawn::<ToPlant, FromPlant>(
+                Role::Plant,
+                &launch(Role::Plant, json(&inits.plant)),
+                startup,
+            )?;
+            let actuator = hub.spawn::<ToActuator, FromActuator>(
+                Role::Actuator,
+                &launch(Role::Actuator, json(&inits.actuator)),
+                startup,
+            )?;
             let controller = hub.spawn::<ToController, FromController>(
                 Role::Controller,
                 &launch(Role::Controller, json(&inits.controller)),
                 startup,
             )?;
-            Ok(Participants { plant: Box::new(plant), actuator: Box::new(actuator), controller: Box::new(controller), hub: Some(hub) })
+            Ok(Participants {
+                plant: Box::new(plant),
+                actuator: Box::new(actuator),
+                controller: Box::new(controller),
+                hub: Some(hub),
+            })
         }
     }
 }
@@ -282,32 +315,43 @@ fn lockstep(
     overhead: &mut Vec<f64>,
     ticks: &mut Vec<f64>,
     compute: &mut Compute,
-) -> Result<Option<Held>, (LinkError, Option<Held>)> {
+) -> Result<(), LinkError> {
     // Initial outputs at t_0.
     let init = (|| -> Result<Held, LinkError> {
-        ps.plant.send(&ToPlant { header: hdr(0, Kind::Init), ..Default::default() })?;
-        ps.actuator.send(&ToActuator { header: hdr(0, Kind::Init), ..Default::default() })?;
-        ps.controller.send(&ToController { header: hdr(0, Kind::Init), ..Default::default() })?;
+        ps.plant.send(&ToPlant {
+            header: hdr(0, Kind::Init),
+            ..Default::default()
+        })?;
+        ps.actuator.send(&ToActuator {
+            header: hdr(0, Kind::Init),
+            ..Default::default()
+        })?;
+        ps.controller.send(&ToController {
+            header: hdr(0, Kind::Init),
+            ..Default::default()
+        })?;
         Ok(Held {
             p: ps.plant.receive(0, Kind::Init)?,
             a: ps.actuator.receive(0, Kind::Init)?,
             c: ps.controller.receive(0, Kind::Init)?,
         })
     })();
-    let mut h = match init {
-        Ok(h) => h,
-        Err(e) => return Err((e, None)),
-    };
+    let mut h = init?;
     let n = s.steps();
     let c_period = s.controller_period_ticks();
     for k in 0..n {
         if interrupt.load(Ordering::Relaxed) {
-            return Ok(Some(h));
+            return Ok(());
         }
         let started = Instant::now();
         let c_due = k % c_period == 0;
         let step = hdr(k, Kind::Step);
-        let to_c = |p: &FromPlant| ToController { header: step, t: p.t, s: p.s, theta_v_meas: p.theta_v_meas };
+        let to_c = |p: &FromPlant| ToController {
+            header: step,
+            t: p.t,
+            s: p.s,
+            theta_v_meas: p.theta_v_meas,
+        };
         let res = (|| -> Result<f64, LinkError> {
             let (cp, ca, mut cc);
             cc = 0u64;
@@ -318,10 +362,17 @@ fn lockstep(
                         h.c = ps.controller.receive(k, Kind::Step)?;
                         cc = h.c.header.compute_ns;
                     }
-                    ps.actuator.send(&ToActuator { header: step, delta_a_cmd: h.c.delta_a_cmd, psi: h.p.psi })?;
+                    ps.actuator.send(&ToActuator {
+                        header: step,
+                        delta_a_cmd: h.c.delta_a_cmd,
+                        psi: h.p.psi,
+                    })?;
                     h.a = ps.actuator.receive(k, Kind::Step)?;
                     ca = h.a.header.compute_ns;
-                    ps.plant.send(&ToPlant { header: step, delta_a: h.a.delta_a })?;
+                    ps.plant.send(&ToPlant {
+                        header: step,
+                        delta_a: h.a.delta_a,
+                    })?;
                     h.p = ps.plant.receive(k, Kind::Step)?;
                     cp = h.p.header.compute_ns;
                     Ok(((cp + ca + cc) as f64 * 1e-3, cp, ca, cc))
@@ -330,8 +381,15 @@ fn lockstep(
                     if c_due {
                         ps.controller.send(&to_c(&h.p))?;
                     }
-                    ps.actuator.send(&ToActuator { header: step, delta_a_cmd: h.c.delta_a_cmd, psi: h.p.psi })?;
-                    ps.plant.send(&ToPlant { header: step, delta_a: h.a.delta_a })?;
+                    ps.actuator.send(&ToActuator {
+                        header: step,
+                        delta_a_cmd: h.c.delta_a_cmd,
+                        psi: h.p.psi,
+                    })?;
+                    ps.plant.send(&ToPlant {
+                        header: step,
+                        delta_a: h.a.delta_a,
+                    })?;
                     if c_due {
                         h.c = ps.controller.receive(k, Kind::Step)?;
                         cc = h.c.header.compute_ns;
@@ -352,18 +410,17 @@ fn lockstep(
                 crit
             })
         })();
-        let crit_us = match res {
-            Ok(c) => c,
-            Err(e) => return Err((e, Some(h))),
-        };
+        let crit_us = res?;
         let tick_us = started.elapsed().as_secs_f64() * 1e6;
         ticks.push(tick_us);
         overhead.push((tick_us - crit_us).max(0.0));
-        if let Err(e) = rec.row(k, &h.p, &h.a, &h.c) {
-            return Err((LinkError::Transport { role: Role::Plant, what: format!("cannot record: {e}") }, Some(h)));
-        }
+        rec.row(k, &h.p, &h.a, &h.c)
+            .map_err(|e| LinkError::Transport {
+                role: Role::Plant,
+                what: format!("cannot record: {e}"),
+            })?;
     }
-    Ok(Some(h))
+    Ok(())
 }
 
 /// Runs a validated scenario. Always writes what it has to `out_dir`; the returned summary
@@ -377,10 +434,14 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
     std::fs::write(&resolved, toml::to_string(s).unwrap_or_default()).map_err(io(resolved))?;
 
     let prefix = match s.run.transport {
-        Transport::Ipc => opts.ipc_prefix.clone().unwrap_or_else(cosim::ipc::unique_prefix),
+        Transport::Ipc => opts
+            .ipc_prefix
+            .clone()
+            .unwrap_or_else(cosim::ipc::unique_prefix),
         Transport::InProcess => String::new(),
     };
     let cpu0 = cpu_self();
+    let cpus_before_run = cosim::ipc::allowed_cpus();
     let mut ps = match start(s, opts, &prefix) {
         Ok(ps) => ps,
         Err(e) => {
@@ -391,30 +452,58 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
         }
     };
     let pids = [ps.plant.pid(), ps.actuator.pid(), ps.controller.pid()];
+    // `start` may have pinned this process to one CPU for the run; undo it afterwards so a
+    // process that runs several scenarios (sweeps, benchmarks) starts each one alike.
+    let cpus_before = cpus_before_run;
     let loop_started = Instant::now();
     let mut overhead = Vec::with_capacity(s.steps() as usize);
     let mut ticks = Vec::with_capacity(s.steps() as usize);
-    let mut compute = Compute { plant: Vec::new(), actuator: Vec::new(), controller: Vec::new() };
-    let outcome = lockstep(s, &mut ps, &mut rec, &opts.interrupt, &mut overhead, &mut ticks, &mut compute);
+    let mut compute = Compute {
+        plant: Vec::new(),
+        actuator: Vec::new(),
+        controller: Vec::new(),
+    };
+    let outcome = lockstep(
+        s,
+        &mut ps,
+        &mut rec,
+        &opts.interrupt,
+        &mut overhead,
+        &mut ticks,
+        &mut compute,
+    );
     let wall = loop_started.elapsed().as_secs_f64();
     let _ = rec.flush();
 
     let (status, error) = match &outcome {
-        Ok(_) if opts.interrupt.load(Ordering::Relaxed) => (Status::Interrupted, Some("interrupted by Ctrl-C".to_string())),
+        Ok(_) if opts.interrupt.load(Ordering::Relaxed) => (
+            Status::Interrupted,
+            Some("interrupted by Ctrl-C".to_string()),
+        ),
         Ok(_) => (Status::Completed, None),
-        Err((e, _)) => (Status::Failed, Some(e.to_string())),
+        Err(e) => (Status::Failed, Some(e.to_string())),
     };
     // Stop every participant (a dead or hung one is killed and reaped), then clean up.
-    let exits = [ps.plant.shutdown(), ps.actuator.shutdown(), ps.controller.shutdown()];
+    let exits = [
+        ps.plant.shutdown(),
+        ps.actuator.shutdown(),
+        ps.controller.shutdown(),
+    ];
     let mut leftover = Vec::new();
     if let Some(hub) = ps.hub.take() {
         hub.cleanup_dead();
         drop(ps);
         drop(hub);
         cosim::ipc::remove_run_files(&prefix);
-        leftover = cosim::ipc::leftover_files(&prefix).iter().map(|p| p.display().to_string()).collect();
+        leftover = cosim::ipc::leftover_files(&prefix)
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect();
     }
 
+    if !cpus_before.is_empty() {
+        cosim::ipc::set_cpus(&cpus_before);
+    }
     let steps_completed = rec.rows();
     let mut ov = overhead;
     let o = percentiles(&mut ov);
@@ -450,14 +539,21 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
         steps_completed,
         simulated_time_s: steps_completed as f64 * s.run.dt_s,
         wall_time_s: wall,
-        realtime_factor: if wall > 0.0 { steps_completed as f64 * s.run.dt_s / wall } else { 0.0 },
+        realtime_factor: if wall > 0.0 {
+            steps_completed as f64 * s.run.dt_s / wall
+        } else {
+            0.0
+        },
         timing: Timing {
             p50: o.p50,
             p99: o.p99,
             max: o.max,
             mean: o.mean,
             tick_us: percentiles(&mut ticks),
-            cpu_s: CpuTime { orchestrator: cpu_self() - cpu0, participants: cpu_participants },
+            cpu_s: CpuTime {
+                orchestrator: cpu_self() - cpu0,
+                participants: cpu_participants,
+            },
         },
         results,
         ipc_prefix: prefix,
@@ -467,15 +563,25 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
 
 /// Reads back the recorded series for the headline numbers (works on partial runs too).
 fn quick_look(s: &Scenario, csv: &std::path::Path) -> QuickLook {
-    let Ok(text) = std::fs::read_to_string(csv) else { return QuickLook::default() };
-    let col = |name: &str| crate::record::COLUMNS.iter().position(|c| *c == name).unwrap_or(0);
+    let Ok(text) = std::fs::read_to_string(csv) else {
+        return QuickLook::default();
+    };
+    let col = |name: &str| {
+        crate::record::COLUMNS
+            .iter()
+            .position(|c| *c == name)
+            .unwrap_or(0)
+    };
     let (it, ilat, ith, ida) = (col("t"), col("lat_acc"), col("theta_v"), col("delta_a"));
     let tp = &s.track;
     let t_mid = (tp.straight_before_m + tp.transition_m + tp.curve_m / 2.0) / tp.speed();
     let mut q = QuickLook::default();
     let mut best = f64::INFINITY;
     for line in text.lines().skip(1) {
-        let f: Vec<f64> = line.split(',').map(|x| x.parse().unwrap_or(f64::NAN)).collect();
+        let f: Vec<f64> = line
+            .split(',')
+            .map(|x| x.parse().unwrap_or(f64::NAN))
+            .collect();
         if f.len() < crate::record::COLUMNS.len() {
             continue;
         }

@@ -9,9 +9,32 @@ use cosim::msg::{FromActuator, FromController, FromPlant};
 
 /// Column names, SI units and radians (units in README).
 pub const COLUMNS: &[&str] = &[
-    "step", "t", "s", "curvature", "cant", "y_v", "theta_v", "y_b", "theta_b", "dy_v", "dtheta_v", "dy_b",
-    "dtheta_b", "theta_r", "psi", "lat_acc", "theta_v_meas", "theta_v_hat", "theta_ref", "delta_a_cmd", "delta_a",
-    "motor_torque", "motor_speed", "motor_current", "dc_power", "actuator_limits",
+    "step",
+    "t",
+    "s",
+    "curvature",
+    "cant",
+    "y_v",
+    "theta_v",
+    "y_b",
+    "theta_b",
+    "dy_v",
+    "dtheta_v",
+    "dy_b",
+    "dtheta_b",
+    "theta_r",
+    "psi",
+    "lat_acc",
+    "theta_v_meas",
+    "theta_v_hat",
+    "theta_ref",
+    "delta_a_cmd",
+    "delta_a",
+    "motor_torque",
+    "motor_speed",
+    "motor_current",
+    "dc_power",
+    "actuator_limits",
 ];
 
 /// Writes the time series.
@@ -26,12 +49,22 @@ impl Recorder {
     pub fn create(path: &Path) -> std::io::Result<Self> {
         let mut out = BufWriter::with_capacity(1 << 16, File::create(path)?);
         writeln!(out, "{}", COLUMNS.join(","))?;
-        Ok(Recorder { out, rows: 0, line: String::with_capacity(512) })
+        Ok(Recorder {
+            out,
+            rows: 0,
+            line: String::with_capacity(512),
+        })
     }
 
     /// Appends the row of step `k`. Floats are written in Rust's shortest round-trip form, so
     /// identical values give identical bytes.
-    pub fn row(&mut self, k: u64, p: &FromPlant, a: &FromActuator, c: &FromController) -> std::io::Result<()> {
+    pub fn row(
+        &mut self,
+        k: u64,
+        p: &FromPlant,
+        a: &FromActuator,
+        c: &FromController,
+    ) -> std::io::Result<()> {
         use std::fmt::Write as _;
         self.line.clear();
         let _ = write!(self.line, "{k}");
@@ -44,7 +77,15 @@ impl Recorder {
         for v in p.x {
             put(v);
         }
-        for v in [p.psi, p.lat_acc, p.theta_v_meas, c.theta_v_hat, c.theta_ref, c.delta_a_cmd, a.delta_a] {
+        for v in [
+            p.psi,
+            p.lat_acc,
+            p.theta_v_meas,
+            c.theta_v_hat,
+            c.theta_ref,
+            c.delta_a_cmd,
+            a.delta_a,
+        ] {
             put(v);
         }
         for v in [a.motor_torque, a.motor_speed, a.motor_current, a.dc_power] {
@@ -53,7 +94,7 @@ impl Recorder {
         let _ = writeln!(self.line, ",{}", a.limits);
         self.out.write_all(self.line.as_bytes())?;
         self.rows += 1;
-        if self.rows % 1000 == 0 {
+        if self.rows.is_multiple_of(1000) {
             self.out.flush()?;
         }
         Ok(())

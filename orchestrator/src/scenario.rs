@@ -122,22 +122,34 @@ pub struct Scenario {
 pub enum ScenarioError {
     /// The file could not be read.
     #[error("{file}: cannot read: {source}")]
-    Read { file: PathBuf, source: std::io::Error },
+    Read {
+        file: PathBuf,
+        source: std::io::Error,
+    },
     /// Syntax, wrong type or unknown key (toml's message names the key and line).
     #[error("{file}: {message}")]
     Parse { file: PathBuf, message: String },
     /// Values out of range.
     #[error("{file}: invalid settings:\n{}", errors.iter().map(|e| format!("  {e}")).collect::<Vec<_>>().join("\n"))]
-    Invalid { file: PathBuf, errors: Vec<FieldError> },
+    Invalid {
+        file: PathBuf,
+        errors: Vec<FieldError>,
+    },
 }
 
 impl Scenario {
     /// Reads, parses and validates a scenario file.
     pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Read { file: path.into(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Read {
+            file: path.into(),
+            source,
+        })?;
         let mut s = Scenario::parse(&text, path)?;
         if s.name.is_empty() {
-            s.name = path.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            s.name = path
+                .file_stem()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
         }
         Ok(s)
     }
@@ -152,7 +164,10 @@ impl Scenario {
         if errors.is_empty() {
             Ok(s)
         } else {
-            Err(ScenarioError::Invalid { file: file.into(), errors })
+            Err(ScenarioError::Invalid {
+                file: file.into(),
+                errors,
+            })
         }
     }
 
@@ -164,8 +179,18 @@ impl Scenario {
         if let Some(d) = r.duration_s {
             c.positive("duration_s", d, 3600.0, "s");
         }
-        c.require((1..=60_000).contains(&r.deadline_ms), "deadline_ms", r.deadline_ms, "an integer in [1, 60000] ms");
-        c.require((100..=120_000).contains(&r.startup_ms), "startup_ms", r.startup_ms, "an integer in [100, 120000] ms");
+        c.require(
+            (1..=60_000).contains(&r.deadline_ms),
+            "deadline_ms",
+            r.deadline_ms,
+            "an integer in [1, 60000] ms",
+        );
+        c.require(
+            (100..=120_000).contains(&r.startup_ms),
+            "startup_ms",
+            r.startup_ms,
+            "an integer in [100, 120000] ms",
+        );
         let mut all = c;
         all.merge(self.vehicle.validate("vehicle"));
         all.merge(self.track.validate("track"));
@@ -186,7 +211,9 @@ impl Scenario {
 
     /// Simulated duration (s).
     pub fn duration(&self) -> f64 {
-        self.run.duration_s.unwrap_or_else(|| self.track.length() / self.track.speed())
+        self.run
+            .duration_s
+            .unwrap_or_else(|| self.track.length() / self.track.speed())
     }
 
     /// Number of base ticks.
@@ -219,11 +246,23 @@ mod tests {
     fn unknown_key_wrong_type_and_range_are_named() {
         let e = parse("[vehicle]\nm_vv = 3.0\n").unwrap_err().to_string();
         assert!(e.starts_with("x.toml:") && e.contains("m_vv"), "{e}");
-        let e = parse("[vehicle]\nm_v = \"heavy\"\n").unwrap_err().to_string();
+        let e = parse("[vehicle]\nm_v = \"heavy\"\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("m_v") && e.contains("invalid type"), "{e}");
-        let e = parse("[vehicle]\nm_v = -5.0\n[run]\ndt_s = 1.0\n").unwrap_err().to_string();
-        assert!(e.contains("field `vehicle.m_v` = -5") && e.contains("field `run.dt_s` = 1"), "{e}");
-        let e = parse("[controller]\nperiod_s = 0.0015\n").unwrap_err().to_string();
-        assert!(e.contains("controller.period_s") && e.contains("whole multiple"), "{e}");
+        let e = parse("[vehicle]\nm_v = -5.0\n[run]\ndt_s = 1.0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("field `vehicle.m_v` = -5") && e.contains("field `run.dt_s` = 1"),
+            "{e}"
+        );
+        let e = parse("[controller]\nperiod_s = 0.0015\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("controller.period_s") && e.contains("whole multiple"),
+            "{e}"
+        );
     }
 }

@@ -3,8 +3,15 @@
 use std::process::Command;
 
 fn tiltsim(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tiltsim")).args(args).output().expect("run tiltsim");
-    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+    let out = Command::new(env!("CARGO_BIN_EXE_tiltsim"))
+        .args(args)
+        .output()
+        .expect("run tiltsim");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
 }
 
 fn scenario_file(name: &str, text: &str) -> std::path::PathBuf {
@@ -17,7 +24,10 @@ fn scenario_file(name: &str, text: &str) -> std::path::PathBuf {
 
 #[test]
 fn shipped_scenarios_validate() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().join("scenarios");
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .join("scenarios");
     for e in std::fs::read_dir(root).unwrap() {
         let p = e.unwrap().path();
         let (code, out, err) = tiltsim(&["validate", p.to_str().unwrap()]);
@@ -29,10 +39,22 @@ fn shipped_scenarios_validate() {
 #[test]
 fn malformed_scenarios_are_rejected_with_file_field_and_allowed_values() {
     let cases = [
-        ("unknown.toml", "[vehicle]\nmass = 3\n", "unknown field `mass`"),
+        (
+            "unknown.toml",
+            "[vehicle]\nmass = 3\n",
+            "unknown field `mass`",
+        ),
         ("type.toml", "[track]\nspeed_kmh = \"fast\"\n", "speed_kmh"),
-        ("range.toml", "[track]\nspeed_kmh = -10.0\n", "field `track.speed_kmh` = -10: allowed a number in (0, 400] km/h"),
-        ("enum.toml", "[run]\ntransport = \"carrier-pigeon\"\n", "carrier-pigeon"),
+        (
+            "range.toml",
+            "[track]\nspeed_kmh = -10.0\n",
+            "field `track.speed_kmh` = -10: allowed a number in (0, 400] km/h",
+        ),
+        (
+            "enum.toml",
+            "[run]\ntransport = \"carrier-pigeon\"\n",
+            "carrier-pigeon",
+        ),
         ("syntax.toml", "[run\n", "TOML parse error"),
     ];
     for (file, text, needle) in cases {
@@ -40,19 +62,31 @@ fn malformed_scenarios_are_rejected_with_file_field_and_allowed_values() {
         for cmd in ["validate", "run"] {
             let (code, _, err) = tiltsim(&[cmd, p.to_str().unwrap()]);
             assert_eq!(code, 2, "{cmd} {file}: {err}");
-            assert!(err.contains(file) && err.contains(needle), "{cmd} {file}: {err}");
+            assert!(
+                err.contains(file) && err.contains(needle),
+                "{cmd} {file}: {err}"
+            );
             assert!(!err.contains("panicked"), "{err}");
         }
     }
     let (code, _, err) = tiltsim(&["validate", "/nonexistent/x.toml"]);
     assert_eq!(code, 2);
-    assert!(err.contains("/nonexistent/x.toml") && err.contains("cannot read"), "{err}");
+    assert!(
+        err.contains("/nonexistent/x.toml") && err.contains("cannot read"),
+        "{err}"
+    );
 }
 
 #[test]
 fn bad_command_line_values_exit_2() {
     let p = scenario_file("ok.toml", "");
-    let (code, _, err) = tiltsim(&["run", p.to_str().unwrap(), "--duration=-1", "--transport", "in-process"]);
+    let (code, _, err) = tiltsim(&[
+        "run",
+        p.to_str().unwrap(),
+        "--duration=-1",
+        "--transport",
+        "in-process",
+    ]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("run.duration_s"), "{err}");
     let (code, _, _) = tiltsim(&["run", p.to_str().unwrap(), "--transport", "smoke-signals"]);

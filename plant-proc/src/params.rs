@@ -177,7 +177,10 @@ pub struct IrregularityParams {
 
 impl Default for IrregularityParams {
     fn default() -> Self {
-        IrregularityParams { amplitude_deg: 0.0, knot_spacing_m: 10.0 }
+        IrregularityParams {
+            amplitude_deg: 0.0,
+            knot_spacing_m: 10.0,
+        }
     }
 }
 
@@ -186,14 +189,31 @@ impl TrackParams {
     pub fn validate(&self, prefix: &str) -> Checker {
         let mut c = Checker::new(prefix);
         c.positive("speed_kmh", self.speed_kmh, 400.0, "km/h");
-        c.require(self.radius_m.is_finite() && self.radius_m.abs() >= 50.0, "radius_m", self.radius_m, "|R| >= 50 m (sign gives the curve's direction)");
+        c.require(
+            self.radius_m.is_finite() && self.radius_m.abs() >= 50.0,
+            "radius_m",
+            self.radius_m,
+            "|R| >= 50 m (sign gives the curve's direction)",
+        );
         c.range("cant_deg", self.cant_deg, -10.0, 10.0, "deg");
         c.range("straight_before_m", self.straight_before_m, 0.0, 1e5, "m");
         c.positive("transition_m", self.transition_m, 1e4, "m");
         c.range("curve_m", self.curve_m, 0.0, 1e5, "m");
         c.range("straight_after_m", self.straight_after_m, 0.0, 1e5, "m");
-        c.range("irregularity.amplitude_deg", self.irregularity.amplitude_deg, 0.0, 3.0, "deg");
-        c.range("irregularity.knot_spacing_m", self.irregularity.knot_spacing_m, 1.0, 1000.0, "m");
+        c.range(
+            "irregularity.amplitude_deg",
+            self.irregularity.amplitude_deg,
+            0.0,
+            3.0,
+            "deg",
+        );
+        c.range(
+            "irregularity.knot_spacing_m",
+            self.irregularity.knot_spacing_m,
+            1.0,
+            1000.0,
+            "m",
+        );
         c
     }
     /// Speed v (m/s).
@@ -217,7 +237,9 @@ pub struct SensorParams {
 
 impl Default for SensorParams {
     fn default() -> Self {
-        SensorParams { theta_v_noise_std_rad: 1e-3 }
+        SensorParams {
+            theta_v_noise_std_rad: 1e-3,
+        }
     }
 }
 
@@ -225,7 +247,13 @@ impl SensorParams {
     /// Checks every field.
     pub fn validate(&self, prefix: &str) -> Checker {
         let mut c = Checker::new(prefix);
-        c.range("theta_v_noise_std_rad", self.theta_v_noise_std_rad, 0.0, 0.1, "rad");
+        c.range(
+            "theta_v_noise_std_rad",
+            self.theta_v_noise_std_rad,
+            0.0,
+            0.1,
+            "rad",
+        );
         c
     }
 }

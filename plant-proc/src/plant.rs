@@ -44,7 +44,8 @@ impl Plant {
             dt: s.dt_s,
             x: State::zeros(),
             k: 0,
-            noise: (sigma > 0.0).then(|| Normal::new(0.0, sigma).expect("sigma validated finite and > 0")),
+            noise: (sigma > 0.0)
+                .then(|| Normal::new(0.0, sigma).expect("sigma validated finite and > 0")),
             rng,
         }
     }

@@ -73,7 +73,15 @@ impl Track {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         rng.set_stream(1);
         let knots = if amp > 0.0 {
-            (0..n).map(|i| if i == 0 { 0.0 } else { rng.random_range(-amp..=amp) }).collect()
+            (0..n)
+                .map(|i| {
+                    if i == 0 {
+                        0.0
+                    } else {
+                        rng.random_range(-amp..=amp)
+                    }
+                })
+                .collect()
         } else {
             Vec::new()
         };
@@ -145,10 +153,22 @@ impl Track {
     pub fn corners(&self) -> [Corner; 4] {
         let k = self.cant / self.p.transition_m;
         [
-            Corner { s: self.s1, dslope: k },
-            Corner { s: self.s2, dslope: -k },
-            Corner { s: self.s3, dslope: -k },
-            Corner { s: self.s4, dslope: k },
+            Corner {
+                s: self.s1,
+                dslope: k,
+            },
+            Corner {
+                s: self.s2,
+                dslope: -k,
+            },
+            Corner {
+                s: self.s3,
+                dslope: -k,
+            },
+            Corner {
+                s: self.s4,
+                dslope: k,
+            },
         ]
     }
 

@@ -106,7 +106,9 @@ impl Vehicle {
         // eq 9
         let ddy_v = (-2.0 * f_s) / p.m_v - v2k + G * w.cant - p.h_gv * w.cant_acc;
         // eq 10
-        let ddth_v = (2.0 * p.h1 * f_s + p.m_v * G * (y_v - y_b) - m_bar - m_air - p.c_vr * dpsi) / p.i_vr - w.cant_acc;
+        let ddth_v = (2.0 * p.h1 * f_s + p.m_v * G * (y_v - y_b) - m_bar - m_air - p.c_vr * dpsi)
+            / p.i_vr
+            - w.cant_acc;
         // eq 11
         let ddy_b = (2.0 * f_s - 2.0 * f_p) / p.m_b - v2k + G * w.cant - p.h_gb * w.cant_acc;
         // eq 12
@@ -118,7 +120,9 @@ impl Vehicle {
         // A.2: c_rz (θ̇_r − θ̇_b) = k_sz (θ_v − θ_r) − k_rz (θ_r − θ_b)
         let dth_r = dth_b + (p.k_sz * (th_v - th_r) - p.k_rz * (th_r - th_b)) / p.c_rz;
 
-        State::from_column_slice(&[dy_v, dth_v, dy_b, dth_b, ddy_v, ddth_v, ddy_b, ddth_b, dth_r])
+        State::from_column_slice(&[
+            dy_v, dth_v, dy_b, dth_b, ddy_v, ddth_v, ddy_b, ddth_b, dth_r,
+        ])
     }
 
     /// Passenger lateral acceleration, eq 13 with θ_o + θ_v (model-notes 4) (m/s²).
@@ -166,6 +170,6 @@ impl Vehicle {
         }
         let mut c = SMatrix::<f64, 1, NX>::zeros();
         c[ix::TH_V] = 1.0;
-        StateSpace { a, b: b.into(), g, c }
+        StateSpace { a, b, g, c }
     }
 }

@@ -21,15 +21,24 @@ pub fn tiltsim() -> PathBuf {
         return PathBuf::from(p);
     }
     let exe = std::env::current_exe().expect("test executable path");
-    let dir = exe.parent().and_then(Path::parent).expect("target/<profile>");
+    let dir = exe
+        .parent()
+        .and_then(Path::parent)
+        .expect("target/<profile>");
     let p = dir.join("tiltsim");
-    assert!(p.exists(), "{} not built: run the README's test command (cargo test --release --workspace)", p.display());
+    assert!(
+        p.exists(),
+        "{} not built: run the README's test command (cargo test --release --workspace)",
+        p.display()
+    );
     p
 }
 
 /// A fresh, empty directory for one test.
 pub fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join("tiltsim-tests").join(format!("{name}-{}", std::process::id()));
+    let d = std::env::temp_dir()
+        .join("tiltsim-tests")
+        .join(format!("{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).expect("create temp dir");
     d
@@ -64,14 +73,25 @@ pub fn run(args: &[&str]) -> (i32, String, String) {
 /// Child processes of `pid` as (pid, comm), read from /proc.
 pub fn children_of(pid: u32) -> Vec<(u32, String)> {
     let mut out = Vec::new();
-    let Ok(entries) = std::fs::read_dir("/proc") else { return out };
+    let Ok(entries) = std::fs::read_dir("/proc") else {
+        return out;
+    };
     for e in entries.flatten() {
-        let Ok(p) = e.file_name().to_string_lossy().parse::<u32>() else { continue };
-        let Ok(stat) = std::fs::read_to_string(format!("/proc/{p}/stat")) else { continue };
+        let Ok(p) = e.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(format!("/proc/{p}/stat")) else {
+            continue;
+        };
         // pid (comm) state ppid ...
-        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else { continue };
+        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
+            continue;
+        };
         let comm = stat[open + 1..close].to_string();
-        let ppid = stat[close + 2..].split_whitespace().nth(1).and_then(|v| v.parse::<u32>().ok());
+        let ppid = stat[close + 2..]
+            .split_whitespace()
+            .nth(1)
+            .and_then(|v| v.parse::<u32>().ok());
         if ppid == Some(pid) {
             out.push((p, comm));
         }
@@ -122,15 +142,27 @@ pub struct Series {
 impl Series {
     /// Reads `timeseries.csv`.
     pub fn read(path: &Path) -> Series {
-        let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let text =
+            std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let mut lines = text.lines();
-        let header = lines.next().unwrap_or_default().split(',').map(str::to_string).collect();
-        let rows = lines.map(|l| l.split(',').map(|v| v.parse().expect("number")).collect()).collect();
+        let header = lines
+            .next()
+            .unwrap_or_default()
+            .split(',')
+            .map(str::to_string)
+            .collect();
+        let rows = lines
+            .map(|l| l.split(',').map(|v| v.parse().expect("number")).collect())
+            .collect();
         Series { header, rows }
     }
     /// One column.
     pub fn col(&self, name: &str) -> Vec<f64> {
-        let i = self.header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name}"));
+        let i = self
+            .header
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("no column {name}"));
         self.rows.iter().map(|r| r[i]).collect()
     }
 }
@@ -138,7 +170,10 @@ impl Series {
 /// Reads `summary.json`.
 pub fn summary(dir: &Path) -> serde_json::Value {
     let p = dir.join("summary.json");
-    serde_json::from_str(&std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))).expect("json")
+    serde_json::from_str(
+        &std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display())),
+    )
+    .expect("json")
 }
 
 /// Files the run with `prefix` left in shared memory or the iceoryx2 directories.
