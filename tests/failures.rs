@@ -62,7 +62,9 @@ fn assert_clean_end(dir: &std::path::Path, pfx: &str, kids: &[(u32, String)], st
     let s = summary(dir);
     assert_eq!(s["status"], status);
     let rows = s["steps_completed"].as_u64().unwrap();
-    assert!(rows > 1000, "rows recorded so far must be kept ({rows})");
+    // The victim was stopped only after more than 100 kB (at least one flush of 1000 rows) was
+    // on disk; all of it must still be there.
+    assert!(rows >= 1000, "rows recorded so far must be kept ({rows})");
     // every row that the summary counts is on disk, complete
     let series = Series::read(&dir.join("timeseries.csv"));
     assert_eq!(series.rows.len() as u64, rows);

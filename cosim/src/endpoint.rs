@@ -173,3 +173,96 @@ impl<P: Participant> Endpoint<P::Input, P::Output> for InProcess<P> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::{FromController, Header, ToController};
+
+    /// A participant that echoes the measurement, to exercise the checks.
+    struct Echo;
+    impl Participant for Echo {
+        type Input = ToController;
+        type Output = FromController;
+        const ROLE: Role = Role::Controller;
+        fn initial_output(&mut self) -> FromController {
+            FromController::default()
+        }
+        fn step(&mut self, i: &ToController) -> FromController {
+            FromController {
+                theta_v_hat: i.theta_v_meas,
+                ..Default::default()
+            }
+        }
+    }
+
+    fn reply(step: u64, kind: Kind) -> FromController {
+        FromController {
+            header: Header::new(step, kind),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn replies_for_other_steps_kinds_or_versions_are_errors() {
+        let r = Role::Controller;
+        assert!(check_reply(r, &reply(7, Kind::Step), 7, Kind::Step).is_ok());
+        assert!(matches!(
+            check_reply(r, &reply(6, Kind::Step), 7, Kind::Step),
+            Err(LinkError::Stale {
+                expected: 7,
+                got: 6,
+                ..
+            })
+        ));
+        assert!(matches!(
+            check_reply(r, &reply(8, Kind::Step), 7, Kind::Step),
+            Err(LinkError::OutOfOrder {
+                expected: 7,
+                got: 8,
+                ..
+            })
+        ));
+        assert!(matches!(
+            check_reply(r, &reply(7, Kind::Init), 7, Kind::Step),
+            Err(LinkError::Malformed { .. })
+        ));
+        let mut old = reply(7, Kind::Step);
+        old.header.version = 0;
+        let e = check_reply(r, &old, 7, Kind::Step).unwrap_err();
+        assert!(e.to_string().contains("protocol version 0"), "{e}");
+        let mut nan = reply(7, Kind::Step);
+        nan.delta_a_cmd = f64::NAN;
+        let e = check_reply(r, &nan, 7, Kind::Step).unwrap_err();
+        assert_eq!(e.to_string(), "participant controller: non-finite value in field `delta_a_cmd` of from_controller at step 7");
+    }
+
+    #[test]
+    fn in_process_endpoint_checks_like_ipc_and_rejects_a_second_request() {
+        let mut ep = InProcess::new(Echo);
+        let req = ToController {
+            header: Header::new(3, Kind::Step),
+            theta_v_meas: 0.25,
+            ..Default::default()
+        };
+        ep.send(&req).unwrap();
+        assert!(matches!(
+            ep.send(&req),
+            Err(LinkError::Duplicate { step: 3, .. })
+        ));
+        assert!(matches!(
+            ep.receive(4, Kind::Step),
+            Err(LinkError::Stale {
+                expected: 4,
+                got: 3,
+                ..
+            })
+        ));
+        ep.send(&req).unwrap();
+        assert_eq!(ep.receive(3, Kind::Step).unwrap().theta_v_hat, 0.25);
+        assert!(
+            matches!(ep.receive(3, Kind::Step), Err(LinkError::Transport { .. })),
+            "no reply without a request"
+        );
+    }
+}

@@ -195,6 +195,7 @@ impl Inits {
             controller: ControllerInit {
                 controller: s.controller.clone(),
                 track: s.track.clone(),
+                vehicle: s.vehicle.clone(),
             },
         }
     }
