@@ -584,7 +584,9 @@ pub fn serve<P: Participant>(
         .create()
         .map_err(iox("create publisher"))?;
 
-    let mut expected: Option<u64> = None;
+    // Steps must arrive in increasing order after Init; multi-rate participants are asked only
+    // on their own ticks, so the next step may be any later one.
+    let mut last_step: Option<u64> = None;
     loop {
         let mut backoff = Backoff::with_spin(wait, spin_polls);
         let request = loop {
@@ -600,19 +602,17 @@ pub fn serve<P: Participant>(
         let h = *request.header();
         match Kind::from_raw(h.kind) {
             Some(Kind::Stop) => return Ok(()),
-            Some(Kind::Init) => expected = Some(0),
+            Some(Kind::Init) => last_step = None,
             Some(Kind::Step) => {
-                if let Some(e) = expected {
-                    if h.step != e {
-                        return Err(LinkError::OutOfOrder {
-                            role,
-                            expected: e,
-                            got: h.step,
-                        }
-                        .into());
+                if let Some(last) = last_step.filter(|&l| h.step <= l) {
+                    return Err(LinkError::OutOfOrder {
+                        role,
+                        expected: last + 1,
+                        got: h.step,
                     }
+                    .into());
                 }
-                expected = Some(h.step + 1);
+                last_step = Some(h.step);
             }
             None => {
                 return Err(LinkError::Malformed {
@@ -622,10 +622,6 @@ pub fn serve<P: Participant>(
                 }
                 .into());
             }
-        }
-        // Multi-rate participants skip steps: the next request may be any later step.
-        if Kind::from_raw(h.kind) == Some(Kind::Step) {
-            expected = None;
         }
         let reply = answer(&mut p, &request);
         publisher.send_copy(reply).map_err(iox("send"))?;

@@ -252,7 +252,6 @@ fn start(s: &Scenario, opts: &RunOptions, prefix: &str) -> Result<Participants, 
                     params.into(),
                 ],
             };
-            let json = |v: &dyn erased::Json| v.json();
             let plant = hub.spawn::<ToPlant, FromPlant>(
                 Role::Plant,
                 &launch(Role::Plant, json(&inits.plant)),
@@ -278,16 +277,10 @@ fn start(s: &Scenario, opts: &RunOptions, prefix: &str) -> Result<Participants, 
     }
 }
 
-mod erased {
-    pub trait Json {
-        fn json(&self) -> String;
-    }
-    impl<T: serde::Serialize> Json for T {
-        fn json(&self) -> String {
-            // Serialising plain settings structs cannot fail (no maps with non-string keys).
-            serde_json::to_string(self).unwrap_or_default()
-        }
-    }
+/// Settings as the JSON a participant process receives. Plain settings structs (no maps with
+/// non-string keys) always serialise.
+fn json<T: Serialize>(v: &T) -> String {
+    serde_json::to_string(v).unwrap_or_default()
 }
 
 fn hdr(k: u64, kind: Kind) -> Header {
