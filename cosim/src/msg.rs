@@ -11,7 +11,7 @@
 use iceoryx2::prelude::ZeroCopySend;
 
 /// Version of the sample layouts below. Bumped whenever a field changes.
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;
 
 /// What a sample asks for or answers.
 #[repr(u32)]
@@ -197,6 +197,10 @@ message!(
         theta_ref: f64,
         /// Estimated body roll θ̂_v (rad); the measurement where no estimator runs.
         theta_v_hat: f64,
+        /// QP solver iterations of this update (0 where no QP runs).
+        solver_iterations: u32,
+        /// QP outcome of this update: 0 no QP, 1 solved, 2 failed (the fallback was applied).
+        solver_status: u32,
     }
 );
 

@@ -43,6 +43,15 @@ enum Command {
         /// Scenario file (TOML).
         scenario: PathBuf,
     },
+    /// Print the linear design model (matrices, eigenvalues, damping, frequencies) and the
+    /// scenario controller's gains as JSON.
+    Linearize {
+        /// Scenario file (TOML).
+        scenario: PathBuf,
+        /// Write the JSON here instead of standard output.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 #[derive(clap::Args, Debug)]
@@ -140,6 +149,38 @@ pub fn main() -> i32 {
             }
         },
         Command::Run(a) => run(a),
+        Command::Linearize { scenario, out } => linearize(&scenario, out.as_deref()),
+    }
+}
+
+fn linearize(scenario: &std::path::Path, out: Option<&std::path::Path>) -> i32 {
+    let s = match Scenario::load(scenario) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_INVALID;
+        }
+    };
+    let report = match crate::linearize::report(&s) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {}: controller design: {e}", scenario.display());
+            return EXIT_INVALID;
+        }
+    };
+    let text = serde_json::to_string_pretty(&report).unwrap_or_default() + "\n";
+    match out {
+        Some(p) => match std::fs::write(p, text) {
+            Ok(()) => 0,
+            Err(e) => {
+                eprintln!("error: {}: {e}", p.display());
+                EXIT_FAILED
+            }
+        },
+        None => {
+            print!("{text}");
+            0
+        }
     }
 }
 
@@ -297,6 +338,18 @@ fn print_report(s: &engine::Summary, out: &std::path::Path) {
         s.results.theta_v_mid_curve.to_degrees(),
         s.results.delta_a_peak.to_degrees()
     );
+    for p in &s.participants {
+        println!(
+            "  {} compute per call: p50 {:.1} us, p99 {:.1} us, max {:.1} us ({} calls)",
+            p.process, p.compute_us.p50, p.compute_us.p99, p.compute_us.max, p.compute_us.n
+        );
+    }
+    if let Some(q) = &s.controller_solver {
+        println!(
+            "  MPC QP: {} solves, {} failed (previous command held), iterations p50 {:.0}, max {:.0}",
+            q.solves, q.failures, q.iterations.p50, q.iterations.max
+        );
+    }
     println!(
         "  wrote {}/timeseries.csv, summary.json, scenario.toml",
         out.display()

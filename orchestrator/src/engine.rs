@@ -130,10 +130,23 @@ pub struct Summary {
     pub timing: Timing,
     /// A quick look at the results.
     pub results: QuickLook,
+    /// The MPC's QP solver (absent for controllers without one).
+    pub controller_solver: Option<SolverReport>,
     /// iceoryx2 prefix of the run ("" in-process).
     pub ipc_prefix: String,
     /// Files of the run still present after clean-up (must be empty).
     pub leftover_ipc_files: Vec<String>,
+}
+
+/// The controller's QP solves over the run.
+#[derive(Debug, Clone, Serialize)]
+pub struct SolverReport {
+    /// QPs solved or attempted.
+    pub solves: u64,
+    /// Solves that did not end `Solved`/`AlmostSolved`; the previous command was held.
+    pub failures: u64,
+    /// Clarabel iterations per solve.
+    pub iterations: Percentiles,
 }
 
 /// Headline numbers of a run (the full comfort assessment is separate).
@@ -161,6 +174,9 @@ pub enum RunError {
     /// Transport set-up.
     #[error(transparent)]
     Ipc(#[from] cosim::ipc::IpcError),
+    /// The controller design failed.
+    #[error("controller design: {0}")]
+    Design(String),
 }
 
 type PlantEp = Box<dyn Endpoint<ToPlant, FromPlant>>;
@@ -224,7 +240,9 @@ fn start(s: &Scenario, opts: &RunOptions, prefix: &str) -> Result<Participants, 
         Transport::InProcess => Ok(Participants {
             plant: Box::new(InProcess::new(Plant::new(&inits.plant))),
             actuator: Box::new(InProcess::new(Actuator::new(&inits.actuator))),
-            controller: Box::new(InProcess::new(Controller::new(&inits.controller))),
+            controller: Box::new(InProcess::new(
+                Controller::new(&inits.controller).map_err(RunError::Design)?,
+            )),
             hub: None,
         }),
         Transport::Ipc => {
@@ -298,6 +316,8 @@ struct Compute {
     plant: Vec<f64>,
     actuator: Vec<f64>,
     controller: Vec<f64>,
+    solver_iterations: Vec<f64>,
+    solver_failures: u64,
 }
 
 /// Steps every tick; returns the error that stopped it, if any.
@@ -400,6 +420,14 @@ fn lockstep(
                 compute.actuator.push(ca as f64 * 1e-3);
                 if c_due {
                     compute.controller.push(cc as f64 * 1e-3);
+                    match h.c.solver_status {
+                        0 => {}
+                        1 => compute.solver_iterations.push(h.c.solver_iterations as f64),
+                        _ => {
+                            compute.solver_iterations.push(h.c.solver_iterations as f64);
+                            compute.solver_failures += 1;
+                        }
+                    }
                 }
                 crit
             })
@@ -456,6 +484,8 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
         plant: Vec::new(),
         actuator: Vec::new(),
         controller: Vec::new(),
+        solver_iterations: Vec::new(),
+        solver_failures: 0,
     };
     let outcome = lockstep(
         s,
@@ -502,6 +532,11 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
     let mut ov = overhead;
     let o = percentiles(&mut ov);
     let periods = [s.run.dt_s, s.run.dt_s, s.controller.period_s];
+    let solver = (!compute.solver_iterations.is_empty()).then(|| SolverReport {
+        solves: compute.solver_iterations.len() as u64,
+        failures: compute.solver_failures,
+        iterations: percentiles(&mut compute.solver_iterations),
+    });
     let mut comp = [compute.plant, compute.actuator, compute.controller];
     let participants = Role::ALL
         .iter()
@@ -550,6 +585,7 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
             },
         },
         results,
+        controller_solver: solver,
         ipc_prefix: prefix,
         leftover_ipc_files: leftover,
     })

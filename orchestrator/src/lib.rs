@@ -3,6 +3,7 @@
 
 pub mod cli;
 pub mod engine;
+pub mod linearize;
 pub mod record;
 pub mod scenario;
 

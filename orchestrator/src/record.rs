@@ -35,6 +35,7 @@ pub const COLUMNS: &[&str] = &[
     "motor_current",
     "dc_power",
     "actuator_limits",
+    "solver_status",
 ];
 
 /// Writes the time series.
@@ -91,7 +92,7 @@ impl Recorder {
         for v in [a.motor_torque, a.motor_speed, a.motor_current, a.dc_power] {
             put(v);
         }
-        let _ = writeln!(self.line, ",{}", a.limits);
+        let _ = writeln!(self.line, ",{},{}", a.limits, c.solver_status);
         self.out.write_all(self.line.as_bytes())?;
         self.rows += 1;
         if self.rows.is_multiple_of(1000) {

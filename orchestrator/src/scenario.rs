@@ -206,6 +206,25 @@ impl Scenario {
             &format!("a whole multiple of run.dt_s = {} s", r.dt_s),
         );
         all.merge(c);
+        if all.errors.is_empty() {
+            // The LQG and MPC designs solve Riccati equations and set up the QP: a setting
+            // for which they have no solution is a scenario error, reported before any start.
+            let init = controller_proc::ControllerInit {
+                controller: self.controller.clone(),
+                track: self.track.clone(),
+                vehicle: self.vehicle.clone(),
+            };
+            if let Err(e) = controller_proc::Controller::new(&init) {
+                let mut c = Checker::new("controller");
+                c.require(
+                    false,
+                    "mode",
+                    format!("{:?} ({e})", self.controller.mode),
+                    "settings for which the controller design exists",
+                );
+                all.merge(c);
+            }
+        }
         all.errors
     }
 

@@ -1,0 +1,415 @@
+//! MPC with a built-in Kalman filter (section 3.3, eqs 30-35), the QP solved by Clarabel.
+//!
+//! Model: the vehicle discretised at the MPC period T (eq 30) augmented with an integrated
+//! output disturbance d, `ξ = Ψ x + d` (10 states, as the printed L_est has 10 entries).
+//! Estimator: steady-state Kalman filter from the discrete Riccati equation (process noise
+//! Γ W_n Γᵀ by Van Loan, `disturbance_var` on d, measurement V_n per sample).
+//!
+//! QP (eq 34) over `[Δu_0 … Δu_{M−1}, ε]`, with the prediction `Ξ = f + Θ Δu`:
+//! `min Σ_i λ_ξ (ξ_{k+i} − r_{k+i})² + Σ_j λ_Δu Δu_j² + λ_ε ε²` subject to
+//! hard `|u| ≤ u_max`, `|Δu| ≤ Δu_max` and soft `|ξ| ≤ ξ_max + ε`, `ε ≥ 0`
+//! (model-notes: hard inputs, soft output). The reference over the horizon is the current one
+//! held (the paper's MPC) or, with `preview`, the track database's future reference.
+//!
+//! Clarabel is an interior-point solver and takes no primal warm start; what it allows is
+//! keeping one solver and updating `q` and `b` in place (`update_q`, `update_b`), which skips
+//! the set-up and the symbolic factorisation. That is done every period. A solve that does not
+//! end `Solved`/`AlmostSolved` is counted and the previous command is held (Δu = 0, always
+//! feasible).
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettings, DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+
+use crate::design::LinearModel;
+use crate::linalg::{dare, van_loan, DesignError};
+use crate::lqg::{process_noise, KalmanSettings};
+use cosim::settings::Checker;
+
+/// MPC settings (scenario `[controller.mpc]`); the period is `controller.period_s`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MpcSettings {
+    /// Prediction horizon p (steps).
+    pub horizon_p: usize,
+    /// Control horizon M (moves).
+    pub horizon_m: usize,
+    /// Output weight λ_ξ (on rad²).
+    pub output_weight: f64,
+    /// Input-rate weight λ_Δu (on rad²).
+    pub rate_weight: f64,
+    /// Largest move |Δu| per period (deg).
+    pub du_max_deg: f64,
+    /// Soft output limit |θ_v| (deg).
+    pub theta_v_max_deg: f64,
+    /// Weight λ_ε on the squared slack (rad²) of the soft output limit.
+    pub slack_weight: f64,
+    /// Feed the future reference from the track database over the horizon (ours, not the
+    /// paper's).
+    pub preview: bool,
+    /// Clarabel's iteration limit.
+    pub max_iter: u32,
+}
+
+impl Default for MpcSettings {
+    fn default() -> Self {
+        MpcSettings {
+            horizon_p: 5,
+            horizon_m: 2,
+            output_weight: 3.60,
+            rate_weight: 0.028,
+            du_max_deg: 0.5,
+            theta_v_max_deg: 6.0,
+            slack_weight: 1e5,
+            preview: false,
+            max_iter: 50,
+        }
+    }
+}
+
+impl MpcSettings {
+    /// Checks every field.
+    pub fn validate(&self, c: &mut Checker) {
+        c.range("mpc.horizon_p", self.horizon_p as f64, 1.0, 200.0, "steps");
+        c.range(
+            "mpc.horizon_m",
+            self.horizon_m as f64,
+            1.0,
+            self.horizon_p.max(1) as f64,
+            "moves (at most horizon_p)",
+        );
+        c.positive("mpc.output_weight", self.output_weight, 1e9, "");
+        c.positive("mpc.rate_weight", self.rate_weight, 1e9, "");
+        c.positive("mpc.du_max_deg", self.du_max_deg, 90.0, "deg");
+        c.positive("mpc.theta_v_max_deg", self.theta_v_max_deg, 90.0, "deg");
+        c.positive("mpc.slack_weight", self.slack_weight, 1e12, "");
+        c.range("mpc.max_iter", self.max_iter as f64, 5.0, 1000.0, "");
+    }
+}
+
+/// The inputs of one MPC update.
+#[derive(Debug, Clone)]
+pub struct MpcInput<'a> {
+    /// Measured θ_v (rad).
+    pub xi: f64,
+    /// References r(k+1) … r(k+p) (rad).
+    pub r: &'a [f64],
+    /// Known track input ω(k) … ω(k+p−1) (zeros when the estimator does not use it).
+    pub w: &'a [[f64; 6]],
+}
+
+/// One MPC update's outcome.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MpcUpdate {
+    /// Command u(k) (rad).
+    pub u: f64,
+    /// Filtered roll estimate ξ̂(k|k) = θ̂_v + d̂ (rad): the model's roll plus the estimated
+    /// output disturbance.
+    pub theta_v_hat: f64,
+    /// Clarabel iterations.
+    pub iterations: u32,
+    /// Whether the QP was solved (otherwise the previous command was held).
+    pub solved: bool,
+}
+
+/// The running MPC-KF.
+pub struct Mpc {
+    s: MpcSettings,
+    u_max: f64,
+    du_max: f64,
+    y_max: f64,
+    /// Augmented discrete model (10 states).
+    a: DMatrix<f64>,
+    b: DMatrix<f64>,
+    g: DMatrix<f64>,
+    c: DMatrix<f64>,
+    /// Kalman gain L_est (10×1), current-estimate form.
+    pub l_est: DMatrix<f64>,
+    /// Prediction: rows C Aⁱ (p×10), i = 1..p.
+    fx: DMatrix<f64>,
+    /// Step-response sums S_i = Σ_{j<i} C Aʲ B (p).
+    step: Vec<f64>,
+    /// Disturbance responses C A^{i−1−j} Γ (p×p blocks of 1×6).
+    fw: Vec<Vec<[f64; 6]>>,
+    /// Θ (p×M).
+    pub theta: DMatrix<f64>,
+    /// Hessian without the slack, Θᵀ Λ_ξ Θ + Λ_Δu (M×M).
+    pub h: DMatrix<f64>,
+    solver: DefaultSolver<f64>,
+    x_hat: DMatrix<f64>,
+    u_prev: f64,
+    q: Vec<f64>,
+    bvec: Vec<f64>,
+    track_input: bool,
+}
+
+fn dense_to_csc(m: &DMatrix<f64>, upper_only: bool) -> CscMatrix<f64> {
+    let (mut colptr, mut rowval, mut nzval) = (vec![0], Vec::new(), Vec::new());
+    for j in 0..m.ncols() {
+        for i in 0..m.nrows() {
+            if (upper_only && i > j) || m[(i, j)] == 0.0 {
+                continue;
+            }
+            rowval.push(i);
+            nzval.push(m[(i, j)]);
+        }
+        colptr.push(rowval.len());
+    }
+    CscMatrix::new(m.nrows(), m.ncols(), colptr, rowval, nzval)
+}
+
+impl Mpc {
+    /// Builds the model, the filter and the QP. `u_max_deg` is the hard input limit.
+    pub fn new(
+        m: &LinearModel,
+        s: &MpcSettings,
+        k: &KalmanSettings,
+        period: f64,
+        u_max_deg: f64,
+    ) -> Result<Self, DesignError> {
+        let d = m.discretise(period);
+        let (n, p, mm) = (10, s.horizon_p, s.horizon_m);
+        let mut a = DMatrix::identity(n, n);
+        a.view_mut((0, 0), (9, 9)).copy_from(&d.a);
+        let mut b = DMatrix::zeros(n, 1);
+        b.view_mut((0, 0), (9, 1)).copy_from(&d.b);
+        let mut g = DMatrix::zeros(n, 6);
+        g.view_mut((0, 0), (9, 6)).copy_from(&d.g);
+        let mut c = DMatrix::zeros(1, n);
+        c.view_mut((0, 0), (1, 9)).copy_from(&d.c);
+        c[(0, 9)] = 1.0;
+        // Kalman filter (dual DARE).
+        let mut qn = DMatrix::zeros(n, n);
+        qn.view_mut((0, 0), (9, 9))
+            .copy_from(&van_loan(&m.a, &process_noise(m, &k.w_n), period));
+        qn[(9, 9)] = k.disturbance_var;
+        let rn = DMatrix::from_element(1, 1, k.v_n);
+        let pk = dare(&a.transpose(), &c.transpose(), &qn, &rn)?;
+        let sgain = (&c * &pk * c.transpose())[(0, 0)] + k.v_n;
+        let l_est = &pk * c.transpose() / sgain;
+        // Prediction matrices.
+        let mut powers = vec![DMatrix::identity(n, n)];
+        for i in 1..=p {
+            let next = &a * &powers[i - 1];
+            powers.push(next);
+        }
+        let mut fx = DMatrix::zeros(p, n);
+        let mut step = vec![0.0; p + 1];
+        for i in 1..=p {
+            fx.row_mut(i - 1).copy_from(&(&c * &powers[i]));
+            step[i] = step[i - 1] + (&c * &powers[i - 1] * &b)[(0, 0)];
+        }
+        let fw = (1..=p)
+            .map(|i| {
+                (0..i)
+                    .map(|j| {
+                        let row = &c * &powers[i - 1 - j] * &g;
+                        std::array::from_fn(|q| row[(0, q)])
+                    })
+                    .collect()
+            })
+            .collect();
+        // Θ_{i,l} = S_{i−l} for i > l (move l affects every later output).
+        let mut theta = DMatrix::zeros(p, mm);
+        for i in 1..=p {
+            for l in 0..mm.min(i) {
+                theta[(i - 1, l)] = step[i - l];
+            }
+        }
+        let h = theta.transpose() * &theta * s.output_weight
+            + DMatrix::identity(mm, mm) * s.rate_weight;
+        // QP: variables [Δu; ε]; cost ½ zᵀ P z + qᵀ z with P = 2·blkdiag(H, λ_ε).
+        let nv = mm + 1;
+        let mut pq = DMatrix::zeros(nv, nv);
+        pq.view_mut((0, 0), (mm, mm)).copy_from(&(&h * 2.0));
+        pq[(mm, mm)] = 2.0 * s.slack_weight;
+        // Constraint rows: u upper (M), u lower (M), Δu upper (M), Δu lower (M),
+        // ξ upper (p), ξ lower (p), ε ≥ 0 (1).
+        let nc = 4 * mm + 2 * p + 1;
+        let mut ac = DMatrix::zeros(nc, nv);
+        for i in 0..mm {
+            for l in 0..=i {
+                ac[(i, l)] = 1.0;
+                ac[(mm + i, l)] = -1.0;
+            }
+            ac[(2 * mm + i, i)] = 1.0;
+            ac[(3 * mm + i, i)] = -1.0;
+        }
+        for i in 0..p {
+            for l in 0..mm {
+                ac[(4 * mm + i, l)] = theta[(i, l)];
+                ac[(4 * mm + p + i, l)] = -theta[(i, l)];
+            }
+            ac[(4 * mm + i, mm)] = -1.0;
+            ac[(4 * mm + p + i, mm)] = -1.0;
+        }
+        ac[(nc - 1, mm)] = -1.0;
+        let settings: DefaultSettings<f64> = DefaultSettingsBuilder::default()
+            .verbose(false)
+            .presolve_enable(false)
+            .max_iter(s.max_iter)
+            .build()
+            .map_err(|e| DesignError(format!("MPC: Clarabel settings: {e}")))?;
+        let q = vec![0.0; nv];
+        let bvec = vec![1.0; nc];
+        let cones = [SupportedConeT::NonnegativeConeT(nc)];
+        let solver = DefaultSolver::new(
+            &dense_to_csc(&pq, true),
+            &q,
+            &dense_to_csc(&ac, false),
+            &bvec,
+            &cones,
+            settings,
+        )
+        .map_err(|e| DesignError(format!("MPC: Clarabel set-up: {e}")))?;
+        Ok(Mpc {
+            s: s.clone(),
+            u_max: u_max_deg.to_radians(),
+            du_max: s.du_max_deg.to_radians(),
+            y_max: s.theta_v_max_deg.to_radians(),
+            a,
+            b,
+            g,
+            c,
+            l_est,
+            fx,
+            step,
+            fw,
+            theta,
+            h,
+            solver,
+            x_hat: DMatrix::zeros(n, 1),
+            u_prev: 0.0,
+            q,
+            bvec,
+            track_input: k.track_input,
+        })
+    }
+
+    /// The free response f (p): the prediction with Δu = 0 from the filtered state.
+    pub fn free_response(&self, x_f: &DMatrix<f64>, w: &[[f64; 6]]) -> Vec<f64> {
+        let p = self.s.horizon_p;
+        (1..=p)
+            .map(|i| {
+                let mut v = (self.fx.row(i - 1) * x_f)[(0, 0)] + self.step[i] * self.u_prev;
+                if self.track_input {
+                    for (j, wj) in w.iter().enumerate().take(i) {
+                        v += self.fw[i - 1][j]
+                            .iter()
+                            .zip(wj)
+                            .map(|(a, b)| a * b)
+                            .sum::<f64>();
+                    }
+                }
+                v
+            })
+            .collect()
+    }
+
+    /// The unconstrained optimum Δu* = −H⁻¹ Θᵀ Λ_ξ (f − r), for checking the QP.
+    pub fn unconstrained(&self, f: &[f64], r: &[f64]) -> Vec<f64> {
+        let e = DMatrix::from_iterator(f.len(), 1, f.iter().zip(r).map(|(a, b)| a - b));
+        let g = self.theta.transpose() * e * self.s.output_weight;
+        let sol = self
+            .h
+            .clone()
+            .lu()
+            .solve(&g)
+            .unwrap_or_else(|| g.clone() * f64::NAN);
+        sol.iter().map(|v| -v).collect()
+    }
+
+    /// Filters the measurement: x̂(k|k).
+    pub fn filter(&self, xi: f64) -> DMatrix<f64> {
+        let innovation = xi - (&self.c * &self.x_hat)[(0, 0)];
+        &self.x_hat + &self.l_est * innovation
+    }
+
+    /// Solves the QP for free response `f` and references `r`: (Δu, iterations, solved).
+    pub fn solve(&mut self, f: &[f64], r: &[f64]) -> (Vec<f64>, u32, bool) {
+        let (p, mm) = (self.s.horizon_p, self.s.horizon_m);
+        let lam = self.s.output_weight;
+        for l in 0..mm {
+            self.q[l] = 2.0
+                * lam
+                * (0..p)
+                    .map(|i| self.theta[(i, l)] * (f[i] - r[i]))
+                    .sum::<f64>();
+        }
+        self.q[mm] = 0.0;
+        for i in 0..mm {
+            self.bvec[i] = self.u_max - self.u_prev;
+            self.bvec[mm + i] = self.u_max + self.u_prev;
+            self.bvec[2 * mm + i] = self.du_max;
+            self.bvec[3 * mm + i] = self.du_max;
+        }
+        for (i, fi) in f.iter().enumerate().take(p) {
+            self.bvec[4 * mm + i] = self.y_max - fi;
+            self.bvec[4 * mm + p + i] = self.y_max + fi;
+        }
+        let nc = self.bvec.len();
+        self.bvec[nc - 1] = 0.0;
+        let ok = self.solver.update_q(&self.q).is_ok() && self.solver.update_b(&self.bvec).is_ok();
+        if !ok {
+            return (vec![0.0; mm], 0, false);
+        }
+        self.solver.solve();
+        let sol = &self.solver.solution;
+        let solved = matches!(
+            sol.status,
+            SolverStatus::Solved | SolverStatus::AlmostSolved
+        ) && sol.x.iter().all(|v| v.is_finite());
+        if solved {
+            (sol.x[..mm].to_vec(), sol.iterations, true)
+        } else {
+            (vec![0.0; mm], sol.iterations, false)
+        }
+    }
+
+    /// One period: filter, optimise, apply the first move (eq 35), predict.
+    pub fn step(&mut self, input: &MpcInput) -> MpcUpdate {
+        let x_f = self.filter(input.xi);
+        let f = self.free_response(&x_f, input.w);
+        let (du, iterations, solved) = self.solve(&f, input.r);
+        // Clamp against rounding at the limits (the QP holds them to ~1e-8 rad).
+        let du0 = du[0].clamp(-self.du_max, self.du_max);
+        let u = (self.u_prev + du0).clamp(-self.u_max, self.u_max);
+        self.u_prev = u;
+        let mut next = &self.a * &x_f + &self.b * u;
+        if self.track_input {
+            if let Some(w) = input.w.first() {
+                next += &self.g * DMatrix::from_column_slice(6, 1, w);
+            }
+        }
+        self.x_hat = next;
+        MpcUpdate {
+            u,
+            theta_v_hat: (&self.c * &x_f)[(0, 0)],
+            iterations,
+            solved,
+        }
+    }
+
+    /// Horizon p.
+    pub fn horizon(&self) -> usize {
+        self.s.horizon_p
+    }
+
+    /// Whether the reference over the horizon comes from the track database.
+    pub fn preview(&self) -> bool {
+        self.s.preview
+    }
+
+    /// Whether the estimator's model uses the known track input.
+    pub fn uses_track_input(&self) -> bool {
+        self.track_input
+    }
+
+    /// Sets the previous command u(k−1) (rad).
+    pub fn set_previous(&mut self, u: f64) {
+        self.u_prev = u;
+    }
+}
