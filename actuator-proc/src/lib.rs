@@ -1,47 +1,74 @@
 //! `actuator-proc`: the anti-roll-bar actuator.
 //!
 //! Models, selected by `actuator.model` in the scenario:
+//! * `bldc` (default): the paper's electric actuator ([`bldc`]): BLDC motor, six-step
+//!   inverter with hysteresis current control, speed PI (Table 1), position loop, harmonic
+//!   gearbox and bar, the motor electrics integrated at `bldc.dt_switched_s` (1 µs) between
+//!   the 1 ms exchanges.
+//! * `bldc-averaged`: the same drive with the inverter averaged (no switching), stepping at
+//!   `bldc.dt_averaged_s` (20 µs), for long studies.
 //! * `ideal`: the bar angle follows the command exactly, δ_a = δ_a,cmd (the paper's section
 //!   2.3 assumption "assumed to be ideal").
+
+pub mod bldc;
 
 use cosim::msg::{FromActuator, ToActuator};
 use cosim::settings::Checker;
 use cosim::{Participant, Role};
 use serde::{Deserialize, Serialize};
 
+pub use bldc::{Bldc, BldcParams, Electrics};
+
 /// Which actuator model runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum ActuatorModel {
-    /// δ_a = δ_a,cmd.
+    /// Switched BLDC drive (the reference).
     #[default]
+    Bldc,
+    /// Averaged BLDC drive.
+    BldcAveraged,
+    /// δ_a = δ_a,cmd.
     Ideal,
 }
 
 /// Actuator settings (scenario section `[actuator]`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields, default)]
 pub struct ActuatorSettings {
     /// Model.
     pub model: ActuatorModel,
-}
-
-impl Default for ActuatorSettings {
-    fn default() -> Self {
-        ActuatorSettings {
-            model: ActuatorModel::Ideal,
-        }
-    }
+    /// Motor, drive and bar parameters (`[actuator.bldc]`).
+    pub bldc: BldcParams,
 }
 
 impl ActuatorSettings {
     /// Checks every field.
     pub fn validate(&self, prefix: &str) -> Checker {
-        Checker::new(prefix)
+        let mut c = Checker::new(prefix);
+        self.bldc.validate(&mut c);
+        let b = &self.bldc;
+        for (name, dt) in [
+            ("bldc.dt_switched_s", b.dt_switched_s),
+            ("bldc.dt_averaged_s", b.dt_averaged_s),
+        ] {
+            let r = b.control_period_s / dt;
+            c.require(
+                dt <= b.control_period_s && (r - r.round()).abs() < 1e-6,
+                name,
+                dt,
+                &format!(
+                    "a step that divides bldc.control_period_s = {} s",
+                    b.control_period_s
+                ),
+            );
+        }
+        c
     }
 }
 
-/// What the actuator process receives: its settings and the exchange period.
+/// What the actuator process receives: its settings, the exchange period and the bar
+/// stiffness of the vehicle.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 pub struct ActuatorInit {
@@ -49,31 +76,41 @@ pub struct ActuatorInit {
     pub actuator: ActuatorSettings,
     /// Exchange period with the plant, the base tick (s).
     pub dt_s: f64,
+    /// Anti-roll bar stiffness k_vr (N·m/rad), from the vehicle parameters.
+    pub k_vr: f64,
 }
 
 /// The actuator participant.
 pub struct Actuator {
     settings: ActuatorSettings,
-    delta_a: f64,
+    dt: f64,
+    drive: Option<Bldc>,
+    last: FromActuator,
 }
 
 impl Actuator {
-    /// A bar at neutral.
+    /// A bar at neutral, motor at rest.
     pub fn new(init: &ActuatorInit) -> Self {
+        let a = &init.actuator;
+        let drive = match a.model {
+            ActuatorModel::Ideal => None,
+            ActuatorModel::Bldc => Some(Bldc::new(&a.bldc, Electrics::Switched, init.k_vr)),
+            ActuatorModel::BldcAveraged => Some(Bldc::new(&a.bldc, Electrics::Averaged, init.k_vr)),
+        };
         Actuator {
-            settings: init.actuator.clone(),
-            delta_a: 0.0,
+            settings: a.clone(),
+            dt: init.dt_s,
+            drive,
+            last: FromActuator::default(),
         }
     }
     /// Settings.
     pub fn settings(&self) -> &ActuatorSettings {
         &self.settings
     }
-    fn output(&self) -> FromActuator {
-        FromActuator {
-            delta_a: self.delta_a,
-            ..Default::default()
-        }
+    /// The drive, if the model has one.
+    pub fn drive(&self) -> Option<&Bldc> {
+        self.drive.as_ref()
     }
 }
 
@@ -83,13 +120,28 @@ impl Participant for Actuator {
     const ROLE: Role = Role::Actuator;
 
     fn initial_output(&mut self) -> FromActuator {
-        self.output()
+        self.last
     }
     fn step(&mut self, input: &ToActuator) -> FromActuator {
-        match self.settings.model {
-            ActuatorModel::Ideal => self.delta_a = input.delta_a_cmd,
-        }
-        self.output()
+        self.last = match &mut self.drive {
+            None => FromActuator {
+                delta_a: input.delta_a_cmd,
+                ..Default::default()
+            },
+            Some(d) => {
+                let t = d.advance(input.delta_a_cmd, input.psi, self.dt);
+                FromActuator {
+                    header: Default::default(),
+                    delta_a: t.delta_a,
+                    motor_torque: t.torque,
+                    motor_speed: t.speed,
+                    motor_current: t.current,
+                    dc_power: t.dc_power,
+                    limits: t.limits,
+                }
+            }
+        };
+        self.last
     }
 }
 

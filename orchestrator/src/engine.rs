@@ -207,6 +207,7 @@ impl Inits {
             actuator: ActuatorInit {
                 actuator: s.actuator.clone(),
                 dt_s: s.run.dt_s,
+                k_vr: s.vehicle.k_vr,
             },
             controller: ControllerInit {
                 controller: s.controller.clone(),

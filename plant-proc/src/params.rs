@@ -230,15 +230,19 @@ impl TrackParams {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct SensorParams {
-    /// Standard deviation of the white Gaussian noise on θ_v, per plant step (rad).
-    /// 1 mrad: band-limited white noise of power 1e-7 at 0.1 s (model-notes, Controllers).
+    /// Standard deviation of the Gaussian noise on θ_v (rad). 1 mrad: band-limited white noise
+    /// of power 1e-7 at 0.1 s (model-notes, Controllers), variance 1e-7/0.1 = 1e-6 rad².
     pub theta_v_noise_std_rad: f64,
+    /// How long each noise sample is held (s): 0.1 s in the paper's band-limited white noise;
+    /// 0 draws a new sample every plant step.
+    pub noise_hold_s: f64,
 }
 
 impl Default for SensorParams {
     fn default() -> Self {
         SensorParams {
             theta_v_noise_std_rad: 1e-3,
+            noise_hold_s: 0.1,
         }
     }
 }
@@ -254,6 +258,7 @@ impl SensorParams {
             0.1,
             "rad",
         );
+        c.range("noise_hold_s", self.noise_hold_s, 0.0, 10.0, "s");
         c
     }
 }

@@ -29,6 +29,10 @@ pub struct Plant {
     k: u64,
     noise: Option<Normal<f64>>,
     rng: ChaCha8Rng,
+    /// Plant steps per noise sample, the sample held and the index it was drawn for.
+    noise_hold: u64,
+    noise_value: f64,
+    noise_drawn: Option<u64>,
 }
 
 impl Plant {
@@ -47,6 +51,9 @@ impl Plant {
             noise: (sigma > 0.0)
                 .then(|| Normal::new(0.0, sigma).expect("sigma validated finite and > 0")),
             rng,
+            noise_hold: ((s.sensor.noise_hold_s / s.dt_s).round() as u64).max(1),
+            noise_value: 0.0,
+            noise_drawn: None,
         }
     }
 
@@ -119,10 +126,15 @@ impl Plant {
         let s = self.vehicle.v * t;
         let p = self.track.at(s);
         let th_v = self.x[ix::TH_V];
-        let noise = match &self.noise {
-            Some(n) => n.sample(&mut self.rng),
-            None => 0.0,
-        };
+        let slot = self.k / self.noise_hold;
+        if let Some(n) = &self.noise {
+            // One draw per hold interval, whatever the number of output calls.
+            if self.noise_drawn != Some(slot) {
+                self.noise_value = n.sample(&mut self.rng);
+                self.noise_drawn = Some(slot);
+            }
+        }
+        let noise = self.noise_value;
         FromPlant {
             header: Default::default(),
             t,
