@@ -43,6 +43,19 @@ enum Command {
         /// Scenario file (TOML).
         scenario: PathBuf,
     },
+    /// Run several scenarios and write DIR/table.md and DIR/table.csv laid out like the
+    /// paper's Table 4 (each run's files go to DIR/<scenario name>/).
+    Compare {
+        /// Scenario files (TOML).
+        #[arg(required = true)]
+        scenarios: Vec<PathBuf>,
+        /// Output directory.
+        #[arg(long, default_value = "out/compare")]
+        out: PathBuf,
+        /// Transport for every run, overriding run.transport.
+        #[arg(long, value_enum)]
+        transport: Option<TransportArg>,
+    },
     /// Print the linear design model (matrices, eigenvalues, damping, frequencies) and the
     /// scenario controller's gains as JSON.
     Linearize {
@@ -150,7 +163,93 @@ pub fn main() -> i32 {
         },
         Command::Run(a) => run(a),
         Command::Linearize { scenario, out } => linearize(&scenario, out.as_deref()),
+        Command::Compare {
+            scenarios,
+            out,
+            transport,
+        } => compare(&scenarios, &out, transport),
     }
+}
+
+fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<TransportArg>) -> i32 {
+    let mut loaded = Vec::new();
+    for f in files {
+        match Scenario::load(f) {
+            Ok(mut s) => {
+                if let Some(t) = transport {
+                    s.run.transport = match t {
+                        TransportArg::Ipc => Transport::Ipc,
+                        TransportArg::InProcess => Transport::InProcess,
+                    };
+                }
+                loaded.push((f.clone(), s));
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                return EXIT_INVALID;
+            }
+        }
+    }
+    let interrupt = Arc::new(AtomicBool::new(false));
+    {
+        let flag = interrupt.clone();
+        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    }
+    let Ok(exe) = std::env::current_exe() else {
+        eprintln!("error: cannot find the tiltsim executable to start participants");
+        return EXIT_FAILED;
+    };
+    let mut entries = Vec::new();
+    for (file, s) in loaded {
+        let dir = out.join(&s.name);
+        let opts = RunOptions {
+            out_dir: dir.clone(),
+            participant_exe: exe.clone(),
+            ipc_prefix: None,
+            interrupt: interrupt.clone(),
+        };
+        let summary = match engine::run(&s, &file.display().to_string(), &opts) {
+            Ok(sum) => sum,
+            Err(e) => {
+                eprintln!("error: {}: {e}", file.display());
+                return EXIT_FAILED;
+            }
+        };
+        let _ = std::fs::write(
+            dir.join("summary.json"),
+            serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n",
+        );
+        println!(
+            "{}: {:?}, P_CT standing {:.2} %, peak lateral acceleration {:.2} %g",
+            s.name,
+            summary.status,
+            summary.comfort.p_ct.standing,
+            summary.comfort.lat_acc_peak_pct_g
+        );
+        match summary.status {
+            Status::Completed => {}
+            Status::Interrupted => return EXIT_INTERRUPTED,
+            Status::Failed => {
+                eprintln!(
+                    "error: {}: {}",
+                    s.name,
+                    summary.error.as_deref().unwrap_or("run failed")
+                );
+                return EXIT_FAILED;
+            }
+        }
+        entries.push(crate::compare::entry(s, summary));
+    }
+    let (md, csv) = crate::compare::tables(&entries);
+    for (name, text) in [("table.md", &md), ("table.csv", &csv)] {
+        let p = out.join(name);
+        if let Err(e) = std::fs::write(&p, text) {
+            eprintln!("error: {}: {e}", p.display());
+            return EXIT_FAILED;
+        }
+    }
+    println!("wrote {}/table.md and table.csv", out.display());
+    0
 }
 
 fn linearize(scenario: &std::path::Path, out: Option<&std::path::Path>) -> i32 {

@@ -132,6 +132,8 @@ pub struct Summary {
     pub results: QuickLook,
     /// The MPC's QP solver (absent for controllers without one).
     pub controller_solver: Option<SolverReport>,
+    /// Ride comfort (Table 4 rows), from the recorded series.
+    pub comfort: crate::comfort::Comfort,
     /// iceoryx2 prefix of the run ("" in-process).
     pub ipc_prefix: String,
     /// Files of the run still present after clean-up (must be empty).
@@ -553,6 +555,7 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
         .collect::<Vec<_>>();
     let cpu_participants = exits.iter().filter_map(|e| e.cpu_s).fold(0.0, |a, b| a + b);
     let results = quick_look(s, &csv);
+    let comfort = comfort_of(s, &csv);
     Ok(Summary {
         tiltsim_version: env!("CARGO_PKG_VERSION"),
         scenario: s.name.clone(),
@@ -587,9 +590,80 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
         },
         results,
         controller_solver: solver,
+        comfort,
         ipc_prefix: prefix,
         leftover_ipc_files: leftover,
     })
+}
+
+/// Reads the recorded series back into the signals the comfort assessment needs.
+pub fn signals_from_csv(s: &Scenario, csv: &std::path::Path) -> crate::comfort::Signals {
+    use crate::comfort::Signals;
+    let Ok(text) = std::fs::read_to_string(csv) else {
+        return Signals::default();
+    };
+    let cols = crate::record::COLUMNS;
+    let col = |name: &str| cols.iter().position(|c| *c == name).unwrap_or(0);
+    let idx = [
+        "t",
+        "lat_acc",
+        "theta_ref",
+        "curvature",
+        "cant",
+        "dtheta_v",
+        "y_v",
+        "theta_v",
+        "y_b",
+        "theta_b",
+    ]
+    .map(col);
+    let mut rows: Vec<[f64; 10]> = Vec::new();
+    for line in text.lines().skip(1) {
+        let f: Vec<f64> = line
+            .split(',')
+            .map(|x| x.parse().unwrap_or(f64::NAN))
+            .collect();
+        if f.len() < cols.len() {
+            continue;
+        }
+        rows.push(idx.map(|i| f[i]));
+    }
+    let veh = plant_proc::Vehicle::new(s.vehicle.clone(), s.track.speed());
+    let n = rows.len();
+    let dt = s.run.dt_s;
+    let deriv = |k: usize, f: &dyn Fn(&[f64; 10]) -> f64| {
+        if n < 2 {
+            return 0.0;
+        }
+        let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
+        (f(&rows[b]) - f(&rows[a])) / ((b - a) as f64 * dt)
+    };
+    let (h1, h2) = (s.vehicle.h1, s.vehicle.h2);
+    let tp = &s.track;
+    let v = tp.speed();
+    let t1 = tp.straight_before_m / v;
+    let t2 = t1 + tp.transition_m / v;
+    let t3 = t2 + tp.curve_m / v;
+    let t4 = t3 + tp.transition_m / v;
+    Signals {
+        t: rows.iter().map(|r| r[0]).collect(),
+        lat_acc: rows.iter().map(|r| r[1]).collect(),
+        lat_acc_ref: rows
+            .iter()
+            .map(|r| veh.lateral_acceleration(r[2], r[3], r[4]))
+            .collect(),
+        roll_speed: (0..n).map(|k| rows[k][5] + deriv(k, &|r| r[4])).collect(),
+        roll_speed_ref: (0..n).map(|k| deriv(k, &|r| r[4] + r[2])).collect(),
+        deflection: rows
+            .iter()
+            .map(|r| r[6] - h1 * r[7] - r[8] - h2 * r[9])
+            .collect(),
+        transitions: vec![(t1, t2), (t3, t4)],
+    }
+}
+
+fn comfort_of(s: &Scenario, csv: &std::path::Path) -> crate::comfort::Comfort {
+    crate::comfort::assess(&signals_from_csv(s, csv), &s.comfort)
 }
 
 /// Reads back the recorded series for the headline numbers (works on partial runs too).

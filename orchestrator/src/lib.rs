@@ -2,6 +2,8 @@
 //! command-line program.
 
 pub mod cli;
+pub mod comfort;
+pub mod compare;
 pub mod engine;
 pub mod linearize;
 pub mod record;

@@ -115,6 +115,8 @@ pub struct Scenario {
     pub actuator: ActuatorSettings,
     /// Controller.
     pub controller: ControllerSettings,
+    /// Comfort evaluation.
+    pub comfort: crate::comfort::ComfortSettings,
 }
 
 /// Why a scenario was rejected. Displayed messages name the file.
@@ -197,6 +199,7 @@ impl Scenario {
         all.merge(self.sensor.validate("sensor"));
         all.merge(self.actuator.validate("actuator"));
         all.merge(self.controller.validate("controller"));
+        all.merge(self.comfort.validate("comfort"));
         let mut c = Checker::new("controller");
         let ratio = self.controller.period_s / r.dt_s;
         c.require(

@@ -1,0 +1,370 @@
+//! Ride comfort from a run's recorded signals (the rows of Table 4).
+//!
+//! P_CT (EN 12299, comfort on curve transitions), in percent of passengers:
+//! `P_CT = max(A·ÿ_m + B·y⃛_m − C, 0) + D·φ̇_m^E`, ÿ in m/s², y⃛ in m/s³, φ̇ in deg/s, with the
+//! constants of `model-notes.md` for standing and seated passengers. Two evaluations:
+//! * `paper-peak` (the paper's, the default headline): ÿ_m, y⃛_m and φ̇_m are whole-run peaks
+//!   of the signals as simulated; the jerk is the slope of ÿ over `jerk_window_s` (1 s), the
+//!   way a quasi-static transition jerk is read off a plot.
+//! * `en12299-transition`: per curve transition, on signals low-pass filtered at
+//!   `filter_hz` (0.3 Hz, second-order Butterworth); ÿ_m and φ̇_m the largest filtered values
+//!   in the transition extended by `margin_s` (1.6 s) each side, y⃛_m the largest change of the
+//!   filtered ÿ over `jerk_window_s` divided by it. The worse transition is reported.
+//!
+//! The carbody roll speed is the absolute one, φ̇ = θ̇_v + θ̇_o (θ_v is relative to the track).
+
+use serde::{Deserialize, Serialize};
+
+use cosim::settings::Checker;
+
+/// Gravity for %g (m/s²).
+pub const G: f64 = 9.81;
+
+/// P_CT constants (A, B, C, D, E).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PctConstants {
+    /// A (per m/s²).
+    pub a: f64,
+    /// B (per m/s³).
+    pub b: f64,
+    /// C.
+    pub c: f64,
+    /// D.
+    pub d: f64,
+    /// E.
+    pub e: f64,
+}
+
+/// Standing passengers (EN 12299, model-notes).
+pub const STANDING: PctConstants = PctConstants {
+    a: 28.54,
+    b: 20.69,
+    c: 11.1,
+    d: 0.185,
+    e: 2.283,
+};
+/// Seated passengers.
+pub const SEATED: PctConstants = PctConstants {
+    a: 8.97,
+    b: 9.68,
+    c: 5.9,
+    d: 0.120,
+    e: 1.626,
+};
+
+/// P_CT (%) from peak lateral acceleration (m/s²), jerk (m/s³) and roll speed (deg/s).
+pub fn p_ct(k: &PctConstants, acc: f64, jerk: f64, roll_deg_s: f64) -> f64 {
+    (k.a * acc.abs() + k.b * jerk.abs() - k.c).max(0.0) + k.d * roll_deg_s.abs().powf(k.e)
+}
+
+/// Comfort settings (scenario `[comfort]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ComfortSettings {
+    /// Low-pass cut-off of the per-transition evaluation (Hz).
+    pub filter_hz: f64,
+    /// Window of the jerk difference quotient (s).
+    pub jerk_window_s: f64,
+    /// Time added before and after each transition (s).
+    pub margin_s: f64,
+    /// Secondary lateral bump-stop clearance (m).
+    pub bump_stop_m: f64,
+}
+
+impl Default for ComfortSettings {
+    fn default() -> Self {
+        ComfortSettings {
+            filter_hz: 0.3,
+            jerk_window_s: 1.0,
+            margin_s: 1.6,
+            bump_stop_m: 0.060,
+        }
+    }
+}
+
+impl ComfortSettings {
+    /// Checks every field.
+    pub fn validate(&self, prefix: &str) -> Checker {
+        let mut c = Checker::new(prefix);
+        c.positive("filter_hz", self.filter_hz, 50.0, "Hz");
+        c.positive("jerk_window_s", self.jerk_window_s, 10.0, "s");
+        c.range("margin_s", self.margin_s, 0.0, 30.0, "s");
+        c.positive("bump_stop_m", self.bump_stop_m, 1.0, "m");
+        c
+    }
+}
+
+/// The signals the assessment needs, one value per recorded row.
+#[derive(Debug, Clone, Default)]
+pub struct Signals {
+    /// Time (s), uniform step.
+    pub t: Vec<f64>,
+    /// Passenger lateral acceleration ÿ (m/s²).
+    pub lat_acc: Vec<f64>,
+    /// Its reference (1 − ρ)·ÿ_passive, eq 13 at θ_v^d (m/s²).
+    pub lat_acc_ref: Vec<f64>,
+    /// Absolute carbody roll speed φ̇ = θ̇_v + θ̇_o (rad/s).
+    pub roll_speed: Vec<f64>,
+    /// Its reference d/dt(θ_o + θ_v^d) (rad/s).
+    pub roll_speed_ref: Vec<f64>,
+    /// Secondary lateral deflection Δs (m).
+    pub deflection: Vec<f64>,
+    /// Curve transitions as (start, end) times (s).
+    pub transitions: Vec<(f64, f64)>,
+}
+
+/// P_CT for both passenger postures.
+#[derive(Debug, Clone, Copy, Serialize, Default, PartialEq)]
+pub struct Pct {
+    /// Standing (% of passengers).
+    pub standing: f64,
+    /// Seated (% of passengers).
+    pub seated: f64,
+    /// ÿ_m used (m/s²).
+    pub lat_acc_m_s2: f64,
+    /// y⃛_m used (m/s³).
+    pub jerk_m_s3: f64,
+    /// φ̇_m used (deg/s).
+    pub roll_speed_deg_s: f64,
+}
+
+impl Pct {
+    fn from_peaks(acc: f64, jerk: f64, roll_deg_s: f64) -> Self {
+        Pct {
+            standing: p_ct(&STANDING, acc, jerk, roll_deg_s),
+            seated: p_ct(&SEATED, acc, jerk, roll_deg_s),
+            lat_acc_m_s2: acc,
+            jerk_m_s3: jerk,
+            roll_speed_deg_s: roll_deg_s,
+        }
+    }
+}
+
+/// The comfort section of `summary.json`.
+#[derive(Debug, Clone, Serialize, Default, PartialEq)]
+pub struct Comfort {
+    /// How P_CT (the headline) was evaluated.
+    pub method: &'static str,
+    /// RMS of ÿ − ÿ_ref over the run (%g).
+    pub lat_acc_rms_dev_pct_g: f64,
+    /// Largest |ÿ| (%g).
+    pub lat_acc_peak_pct_g: f64,
+    /// RMS of φ̇ − φ̇_ref (rad/s).
+    pub roll_speed_rms_dev_rad_s: f64,
+    /// Largest |φ̇| (rad/s).
+    pub roll_speed_peak_rad_s: f64,
+    /// Largest jerk over the jerk window (%g/s).
+    pub jerk_peak_pct_g_s: f64,
+    /// P_CT, paper-peak evaluation (the headline).
+    pub p_ct: Pct,
+    /// P_CT, per-transition EN 12299 evaluation on filtered signals (the worse transition).
+    pub p_ct_en12299: Pct,
+    /// Largest |secondary lateral deflection| (mm).
+    pub deflection_peak_mm: f64,
+    /// Its share of the bump-stop clearance (%).
+    pub deflection_of_bump_stop_pct: f64,
+}
+
+fn rms(v: impl Iterator<Item = f64>) -> f64 {
+    let (mut s, mut n) = (0.0, 0usize);
+    for x in v {
+        s += x * x;
+        n += 1;
+    }
+    if n == 0 {
+        0.0
+    } else {
+        (s / n as f64).sqrt()
+    }
+}
+
+fn peak(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |m, x| m.max(x.abs()))
+}
+
+/// Largest |x(t + w) − x(t)| / w over the series (step `dt`).
+pub fn slope_peak(x: &[f64], dt: f64, w: f64) -> f64 {
+    let k = ((w / dt).round() as usize).max(1);
+    if x.len() <= k {
+        return 0.0;
+    }
+    (0..x.len() - k)
+        .map(|i| (x[i + k] - x[i]).abs())
+        .fold(0.0, f64::max)
+        / (k as f64 * dt)
+}
+
+/// Second-order Butterworth low-pass (bilinear transform), applied causally from rest at the
+/// first sample's value.
+pub fn low_pass(x: &[f64], dt: f64, fc: f64) -> Vec<f64> {
+    if x.is_empty() {
+        return Vec::new();
+    }
+    let k = (std::f64::consts::PI * fc * dt).tan();
+    let q = std::f64::consts::SQRT_2;
+    let norm = 1.0 / (1.0 + q * k + k * k);
+    let b0 = k * k * norm;
+    let (b1, b2) = (2.0 * b0, b0);
+    let a1 = 2.0 * (k * k - 1.0) * norm;
+    let a2 = (1.0 - q * k + k * k) * norm;
+    let (mut x1, mut x2, mut y1, mut y2) = (x[0], x[0], x[0], x[0]);
+    x.iter()
+        .map(|&x0| {
+            let y0 = b0 * x0 + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2;
+            x2 = x1;
+            x1 = x0;
+            y2 = y1;
+            y1 = y0;
+            y0
+        })
+        .collect()
+}
+
+/// Assesses a run.
+pub fn assess(s: &Signals, c: &ComfortSettings) -> Comfort {
+    let n = s.t.len();
+    if n < 3 {
+        return Comfort {
+            method: "paper-peak",
+            ..Default::default()
+        };
+    }
+    let dt = (s.t[n - 1] - s.t[0]) / (n - 1) as f64;
+    let acc_peak = peak(&s.lat_acc);
+    let jerk = slope_peak(&s.lat_acc, dt, c.jerk_window_s);
+    let roll_peak = peak(&s.roll_speed);
+    let p_ct = Pct::from_peaks(acc_peak, jerk, roll_peak.to_degrees());
+    // Per transition on filtered signals.
+    let fa = low_pass(&s.lat_acc, dt, c.filter_hz);
+    let fr = low_pass(&s.roll_speed, dt, c.filter_hz);
+    let mut worst = Pct::default();
+    for &(t0, t1) in &s.transitions {
+        let idx: Vec<usize> = (0..n)
+            .filter(|&i| s.t[i] >= t0 - c.margin_s && s.t[i] <= t1 + c.margin_s)
+            .collect();
+        let (Some(&a), Some(&b)) = (idx.first(), idx.last()) else {
+            continue;
+        };
+        let p = Pct::from_peaks(
+            peak(&fa[a..=b]),
+            slope_peak(&fa[a..=b], dt, c.jerk_window_s),
+            peak(&fr[a..=b]).to_degrees(),
+        );
+        if p.standing >= worst.standing {
+            worst = p;
+        }
+    }
+    let defl = peak(&s.deflection);
+    Comfort {
+        method: "paper-peak",
+        lat_acc_rms_dev_pct_g: 100.0 / G
+            * rms(s.lat_acc.iter().zip(&s.lat_acc_ref).map(|(a, b)| a - b)),
+        lat_acc_peak_pct_g: 100.0 * acc_peak / G,
+        roll_speed_rms_dev_rad_s: rms(s
+            .roll_speed
+            .iter()
+            .zip(&s.roll_speed_ref)
+            .map(|(a, b)| a - b)),
+        roll_speed_peak_rad_s: roll_peak,
+        jerk_peak_pct_g_s: 100.0 * jerk / G,
+        p_ct,
+        p_ct_en12299: worst,
+        deflection_peak_mm: defl * 1e3,
+        deflection_of_bump_stop_pct: 100.0 * defl / c.bump_stop_m,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn p_ct_reproduces_the_papers_pi_and_lqg_columns_from_their_peaks() {
+        // Table 4: peaks in %g, %g/s and rad/s; P_CT printed alongside.
+        let from_table = |acc_pct: f64, jerk_pct: f64, roll: f64| {
+            Pct::from_peaks(acc_pct * G / 100.0, jerk_pct * G / 100.0, roll.to_degrees())
+        };
+        let pi = from_table(8.491, 4.373, 0.118);
+        assert!(
+            (pi.standing - 35.975).abs() < 0.3,
+            "PI standing {}",
+            pi.standing
+        );
+        assert!((pi.seated - 8.397).abs() < 0.3, "PI seated {}", pi.seated);
+        let lqg = from_table(9.796, 4.893, 0.100);
+        assert!(
+            (lqg.standing - 36.412).abs() < 0.3,
+            "LQG standing {}",
+            lqg.standing
+        );
+        assert!(
+            (lqg.seated - 9.448).abs() < 0.3,
+            "LQG seated {}",
+            lqg.seated
+        );
+        // Below the threshold only the roll term remains: D·φ̇^E.
+        assert_eq!(p_ct(&STANDING, 0.1, 0.1, 0.0), 0.0);
+        assert!((p_ct(&SEATED, 0.0, 0.0, 2.0) - 0.120 * 2f64.powf(1.626)).abs() < 1e-12);
+    }
+
+    fn uniform(n: usize, dt: f64, f: impl Fn(f64) -> f64) -> (Vec<f64>, Vec<f64>) {
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        let x = t.iter().map(|&t| f(t)).collect();
+        (t, x)
+    }
+
+    #[test]
+    fn metrics_of_a_constant_a_ramp_and_a_sinusoid() {
+        let dt = 1e-3;
+        let c = ComfortSettings::default();
+        // Constant: RMS deviation = the offset, peak = the value, no jerk.
+        let (t, x) = uniform(5000, dt, |_| 0.5);
+        let s = Signals {
+            lat_acc_ref: vec![0.4; t.len()],
+            roll_speed: vec![0.0; t.len()],
+            roll_speed_ref: vec![0.0; t.len()],
+            deflection: vec![-0.03; t.len()],
+            t,
+            lat_acc: x,
+            transitions: vec![],
+        };
+        let m = assess(&s, &c);
+        assert!((m.lat_acc_rms_dev_pct_g - 100.0 * 0.1 / G).abs() < 1e-12);
+        assert!((m.lat_acc_peak_pct_g - 100.0 * 0.5 / G).abs() < 1e-12);
+        assert_eq!(m.jerk_peak_pct_g_s, 0.0);
+        assert!((m.deflection_peak_mm - 30.0).abs() < 1e-9);
+        assert!((m.deflection_of_bump_stop_pct - 50.0).abs() < 1e-9);
+        // Ramp of 0.4 m/s³: the jerk is the slope; the filtered signal of a ramp lags but
+        // keeps the slope, so the per-transition jerk is the same once the filter settles.
+        let (t, x) = uniform(20_000, dt, |t| 0.4 * t);
+        assert!((slope_peak(&x, dt, 1.0) - 0.4).abs() < 1e-9);
+        let f = low_pass(&x, dt, 0.3);
+        let late = slope_peak(&f[10_000..], dt, 1.0);
+        assert!((late - 0.4).abs() < 1e-4, "{late}");
+        // Sinusoid of amplitude a: RMS a/√2 about a zero reference, peak a; the 1 s slope of
+        // sin(ωt) peaks at 2 sin(ω/2)·a / 1 s; a 0.3 Hz filter passes 0.05 Hz nearly whole.
+        let (a, w) = (0.2, std::f64::consts::TAU * 0.05);
+        let (_, x) = uniform(t.len(), dt, |t| a * (w * t).sin());
+        let s = Signals {
+            lat_acc_ref: vec![0.0; t.len()],
+            roll_speed: x.clone(),
+            roll_speed_ref: vec![0.0; t.len()],
+            deflection: vec![0.0; t.len()],
+            lat_acc: x.clone(),
+            t: t.clone(),
+            transitions: vec![(5.0, 15.0)],
+        };
+        let m = assess(&s, &c);
+        assert!((m.lat_acc_rms_dev_pct_g - 100.0 * a / 2f64.sqrt() / G).abs() < 1e-4);
+        assert!((m.roll_speed_rms_dev_rad_s - a / 2f64.sqrt()).abs() < 1e-5);
+        assert!((m.roll_speed_peak_rad_s - a).abs() < 1e-6);
+        let j = 2.0 * (w / 2.0).sin() * a;
+        assert!(
+            (m.jerk_peak_pct_g_s - 100.0 * j / G).abs() < 1e-3,
+            "{}",
+            m.jerk_peak_pct_g_s
+        );
+        let gain = 1.0 / (1.0 + (0.05f64 / 0.3).powi(4)).sqrt();
+        assert!((m.p_ct_en12299.lat_acc_m_s2 - a * gain).abs() < 0.005 * a);
+    }
+}
