@@ -437,6 +437,17 @@ fn print_report(s: &engine::Summary, out: &std::path::Path) {
         s.results.theta_v_mid_curve.to_degrees(),
         s.results.delta_a_peak.to_degrees()
     );
+    let c = &s.comfort;
+    println!(
+        "  comfort: P_CT standing {:.2} %, seated {:.2} % (paper-peak; EN 12299 per transition {:.2} / {:.2} %); lateral acceleration RMS deviation {:.3} %g, peak {:.2} %g; jerk {:.2} %g/s",
+        c.p_ct.standing,
+        c.p_ct.seated,
+        c.p_ct_en12299.standing,
+        c.p_ct_en12299.seated,
+        c.lat_acc_rms_dev_pct_g,
+        c.lat_acc_peak_pct_g,
+        c.jerk_peak_pct_g_s
+    );
     for p in &s.participants {
         println!(
             "  {} compute per call: p50 {:.1} us, p99 {:.1} us, max {:.1} us ({} calls)",
