@@ -585,6 +585,11 @@ impl Bldc {
             cmd = cmd.clamp(-self.stroke, self.stroke);
             self.limits |= limit::STROKE_COMMAND;
         }
+        self.run_interval(cmd, psi, interval)
+    }
+
+    /// Sub-steps over `interval` and averages torque and power over them.
+    fn run_interval(&mut self, cmd: f64, psi: f64, interval: f64) -> Telemetry {
         let n = ((interval / self.dt).round() as u64).max(1);
         let (mut te_sum, mut p_sum) = (0.0, 0.0);
         for _ in 0..n {
@@ -606,30 +611,16 @@ impl Bldc {
     /// Open-loop test hook: drive a constant torque reference, bypassing position and speed
     /// loops (used for the no-load and stall checks).
     pub fn hold_torque_reference(&mut self, t: f64, psi: f64, interval: f64) -> Telemetry {
-        let n = ((interval / self.dt).round() as u64).max(1);
-        let (mut te_sum, mut p_sum) = (0.0, 0.0);
         // Disable the loops: a control period longer than the interval.
         let saved = self.sub_per_control;
         self.sub_per_control = u32::MAX;
         self.sub_count = 1;
         self.torque_ref = t;
         self.i_ref = self.current_ref();
-        for _ in 0..n {
-            let (te, p) = self.substep(0.0, psi);
-            te_sum += te;
-            p_sum += p;
-        }
+        let tel = self.run_interval(0.0, psi, interval);
         self.sub_per_control = saved;
         self.sub_count = 0;
-        let nf = n as f64;
-        Telemetry {
-            delta_a: self.delta_a(),
-            torque: te_sum / nf,
-            speed: self.omega,
-            current: te_sum / nf / self.p.k_t,
-            dc_power: p_sum / nf,
-            limits: self.limits,
-        }
+        tel
     }
 }
 
