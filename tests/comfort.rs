@@ -49,4 +49,25 @@ fn compare_writes_table_4_with_the_papers_values_and_our_differences() {
     );
     let standing = (28.54 * a + 20.69 * j - 11.1f64).max(0.0) + 0.185 * r.powf(2.283);
     assert!((pct["standing"].as_f64().unwrap() - standing).abs() < 1e-9);
+
+    // Plots: every run writes its SVGs; `tiltsim plot DIR` redraws them from the files.
+    let plots = dir.join("paper-lqg").join("plots");
+    for name in ["lateral_acceleration", "body_roll", "control", "motor"] {
+        let p = plots.join(format!("{name}.svg"));
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert!(text.starts_with("<svg") && text.trim_end().ends_with("</svg>"));
+        assert_eq!(
+            text.matches("<text").count(),
+            text.matches("</text>").count()
+        );
+        assert!(text.contains("<path d=\"M"), "{name}: no data line");
+        std::fs::remove_file(&p).unwrap();
+    }
+    let (code, out, err) = run(&["plot", dir.join("paper-lqg").to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(out.lines().count(), 4);
+    assert!(plots.join("control.svg").exists());
+    let (code, _, err) = run(&["plot", dir.join("missing").to_str().unwrap()]);
+    assert_eq!(code, 2);
+    assert!(err.contains("scenario.toml"), "{err}");
 }

@@ -56,6 +56,11 @@ enum Command {
         #[arg(long, value_enum)]
         transport: Option<TransportArg>,
     },
+    /// Redraw DIR/plots/*.svg from a finished run's DIR/timeseries.csv and DIR/scenario.toml.
+    Plot {
+        /// A run's output directory.
+        dir: PathBuf,
+    },
     /// Print the linear design model (matrices, eigenvalues, damping, frequencies) and the
     /// scenario controller's gains as JSON.
     Linearize {
@@ -163,6 +168,27 @@ pub fn main() -> i32 {
         },
         Command::Run(a) => run(a),
         Command::Linearize { scenario, out } => linearize(&scenario, out.as_deref()),
+        Command::Plot { dir } => {
+            let s = match Scenario::load(&dir.join("scenario.toml")) {
+                Ok(s) => s,
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    return EXIT_INVALID;
+                }
+            };
+            match engine::write_plots(&s, &dir) {
+                Ok(files) => {
+                    for f in files {
+                        println!("wrote {}", f.display());
+                    }
+                    0
+                }
+                Err(e) => {
+                    eprintln!("error: {}: {e}", dir.join("timeseries.csv").display());
+                    EXIT_INVALID
+                }
+            }
+        }
         Command::Compare {
             scenarios,
             out,
@@ -461,7 +487,7 @@ fn print_report(s: &engine::Summary, out: &std::path::Path) {
         );
     }
     println!(
-        "  wrote {}/timeseries.csv, summary.json, scenario.toml",
+        "  wrote {}/timeseries.csv, summary.json, scenario.toml, plots/*.svg",
         out.display()
     );
 }

@@ -556,6 +556,9 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
     let cpu_participants = exits.iter().filter_map(|e| e.cpu_s).fold(0.0, |a, b| a + b);
     let results = quick_look(s, &csv);
     let comfort = comfort_of(s, &csv);
+    if let Err(e) = write_plots(s, &opts.out_dir) {
+        tracing::warn!("plots not written: {e}");
+    }
     Ok(Summary {
         tiltsim_version: env!("CARGO_PKG_VERSION"),
         scenario: s.name.clone(),
@@ -660,6 +663,35 @@ pub fn signals_from_csv(s: &Scenario, csv: &std::path::Path) -> crate::comfort::
             .collect(),
         transitions: vec![(t1, t2), (t3, t4)],
     }
+}
+
+/// Writes `dir/plots/*.svg` from `dir/timeseries.csv`.
+pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<PathBuf>> {
+    let text = std::fs::read_to_string(dir.join("timeseries.csv"))?;
+    let cols = crate::record::COLUMNS;
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            l.split(',')
+                .map(|x| x.parse().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .filter(|r: &Vec<f64>| r.len() >= cols.len())
+        .collect();
+    let tp = &s.track;
+    let v = tp.speed();
+    let t1 = tp.straight_before_m / v;
+    let t2 = t1 + tp.transition_m / v;
+    let t3 = t2 + tp.curve_m / v;
+    let t4 = t3 + tp.transition_m / v;
+    crate::plot::write_run_plots(
+        dir,
+        cols,
+        &rows,
+        &[(t1, t2, false), (t2, t3, true), (t3, t4, false)],
+        s.controller.u_max_deg,
+    )
 }
 
 fn comfort_of(s: &Scenario, csv: &std::path::Path) -> crate::comfort::Comfort {

@@ -6,6 +6,7 @@ pub mod comfort;
 pub mod compare;
 pub mod engine;
 pub mod linearize;
+pub mod plot;
 pub mod record;
 pub mod scenario;
 
