@@ -599,6 +599,16 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
     })
 }
 
+/// Times (s) at which the vehicle enters the first transition, the steady curve, the second
+/// transition and the final straight.
+fn section_times(tp: &plant_proc::TrackParams) -> [f64; 4] {
+    let v = tp.speed();
+    let t1 = tp.straight_before_m / v;
+    let t2 = t1 + tp.transition_m / v;
+    let t3 = t2 + tp.curve_m / v;
+    [t1, t2, t3, t3 + tp.transition_m / v]
+}
+
 /// Reads the recorded series back into the signals the comfort assessment needs.
 pub fn signals_from_csv(s: &Scenario, csv: &std::path::Path) -> crate::comfort::Signals {
     use crate::comfort::Signals;
@@ -642,12 +652,7 @@ pub fn signals_from_csv(s: &Scenario, csv: &std::path::Path) -> crate::comfort::
         (f(&rows[b]) - f(&rows[a])) / ((b - a) as f64 * dt)
     };
     let (h1, h2) = (s.vehicle.h1, s.vehicle.h2);
-    let tp = &s.track;
-    let v = tp.speed();
-    let t1 = tp.straight_before_m / v;
-    let t2 = t1 + tp.transition_m / v;
-    let t3 = t2 + tp.curve_m / v;
-    let t4 = t3 + tp.transition_m / v;
+    let [t1, t2, t3, t4] = section_times(&s.track);
     Signals {
         t: rows.iter().map(|r| r[0]).collect(),
         lat_acc: rows.iter().map(|r| r[1]).collect(),
@@ -679,12 +684,7 @@ pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<P
         })
         .filter(|r: &Vec<f64>| r.len() >= cols.len())
         .collect();
-    let tp = &s.track;
-    let v = tp.speed();
-    let t1 = tp.straight_before_m / v;
-    let t2 = t1 + tp.transition_m / v;
-    let t3 = t2 + tp.curve_m / v;
-    let t4 = t3 + tp.transition_m / v;
+    let [t1, t2, t3, t4] = section_times(&s.track);
     crate::plot::write_run_plots(
         dir,
         cols,
