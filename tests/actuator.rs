@@ -3,18 +3,16 @@
 
 use std::path::{Path, PathBuf};
 
-use tiltsim_suite::{run, scenario, temp_dir, Series};
+use tiltsim_suite::{run, scenario_with, temp_dir, Series};
 
 fn run_model(name: &str, file: &str, model: &str, extra_toml: &str) -> PathBuf {
-    let text = std::fs::read_to_string(scenario(file)).unwrap();
-    assert!(text.contains("model = \"bldc\""));
-    let text = text.replace(
+    let path = scenario_with(
+        file,
         "model = \"bldc\"",
         &format!("model = \"{model}\"\n{extra_toml}"),
+        name,
     );
     let dir = temp_dir(name);
-    let path = dir.join("scenario-in.toml");
-    std::fs::write(&path, text).unwrap();
     let out = dir.join("out");
     let (code, _, err) = run(&[
         "run",

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use tiltsim_suite::{leftovers, prefix, run, scenario, summary, temp_dir, Series};
+use tiltsim_suite::{leftovers, prefix, run, scenario, scenario_with, summary, temp_dir, Series};
 
 /// Runs a scenario file; returns its output directory.
 fn run_file(name: &str, file: &Path, transport: &str) -> PathBuf {
@@ -24,28 +24,6 @@ fn run_file(name: &str, file: &Path, transport: &str) -> PathBuf {
     assert_eq!(code, 0, "{name}: tiltsim failed: {err}");
     assert!(leftovers(&pfx).is_empty());
     dir
-}
-
-/// A copy of a shipped scenario with `rho` replaced.
-fn with_rho(file: &str, rho: &str, name: &str) -> PathBuf {
-    let text = std::fs::read_to_string(scenario(file)).unwrap();
-    assert!(text.contains("rho = 0.30") || text.contains("rho = 0.50"));
-    let text = text
-        .replace("rho = 0.30", &format!("rho = {rho}"))
-        .replace("rho = 0.50", &format!("rho = {rho}"));
-    let p = temp_dir(&format!("{name}-scenario")).join(file);
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
-/// A copy of a shipped scenario with another actuator model.
-fn with_actuator(file: &str, model: &str, name: &str) -> PathBuf {
-    let text = std::fs::read_to_string(scenario(file)).unwrap();
-    assert!(text.contains("model = \"bldc\""));
-    let text = text.replace("model = \"bldc\"", &format!("model = \"{model}\""));
-    let p = temp_dir(&format!("{name}-scenario")).join(file);
-    std::fs::write(&p, text).unwrap();
-    p
 }
 
 /// Mean, RMS and largest |θ_v − θ_v^d| (rad) from 3 s into the steady curve to its end
@@ -87,7 +65,7 @@ fn every_controller_tracks_the_tilt_command_on_the_steady_curve() {
         let kind = if ideal { "ideal" } else { "bldc" };
         let name = format!("{}-{kind}", file.trim_end_matches(".toml"));
         let path = if ideal {
-            with_actuator(file, "ideal", &name)
+            scenario_with(file, "model = \"bldc\"", "model = \"ideal\"", &name)
         } else {
             scenario(file)
         };
@@ -136,7 +114,7 @@ fn at_rho_half_the_mpc_respects_its_limits_while_the_lqg_exceeds_them() {
     let ctrl = &sum["participants"][2];
     assert_eq!(ctrl["compute_us"]["n"], 336);
 
-    let lqg_file = with_rho("paper-lqg.toml", "0.50", "lqg-rho50");
+    let lqg_file = scenario_with("paper-lqg.toml", "rho = 0.30", "rho = 0.50", "lqg-rho50");
     let lqg = run_file("lqg-rho50", &lqg_file, "in-process");
     let u = Series::read(&lqg.join("timeseries.csv")).col("delta_a_cmd");
     let peak = u.iter().fold(0.0f64, |m, v| m.max(v.abs()));

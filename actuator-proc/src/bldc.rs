@@ -400,17 +400,6 @@ impl Bldc {
         0.5 * self.p.j_rot * self.omega * self.omega
     }
 
-    /// Electromagnetic torque (N·m), eq 5 with Λ_t = λ_p per phase.
-    pub fn torque(&self) -> f64 {
-        match self.kind {
-            Electrics::Switched => {
-                let f = shapes(self.electrical_angle());
-                self.lambda * (f[0] * self.i[0] + f[1] * self.i[1] + f[2] * self.i[2])
-            }
-            Electrics::Averaged => self.p.k_t * self.i[0],
-        }
-    }
-
     fn electrical_angle(&self) -> f64 {
         0.5 * self.p.poles as f64 * self.theta_m
     }

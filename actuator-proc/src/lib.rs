@@ -108,10 +108,6 @@ impl Actuator {
     pub fn settings(&self) -> &ActuatorSettings {
         &self.settings
     }
-    /// The drive, if the model has one.
-    pub fn drive(&self) -> Option<&Bldc> {
-        self.drive.as_ref()
-    }
 }
 
 impl Participant for Actuator {

@@ -76,11 +76,6 @@ impl LinearModel {
             c: self.c.clone(),
         }
     }
-
-    /// Eigenvalues of Π with natural frequencies and damping ratios, sorted by frequency.
-    pub fn modes(&self) -> Vec<Mode> {
-        modes_of(&self.a)
-    }
 }
 
 /// Eigenvalues of a continuous-time state matrix as [`Mode`]s, sorted by frequency.

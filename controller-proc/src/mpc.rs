@@ -403,11 +403,6 @@ impl Mpc {
         self.s.preview
     }
 
-    /// Whether the estimator's model uses the known track input.
-    pub fn uses_track_input(&self) -> bool {
-        self.track_input
-    }
-
     /// Sets the previous command u(k−1) (rad).
     pub fn set_previous(&mut self, u: f64) {
         self.u_prev = u;

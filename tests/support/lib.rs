@@ -167,6 +167,16 @@ impl Series {
     }
 }
 
+/// A copy of the shipped scenario `file` with `from` replaced by `to` (which must occur),
+/// written to a fresh directory named after `name`.
+pub fn scenario_with(file: &str, from: &str, to: &str, name: &str) -> PathBuf {
+    let text = std::fs::read_to_string(scenario(file)).expect("scenario file");
+    assert!(text.contains(from), "{file} has no `{from}`");
+    let p = temp_dir(&format!("{name}-scenario")).join(file);
+    std::fs::write(&p, text.replace(from, to)).expect("write scenario");
+    p
+}
+
 /// Reads `summary.json`.
 pub fn summary(dir: &Path) -> serde_json::Value {
     let p = dir.join("summary.json");
