@@ -50,7 +50,7 @@ fn compare_writes_table_4_with_the_papers_values_and_our_differences() {
     let standing = (28.54 * a + 20.69 * j - 11.1f64).max(0.0) + 0.185 * r.powf(2.283);
     assert!((pct["standing"].as_f64().unwrap() - standing).abs() < 1e-9);
 
-    // Plots: every run writes its SVGs; `tiltsim plot DIR` redraws them from the files.
+    // Plots: every run writes SVG and PNG; `tiltsim plot DIR` redraws them from the files.
     let plots = dir.join("paper-lqg").join("plots");
     for name in ["lateral_acceleration", "body_roll", "control", "motor"] {
         let p = plots.join(format!("{name}.svg"));
@@ -61,13 +61,40 @@ fn compare_writes_table_4_with_the_papers_values_and_our_differences() {
             text.matches("</text>").count()
         );
         assert!(text.contains("<path d=\"M"), "{name}: no data line");
+        assert_png_chart(&plots.join(format!("{name}.png")));
         std::fs::remove_file(&p).unwrap();
     }
     let (code, out, err) = run(&["plot", dir.join("paper-lqg").to_str().unwrap()]);
     assert_eq!(code, 0, "{err}");
-    assert_eq!(out.lines().count(), 4);
+    assert_eq!(out.lines().count(), 8, "4 charts as SVG and PNG");
     assert!(plots.join("control.svg").exists());
     let (code, _, err) = run(&["plot", dir.join("missing").to_str().unwrap()]);
     assert_eq!(code, 2);
     assert!(err.contains("scenario.toml"), "{err}");
+    // The combined figures of compare hold one line per run.
+    for name in ["lateral_acceleration", "body_roll", "control"] {
+        let svg = std::fs::read_to_string(dir.join(format!("plots/compare_{name}.svg"))).unwrap();
+        assert!(svg.contains(">paper-passive<") && svg.contains(">paper-lqg<"));
+        assert_png_chart(&dir.join(format!("plots/compare_{name}.png")));
+    }
+}
+
+/// A PNG that decodes, has the chart's size and holds drawing in more than one colour.
+fn assert_png_chart(path: &std::path::Path) {
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut dec = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .unwrap_or_else(|e| panic!("{}: not a PNG: {e}", path.display()));
+    let mut buf = vec![0; dec.output_buffer_size().unwrap()];
+    let info = dec.next_frame(&mut buf).unwrap();
+    assert_eq!((info.width, info.height), (1800, 840), "{}", path.display());
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    let px = &buf[..info.buffer_size()];
+    let coloured = px
+        .chunks(3)
+        .filter(|c| !(c[0] == c[1] && c[1] == c[2]))
+        .count();
+    let black = px.chunks(3).filter(|c| c == &[0, 0, 0]).count();
+    assert!(coloured > 2000, "{}: data lines drawn", path.display());
+    assert!(black > 2000, "{}: axes and text drawn", path.display());
 }

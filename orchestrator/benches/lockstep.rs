@@ -41,6 +41,7 @@ fn main() {
             participant_exe: PathBuf::from(env!("CARGO_BIN_EXE_tiltsim")),
             ipc_prefix: None,
             interrupt: Arc::new(AtomicBool::new(false)),
+            plots: true,
         };
         let r = run(&s, &file.display().to_string(), &opts).expect("run");
         println!(

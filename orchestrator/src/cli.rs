@@ -56,10 +56,23 @@ enum Command {
         #[arg(long, value_enum)]
         transport: Option<TransportArg>,
     },
-    /// Redraw DIR/plots/*.svg from a finished run's DIR/timeseries.csv and DIR/scenario.toml.
+    /// Redraw DIR/plots/*.svg and *.png from a finished run's DIR/timeseries.csv and DIR/scenario.toml.
     Plot {
         /// A run's output directory.
         dir: PathBuf,
+    },
+    /// Robustness or parameter sweep: many runs in parallel, a table of comfort metrics
+    /// (median, 5th and 95th percentile) and plots in DIR. Either --samples (Monte Carlo
+    /// over masses, inertias and suspension, Fig. 21) or --grid KEY=START:STOP:STEP.
+    Sweep(SweepArgs),
+    /// Merge the outputs of `tiltsim sweep --shard i/n` runs into the whole sweep's files.
+    SweepMerge {
+        /// Shard output directories.
+        #[arg(required = true)]
+        shards: Vec<PathBuf>,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
     },
     /// Print the linear design model (matrices, eigenvalues, damping, frequencies) and the
     /// scenario controller's gains as JSON.
@@ -101,6 +114,43 @@ struct RunArgs {
     #[arg(long, hide = true)]
     ipc_prefix: Option<String>,
     /// Print nothing but errors.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(clap::Args, Debug)]
+struct SweepArgs {
+    /// Scenario file (TOML).
+    scenario: PathBuf,
+    /// Monte Carlo samples (uniform factors on masses, inertias and suspension).
+    #[arg(long, conflicts_with = "grid", required_unless_present = "grid")]
+    samples: Option<usize>,
+    /// Relative half-width of the Monte Carlo factors.
+    #[arg(long, default_value_t = 0.22)]
+    spread: f64,
+    /// Seed of the Monte Carlo draws.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Vary one scenario key instead: KEY=START:STOP:STEP or KEY=V1,V2,...
+    /// (e.g. links.actuator_command.delay_ticks=0:100:10).
+    #[arg(long)]
+    grid: Option<String>,
+    /// Run only samples j with j mod N = I, for a batch scheduler; merge with sweep-merge.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<String>,
+    /// Parallel runs [default: the number of CPUs].
+    #[arg(long)]
+    jobs: Option<usize>,
+    /// Transport of every run [default: in-process].
+    #[arg(long, value_enum)]
+    transport: Option<TransportArg>,
+    /// Output directory [default: out/sweep-<scenario name>].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Keep every sample's run directory (timeseries, summary, plots) under DIR/runs/.
+    #[arg(long)]
+    keep_runs: bool,
+    /// No progress bar and no table on standard output.
     #[arg(short, long)]
     quiet: bool,
 }
@@ -168,6 +218,30 @@ pub fn main() -> i32 {
         },
         Command::Run(a) => run(a),
         Command::Linearize { scenario, out } => linearize(&scenario, out.as_deref()),
+        Command::Sweep(a) => sweep(a),
+        Command::SweepMerge { shards, out } => match crate::sweep::merge(&shards) {
+            Ok((base, plan, rows)) => {
+                match crate::sweep::write_outputs(&out, &base, &plan, None, &rows) {
+                    Ok(_) => {
+                        println!(
+                            "merged {} samples from {} shards into {}",
+                            rows.len(),
+                            shards.len(),
+                            out.display()
+                        );
+                        0
+                    }
+                    Err(e) => {
+                        eprintln!("error: {}: {e}", out.display());
+                        EXIT_FAILED
+                    }
+                }
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                EXIT_INVALID
+            }
+        },
         Command::Plot { dir } => {
             let s = match Scenario::load(&dir.join("scenario.toml")) {
                 Ok(s) => s,
@@ -226,6 +300,7 @@ fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<Transport
         return EXIT_FAILED;
     };
     let mut entries = Vec::new();
+    let mut runs = Vec::new();
     for (file, s) in loaded {
         let dir = out.join(&s.name);
         let opts = RunOptions {
@@ -233,6 +308,7 @@ fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<Transport
             participant_exe: exe.clone(),
             ipc_prefix: None,
             interrupt: interrupt.clone(),
+            plots: true,
         };
         let summary = match engine::run(&s, &file.display().to_string(), &opts) {
             Ok(sum) => sum,
@@ -264,6 +340,7 @@ fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<Transport
                 return EXIT_FAILED;
             }
         }
+        runs.push((s.name.clone(), s.clone(), dir));
         entries.push(crate::compare::entry(s, summary));
     }
     let (md, csv) = crate::compare::tables(&entries);
@@ -274,7 +351,122 @@ fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<Transport
             return EXIT_FAILED;
         }
     }
-    println!("wrote {}/table.md and table.csv", out.display());
+    if let Err(e) = engine::write_compare_plots(&runs, out) {
+        eprintln!("error: {}: {e}", out.join("plots").display());
+        return EXIT_FAILED;
+    }
+    println!(
+        "wrote {0}/table.md, {0}/table.csv and {0}/plots/compare_*.svg|png",
+        out.display()
+    );
+    0
+}
+
+fn sweep(a: SweepArgs) -> i32 {
+    use crate::sweep::{Exec, Plan, Shard};
+    let mut s = match Scenario::load(&a.scenario) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_INVALID;
+        }
+    };
+    s.run.transport = match a.transport {
+        Some(TransportArg::Ipc) => Transport::Ipc,
+        Some(TransportArg::InProcess) => Transport::InProcess,
+        None => crate::sweep::default_transport(),
+    };
+    let plan = match (&a.grid, a.samples) {
+        (Some(g), _) => match crate::sweep::parse_grid(g) {
+            Ok(p) => p,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return EXIT_INVALID;
+            }
+        },
+        (None, Some(n)) => {
+            if n == 0 || !(0.0..1.0).contains(&a.spread) {
+                eprintln!("error: --samples must be at least 1 and --spread in [0, 1)");
+                return EXIT_INVALID;
+            }
+            Plan::MonteCarlo {
+                samples: n,
+                spread: a.spread,
+                seed: a.seed,
+            }
+        }
+        (None, None) => {
+            eprintln!("error: give --samples N or --grid KEY=START:STOP:STEP");
+            return EXIT_INVALID;
+        }
+    };
+    // Every sample's scenario must be valid before anything runs.
+    if let Plan::Grid { key, values } = &plan {
+        for v in values {
+            if let Err(e) = crate::sweep::with_key(&s, key, *v) {
+                eprintln!("error: {}: {e}", a.scenario.display());
+                return EXIT_INVALID;
+            }
+        }
+    }
+    let shard = match a.shard.as_deref().map(Shard::parse).transpose() {
+        Ok(sh) => sh,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_INVALID;
+        }
+    };
+    let interrupt = Arc::new(AtomicBool::new(false));
+    {
+        let flag = interrupt.clone();
+        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    }
+    let Ok(exe) = std::env::current_exe() else {
+        eprintln!("error: cannot find the tiltsim executable to start participants");
+        return EXIT_FAILED;
+    };
+    let out = a
+        .out
+        .unwrap_or_else(|| PathBuf::from("out").join(format!("sweep-{}", s.name)));
+    let jobs = a.jobs.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    let ex = Exec {
+        out: out.clone(),
+        jobs,
+        keep_runs: a.keep_runs,
+        exe,
+        interrupt,
+        progress: !a.quiet,
+    };
+    let started = std::time::Instant::now();
+    let Some(rows) = crate::sweep::run(&s, &plan, shard, &ex) else {
+        eprintln!("interrupted; nothing written");
+        return EXIT_INTERRUPTED;
+    };
+    let wall = started.elapsed().as_secs_f64();
+    if let Err(e) = crate::sweep::write_outputs(&out, &s, &plan, shard, &rows) {
+        eprintln!("error: {}: {e}", out.display());
+        return EXIT_FAILED;
+    }
+    let failed = rows.iter().filter(|r| r.status != "completed").count();
+    if !a.quiet {
+        if let Ok(t) = std::fs::read_to_string(out.join("table.md")) {
+            println!("{t}");
+        }
+        println!(
+            "{} samples ({} failed) in {wall:.1} s wall with {jobs} parallel runs ({:.2} s per sample)",
+            rows.len(),
+            failed,
+            wall * jobs as f64 / rows.len().max(1) as f64
+        );
+        println!(
+            "wrote {0}/table.md, table.csv, samples.csv, series.csv, sweep.json, plots/",
+            out.display()
+        );
+    }
     0
 }
 
@@ -390,6 +582,7 @@ fn run(a: RunArgs) -> i32 {
         participant_exe: exe,
         ipc_prefix: a.ipc_prefix,
         interrupt,
+        plots: true,
     };
     let summary = match engine::run(&s, &a.scenario.display().to_string(), &opts) {
         Ok(sum) => sum,
@@ -487,7 +680,7 @@ fn print_report(s: &engine::Summary, out: &std::path::Path) {
         );
     }
     println!(
-        "  wrote {}/timeseries.csv, summary.json, scenario.toml, plots/*.svg",
+        "  wrote {}/timeseries.csv, summary.json, scenario.toml, plots/*.svg|png",
         out.display()
     );
 }

@@ -85,7 +85,7 @@ pub fn entry(scenario: Scenario, summary: Summary) -> Entry {
     }
 }
 
-fn fmt(v: f64) -> String {
+pub(crate) fn fmt(v: f64) -> String {
     if v.abs() >= 100.0 {
         format!("{v:.1}")
     } else if v.abs() >= 1.0 {

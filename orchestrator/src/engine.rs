@@ -33,6 +33,22 @@ pub struct RunOptions {
     pub ipc_prefix: Option<String>,
     /// Set by Ctrl-C.
     pub interrupt: Arc<AtomicBool>,
+    /// Draw `plots/` after the run.
+    pub plots: bool,
+}
+
+impl RunOptions {
+    /// Options for a run into `out_dir` with participants served by `participant_exe`: a
+    /// unique iceoryx2 prefix, plots drawn, no interrupt flag shared.
+    pub fn new(out_dir: PathBuf, participant_exe: PathBuf) -> Self {
+        RunOptions {
+            out_dir,
+            participant_exe,
+            ipc_prefix: None,
+            interrupt: Arc::new(AtomicBool::new(false)),
+            plots: true,
+        }
+    }
 }
 
 /// How the run ended.
@@ -214,7 +230,7 @@ impl Inits {
             controller: ControllerInit {
                 controller: s.controller.clone(),
                 track: s.track.clone(),
-                vehicle: s.vehicle.clone(),
+                vehicle: s.controller_vehicle().clone(),
             },
         }
     }
@@ -556,7 +572,8 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
     let cpu_participants = exits.iter().filter_map(|e| e.cpu_s).fold(0.0, |a, b| a + b);
     let results = quick_look(s, &csv);
     let comfort = comfort_of(s, &csv);
-    if let Err(e) = write_plots(s, &opts.out_dir) {
+    if !opts.plots {
+    } else if let Err(e) = write_plots(s, &opts.out_dir) {
         tracing::warn!("plots not written: {e}");
     }
     Ok(Summary {
@@ -670,11 +687,11 @@ pub fn signals_from_csv(s: &Scenario, csv: &std::path::Path) -> crate::comfort::
     }
 }
 
-/// Writes `dir/plots/*.svg` from `dir/timeseries.csv`.
-pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<PathBuf>> {
+/// Reads `dir/timeseries.csv` back as numeric rows (complete rows only).
+pub fn read_rows(dir: &std::path::Path) -> std::io::Result<Vec<Vec<f64>>> {
     let text = std::fs::read_to_string(dir.join("timeseries.csv"))?;
-    let cols = crate::record::COLUMNS;
-    let rows: Vec<Vec<f64>> = text
+    let n = crate::record::COLUMNS.len();
+    Ok(text
         .lines()
         .skip(1)
         .map(|l| {
@@ -682,16 +699,94 @@ pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<P
                 .map(|x| x.parse().unwrap_or(f64::NAN))
                 .collect()
         })
-        .filter(|r: &Vec<f64>| r.len() >= cols.len())
-        .collect();
+        .filter(|r: &Vec<f64>| r.len() >= n)
+        .collect())
+}
+
+pub(crate) fn bands(s: &Scenario) -> Vec<(f64, f64, bool)> {
     let [t1, t2, t3, t4] = section_times(&s.track);
+    vec![(t1, t2, false), (t2, t3, true), (t3, t4, false)]
+}
+
+/// Writes `dir/plots/*.svg` and `*.png` from `dir/timeseries.csv`.
+pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<PathBuf>> {
+    let rows = read_rows(dir)?;
     crate::plot::write_run_plots(
         dir,
-        cols,
+        crate::record::COLUMNS,
         &rows,
-        &[(t1, t2, false), (t2, t3, true), (t3, t4, false)],
+        &bands(s),
         s.controller.u_max_deg,
     )
+}
+
+/// Writes the figures that put several runs side by side (`out/plots/compare_*`): lateral
+/// acceleration, body roll and bar angle of every run on one time axis. `runs` are (label,
+/// scenario, run directory); the shaded sections are the first run's.
+pub fn write_compare_plots(
+    runs: &[(String, Scenario, PathBuf)],
+    out: &std::path::Path,
+) -> std::io::Result<Vec<PathBuf>> {
+    use crate::plot::{Chart, Line, PALETTE};
+    let cols = crate::record::COLUMNS;
+    let col = |name: &str| cols.iter().position(|c| *c == name).unwrap_or(0);
+    let mut data = Vec::new();
+    for (label, _, dir) in runs {
+        data.push((label.as_str(), read_rows(dir)?));
+    }
+    let n = data.iter().map(|(_, r)| r.len()).min().unwrap_or(0);
+    let t: Vec<f64> = data
+        .first()
+        .map(|(_, r)| r[..n].iter().map(|x| x[col("t")]).collect())
+        .unwrap_or_default();
+    let plots = out.join("plots");
+    std::fs::create_dir_all(&plots)?;
+    let bands = runs.first().map(|r| bands(&r.1)).unwrap_or_default();
+    let mut files = Vec::new();
+    for (name, title, y_label, column, scale) in [
+        (
+            "compare_lateral_acceleration",
+            "Passenger lateral acceleration of each run (Figs 14-15)",
+            "lateral acceleration (m/s²)",
+            "lat_acc",
+            1.0,
+        ),
+        (
+            "compare_body_roll",
+            "Carbody roll of each run (Fig. 16)",
+            "roll θ_v (deg)",
+            "theta_v",
+            1f64.to_degrees(),
+        ),
+        (
+            "compare_control",
+            "Achieved anti-roll-bar angle of each run (Fig. 17)",
+            "bar angle δ_a (deg)",
+            "delta_a",
+            1f64.to_degrees(),
+        ),
+    ] {
+        let i = col(column);
+        let chart = Chart {
+            title,
+            x_label: "time (s)",
+            y_label,
+            lines: data
+                .iter()
+                .enumerate()
+                .map(|(k, (label, rows))| Line {
+                    label,
+                    y: rows[..n].iter().map(|r| r[i] * scale).collect(),
+                    colour: PALETTE[k % PALETTE.len()],
+                    dashed: false,
+                })
+                .collect(),
+            bands: bands.clone(),
+            note: crate::plot::SECTION_NOTE,
+        };
+        files.extend(crate::plot::write_chart(&plots, name, &chart, &t)?);
+    }
+    Ok(files)
 }
 
 fn comfort_of(s: &Scenario, csv: &std::path::Path) -> crate::comfort::Comfort {

@@ -9,6 +9,7 @@ pub mod linearize;
 pub mod plot;
 pub mod record;
 pub mod scenario;
+pub mod sweep;
 
 pub use engine::{run, RunOptions, Summary};
 pub use scenario::{Master, Scenario, Transport};

@@ -1,9 +1,12 @@
-//! SVG plots of a finished run (`DIR/plots/*.svg`), written without a plotting library: line
-//! charts with axes, ticks, units, legends, and the track sections shaded (transitions light,
-//! steady curve darker).
+//! Plots of a finished run (`DIR/plots/*.svg` and `*.png`), drawn without a plotting library.
+//!
+//! A chart is laid out once into a [`Scene`] of primitives (filled rectangles, polylines,
+//! text). The scene is then written as SVG (vector, for papers) and rasterised as PNG (for a
+//! quick look anywhere) by our own small rasteriser, so both files always show the same
+//! thing. Text in the PNG uses the public-domain 8×8 bitmap font of the `font8x8` crate.
 
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// One line of a chart.
 pub struct Line<'a> {
@@ -11,7 +14,7 @@ pub struct Line<'a> {
     pub label: &'a str,
     /// Values, one per time sample.
     pub y: Vec<f64>,
-    /// SVG colour.
+    /// Colour as `#rrggbb`.
     pub colour: &'a str,
     /// Dashed (limits, references).
     pub dashed: bool,
@@ -21,10 +24,91 @@ pub struct Line<'a> {
 pub struct Chart<'a> {
     /// Title.
     pub title: &'a str,
+    /// X axis label with unit.
+    pub x_label: &'a str,
     /// Y axis label with unit.
     pub y_label: &'a str,
     /// Lines.
     pub lines: Vec<Line<'a>>,
+    /// Shaded x ranges (start, end, darker).
+    pub bands: Vec<(f64, f64, bool)>,
+    /// Note written inside the plot area, bottom left (what the bands mean).
+    pub note: &'a str,
+}
+
+/// An RGB colour.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rgb(pub u8, pub u8, pub u8);
+
+impl Rgb {
+    /// Parses `#rrggbb`; anything else is black.
+    pub fn hex(s: &str) -> Rgb {
+        let v = s
+            .strip_prefix('#')
+            .filter(|h| h.len() == 6)
+            .and_then(|h| u32::from_str_radix(h, 16).ok())
+            .unwrap_or(0);
+        Rgb((v >> 16) as u8, (v >> 8) as u8, v as u8)
+    }
+    fn css(self) -> String {
+        format!("#{:02x}{:02x}{:02x}", self.0, self.1, self.2)
+    }
+}
+
+/// Horizontal text anchor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Anchor {
+    /// Text starts at x.
+    Start,
+    /// Text is centred on x.
+    Middle,
+    /// Text ends at x.
+    End,
+}
+
+/// A drawing primitive in scene units (SVG pixels).
+#[derive(Debug, Clone)]
+pub enum Prim {
+    /// A rectangle, filled and/or outlined.
+    Rect {
+        x: f64,
+        y: f64,
+        w: f64,
+        h: f64,
+        fill: Option<Rgb>,
+        stroke: Option<Rgb>,
+    },
+    /// A polyline.
+    Path {
+        pts: Vec<(f64, f64)>,
+        colour: Rgb,
+        width: f64,
+        /// (on, off) dash lengths.
+        dash: Option<(f64, f64)>,
+    },
+    /// A line of text with its baseline at y.
+    Text {
+        x: f64,
+        y: f64,
+        text: String,
+        size: f64,
+        anchor: Anchor,
+        /// Rotated 90° counter-clockwise (y axis labels).
+        vertical: bool,
+        bold: bool,
+        colour: Rgb,
+    },
+}
+
+/// A laid-out chart.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// Width (px).
+    pub w: f64,
+    /// Height (px).
+    pub h: f64,
+    /// Primitives in drawing order.
+    pub prims: Vec<Prim>,
 }
 
 const W: f64 = 900.0;
@@ -33,6 +117,7 @@ const L: f64 = 80.0;
 const R: f64 = 20.0;
 const T: f64 = 40.0;
 const B: f64 = 60.0;
+const BLACK: Rgb = Rgb(0, 0, 0);
 
 fn nice_step(span: f64) -> f64 {
     let raw = span / 6.0;
@@ -49,11 +134,24 @@ fn nice_step(span: f64) -> f64 {
     }
 }
 
-/// Renders `chart` over time `t` (s) with shaded `sections` (start, end, is_curve).
-pub fn svg(chart: &Chart, t: &[f64], sections: &[(f64, f64, bool)]) -> String {
-    let (t0, t1) = (
-        t.first().copied().unwrap_or(0.0),
-        t.last().copied().unwrap_or(1.0),
+fn text(x: f64, y: f64, s: impl Into<String>, anchor: Anchor) -> Prim {
+    Prim::Text {
+        x,
+        y,
+        text: s.into(),
+        size: 12.0,
+        anchor,
+        vertical: false,
+        bold: false,
+        colour: BLACK,
+    }
+}
+
+/// Lays out `chart` over `x` (one abscissa per sample, shared by every line).
+pub fn layout(chart: &Chart, x: &[f64]) -> Scene {
+    let (x0, x1) = (
+        x.first().copied().unwrap_or(0.0),
+        x.last().copied().unwrap_or(1.0),
     );
     let mut lo = f64::INFINITY;
     let mut hi = f64::NEG_INFINITY;
@@ -71,124 +169,445 @@ pub fn svg(chart: &Chart, t: &[f64], sections: &[(f64, f64, bool)]) -> String {
     }
     let pad = 0.05 * (hi - lo);
     (lo, hi) = (lo - pad, hi + pad);
-    let xs = |x: f64| L + (x - t0) / (t1 - t0).max(1e-12) * (W - L - R);
+    let xs = |v: f64| L + (v - x0) / (x1 - x0).max(1e-12) * (W - L - R);
     let ys = |y: f64| T + (hi - y) / (hi - lo) * (H - T - B);
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" font-family="sans-serif" font-size="12">"#
-    );
-    let _ = writeln!(s, r#"<rect width="{W}" height="{H}" fill="white"/>"#);
-    for &(a, b, curve) in sections {
-        let fill = if curve { "#dde6f2" } else { "#eef2f7" };
-        let _ = writeln!(
-            s,
-            r#"<rect x="{:.1}" y="{T}" width="{:.1}" height="{:.1}" fill="{fill}"/>"#,
-            xs(a),
-            xs(b) - xs(a),
-            H - T - B
-        );
+    let mut p = vec![Prim::Rect {
+        x: 0.0,
+        y: 0.0,
+        w: W,
+        h: H,
+        fill: Some(Rgb(255, 255, 255)),
+        stroke: None,
+    }];
+    for &(a, b, dark) in &chart.bands {
+        let (a, b) = (xs(a.max(x0)), xs(b.min(x1)));
+        if b > a {
+            p.push(Prim::Rect {
+                x: a,
+                y: T,
+                w: b - a,
+                h: H - T - B,
+                fill: Some(if dark {
+                    Rgb(0xdd, 0xe6, 0xf2)
+                } else {
+                    Rgb(0xee, 0xf2, 0xf7)
+                }),
+                stroke: None,
+            });
+        }
     }
-    // Axes and ticks.
-    let _ = writeln!(
-        s,
-        r#"<rect x="{L}" y="{T}" width="{:.1}" height="{:.1}" fill="none" stroke="black"/>"#,
-        W - L - R,
-        H - T - B
-    );
-    let st = nice_step(t1 - t0);
-    let mut x = (t0 / st).ceil() * st;
-    while x <= t1 + 1e-9 {
-        let _ = writeln!(
-            s,
-            r#"<line x1="{0:.1}" y1="{1:.1}" x2="{0:.1}" y2="{2:.1}" stroke="black"/><text x="{0:.1}" y="{3:.1}" text-anchor="middle">{4}</text>"#,
-            xs(x),
-            H - B,
-            H - B + 5.0,
+    let st = nice_step(x1 - x0);
+    let mut v = (x0 / st).ceil() * st;
+    while v <= x1 + 1e-9 {
+        p.push(Prim::Path {
+            pts: vec![(xs(v), H - B), (xs(v), H - B + 5.0)],
+            colour: BLACK,
+            width: 1.0,
+            dash: None,
+        });
+        p.push(text(
+            xs(v),
             H - B + 18.0,
-            (x * 1e6).round() / 1e6
-        );
-        x += st;
+            format!("{}", (v * 1e6).round() / 1e6),
+            Anchor::Middle,
+        ));
+        v += st;
     }
     let sy = nice_step(hi - lo);
     let mut y = (lo / sy).ceil() * sy;
     while y <= hi + 1e-12 {
-        let _ = writeln!(
-            s,
-            r##"<line x1="{0:.1}" y1="{1:.1}" x2="{2:.1}" y2="{1:.1}" stroke="#bbbbbb" stroke-dasharray="2,3"/><text x="{3:.1}" y="{4:.1}" text-anchor="end">{5}</text>"##,
-            L,
-            ys(y),
-            W - R,
-            L - 6.0,
-            ys(y) + 4.0,
-            (y / sy).round() * sy
-        );
+        p.push(Prim::Path {
+            pts: vec![(L, ys(y)), (W - R, ys(y))],
+            colour: Rgb(0xbb, 0xbb, 0xbb),
+            width: 1.0,
+            dash: Some((2.0, 3.0)),
+        });
+        let label = (y / sy).round() * sy;
+        // Round away binary noise (0.30000000000000004).
+        let label = (label * 1e9).round() / 1e9 + 0.0; // + 0.0 turns -0 into 0
+        p.push(text(L - 6.0, ys(y) + 4.0, format!("{label}"), Anchor::End));
         y += sy;
     }
-    let _ = writeln!(
-        s,
-        r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">time (s)</text>"#,
+    p.push(Prim::Rect {
+        x: L,
+        y: T,
+        w: W - L - R,
+        h: H - T - B,
+        fill: None,
+        stroke: Some(BLACK),
+    });
+    p.push(text(
         (L + W - R) / 2.0,
-        H - 15.0
-    );
-    let _ = writeln!(
-        s,
-        r#"<text transform="translate(18,{:.1}) rotate(-90)" text-anchor="middle">{}</text>"#,
-        (T + H - B) / 2.0,
-        chart.y_label
-    );
-    let _ = writeln!(
-        s,
-        r#"<text x="{L}" y="24" font-size="15" font-weight="bold">{}</text>"#,
-        chart.title
-    );
+        H - 15.0,
+        chart.x_label,
+        Anchor::Middle,
+    ));
+    p.push(Prim::Text {
+        x: 18.0,
+        y: (T + H - B) / 2.0,
+        text: chart.y_label.into(),
+        size: 12.0,
+        anchor: Anchor::Middle,
+        vertical: true,
+        bold: false,
+        colour: BLACK,
+    });
+    p.push(Prim::Text {
+        x: L,
+        y: 24.0,
+        text: chart.title.into(),
+        size: 15.0,
+        anchor: Anchor::Start,
+        vertical: false,
+        bold: true,
+        colour: BLACK,
+    });
     // Lines, decimated to at most ~2 points per pixel.
-    let step = (t.len() / 1600).max(1);
+    let step = (x.len() / 1600).max(1);
     for (k, l) in chart.lines.iter().enumerate() {
-        let mut d = String::new();
-        for i in (0..t.len().min(l.y.len())).step_by(step) {
+        let colour = Rgb::hex(l.colour);
+        let dash = l.dashed.then_some((6.0, 4.0));
+        let mut pts = Vec::new();
+        for i in (0..x.len().min(l.y.len())).step_by(step) {
             if l.y[i].is_finite() {
-                let _ = write!(
-                    d,
-                    "{}{:.1},{:.1} ",
-                    if d.is_empty() { "M" } else { "L" },
-                    xs(t[i]),
-                    ys(l.y[i])
+                pts.push((xs(x[i]), ys(l.y[i])));
+            } else if pts.len() > 1 {
+                // A gap in the data breaks the line.
+                p.push(Prim::Path {
+                    pts: std::mem::take(&mut pts),
+                    colour,
+                    width: 1.3,
+                    dash,
+                });
+            }
+        }
+        p.push(Prim::Path {
+            pts,
+            colour,
+            width: 1.3,
+            dash,
+        });
+        let ly = T + 14.0 + 16.0 * k as f64;
+        p.push(Prim::Path {
+            pts: vec![(W - R - 230.0, ly), (W - R - 205.0, ly)],
+            colour,
+            width: 2.0,
+            dash,
+        });
+        p.push(text(W - R - 200.0, ly + 4.0, l.label, Anchor::Start));
+    }
+    if !chart.note.is_empty() {
+        p.push(Prim::Text {
+            x: L + 6.0,
+            y: H - B - 6.0,
+            text: chart.note.into(),
+            size: 12.0,
+            anchor: Anchor::Start,
+            vertical: false,
+            bold: false,
+            colour: Rgb(0x55, 0x55, 0x66),
+        });
+    }
+    Scene {
+        w: W,
+        h: H,
+        prims: p,
+    }
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// Writes the scene as SVG.
+pub fn to_svg(sc: &Scene) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" font-family="sans-serif" font-size="12">"#,
+        sc.w, sc.h
+    );
+    for prim in &sc.prims {
+        match prim {
+            Prim::Rect {
+                x,
+                y,
+                w,
+                h,
+                fill,
+                stroke,
+            } => {
+                let fill = fill.map_or("none".into(), Rgb::css);
+                let stroke = stroke.map_or(String::new(), |c| format!(r#" stroke="{}""#, c.css()));
+                let _ = writeln!(
+                    s,
+                    r#"<rect x="{x:.1}" y="{y:.1}" width="{w:.1}" height="{h:.1}" fill="{fill}"{stroke}/>"#
+                );
+            }
+            Prim::Path {
+                pts,
+                colour,
+                width,
+                dash,
+            } => {
+                if pts.len() < 2 {
+                    continue;
+                }
+                let mut d = String::new();
+                for (i, (x, y)) in pts.iter().enumerate() {
+                    let _ = write!(d, "{}{x:.1},{y:.1} ", if i == 0 { "M" } else { "L" });
+                }
+                let dash = dash.map_or(String::new(), |(a, b)| {
+                    format!(r#" stroke-dasharray="{a},{b}""#)
+                });
+                let _ = writeln!(
+                    s,
+                    r#"<path d="{}" fill="none" stroke="{}" stroke-width="{width}"{dash}/>"#,
+                    d.trim_end(),
+                    colour.css()
+                );
+            }
+            Prim::Text {
+                x,
+                y,
+                text,
+                size,
+                anchor,
+                vertical,
+                bold,
+                colour,
+            } => {
+                let anchor = match anchor {
+                    Anchor::Start => "start",
+                    Anchor::Middle => "middle",
+                    Anchor::End => "end",
+                };
+                let place = if *vertical {
+                    format!(r#"transform="translate({x:.1},{y:.1}) rotate(-90)""#)
+                } else {
+                    format!(r#"x="{x:.1}" y="{y:.1}""#)
+                };
+                let weight = if *bold { r#" font-weight="bold""# } else { "" };
+                let _ = writeln!(
+                    s,
+                    r#"<text {place} font-size="{size}" text-anchor="{anchor}" fill="{}"{weight}>{}</text>"#,
+                    colour.css(),
+                    escape(text)
                 );
             }
         }
-        let dash = if l.dashed {
-            r#" stroke-dasharray="6,4""#
-        } else {
-            ""
-        };
-        let _ = writeln!(
-            s,
-            r#"<path d="{d}" fill="none" stroke="{}" stroke-width="1.3"{dash}/>"#,
-            l.colour
-        );
-        let ly = T + 14.0 + 16.0 * k as f64;
-        let _ = writeln!(
-            s,
-            r#"<line x1="{0:.1}" y1="{1:.1}" x2="{2:.1}" y2="{1:.1}" stroke="{3}" stroke-width="2"{dash}/><text x="{4:.1}" y="{5:.1}">{6}</text>"#,
-            W - R - 230.0,
-            ly,
-            W - R - 205.0,
-            l.colour,
-            W - R - 200.0,
-            ly + 4.0,
-            l.label
-        );
     }
-    let _ = writeln!(
-        s,
-        r##"<text x="{:.1}" y="{:.1}" fill="#556">shaded: transitions (light), steady curve (dark)</text>"##,
-        L + 6.0,
-        H - B - 6.0
-    );
     s.push_str("</svg>\n");
     s
 }
+
+/// Pixels per scene unit of the PNG (the PNG is drawn at twice the SVG's size).
+const PNG_SCALE: f64 = 2.0;
+
+/// An RGB raster.
+struct Canvas {
+    w: usize,
+    h: usize,
+    px: Vec<u8>,
+}
+
+impl Canvas {
+    fn new(w: usize, h: usize) -> Self {
+        Canvas {
+            w,
+            h,
+            px: vec![255; w * h * 3],
+        }
+    }
+    fn set(&mut self, x: i64, y: i64, c: Rgb) {
+        if x >= 0 && y >= 0 && (x as usize) < self.w && (y as usize) < self.h {
+            let i = (y as usize * self.w + x as usize) * 3;
+            self.px[i..i + 3].copy_from_slice(&[c.0, c.1, c.2]);
+        }
+    }
+    fn fill(&mut self, x0: f64, y0: f64, x1: f64, y1: f64, c: Rgb) {
+        for y in y0.round() as i64..y1.round() as i64 {
+            for x in x0.round() as i64..x1.round() as i64 {
+                self.set(x, y, c);
+            }
+        }
+    }
+    /// A square brush of side `w` centred on (x, y).
+    fn dot(&mut self, x: f64, y: f64, w: f64, c: Rgb) {
+        let r = (w / 2.0).max(0.5);
+        self.fill(x - r, y - r, x + r, y + r, c);
+    }
+    fn path(&mut self, pts: &[(f64, f64)], w: f64, dash: Option<(f64, f64)>, c: Rgb) {
+        let mut along = 0.0;
+        for seg in pts.windows(2) {
+            let ((ax, ay), (bx, by)) = (seg[0], seg[1]);
+            let len = (bx - ax).hypot(by - ay);
+            let n = (len / 0.5).ceil().max(1.0) as usize;
+            for i in 0..=n {
+                let f = i as f64 / n as f64;
+                let on = dash.is_none_or(|(a, b)| (along + f * len) % (a + b) < a);
+                if on {
+                    self.dot(ax + f * (bx - ax), ay + f * (by - ay), w, c);
+                }
+            }
+            along += len;
+        }
+    }
+    fn glyph(ch: char) -> [u8; 8] {
+        use font8x8::UnicodeFonts;
+        let ch = match ch {
+            '−' | '–' => '-',
+            c => c,
+        };
+        font8x8::BASIC_FONTS
+            .get(ch)
+            .or_else(|| font8x8::LATIN_FONTS.get(ch))
+            .or_else(|| font8x8::GREEK_FONTS.get(ch))
+            .or_else(|| font8x8::MISC_FONTS.get(ch))
+            .unwrap_or([0x3c, 0x42, 0x02, 0x0c, 0x10, 0x00, 0x10, 0x00])
+    }
+    /// Draws text with pixel size `g` per font dot; (x, y) is the baseline start.
+    fn text(
+        &mut self,
+        (x, y): (f64, f64),
+        s: &str,
+        g: i64,
+        (vertical, bold): (bool, bool),
+        c: Rgb,
+    ) {
+        let (x, y) = (x.round() as i64, y.round() as i64);
+        let mut pen = 0i64;
+        for ch in s.chars() {
+            // Combining marks (the hat of θ̂) take no room and are not drawn.
+            if ('\u{300}'..='\u{36f}').contains(&ch) {
+                continue;
+            }
+            let rows = Self::glyph(ch);
+            for (gy, row) in rows.iter().enumerate() {
+                for gx in 0..8 {
+                    if row & (1 << gx) == 0 {
+                        continue;
+                    }
+                    for dy in 0..g {
+                        for dx in 0..g + i64::from(bold) {
+                            // Glyph cell (u along the text, v down from the cap line).
+                            let u = pen + gx * g + dx;
+                            let v = gy as i64 * g + dy - 7 * g;
+                            if vertical {
+                                self.set(x + v, y - u, c);
+                            } else {
+                                self.set(x + u, y + v, c);
+                            }
+                        }
+                    }
+                }
+            }
+            pen += 8 * g;
+        }
+    }
+}
+
+fn text_len(s: &str) -> usize {
+    s.chars()
+        .filter(|c| !('\u{300}'..='\u{36f}').contains(c))
+        .count()
+}
+
+/// Rasterises the scene as an RGB image (width, height, pixels).
+pub fn rasterise(sc: &Scene) -> (u32, u32, Vec<u8>) {
+    let k = PNG_SCALE;
+    let mut cv = Canvas::new((sc.w * k) as usize, (sc.h * k) as usize);
+    for prim in &sc.prims {
+        match prim {
+            Prim::Rect {
+                x,
+                y,
+                w,
+                h,
+                fill,
+                stroke,
+            } => {
+                let (x0, y0, x1, y1) = (x * k, y * k, (x + w) * k, (y + h) * k);
+                if let Some(c) = fill {
+                    cv.fill(x0, y0, x1, y1, *c);
+                }
+                if let Some(c) = stroke {
+                    let pts = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)];
+                    cv.path(&pts, k, None, *c);
+                }
+            }
+            Prim::Path {
+                pts,
+                colour,
+                width,
+                dash,
+            } => {
+                let pts: Vec<_> = pts.iter().map(|(x, y)| (x * k, y * k)).collect();
+                cv.path(&pts, width * k, dash.map(|(a, b)| (a * k, b * k)), *colour);
+            }
+            Prim::Text {
+                x,
+                y,
+                text,
+                size,
+                anchor,
+                vertical,
+                bold,
+                colour,
+            } => {
+                // Font dots per glyph row so that the glyph height matches the SVG size.
+                let g = ((size * k / 8.0) * 0.75).round().max(1.0) as i64;
+                let len = (text_len(text) as i64 * 8 * g) as f64;
+                let shift = match anchor {
+                    Anchor::Start => 0.0,
+                    Anchor::Middle => len / 2.0,
+                    Anchor::End => len,
+                };
+                let (mut px, mut py) = (x * k, y * k);
+                if *vertical {
+                    py += shift;
+                } else {
+                    px -= shift;
+                }
+                cv.text((px, py), text, g, (*vertical, *bold), *colour);
+            }
+        }
+    }
+    (cv.w as u32, cv.h as u32, cv.px)
+}
+
+/// Writes the scene as a PNG file.
+pub fn write_png(sc: &Scene, path: &Path) -> std::io::Result<()> {
+    let (w, h, px) = rasterise(sc);
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let mut enc = png::Encoder::new(file, w, h);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.set_compression(png::Compression::Fast);
+    let mut wr = enc.write_header().map_err(std::io::Error::other)?;
+    wr.write_image_data(&px).map_err(std::io::Error::other)?;
+    wr.finish().map_err(std::io::Error::other)
+}
+
+/// Writes `dir/NAME.svg` and `dir/NAME.png`; returns both paths.
+pub fn write_chart(
+    dir: &Path,
+    name: &str,
+    chart: &Chart,
+    x: &[f64],
+) -> std::io::Result<[PathBuf; 2]> {
+    let sc = layout(chart, x);
+    let svg = dir.join(format!("{name}.svg"));
+    std::fs::write(&svg, to_svg(&sc))?;
+    let png = dir.join(format!("{name}.png"));
+    write_png(&sc, &png)?;
+    Ok([svg, png])
+}
+
+/// What the shaded bands of a run's charts mean.
+pub const SECTION_NOTE: &str = "shaded: transitions (light), steady curve (dark)";
 
 /// Writes the standard set of plots for a run into `dir/plots/`; returns the files written.
 pub fn write_run_plots(
@@ -197,7 +616,7 @@ pub fn write_run_plots(
     rows: &[Vec<f64>],
     sections: &[(f64, f64, bool)],
     u_max: f64,
-) -> std::io::Result<Vec<std::path::PathBuf>> {
+) -> std::io::Result<Vec<PathBuf>> {
     let col = |name: &str| -> Vec<f64> {
         let i = cols.iter().position(|c| *c == name).unwrap_or(0);
         rows.iter().map(|r| r[i]).collect()
@@ -210,22 +629,30 @@ pub fn write_run_plots(
         colour,
         dashed,
     };
+    let chart = |title, y_label, lines| Chart {
+        title,
+        x_label: "time (s)",
+        y_label,
+        lines,
+        bands: sections.to_vec(),
+        note: SECTION_NOTE,
+    };
     let n = t.len();
     let charts = [
         (
             "lateral_acceleration",
-            Chart {
-                title: "Passenger lateral acceleration (eq 13; Figs 8b, 14-15)",
-                y_label: "lateral acceleration (m/s²)",
-                lines: vec![line("ÿ", col("lat_acc"), "#1f77b4", false)],
-            },
+            chart(
+                "Passenger lateral acceleration (eq 13; Figs 8b, 14-15)",
+                "lateral acceleration (m/s²)",
+                vec![line("ÿ", col("lat_acc"), "#1f77b4", false)],
+            ),
         ),
         (
             "body_roll",
-            Chart {
-                title: "Carbody roll relative to the track (Figs 8a, 12-13, 16)",
-                y_label: "roll (deg)",
-                lines: vec![
+            chart(
+                "Carbody roll relative to the track (Figs 8a, 12-13, 16)",
+                "roll (deg)",
+                vec![
                     line("θ_v measured", deg(col("theta_v_meas")), "#bbbbbb", false),
                     line("θ_v", deg(col("theta_v")), "#1f77b4", false),
                     line("θ̂_v estimate", deg(col("theta_v_hat")), "#2ca02c", false),
@@ -236,27 +663,27 @@ pub fn write_run_plots(
                         true,
                     ),
                 ],
-            },
+            ),
         ),
         (
             "control",
-            Chart {
-                title: "Anti-roll bar: command and achieved angle with limits (Fig. 17)",
-                y_label: "bar angle δ_a (deg)",
-                lines: vec![
+            chart(
+                "Anti-roll bar: command and achieved angle with limits (Fig. 17)",
+                "bar angle δ_a (deg)",
+                vec![
                     line("δ_a command", deg(col("delta_a_cmd")), "#ff7f0e", false),
                     line("δ_a achieved", deg(col("delta_a")), "#1f77b4", false),
                     line("+u_max", vec![u_max; n], "#d62728", true),
                     line("−u_max", vec![-u_max; n], "#d62728", true),
                 ],
-            },
+            ),
         ),
         (
             "motor",
-            Chart {
-                title: "BLDC motor: electromagnetic torque and current (Fig. 18)",
-                y_label: "torque (N·m), current (A)",
-                lines: vec![
+            chart(
+                "BLDC motor: electromagnetic torque and current (Fig. 18)",
+                "torque (N·m), current (A)",
+                vec![
                     line("torque (N·m)", col("motor_torque"), "#9467bd", false),
                     line(
                         "current T_e/k_t (A)",
@@ -265,38 +692,49 @@ pub fn write_run_plots(
                         false,
                     ),
                 ],
-            },
+            ),
         ),
     ];
     let out = dir.join("plots");
     std::fs::create_dir_all(&out)?;
     let mut files = Vec::new();
     for (name, chart) in charts {
-        let p = out.join(format!("{name}.svg"));
-        std::fs::write(&p, svg(&chart, &t, sections))?;
-        files.push(p);
+        files.extend(write_chart(&out, name, &chart, &t)?);
     }
     Ok(files)
 }
+
+/// Colours given to runs, lines or sweep samples in turn.
+pub const PALETTE: [&str; 8] = [
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+];
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[test]
-    fn a_chart_is_well_formed_svg_with_its_labels() {
+    fn demo() -> (Chart<'static>, Vec<f64>) {
         let t: Vec<f64> = (0..100).map(|i| i as f64 * 0.1).collect();
         let chart = Chart {
             title: "t",
+            x_label: "time (s)",
             y_label: "y (m)",
             lines: vec![Line {
                 label: "sin",
                 y: t.iter().map(|x| x.sin()).collect(),
-                colour: "red",
+                colour: "#ff0000",
                 dashed: false,
             }],
+            bands: vec![(2.0, 4.0, false), (4.0, 6.0, true)],
+            note: "n",
         };
-        let s = svg(&chart, &t, &[(2.0, 4.0, false), (4.0, 6.0, true)]);
+        (chart, t)
+    }
+
+    #[test]
+    fn a_chart_is_well_formed_svg_with_its_labels() {
+        let (chart, t) = demo();
+        let s = to_svg(&layout(&chart, &t));
         assert!(s.starts_with("<svg") && s.trim_end().ends_with("</svg>"));
         assert_eq!(s.matches("<svg").count(), 1);
         assert!(s.contains("time (s)") && s.contains("y (m)") && s.contains(">sin<"));
@@ -304,5 +742,28 @@ mod tests {
         assert_eq!(s.matches("<text").count(), s.matches("</text>").count());
         assert_eq!(nice_step(10.0), 2.0);
         assert_eq!(nice_step(0.3), 0.05);
+    }
+
+    #[test]
+    fn the_raster_draws_the_line_bands_and_text_where_the_scene_puts_them() {
+        let (chart, t) = demo();
+        let (w, h, px) = rasterise(&layout(&chart, &t));
+        assert_eq!((w, h), (1800, 840));
+        let at = |x: f64, y: f64| {
+            let i = ((y * PNG_SCALE) as usize * w as usize + (x * PNG_SCALE) as usize) * 3;
+            Rgb(px[i], px[i + 1], px[i + 2])
+        };
+        // The sine at t = π/2 (its maximum) is at the top of the padded range.
+        let xs = |v: f64| L + v / 9.9 * (W - L - R);
+        let top = T + 0.05 / 1.1 * (H - T - B);
+        let hit =
+            (-3..=3).any(|d| at(xs(std::f64::consts::FRAC_PI_2), top + d as f64) == Rgb(255, 0, 0));
+        assert!(hit, "the red line passes through its maximum");
+        // The steady-curve band is shaded, the light band too, outside neither.
+        assert_eq!(at(xs(5.0), 200.0), Rgb(0xdd, 0xe6, 0xf2));
+        assert_eq!(at(xs(3.0), 250.0), Rgb(0xee, 0xf2, 0xf7));
+        // The title is drawn in black at its place.
+        let title = (0..40).any(|dx| at(L + dx as f64, 20.0) == BLACK);
+        assert!(title);
     }
 }

@@ -117,6 +117,11 @@ pub struct Scenario {
     pub controller: ControllerSettings,
     /// Comfort evaluation.
     pub comfort: crate::comfort::ComfortSettings,
+    /// The vehicle the controller was designed for, when it differs from the true `[vehicle]`
+    /// the plant simulates (robustness studies: `tiltsim sweep` sets it to the nominal
+    /// vehicle). Absent: the controller knows the vehicle exactly.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub design_vehicle: Option<VehicleParams>,
 }
 
 /// Why a scenario was rejected. Displayed messages name the file.
@@ -200,6 +205,9 @@ impl Scenario {
         all.merge(self.actuator.validate("actuator"));
         all.merge(self.controller.validate("controller"));
         all.merge(self.comfort.validate("comfort"));
+        if let Some(v) = &self.design_vehicle {
+            all.merge(v.validate("design_vehicle"));
+        }
         let mut c = Checker::new("controller");
         let ratio = self.controller.period_s / r.dt_s;
         c.require(
@@ -215,7 +223,7 @@ impl Scenario {
             let init = controller_proc::ControllerInit {
                 controller: self.controller.clone(),
                 track: self.track.clone(),
-                vehicle: self.vehicle.clone(),
+                vehicle: self.controller_vehicle().clone(),
             };
             if let Err(e) = controller_proc::Controller::new(&init) {
                 let mut c = Checker::new("controller");
@@ -229,6 +237,11 @@ impl Scenario {
             }
         }
         all.errors
+    }
+
+    /// The vehicle the controller's design and reference use.
+    pub fn controller_vehicle(&self) -> &VehicleParams {
+        self.design_vehicle.as_ref().unwrap_or(&self.vehicle)
     }
 
     /// Simulated duration (s).

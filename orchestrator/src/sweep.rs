@@ -1,0 +1,878 @@
+//! `tiltsim sweep`: many runs of one scenario with something varied, and what the comfort
+//! metrics do across them.
+//!
+//! Two plans:
+//! * **Monte Carlo** (Fig. 21 of the paper): every mass, inertia and suspension parameter of
+//!   the true vehicle is scaled by its own factor drawn uniformly from `1 ± spread` (default
+//!   ±22 %), while the controller keeps the nominal design (`design_vehicle`). Sample `j`
+//!   draws from ChaCha8 seeded with the sweep seed on stream `j`, so a sample's parameters do
+//!   not depend on which other samples run, where or in which order. The track irregularity
+//!   and sensor noise keep the scenario's `run.seed`: samples differ only in the vehicle.
+//! * **Grid**: one numeric scenario key (dotted path, e.g. `vehicle.m_v` or
+//!   `links.actuator_command.delay_ticks`) set to each listed value in turn.
+//!
+//! Results: `samples.csv` (one row per sample: parameters, status, every comfort metric),
+//! `series.csv` (each sample's lateral acceleration every 10 ms), `table.md`/`table.csv`
+//! (Monte Carlo: median, 5th and 95th percentile of each metric; grid: the metrics per
+//! value), `plots/` and `sweep.json` (the plan). A shard (`--shard i/n`) runs samples
+//! `j ≡ i (mod n)` and writes the same files for its samples; `tiltsim sweep-merge` joins
+//! shards into files byte-identical to the unsharded sweep's, because every file is written
+//! by one function from the rows alone, and numbers are written in Rust's shortest
+//! round-trip form, so reading a shard back loses nothing.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+
+use rand::{Rng, SeedableRng};
+use serde::{Deserialize, Serialize};
+
+use crate::compare::{fmt, values, ROWS};
+use crate::engine::{self, RunOptions, Status};
+use crate::plot::{Chart, Line, PALETTE};
+use crate::scenario::{Scenario, Transport};
+
+/// Short metric names (CSV headers), in [`ROWS`] order.
+pub const METRICS: [&str; 10] = [
+    "lat_acc_rms_dev_pct_g",
+    "lat_acc_peak_pct_g",
+    "roll_speed_rms_dev_rad_s",
+    "roll_speed_peak_rad_s",
+    "jerk_peak_pct_g_s",
+    "p_ct_standing",
+    "p_ct_seated",
+    "p_ct_en12299_standing",
+    "p_ct_en12299_seated",
+    "deflection_peak_mm",
+];
+
+/// The vehicle parameters a Monte Carlo sweep perturbs: masses, inertias and suspension.
+pub const PERTURBED: [&str; 15] = [
+    "m_v", "i_vr", "m_b", "i_br", "k_az", "k_sz", "k_rz", "c_rz", "k_sy", "c_sy", "k_vr", "k_pz",
+    "c_pz", "k_py", "c_py",
+];
+
+/// Interval of the stored lateral-acceleration series (s).
+pub const SERIES_DT: f64 = 0.01;
+
+/// What a sweep varies.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", tag = "method")]
+pub enum Plan {
+    /// Uniform factors `1 ± spread` on [`PERTURBED`].
+    MonteCarlo {
+        /// Number of samples.
+        samples: usize,
+        /// Relative half-width of the uniform distribution.
+        spread: f64,
+        /// Seed of the draws.
+        seed: u64,
+    },
+    /// One key set to each value.
+    Grid {
+        /// Dotted scenario key.
+        key: String,
+        /// Values, one sample each.
+        values: Vec<f64>,
+    },
+}
+
+impl Plan {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        match self {
+            Plan::MonteCarlo { samples, .. } => *samples,
+            Plan::Grid { values, .. } => values.len(),
+        }
+    }
+    /// No samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Names of the parameter columns.
+    pub fn columns(&self) -> Vec<String> {
+        match self {
+            Plan::MonteCarlo { .. } => PERTURBED.iter().map(|p| format!("factor_{p}")).collect(),
+            Plan::Grid { key, .. } => vec![key.clone()],
+        }
+    }
+}
+
+/// Parses a grid `KEY=SPEC` where SPEC is `start:stop:step` (inclusive) or `v1,v2,...`.
+pub fn parse_grid(arg: &str) -> Result<Plan, String> {
+    let (key, spec) = arg
+        .split_once('=')
+        .ok_or_else(|| format!("--grid `{arg}`: expected KEY=START:STOP:STEP or KEY=V1,V2,..."))?;
+    let num = |x: &str| {
+        x.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("--grid `{arg}`: `{x}` is not a finite number"))
+    };
+    let values = if spec.contains(':') {
+        let p: Vec<&str> = spec.split(':').collect();
+        if p.len() != 3 {
+            return Err(format!("--grid `{arg}`: a range is START:STOP:STEP"));
+        }
+        let (a, b, st) = (num(p[0])?, num(p[1])?, num(p[2])?);
+        if st <= 0.0 || b < a || (b - a) / st > 10_000.0 {
+            return Err(format!(
+                "--grid `{arg}`: need STOP >= START and 0 < STEP, at most 10000 values"
+            ));
+        }
+        let n = ((b - a) / st + 1e-9).floor() as usize;
+        // Computed from the index, so values do not drift by accumulated rounding.
+        (0..=n).map(|i| a + i as f64 * st).collect()
+    } else {
+        spec.split(',').map(num).collect::<Result<Vec<_>, _>>()?
+    };
+    if key.trim().is_empty() || values.is_empty() {
+        return Err(format!("--grid `{arg}`: need a key and at least one value"));
+    }
+    Ok(Plan::Grid {
+        key: key.trim().to_string(),
+        values,
+    })
+}
+
+/// Sets the dotted `key` of a scenario to `v` (an integer where the key holds one), and
+/// re-validates. Errors name the key.
+pub fn with_key(base: &Scenario, key: &str, v: f64) -> Result<Scenario, String> {
+    let mut doc = toml::Value::try_from(base).map_err(|e| e.to_string())?;
+    fn set(node: &mut toml::Value, parts: &[&str], key: &str, v: f64) -> Result<(), String> {
+        let table = node
+            .as_table_mut()
+            .ok_or_else(|| format!("sweep key `{key}`: `{}` is not inside a table", parts[0]))?;
+        if let [last] = parts {
+            let integer = matches!(table.get(*last), Some(toml::Value::Integer(_)));
+            let value = if integer {
+                if v.fract() != 0.0 {
+                    return Err(format!("sweep key `{key}` takes whole numbers, not {v}"));
+                }
+                toml::Value::Integer(v as i64)
+            } else {
+                toml::Value::Float(v)
+            };
+            table.insert(last.to_string(), value);
+            Ok(())
+        } else {
+            let child = table
+                .entry(parts[0].to_string())
+                .or_insert_with(|| toml::Value::Table(Default::default()));
+            set(child, &parts[1..], key, v)
+        }
+    }
+    let parts: Vec<&str> = key.split('.').collect();
+    set(&mut doc, &parts, key, v)?;
+    let text = toml::to_string(&doc).map_err(|e| e.to_string())?;
+    Scenario::parse(&text, Path::new(&format!("sweep key `{key}` = {v}")))
+        .map(|mut s| {
+            s.name = base.name.clone();
+            s
+        })
+        .map_err(|e| e.to_string())
+}
+
+/// The scenario of sample `j` and its parameter values (factors or the grid value).
+pub fn sample(base: &Scenario, plan: &Plan, j: usize) -> Result<(Scenario, Vec<f64>), String> {
+    match plan {
+        Plan::MonteCarlo { spread, seed, .. } => {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(*seed);
+            rng.set_stream(j as u64);
+            let factors: Vec<f64> = PERTURBED
+                .iter()
+                .map(|_| 1.0 + spread * (2.0 * rng.random::<f64>() - 1.0))
+                .collect();
+            let mut s = base.clone();
+            s.design_vehicle = Some(base.controller_vehicle().clone());
+            let v = &mut s.vehicle;
+            let fields: [&mut f64; 15] = [
+                &mut v.m_v,
+                &mut v.i_vr,
+                &mut v.m_b,
+                &mut v.i_br,
+                &mut v.k_az,
+                &mut v.k_sz,
+                &mut v.k_rz,
+                &mut v.c_rz,
+                &mut v.k_sy,
+                &mut v.c_sy,
+                &mut v.k_vr,
+                &mut v.k_pz,
+                &mut v.c_pz,
+                &mut v.k_py,
+                &mut v.c_py,
+            ];
+            for (f, k) in fields.into_iter().zip(&factors) {
+                *f *= k;
+            }
+            Ok((s, factors))
+        }
+        Plan::Grid { key, values } => Ok((with_key(base, key, values[j])?, vec![values[j]])),
+    }
+}
+
+/// One sample's result.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    /// Sample index.
+    pub sample: usize,
+    /// Parameter values ([`Plan::columns`]).
+    pub params: Vec<f64>,
+    /// "completed" or "failed: cause".
+    pub status: String,
+    /// Metrics in [`METRICS`] order (NaN when the run failed).
+    pub metrics: Vec<f64>,
+    /// Lateral acceleration every [`SERIES_DT`] (m/s²), as far as recorded.
+    pub series: Vec<f64>,
+}
+
+/// Which samples an invocation runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    /// This shard (0-based).
+    pub index: usize,
+    /// Number of shards.
+    pub count: usize,
+}
+
+impl Shard {
+    /// Parses `i/n` with `0 <= i < n`.
+    pub fn parse(s: &str) -> Result<Shard, String> {
+        let bad = || format!("--shard `{s}`: expected I/N with 0 <= I < N, e.g. 0/4");
+        let (i, n) = s.split_once('/').ok_or_else(bad)?;
+        let (index, count) = (
+            i.trim().parse::<usize>().map_err(|_| bad())?,
+            n.trim().parse::<usize>().map_err(|_| bad())?,
+        );
+        if count == 0 || index >= count {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+    /// Samples of this shard out of `n`.
+    pub fn samples(self, n: usize) -> Vec<usize> {
+        (self.index..n).step_by(self.count).collect()
+    }
+}
+
+/// How to execute a sweep.
+pub struct Exec {
+    /// Output directory.
+    pub out: PathBuf,
+    /// Parallel runs.
+    pub jobs: usize,
+    /// Keep each sample's run directory (`runs/sample-NNNN`).
+    pub keep_runs: bool,
+    /// Executable serving participants.
+    pub exe: PathBuf,
+    /// Set by Ctrl-C.
+    pub interrupt: Arc<AtomicBool>,
+    /// Show a progress bar (on a terminal).
+    pub progress: bool,
+}
+
+fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
+    let failed = |params: Vec<f64>, why: String, series| Row {
+        sample: j,
+        params,
+        status: format!("failed: {why}"),
+        metrics: vec![f64::NAN; METRICS.len()],
+        series,
+    };
+    let (s, params) = match sample(base, plan, j) {
+        Ok(x) => x,
+        Err(e) => return failed(Vec::new(), e, Vec::new()),
+    };
+    let dir = ex.out.join("runs").join(format!("sample-{j:04}"));
+    let mut opts = RunOptions::new(dir.clone(), ex.exe.clone());
+    opts.interrupt = ex.interrupt.clone();
+    opts.plots = ex.keep_runs;
+    let summary = engine::run(&s, &format!("{} (sample {j})", base.name), &opts);
+    let rows = engine::read_rows(&dir).unwrap_or_default();
+    let every = (SERIES_DT / s.run.dt_s).round().max(1.0) as usize;
+    let lat = crate::record::COLUMNS
+        .iter()
+        .position(|c| *c == "lat_acc")
+        .unwrap_or(0);
+    // Row k holds t_{k+1}; keep t = 10 ms, 20 ms, ...
+    let series: Vec<f64> = rows
+        .iter()
+        .skip(every - 1)
+        .step_by(every)
+        .map(|r| r[lat])
+        .collect();
+    if ex.keep_runs {
+        if let Ok(sum) = &summary {
+            let _ = std::fs::write(
+                dir.join("summary.json"),
+                serde_json::to_string_pretty(sum).unwrap_or_default() + "\n",
+            );
+        }
+    } else {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    match summary {
+        Ok(sum) if sum.status == Status::Completed => Row {
+            sample: j,
+            params,
+            status: "completed".into(),
+            metrics: values(&sum.comfort).to_vec(),
+            series,
+        },
+        Ok(sum) => failed(params, sum.error.unwrap_or_default(), series),
+        Err(e) => failed(params, e.to_string(), series),
+    }
+}
+
+/// Runs the samples of `shard` (all when `None`) in parallel and returns their rows in
+/// sample order; `None` when interrupted.
+pub fn run(base: &Scenario, plan: &Plan, shard: Option<Shard>, ex: &Exec) -> Option<Vec<Row>> {
+    let todo = shard
+        .unwrap_or(Shard { index: 0, count: 1 })
+        .samples(plan.len());
+    let mut base = base.clone();
+    // Parallel process runs must not all pin themselves to the same two CPUs.
+    base.run.pin_cpus = false;
+    let bar = if ex.progress {
+        indicatif::ProgressBar::new(todo.len() as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} samples, eta {eta} {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    let next = AtomicUsize::new(0);
+    let rows: Mutex<Vec<Option<Row>>> = Mutex::new(vec![None; todo.len()]);
+    std::thread::scope(|sc| {
+        for _ in 0..ex.jobs.clamp(1, todo.len().max(1)) {
+            sc.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                if i >= todo.len() || ex.interrupt.load(Ordering::Relaxed) {
+                    break;
+                }
+                let row = run_one(&base, plan, todo[i], ex);
+                if !row.status.starts_with("completed") {
+                    bar.set_message(format!("(sample {} failed)", row.sample));
+                }
+                if let Ok(mut r) = rows.lock() {
+                    r[i] = Some(row);
+                }
+                bar.inc(1);
+            });
+        }
+    });
+    bar.finish_and_clear();
+    let _ = std::fs::remove_dir(ex.out.join("runs"));
+    if ex.interrupt.load(Ordering::Relaxed) {
+        return None;
+    }
+    rows.into_inner()
+        .ok()?
+        .into_iter()
+        .collect::<Option<Vec<Row>>>()
+}
+
+/// What `sweep.json` holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepFile {
+    /// Scenario name.
+    pub scenario: String,
+    /// The plan.
+    pub plan: Plan,
+    /// `i/n` for a shard's output, absent for a whole (or merged) sweep.
+    pub shard: Option<String>,
+    /// Samples in this output.
+    pub samples: Vec<usize>,
+}
+
+fn csv_text(s: &str) -> String {
+    s.replace([',', '\n', '\r', '"'], " ")
+}
+
+/// Linear-interpolation percentile (type 7) of sorted values.
+pub fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let h = (sorted.len() - 1) as f64 * p;
+    let (lo, hi) = (h.floor() as usize, h.ceil() as usize);
+    sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
+}
+
+/// Writes every output file of a sweep (or shard) from its rows.
+pub fn write_outputs(
+    out: &Path,
+    base: &Scenario,
+    plan: &Plan,
+    shard: Option<Shard>,
+    rows: &[Row],
+) -> std::io::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(out)?;
+    let mut files = Vec::new();
+    let mut put = |name: &str, text: String| -> std::io::Result<()> {
+        let p = out.join(name);
+        std::fs::write(&p, text)?;
+        files.push(p);
+        Ok(())
+    };
+    let meta = SweepFile {
+        scenario: base.name.clone(),
+        plan: plan.clone(),
+        shard: shard.map(|s| format!("{}/{}", s.index, s.count)),
+        samples: rows.iter().map(|r| r.sample).collect(),
+    };
+    put(
+        "sweep.json",
+        serde_json::to_string_pretty(&meta).unwrap_or_default() + "\n",
+    )?;
+    put("scenario.toml", toml::to_string(base).unwrap_or_default())?;
+
+    let cols = plan.columns();
+    let mut csv = format!("sample,{},status,{}\n", cols.join(","), METRICS.join(","));
+    for r in rows {
+        let _ = write!(csv, "{}", r.sample);
+        for (k, _) in cols.iter().enumerate() {
+            let _ = write!(csv, ",{}", r.params.get(k).copied().unwrap_or(f64::NAN));
+        }
+        let _ = write!(csv, ",{}", csv_text(&r.status));
+        for m in &r.metrics {
+            let _ = write!(csv, ",{m}");
+        }
+        csv.push('\n');
+    }
+    put("samples.csv", csv)?;
+
+    let longest = rows.iter().map(|r| r.series.len()).max().unwrap_or(0);
+    let mut ser = String::from("sample");
+    for i in 0..longest {
+        let _ = write!(ser, ",{}", (i + 1) as f64 * SERIES_DT);
+    }
+    ser.push('\n');
+    for r in rows {
+        let _ = write!(ser, "{}", r.sample);
+        for v in &r.series {
+            let _ = write!(ser, ",{v}");
+        }
+        ser.push('\n');
+    }
+    put("series.csv", ser)?;
+
+    let ok: Vec<&Row> = rows.iter().filter(|r| r.status == "completed").collect();
+    let (md, tcsv) = match plan {
+        Plan::MonteCarlo { spread, seed, .. } => {
+            let mut md = format!(
+                "# Robustness sweep of `{}`\n\nMonte Carlo over the true vehicle: {} masses, \
+                 inertias and suspension parameters each scaled by U(1 − {s}, 1 + {s}) (seed \
+                 {seed}); the controller keeps the nominal design. {} of {} samples completed.\n\n\
+                 | metric | median | p5 | p95 | min | max |\n|---|---|---|---|---|---|\n",
+                base.name,
+                PERTURBED.len(),
+                ok.len(),
+                rows.len(),
+                s = spread
+            );
+            let mut tcsv = String::from("metric,n,median,p5,p95,min,max\n");
+            for (m, name) in ROWS.iter().enumerate() {
+                let mut v: Vec<f64> = ok.iter().map(|r| r.metrics[m]).collect();
+                v.sort_by(|a, b| a.total_cmp(b));
+                let q = [0.5, 0.05, 0.95, 0.0, 1.0].map(|p| percentile(&v, p));
+                let _ = writeln!(
+                    md,
+                    "| {name} | {} | {} | {} | {} | {} |",
+                    fmt(q[0]),
+                    fmt(q[1]),
+                    fmt(q[2]),
+                    fmt(q[3]),
+                    fmt(q[4])
+                );
+                let _ = writeln!(
+                    tcsv,
+                    "{},{},{},{},{},{},{}",
+                    METRICS[m],
+                    v.len(),
+                    q[0],
+                    q[1],
+                    q[2],
+                    q[3],
+                    q[4]
+                );
+            }
+            (md, tcsv)
+        }
+        Plan::Grid { key, .. } => {
+            let mut md = format!(
+                "# Sweep of `{}` over `{key}`\n\n| {key} | status | lat. acc. peak (%g) | \
+                 P_CT standing (%) | P_CT seated (%) | P_CT EN 12299 standing (%) | roll speed \
+                 peak (rad/s) | jerk peak (%g/s) |\n|---|---|---|---|---|---|---|---|\n",
+                base.name
+            );
+            let mut tcsv = format!("{key},status,{}\n", METRICS.join(","));
+            for r in rows {
+                let m = &r.metrics;
+                let _ = writeln!(
+                    md,
+                    "| {} | {} | {} | {} | {} | {} | {} | {} |",
+                    r.params[0],
+                    csv_text(&r.status),
+                    fmt(m[1]),
+                    fmt(m[5]),
+                    fmt(m[6]),
+                    fmt(m[7]),
+                    fmt(m[3]),
+                    fmt(m[4])
+                );
+                let _ = write!(tcsv, "{},{}", r.params[0], csv_text(&r.status));
+                for v in m {
+                    let _ = write!(tcsv, ",{v}");
+                }
+                tcsv.push('\n');
+            }
+            (md, tcsv)
+        }
+    };
+    put("table.md", md)?;
+    put("table.csv", tcsv)?;
+    files.extend(write_plots(out, base, plan, rows)?);
+    Ok(files)
+}
+
+fn write_plots(
+    out: &Path,
+    base: &Scenario,
+    plan: &Plan,
+    rows: &[Row],
+) -> std::io::Result<Vec<PathBuf>> {
+    let dir = out.join("plots");
+    std::fs::create_dir_all(&dir)?;
+    let ok: Vec<&Row> = rows.iter().filter(|r| r.status == "completed").collect();
+    let n = ok.iter().map(|r| r.series.len()).min().unwrap_or(0);
+    let t: Vec<f64> = (0..n).map(|i| (i + 1) as f64 * SERIES_DT).collect();
+    let bands = engine::bands(base);
+    let mut files = Vec::new();
+    match plan {
+        Plan::MonteCarlo { .. } => {
+            let mut env = [Vec::new(), Vec::new(), Vec::new()];
+            for i in 0..n {
+                let mut v: Vec<f64> = ok.iter().map(|r| r.series[i]).collect();
+                v.sort_by(|a, b| a.total_cmp(b));
+                for (k, p) in [0.05, 0.5, 0.95].iter().enumerate() {
+                    env[k].push(percentile(&v, *p));
+                }
+            }
+            let [p5, p50, p95] = env;
+            let chart = Chart {
+                title: "Lateral acceleration across the perturbed vehicles (Fig. 21)",
+                x_label: "time (s)",
+                y_label: "lateral acceleration (m/s²)",
+                lines: vec![
+                    Line {
+                        label: "95th percentile",
+                        y: p95,
+                        colour: "#d62728",
+                        dashed: true,
+                    },
+                    Line {
+                        label: "median",
+                        y: p50,
+                        colour: "#1f77b4",
+                        dashed: false,
+                    },
+                    Line {
+                        label: "5th percentile",
+                        y: p5,
+                        colour: "#2ca02c",
+                        dashed: true,
+                    },
+                ],
+                bands,
+                note: crate::plot::SECTION_NOTE,
+            };
+            files.extend(crate::plot::write_chart(
+                &dir,
+                "sweep_lateral_acceleration",
+                &chart,
+                &t,
+            )?);
+            // Empirical distribution of P_CT.
+            let mut p: Vec<f64> = ok.iter().map(|r| r.metrics[5]).collect();
+            p.sort_by(|a, b| a.total_cmp(b));
+            let frac: Vec<f64> = (1..=p.len()).map(|i| i as f64 / p.len() as f64).collect();
+            let chart = Chart {
+                title: "Distribution of P_CT (standing, paper-peak) over the samples",
+                x_label: "P_CT standing (%)",
+                y_label: "fraction of samples ≤ P_CT",
+                lines: vec![Line {
+                    label: "empirical CDF",
+                    y: frac,
+                    colour: "#1f77b4",
+                    dashed: false,
+                }],
+                bands: Vec::new(),
+                note: "",
+            };
+            files.extend(crate::plot::write_chart(&dir, "sweep_p_ct", &chart, &p)?);
+        }
+        Plan::Grid { key, .. } => {
+            let labels: Vec<String> = ok
+                .iter()
+                .map(|r| format!("{key} = {}", r.params[0]))
+                .collect();
+            let chart = Chart {
+                title: "Lateral acceleration for each swept value",
+                x_label: "time (s)",
+                y_label: "lateral acceleration (m/s²)",
+                lines: ok
+                    .iter()
+                    .zip(&labels)
+                    .enumerate()
+                    .map(|(k, (r, label))| Line {
+                        label,
+                        y: r.series[..n].to_vec(),
+                        colour: PALETTE[k % PALETTE.len()],
+                        dashed: false,
+                    })
+                    .collect(),
+                bands,
+                note: crate::plot::SECTION_NOTE,
+            };
+            files.extend(crate::plot::write_chart(
+                &dir,
+                "sweep_lateral_acceleration",
+                &chart,
+                &t,
+            )?);
+            let x: Vec<f64> = ok.iter().map(|r| r.params[0]).collect();
+            let title = format!("Comfort against {key}");
+            let chart = Chart {
+                title: &title,
+                x_label: key,
+                y_label: "P_CT (%), peak lateral acceleration (%g)",
+                lines: vec![
+                    Line {
+                        label: "P_CT standing",
+                        y: ok.iter().map(|r| r.metrics[5]).collect(),
+                        colour: "#1f77b4",
+                        dashed: false,
+                    },
+                    Line {
+                        label: "P_CT seated",
+                        y: ok.iter().map(|r| r.metrics[6]).collect(),
+                        colour: "#2ca02c",
+                        dashed: false,
+                    },
+                    Line {
+                        label: "lat. acc. peak (%g)",
+                        y: ok.iter().map(|r| r.metrics[1]).collect(),
+                        colour: "#d62728",
+                        dashed: true,
+                    },
+                ],
+                bands: Vec::new(),
+                note: "",
+            };
+            files.extend(crate::plot::write_chart(&dir, "sweep_comfort", &chart, &x)?);
+        }
+    }
+    Ok(files)
+}
+
+fn parse_f64s(fields: &[&str], what: &str) -> Result<Vec<f64>, String> {
+    fields
+        .iter()
+        .map(|x| {
+            x.parse::<f64>()
+                .map_err(|_| format!("{what}: `{x}` is not a number"))
+        })
+        .collect()
+}
+
+/// Reads a sweep's (or shard's) outputs back: its meta, base scenario and rows.
+pub fn read_outputs(dir: &Path) -> Result<(SweepFile, Scenario, Vec<Row>), String> {
+    let read = |name: &str| {
+        let p = dir.join(name);
+        std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))
+    };
+    let meta: SweepFile = serde_json::from_str(&read("sweep.json")?)
+        .map_err(|e| format!("{}: {e}", dir.join("sweep.json").display()))?;
+    let base = Scenario::parse(&read("scenario.toml")?, &dir.join("scenario.toml"))
+        .map_err(|e| e.to_string())?;
+    let ncol = meta.plan.columns().len();
+    let samples_csv = dir.join("samples.csv").display().to_string();
+    let mut rows = Vec::new();
+    for (ln, line) in read("samples.csv")?.lines().skip(1).enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        let at = format!("{samples_csv} line {}", ln + 2);
+        if f.len() != 2 + ncol + METRICS.len() {
+            return Err(format!(
+                "{at}: {} fields, expected {}",
+                f.len(),
+                2 + ncol + METRICS.len()
+            ));
+        }
+        rows.push(Row {
+            sample: f[0]
+                .parse()
+                .map_err(|_| format!("{at}: bad sample index `{}`", f[0]))?,
+            params: parse_f64s(&f[1..1 + ncol], &at)?,
+            status: f[1 + ncol].to_string(),
+            metrics: parse_f64s(&f[2 + ncol..], &at)?,
+            series: Vec::new(),
+        });
+    }
+    let series_csv = dir.join("series.csv").display().to_string();
+    for (ln, line) in read("series.csv")?.lines().skip(1).enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        let at = format!("{series_csv} line {}", ln + 2);
+        let j: usize = f[0]
+            .parse()
+            .map_err(|_| format!("{at}: bad sample index"))?;
+        let row = rows
+            .iter_mut()
+            .find(|r| r.sample == j)
+            .ok_or_else(|| format!("{at}: sample {j} is not in samples.csv"))?;
+        row.series = parse_f64s(&f[1..], &at)?;
+    }
+    Ok((meta, base, rows))
+}
+
+/// Joins shard outputs: same plan and base scenario, every sample exactly once.
+pub fn merge(dirs: &[PathBuf]) -> Result<(Scenario, Plan, Vec<Row>), String> {
+    let mut first: Option<(Scenario, Plan)> = None;
+    let mut rows: Vec<Row> = Vec::new();
+    for d in dirs {
+        let (meta, base, r) = read_outputs(d)?;
+        match &first {
+            None => first = Some((base, meta.plan)),
+            Some((b, p)) => {
+                if *p != meta.plan {
+                    return Err(format!(
+                        "{}: a different sweep plan than {}",
+                        d.display(),
+                        dirs[0].display()
+                    ));
+                }
+                if *b != base {
+                    return Err(format!(
+                        "{}: a different base scenario than {}",
+                        d.display(),
+                        dirs[0].display()
+                    ));
+                }
+            }
+        }
+        rows.extend(r);
+    }
+    let (base, plan) = first.ok_or("no shard directories given")?;
+    rows.sort_by_key(|r| r.sample);
+    for w in rows.windows(2) {
+        if w[0].sample == w[1].sample {
+            return Err(format!(
+                "sample {} appears in more than one shard",
+                w[0].sample
+            ));
+        }
+    }
+    let missing: Vec<usize> = (0..plan.len())
+        .filter(|j| rows.binary_search_by_key(j, |r| r.sample).is_err())
+        .collect();
+    if !missing.is_empty() {
+        return Err(format!(
+            "{} of {} samples missing (first: {:?}); is a shard absent?",
+            missing.len(),
+            plan.len(),
+            &missing[..missing.len().min(5)]
+        ));
+    }
+    Ok((base, plan, rows))
+}
+
+/// The transport sweep runs use unless the scenario or a flag says otherwise.
+pub fn default_transport() -> Transport {
+    Transport::InProcess
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_specs_parse_to_exact_values_and_bad_ones_are_named() {
+        let Plan::Grid { key, values } = parse_grid("run.seed=1:5:2").unwrap() else {
+            panic!()
+        };
+        assert_eq!((key.as_str(), values), ("run.seed", vec![1.0, 3.0, 5.0]));
+        let Plan::Grid { values, .. } = parse_grid("x=0:0.3:0.1").unwrap() else {
+            panic!()
+        };
+        assert_eq!(values.len(), 4);
+        let Plan::Grid { values, .. } = parse_grid("x=3,1.5").unwrap() else {
+            panic!()
+        };
+        assert_eq!(values, vec![3.0, 1.5]);
+        for bad in ["x", "x=1:2", "x=2:1:1", "x=a,b", "=1"] {
+            assert!(parse_grid(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn monte_carlo_factors_are_within_the_spread_and_fixed_per_sample() {
+        let base = Scenario::default();
+        let plan = Plan::MonteCarlo {
+            samples: 50,
+            spread: 0.22,
+            seed: 7,
+        };
+        let (s3, f3) = sample(&base, &plan, 3).unwrap();
+        assert_eq!(
+            sample(&base, &plan, 3).unwrap().1,
+            f3,
+            "a sample is reproducible"
+        );
+        assert_ne!(sample(&base, &plan, 4).unwrap().1, f3, "samples differ");
+        assert!((s3.vehicle.m_v / base.vehicle.m_v - f3[0]).abs() < 1e-12);
+        assert_eq!(s3.design_vehicle.as_ref(), Some(&base.vehicle));
+        let mut lo: f64 = 1.0;
+        let mut hi: f64 = 1.0;
+        for j in 0..50 {
+            for f in sample(&base, &plan, j).unwrap().1 {
+                lo = lo.min(f);
+                hi = hi.max(f);
+            }
+        }
+        // 750 uniform draws: all inside ±22 %, and reaching near both ends.
+        assert!(lo >= 0.78 && hi <= 1.22, "{lo} {hi}");
+        assert!(lo < 0.80 && hi > 1.20, "{lo} {hi}");
+    }
+
+    #[test]
+    fn keys_are_set_with_their_type_and_checked() {
+        let base = Scenario::default();
+        let s = with_key(&base, "vehicle.m_v", 21000.0).unwrap();
+        assert_eq!(s.vehicle.m_v, 21000.0);
+        let s = with_key(&base, "run.seed", 9.0).unwrap();
+        assert_eq!(s.run.seed, 9);
+        assert!(with_key(&base, "run.seed", 1.5)
+            .unwrap_err()
+            .contains("whole numbers"));
+        let e = with_key(&base, "vehicle.m_vv", 1.0).unwrap_err();
+        assert!(e.contains("m_vv"), "{e}");
+        let e = with_key(&base, "vehicle.m_v", -1.0).unwrap_err();
+        assert!(e.contains("vehicle.m_v"), "{e}");
+    }
+
+    #[test]
+    fn percentiles_interpolate_between_order_statistics() {
+        let v = [1.0, 2.0, 3.0, 4.0, 5.0];
+        assert_eq!(percentile(&v, 0.5), 3.0);
+        assert_eq!(percentile(&v, 0.05), 1.2);
+        assert_eq!(percentile(&v, 1.0), 5.0);
+        assert!(percentile(&[], 0.5).is_nan());
+    }
+}

@@ -1,0 +1,188 @@
+//! `tiltsim sweep` and `tiltsim sweep-merge` (issue 5, item 4).
+
+use tiltsim_suite::{run, scenario, scenario_with, summary, temp_dir};
+
+fn read(p: &std::path::Path) -> Vec<u8> {
+    std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+/// Median of a column of samples.csv, computed here from the raw values.
+fn median_of(csv: &str, col: &str) -> f64 {
+    let mut lines = csv.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let i = head.iter().position(|h| *h == col).unwrap();
+    let mut v: Vec<f64> = lines
+        .map(|l| l.split(',').nth(i).unwrap().parse().unwrap())
+        .collect();
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
+}
+
+#[test]
+fn a_sharded_monte_carlo_sweep_merges_into_the_whole_sweep_byte_for_byte() {
+    // LQG with the ideal actuator: the controller and vehicle are what vary here.
+    let sc = scenario_with(
+        "paper-lqg.toml",
+        "model = \"bldc\"",
+        "model = \"ideal\"",
+        "sweep-mc",
+    );
+    let sc = sc.to_str().unwrap();
+    let dir = temp_dir("sweep-mc");
+    let whole = dir.join("whole");
+    let args = |out: &std::path::Path, shard: Option<&str>| {
+        let mut a = vec![
+            "sweep".to_string(),
+            sc.to_string(),
+            "--samples".into(),
+            "5".into(),
+            "--seed".into(),
+            "11".into(),
+            "--out".into(),
+            out.display().to_string(),
+            "--quiet".into(),
+        ];
+        if let Some(s) = shard {
+            a.extend(["--shard".into(), s.into(), "--jobs".into(), "1".into()]);
+        }
+        a
+    };
+    let call = |a: Vec<String>| {
+        let refs: Vec<&str> = a.iter().map(String::as_str).collect();
+        let (code, _, err) = run(&refs);
+        assert_eq!(code, 0, "{err}");
+    };
+    call(args(&whole, None));
+    let shards = [dir.join("s0"), dir.join("s1")];
+    call(args(&shards[0], Some("0/2")));
+    call(args(&shards[1], Some("1/2")));
+    let merged = dir.join("merged");
+    let (code, out, err) = run(&[
+        "sweep-merge",
+        shards[1].to_str().unwrap(),
+        shards[0].to_str().unwrap(),
+        "--out",
+        merged.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("merged 5 samples from 2 shards"), "{out}");
+    for f in [
+        "samples.csv",
+        "series.csv",
+        "table.md",
+        "table.csv",
+        "sweep.json",
+        "plots/sweep_lateral_acceleration.svg",
+        "plots/sweep_lateral_acceleration.png",
+        "plots/sweep_p_ct.svg",
+    ] {
+        assert!(read(&whole.join(f)) == read(&merged.join(f)), "{f} differs");
+    }
+    // Shard 0 of 2 holds samples 0, 2, 4.
+    let s0 = std::fs::read_to_string(shards[0].join("samples.csv")).unwrap();
+    let idx: Vec<&str> = s0
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    assert_eq!(idx, ["0", "2", "4"]);
+
+    // Every factor inside ±22 %; every sample completed; the table's median is the median.
+    let csv = std::fs::read_to_string(whole.join("samples.csv")).unwrap();
+    for line in csv.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        for x in &f[1..16] {
+            let x: f64 = x.parse().unwrap();
+            assert!((0.78..=1.22).contains(&x), "factor {x}");
+        }
+        assert_eq!(f[16], "completed");
+    }
+    let table = std::fs::read_to_string(whole.join("table.csv")).unwrap();
+    let row: Vec<&str> = table
+        .lines()
+        .find(|l| l.starts_with("p_ct_standing,"))
+        .unwrap()
+        .split(',')
+        .collect();
+    assert_eq!(row[1], "5");
+    assert_eq!(
+        row[2].parse::<f64>().unwrap(),
+        median_of(&csv, "p_ct_standing")
+    );
+    let (p5, p95): (f64, f64) = (row[3].parse().unwrap(), row[4].parse().unwrap());
+    assert!(p5 < row[2].parse::<f64>().unwrap() && row[2].parse::<f64>().unwrap() < p95);
+
+    // A missing shard is named, not silently merged.
+    let (code, _, err) = run(&[
+        "sweep-merge",
+        shards[0].to_str().unwrap(),
+        "--out",
+        dir.join("bad").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 2);
+    assert!(err.contains("2 of 5 samples missing"), "{err}");
+}
+
+#[test]
+fn a_grid_sweep_gives_each_value_the_metrics_of_a_plain_run_with_that_value() {
+    let dir = temp_dir("sweep-grid");
+    let sc = scenario("paper-passive.toml");
+    let (code, _, err) = run(&[
+        "sweep",
+        sc.to_str().unwrap(),
+        "--grid",
+        "vehicle.m_v=16000,22000",
+        "--out",
+        dir.join("grid").to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let table = std::fs::read_to_string(dir.join("grid/table.csv")).unwrap();
+    assert!(table.starts_with("vehicle.m_v,status,"), "{table}");
+    // The same value through `tiltsim run` (with the grid's transport) gives the same number.
+    let custom = dir.join("heavy.toml");
+    let text = std::fs::read_to_string(&sc).unwrap();
+    std::fs::write(&custom, format!("{text}\n[vehicle]\nm_v = 22000.0\n")).unwrap();
+    let (code, _, err) = run(&[
+        "run",
+        custom.to_str().unwrap(),
+        "--transport",
+        "in-process",
+        "--out",
+        dir.join("heavy").to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let want = summary(&dir.join("heavy"))["comfort"]["p_ct"]["standing"]
+        .as_f64()
+        .unwrap();
+    let row: Vec<&str> = table
+        .lines()
+        .find(|l| l.starts_with("22000,"))
+        .unwrap()
+        .split(',')
+        .collect();
+    assert_eq!(row[1], "completed");
+    assert_eq!(row[2 + 5].parse::<f64>().unwrap(), want);
+    assert!(dir.join("grid/plots/sweep_comfort.png").exists());
+
+    // Invalid sweeps are refused before anything runs, naming the key.
+    let (code, _, err) = run(&["sweep", sc.to_str().unwrap(), "--grid", "vehicle.m_v=-1,2"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("vehicle.m_v"), "{err}");
+    let (code, _, err) = run(&[
+        "sweep",
+        sc.to_str().unwrap(),
+        "--samples",
+        "3",
+        "--shard",
+        "3/3",
+    ]);
+    assert_eq!(code, 2);
+    assert!(err.contains("--shard"), "{err}");
+}
