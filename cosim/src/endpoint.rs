@@ -1,7 +1,7 @@
 //! The orchestrator's view of one participant, the same for every transport.
 
-use crate::msg::{Kind, Message, PROTOCOL_VERSION};
-use crate::participant::{answer, Participant, Role};
+use crate::msg::{Kind, Message, FLAG_CRASH, FLAG_REJECTED, PROTOCOL_VERSION};
+use crate::participant::{Participant, Role, Served};
 
 /// Why an exchange with a participant failed. Every variant names the participant and step.
 #[derive(Debug, Clone, thiserror::Error)]
@@ -36,9 +36,19 @@ pub enum LinkError {
     /// A reply of the wrong kind or protocol version.
     #[error("participant {role}: malformed sample for step {step}: {what}")]
     Malformed { role: Role, step: u64, what: String },
-    /// A NaN or infinite value.
+    /// A NaN or infinite value in a participant's reply.
     #[error("participant {role}: non-finite value in field `{field}` of {sample} at step {step}")]
     NonFinite {
+        role: Role,
+        step: u64,
+        sample: &'static str,
+        field: &'static str,
+    },
+    /// The participant rejected its request: a NaN or infinite input value.
+    #[error(
+        "participant {role} rejected step {step}: non-finite value in field `{field}` of {sample}"
+    )]
+    BadInput {
         role: Role,
         step: u64,
         sample: &'static str,
@@ -49,8 +59,39 @@ pub enum LinkError {
     Transport { role: Role, what: String },
 }
 
-/// Checks a reply against the request it answers.
-pub fn check_reply<O: Message>(
+impl LinkError {
+    /// The participant concerned.
+    pub fn role(&self) -> Role {
+        match self {
+            LinkError::Timeout { role, .. }
+            | LinkError::Exited { role, .. }
+            | LinkError::Stale { role, .. }
+            | LinkError::OutOfOrder { role, .. }
+            | LinkError::Duplicate { role, .. }
+            | LinkError::Malformed { role, .. }
+            | LinkError::NonFinite { role, .. }
+            | LinkError::BadInput { role, .. }
+            | LinkError::Transport { role, .. } => *role,
+        }
+    }
+    /// One word for the cause, free of pids and wall-clock numbers (for the event log).
+    pub fn cause(&self) -> &'static str {
+        match self {
+            LinkError::Timeout { .. } => "stalled",
+            LinkError::Exited { .. } => "exited",
+            LinkError::Stale { .. } => "stale-sample",
+            LinkError::OutOfOrder { .. } => "out-of-order",
+            LinkError::Duplicate { .. } => "duplicate",
+            LinkError::Malformed { .. } => "malformed",
+            LinkError::NonFinite { .. } => "non-finite-output",
+            LinkError::BadInput { .. } => "non-finite-input",
+            LinkError::Transport { .. } => "transport",
+        }
+    }
+}
+
+/// Checks a reply (to a request of type `I`) against the request it answers.
+pub fn check_reply<I: Message, O: Message>(
     role: Role,
     reply: &O,
     step: u64,
@@ -65,6 +106,14 @@ pub fn check_reply<O: Message>(
                 "protocol version {} (expected {PROTOCOL_VERSION})",
                 h.version
             ),
+        });
+    }
+    let size = core::mem::size_of::<O>() as u32;
+    if h.size != size {
+        return Err(LinkError::Malformed {
+            role,
+            step,
+            what: format!("{} of {} bytes (expected {size})", O::NAME, h.size),
         });
     }
     if h.step < step {
@@ -88,15 +137,32 @@ pub fn check_reply<O: Message>(
             what: format!("kind {} (expected {kind:?})", h.kind),
         });
     }
-    if let Some(field) = reply.first_non_finite() {
+    if h.flags & FLAG_REJECTED != 0 {
+        return Err(LinkError::BadInput {
+            role,
+            step,
+            sample: I::NAME,
+            field: field_name::<I>(h.field),
+        });
+    }
+    if let Some(i) = reply.first_non_finite() {
         return Err(LinkError::NonFinite {
             role,
             step,
             sample: O::NAME,
-            field,
+            field: O::FIELDS[i],
         });
     }
     Ok(())
+}
+
+/// Name of request field `1 + index` as carried in `Header::field`.
+pub fn field_name<I: Message>(field: u32) -> &'static str {
+    (field as usize)
+        .checked_sub(1)
+        .and_then(|i| I::FIELDS.get(i))
+        .copied()
+        .unwrap_or("?")
 }
 
 /// How a participant ended, as reported after the run.
@@ -108,33 +174,60 @@ pub struct ExitReport {
     pub cpu_s: Option<f64>,
 }
 
+/// A process fault injected on purpose (scheduled in the scenario).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ProcessFault {
+    /// The process is killed (SIGKILL).
+    Kill,
+    /// The process is stopped for this long, then continues (SIGSTOP, SIGCONT).
+    Stall(std::time::Duration),
+}
+
 /// The orchestrator's handle on one participant.
 pub trait Endpoint<I: Message, O: Message> {
     /// Role of the participant.
     fn role(&self) -> Role;
     /// Process id (the orchestrator's own pid in-process).
     fn pid(&self) -> u32;
-    /// Sends a request; its header says which step and kind.
+    /// Sends a request; its header says which step and kind (version, size and send time are
+    /// stamped here).
     fn send(&mut self, req: &I) -> Result<(), LinkError>;
     /// Waits for the reply to the request for `step` of `kind` and checks it.
     fn receive(&mut self, step: u64, kind: Kind) -> Result<O, LinkError>;
+    /// Injects a process fault.
+    fn inject(&mut self, fault: ProcessFault);
     /// Asks the participant to end, waits for it (bounded), reports how it ended.
     fn shutdown(&mut self) -> ExitReport;
 }
 
 /// In-process transport: the model runs inside the orchestrator's process, on `send`.
+///
+/// Process faults are emulated so that a scenario gives the same rows on both transports: a
+/// kill or crash makes the endpoint report the participant gone at the same step; a stall
+/// sleeps in `send` and is a timeout when it lasts past the deadline.
 pub struct InProcess<P: Participant> {
-    model: P,
+    served: Served<P>,
     pending: Option<P::Output>,
+    gone: Option<String>,
+    stall: Option<std::time::Duration>,
+    deadline: std::time::Duration,
 }
 
 impl<P: Participant> InProcess<P> {
-    /// Wraps a model.
+    /// Wraps a model (stall deadline 500 ms).
     pub fn new(model: P) -> Self {
         InProcess {
-            model,
+            served: Served::new(model),
             pending: None,
+            gone: None,
+            stall: None,
+            deadline: std::time::Duration::from_millis(500),
         }
+    }
+    /// Sets the stall deadline.
+    pub fn with_deadline(mut self, deadline: std::time::Duration) -> Self {
+        self.deadline = deadline;
+        self
     }
 }
 
@@ -153,22 +246,60 @@ impl<P: Participant> Endpoint<P::Input, P::Output> for InProcess<P> {
                 step,
             });
         }
-        self.pending = Some(answer(&mut self.model, req));
+        if self.gone.is_some() {
+            return Ok(());
+        }
+        if req.header().flags & FLAG_CRASH != 0 {
+            self.gone = Some("crashed (in-process emulation of an abort)".into());
+            return Ok(());
+        }
+        let mut req = *req;
+        req.stamp();
+        if let Some(d) = self.stall {
+            std::thread::sleep(d.min(self.deadline + std::time::Duration::from_millis(1)));
+        }
+        self.pending = Some(self.served.answer(&req));
         Ok(())
     }
     fn receive(&mut self, step: u64, kind: Kind) -> Result<P::Output, LinkError> {
+        if let Some(status) = &self.gone {
+            return Err(LinkError::Exited {
+                role: P::ROLE,
+                pid: std::process::id(),
+                step,
+                status: status.clone(),
+            });
+        }
+        if let Some(d) = self.stall.take() {
+            if d > self.deadline {
+                self.pending = None;
+                self.gone = Some("stalled (in-process emulation)".into());
+                return Err(LinkError::Timeout {
+                    role: P::ROLE,
+                    pid: std::process::id(),
+                    step,
+                    deadline_ms: self.deadline.as_millis() as u64,
+                });
+            }
+        }
         let Some(reply) = self.pending.take() else {
             return Err(LinkError::Transport {
                 role: P::ROLE,
                 what: format!("no request pending for step {step}"),
             });
         };
-        check_reply(P::ROLE, &reply, step, kind)?;
+        check_reply::<P::Input, P::Output>(P::ROLE, &reply, step, kind)?;
         Ok(reply)
+    }
+    fn inject(&mut self, fault: ProcessFault) {
+        match fault {
+            ProcessFault::Kill => self.gone = Some("killed (in-process emulation)".into()),
+            ProcessFault::Stall(d) => self.stall = Some(d),
+        }
     }
     fn shutdown(&mut self) -> ExitReport {
         ExitReport {
-            status: "in-process".into(),
+            status: self.gone.clone().unwrap_or_else(|| "in-process".into()),
             cpu_s: None,
         }
     }
@@ -197,18 +328,26 @@ mod tests {
     }
 
     fn reply(step: u64, kind: Kind) -> FromController {
-        FromController {
+        let mut r = FromController {
             header: Header::new(step, kind),
             ..Default::default()
-        }
+        };
+        r.stamp();
+        r
     }
 
     #[test]
     fn replies_for_other_steps_kinds_or_versions_are_errors() {
         let r = Role::Controller;
-        assert!(check_reply(r, &reply(7, Kind::Step), 7, Kind::Step).is_ok());
+        assert!(check_reply::<ToController, FromController>(
+            r,
+            &reply(7, Kind::Step),
+            7,
+            Kind::Step
+        )
+        .is_ok());
         assert!(matches!(
-            check_reply(r, &reply(6, Kind::Step), 7, Kind::Step),
+            check_reply::<ToController, FromController>(r, &reply(6, Kind::Step), 7, Kind::Step),
             Err(LinkError::Stale {
                 expected: 7,
                 got: 6,
@@ -216,7 +355,7 @@ mod tests {
             })
         ));
         assert!(matches!(
-            check_reply(r, &reply(8, Kind::Step), 7, Kind::Step),
+            check_reply::<ToController, FromController>(r, &reply(8, Kind::Step), 7, Kind::Step),
             Err(LinkError::OutOfOrder {
                 expected: 7,
                 got: 8,
@@ -224,16 +363,16 @@ mod tests {
             })
         ));
         assert!(matches!(
-            check_reply(r, &reply(7, Kind::Init), 7, Kind::Step),
+            check_reply::<ToController, FromController>(r, &reply(7, Kind::Init), 7, Kind::Step),
             Err(LinkError::Malformed { .. })
         ));
         let mut old = reply(7, Kind::Step);
         old.header.version = 0;
-        let e = check_reply(r, &old, 7, Kind::Step).unwrap_err();
+        let e = check_reply::<ToController, FromController>(r, &old, 7, Kind::Step).unwrap_err();
         assert!(e.to_string().contains("protocol version 0"), "{e}");
         let mut nan = reply(7, Kind::Step);
         nan.delta_a_cmd = f64::NAN;
-        let e = check_reply(r, &nan, 7, Kind::Step).unwrap_err();
+        let e = check_reply::<ToController, FromController>(r, &nan, 7, Kind::Step).unwrap_err();
         assert_eq!(e.to_string(), "participant controller: non-finite value in field `delta_a_cmd` of from_controller at step 7");
     }
 

@@ -18,9 +18,9 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 
-use crate::endpoint::{check_reply, Endpoint, ExitReport, LinkError};
-use crate::msg::{Header, Kind, Message};
-use crate::participant::{answer, Participant, Role};
+use crate::endpoint::{check_reply, Endpoint, ExitReport, LinkError, ProcessFault};
+use crate::msg::{Header, Kind, Message, FLAG_CRASH};
+use crate::participant::{Participant, Role, Served};
 use crate::wait::{Backoff, WaitStrategy};
 
 /// Per-run iceoryx2 settings shared by the orchestrator and its participants.
@@ -404,8 +404,10 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         self.pid
     }
     fn send(&mut self, req: &I) -> Result<(), LinkError> {
+        let mut req = *req;
+        req.stamp();
         self.publisher
-            .send_copy(*req)
+            .send_copy(req)
             .map(|_| ())
             .map_err(|e| LinkError::Transport {
                 role: self.role,
@@ -418,7 +420,7 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         loop {
             drain(self.role, &self.subscriber, step, &mut found)?;
             if let Some(reply) = found {
-                check_reply(self.role, &reply, step, kind)?;
+                check_reply::<I, O>(self.role, &reply, step, kind)?;
                 return Ok(reply);
             }
             // A dead process is noticed within ~1k polls; a stalled one at the deadline.
@@ -441,6 +443,23 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
                 }
             }
             backoff.pause();
+        }
+    }
+    fn inject(&mut self, fault: ProcessFault) {
+        let pid = self.pid as libc::pid_t;
+        match fault {
+            // SAFETY: signals to our own child, which we have not reaped yet.
+            ProcessFault::Kill => unsafe {
+                libc::kill(pid, libc::SIGKILL);
+            },
+            ProcessFault::Stall(d) => {
+                // SAFETY: as above; the thread resumes it after `d` (a no-op if it died).
+                unsafe { libc::kill(pid, libc::SIGSTOP) };
+                std::thread::spawn(move || {
+                    std::thread::sleep(d);
+                    unsafe { libc::kill(pid, libc::SIGCONT) };
+                });
+            }
         }
     }
     fn shutdown(&mut self) -> ExitReport {
@@ -561,7 +580,7 @@ pub fn leftover_files(prefix: &str) -> Vec<PathBuf> {
 /// Returns an error if the orchestrator disappears (its requests stop for `idle_limit` and it
 /// is no longer our parent) or the transport fails.
 pub fn serve<P: Participant>(
-    mut p: P,
+    p: P,
     prefix: &str,
     wait: WaitStrategy,
     spin_polls: u32,
@@ -587,6 +606,7 @@ pub fn serve<P: Participant>(
     // Steps must arrive in increasing order after Init; multi-rate participants are asked only
     // on their own ticks, so the next step may be any later one.
     let mut last_step: Option<u64> = None;
+    let mut served = Served::new(p);
     loop {
         let mut backoff = Backoff::with_spin(wait, spin_polls);
         let request = loop {
@@ -623,7 +643,11 @@ pub fn serve<P: Participant>(
                 .into());
             }
         }
-        let reply = answer(&mut p, &request);
+        if h.flags & FLAG_CRASH != 0 {
+            // A scheduled `crash` fault: die as a crashing process does.
+            std::process::abort();
+        }
+        let reply = served.answer(&request);
         publisher.send_copy(reply).map_err(iox("send"))?;
     }
 }

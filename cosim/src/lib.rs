@@ -21,6 +21,6 @@ pub mod settings;
 pub mod stats;
 pub mod wait;
 
-pub use endpoint::{Endpoint, InProcess, LinkError};
+pub use endpoint::{Endpoint, InProcess, LinkError, ProcessFault};
 pub use msg::{Header, Kind, Message};
 pub use participant::{Participant, Role};

@@ -11,7 +11,7 @@
 use iceoryx2::prelude::ZeroCopySend;
 
 /// Version of the sample layouts below. Bumped whenever a field changes.
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;
 
 /// What a sample asks for or answers.
 #[repr(u32)]
@@ -38,6 +38,29 @@ impl Kind {
     }
 }
 
+/// Request flag: replace a non-finite input by the last good one instead of rejecting it
+/// (`faults.on_bad_data = "hold"`).
+pub const FLAG_HOLD_BAD_INPUT: u32 = 1;
+/// Request flag: the participant process aborts on receipt (a scheduled `crash` fault).
+pub const FLAG_CRASH: u32 = 2;
+/// Reply flag: the request carried a non-finite value; the model was not stepped.
+/// `Header::field` names it.
+pub const FLAG_REJECTED: u32 = 4;
+/// Reply flag: the request carried a non-finite value; the last good input was used.
+pub const FLAG_HELD: u32 = 8;
+
+/// Monotonic clock (CLOCK_MONOTONIC, ns): one clock for every process of the machine, so
+/// timestamps taken in different processes can be subtracted.
+pub fn now_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes into the valid timespec.
+    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
 /// Common prefix of every sample.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
@@ -48,8 +71,20 @@ pub struct Header {
     pub kind: u32,
     /// [`PROTOCOL_VERSION`] of the sender.
     pub version: u32,
-    /// Wall-clock nanoseconds the participant spent in its model's step (replies only;
-    /// measurement only, never written to `timeseries.csv`).
+    /// Size in bytes of the whole sample as the sender built it.
+    pub size: u32,
+    /// `FLAG_*` bits.
+    pub flags: u32,
+    /// With [`FLAG_REJECTED`] or [`FLAG_HELD`]: 1 + index of the offending request field.
+    pub field: u32,
+    /// Reserved (keeps the timestamps 8-byte aligned).
+    pub reserved: u32,
+    /// Monotonic time the sender published the sample (ns, [`now_ns`]).
+    pub sent_ns: u64,
+    /// Replies: monotonic time the participant took the request (ns).
+    pub recv_ns: u64,
+    /// Replies: wall-clock nanoseconds spent inside the model's step (measurement only, never
+    /// written to `timeseries.csv`).
     pub compute_ns: u64,
 }
 
@@ -60,7 +95,7 @@ impl Header {
             step,
             kind: kind as u32,
             version: PROTOCOL_VERSION,
-            compute_ns: 0,
+            ..Default::default()
         }
     }
 }
@@ -73,8 +108,18 @@ pub trait Message: Copy + Default + core::fmt::Debug + ZeroCopySend + Send + 'st
     fn header(&self) -> &Header;
     /// The header, mutably.
     fn header_mut(&mut self) -> &mut Header;
-    /// Name of the first non-finite value, if any (bad data is caught where it arrives).
-    fn first_non_finite(&self) -> Option<&'static str>;
+    /// Names of the data fields, in declaration order.
+    const FIELDS: &'static [&'static str];
+    /// Index in [`Message::FIELDS`] of the first non-finite value, if any (bad data is caught
+    /// where it arrives).
+    fn first_non_finite(&self) -> Option<usize>;
+    /// Stamps the header for sending: version, size, send time.
+    fn stamp(&mut self) {
+        let h = self.header_mut();
+        h.version = PROTOCOL_VERSION;
+        h.size = core::mem::size_of::<Self>() as u32;
+        h.sent_ns = now_ns();
+    }
 }
 
 macro_rules! message {
@@ -91,9 +136,10 @@ macro_rules! message {
             const NAME: &'static str = $label;
             fn header(&self) -> &Header { &self.header }
             fn header_mut(&mut self) -> &mut Header { &mut self.header }
-            fn first_non_finite(&self) -> Option<&'static str> {
-                $( if !FiniteCheck::all_finite(&self.$f) { return Some(stringify!($f)); } )*
-                None
+            const FIELDS: &'static [&'static str] = &[$(stringify!($f)),*];
+            fn first_non_finite(&self) -> Option<usize> {
+                let checks = [$(FiniteCheck::all_finite(&self.$f)),*];
+                checks.iter().position(|ok| !ok)
             }
         }
     };
@@ -213,12 +259,16 @@ mod tests {
         let mut s = FromPlant::default();
         assert_eq!(s.first_non_finite(), None);
         s.x[3] = f64::NAN;
-        assert_eq!(s.first_non_finite(), Some("x"));
+        assert_eq!(
+            s.first_non_finite().map(|i| FromPlant::FIELDS[i]),
+            Some("x")
+        );
         let c = FromController {
             delta_a_cmd: f64::INFINITY,
             ..Default::default()
         };
-        assert_eq!(c.first_non_finite(), Some("delta_a_cmd"));
+        assert_eq!(c.first_non_finite(), Some(0));
+        assert_eq!(FromController::FIELDS[0], "delta_a_cmd");
     }
 
     #[test]

@@ -2,7 +2,7 @@
 
 use std::time::Instant;
 
-use crate::msg::{Header, Kind, Message, PROTOCOL_VERSION};
+use crate::msg::{now_ns, Header, Kind, Message, FLAG_HELD, FLAG_HOLD_BAD_INPUT, FLAG_REJECTED};
 
 /// The three participant roles of a tiltsim run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -72,23 +72,67 @@ pub trait Participant: Send + 'static {
     fn step(&mut self, input: &Self::Input) -> Self::Output;
 }
 
-/// Answers one request: runs the model and stamps the reply's header. Shared by both
-/// transports so they cannot differ in what they compute.
-pub fn answer<P: Participant>(p: &mut P, req: &P::Input) -> P::Output {
-    let h = *req.header();
-    let started = Instant::now();
-    let mut out = match Kind::from_raw(h.kind) {
-        Some(Kind::Init) => p.initial_output(),
-        Some(Kind::Step) => p.step(req),
-        // Stop and unknown kinds carry no data; the caller decides what to do with them.
-        _ => P::Output::default(),
-    };
-    let compute_ns = u64::try_from(started.elapsed().as_nanos()).unwrap_or(u64::MAX);
-    *out.header_mut() = Header {
-        step: h.step,
-        kind: h.kind,
-        version: PROTOCOL_VERSION,
-        compute_ns,
-    };
-    out
+/// A model as a transport serves it: checks every request where it arrives and answers it.
+/// Shared by both transports so they cannot differ in what they compute.
+pub struct Served<P: Participant> {
+    /// The model.
+    pub model: P,
+    last_good: Option<P::Input>,
+}
+
+impl<P: Participant> Served<P> {
+    /// Wraps a model.
+    pub fn new(model: P) -> Self {
+        Served {
+            model,
+            last_good: None,
+        }
+    }
+
+    /// Answers one request: checks it, runs the model and stamps the reply's header.
+    ///
+    /// A request with a NaN or infinite value is bad data caught where it arrives: the model
+    /// is not stepped with it. With [`FLAG_HOLD_BAD_INPUT`] the last good request's values
+    /// are used instead (the reply says so with [`FLAG_HELD`]); otherwise the reply is
+    /// [`FLAG_REJECTED`]. Either way `Header::field` names the field.
+    pub fn answer(&mut self, req: &P::Input) -> P::Output {
+        let h = *req.header();
+        let recv_ns = now_ns();
+        let mut flags = 0;
+        let mut field = 0;
+        let mut input = *req;
+        if let Some(i) = req.first_non_finite() {
+            field = i as u32 + 1;
+            match self.last_good {
+                Some(good) if h.flags & FLAG_HOLD_BAD_INPUT != 0 => {
+                    input = good;
+                    *input.header_mut() = h;
+                    flags = FLAG_HELD;
+                }
+                _ => flags = FLAG_REJECTED,
+            }
+        } else if h.kind == Kind::Step as u32 {
+            self.last_good = Some(*req);
+        }
+        let started = Instant::now();
+        let mut out = match Kind::from_raw(h.kind) {
+            _ if flags == FLAG_REJECTED => P::Output::default(),
+            Some(Kind::Init) => self.model.initial_output(),
+            Some(Kind::Step) => self.model.step(&input),
+            // Stop and unknown kinds carry no data; the caller decides what to do with them.
+            _ => P::Output::default(),
+        };
+        let compute_ns = u64::try_from(started.elapsed().as_nanos()).unwrap_or(u64::MAX);
+        *out.header_mut() = Header {
+            step: h.step,
+            kind: h.kind,
+            flags,
+            field,
+            recv_ns,
+            compute_ns,
+            ..Default::default()
+        };
+        out.stamp();
+        out
+    }
 }

@@ -4,8 +4,6 @@
 //! stdout. Numbers are measured, never asserted.
 
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 
 use cosim::wait::WaitStrategy;
 use orchestrator::engine::{run, RunOptions};
@@ -36,13 +34,7 @@ fn main() {
         s.run.transport = transport;
         s.run.master = master;
         s.run.wait = wait;
-        let opts = RunOptions {
-            out_dir: out.clone(),
-            participant_exe: PathBuf::from(env!("CARGO_BIN_EXE_tiltsim")),
-            ipc_prefix: None,
-            interrupt: Arc::new(AtomicBool::new(false)),
-            plots: true,
-        };
+        let opts = RunOptions::new(out.clone(), PathBuf::from(env!("CARGO_BIN_EXE_tiltsim")));
         let r = run(&s, &file.display().to_string(), &opts).expect("run");
         println!(
             "| {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.1} | {:.3} | {:.2} | {:.2} |",

@@ -113,6 +113,17 @@ struct RunArgs {
     /// iceoryx2 file prefix for this run (default: unique per run).
     #[arg(long, hide = true)]
     ipc_prefix: Option<String>,
+    /// Write DIR/trace.csv (every exchange: sent, received, step started and finished,
+    /// reply sent and received, monotonic ns) and plots/latency_histogram.
+    #[arg(long)]
+    trace: bool,
+    /// Run at FACTOR simulated seconds per wall second (1.0 = real time) and report every
+    /// tick that finished late.
+    #[arg(long, value_name = "FACTOR")]
+    pace: Option<f64>,
+    /// Serve ROLE from another executable (ROLE=PATH; for test participants).
+    #[arg(long, hide = true, value_name = "ROLE=PATH")]
+    participant_exe: Vec<String>,
     /// Print nothing but errors.
     #[arg(short, long)]
     quiet: bool,
@@ -303,13 +314,8 @@ fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<Transport
     let mut runs = Vec::new();
     for (file, s) in loaded {
         let dir = out.join(&s.name);
-        let opts = RunOptions {
-            out_dir: dir.clone(),
-            participant_exe: exe.clone(),
-            ipc_prefix: None,
-            interrupt: interrupt.clone(),
-            plots: true,
-        };
+        let mut opts = RunOptions::new(dir.clone(), exe.clone());
+        opts.interrupt = interrupt.clone();
         let summary = match engine::run(&s, &file.display().to_string(), &opts) {
             Ok(sum) => sum,
             Err(e) => {
@@ -329,7 +335,7 @@ fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<Transport
             summary.comfort.lat_acc_peak_pct_g
         );
         match summary.status {
-            Status::Completed => {}
+            Status::Completed | Status::Degraded => {}
             Status::Interrupted => return EXIT_INTERRUPTED,
             Status::Failed => {
                 eprintln!(
@@ -577,12 +583,34 @@ fn run(a: RunArgs) -> i32 {
             return EXIT_FAILED;
         }
     };
+    if let Some(p) = a.pace {
+        if !(p.is_finite() && p > 0.0 && p <= 1000.0) {
+            eprintln!("error: command line: --pace {p}: allowed a factor in (0, 1000]");
+            return EXIT_INVALID;
+        }
+    }
+    let mut overrides = Vec::new();
+    for o in &a.participant_exe {
+        match o
+            .split_once('=')
+            .and_then(|(r, p)| Some((cosim::Role::parse(r)?, p)))
+        {
+            Some((role, path)) => overrides.push((role, PathBuf::from(path))),
+            None => {
+                eprintln!("error: command line: --participant-exe {o}: expected ROLE=PATH");
+                return EXIT_INVALID;
+            }
+        }
+    }
     let opts = RunOptions {
         out_dir: out.clone(),
         participant_exe: exe,
+        participant_overrides: overrides,
         ipc_prefix: a.ipc_prefix,
         interrupt,
         plots: true,
+        trace: a.trace,
+        pace: a.pace,
     };
     let summary = match engine::run(&s, &a.scenario.display().to_string(), &opts) {
         Ok(sum) => sum,
@@ -604,6 +632,13 @@ fn run(a: RunArgs) -> i32 {
     }
     match summary.status {
         Status::Completed => 0,
+        Status::Degraded => {
+            eprintln!(
+                "warning: a participant was lost and the run continued in degraded mode; see {}",
+                out.join("events.csv").display()
+            );
+            0
+        }
         Status::Failed => {
             eprintln!(
                 "error: {}; {} of {} steps recorded in {}",
@@ -671,6 +706,18 @@ fn print_report(s: &engine::Summary, out: &std::path::Path) {
         println!(
             "  {} compute per call: p50 {:.1} us, p99 {:.1} us, max {:.1} us ({} calls)",
             p.process, p.compute_us.p50, p.compute_us.p99, p.compute_us.max, p.compute_us.n
+        );
+    }
+    for l in &s.link_latency {
+        println!(
+            "  {} link latency: request p50 {:.1} us, p99 {:.1} us, max {:.1} us; reply p50 {:.1} us, p99 {:.1} us",
+            l.participant, l.request_us.p50, l.request_us.p99, l.request_us.max, l.reply_us.p50, l.reply_us.p99
+        );
+    }
+    if let Some(p) = &s.pacing {
+        println!(
+            "  paced at {}x real time: achieved {:.3}x; {} of {} ticks overran (late by p50 {:.1} us, max {:.1} us)",
+            p.factor, p.achieved_realtime_factor, p.overruns, p.ticks, p.lateness_us.p50, p.lateness_us.max
         );
     }
     if let Some(q) = &s.controller_solver {

@@ -11,14 +11,19 @@ use actuator_proc::{Actuator, ActuatorInit};
 use controller_proc::{Controller, ControllerInit};
 use cosim::endpoint::ExitReport;
 use cosim::ipc::{IpcHub, IpcSettings, Launch};
+use cosim::msg::{now_ns, Message, FLAG_CRASH, FLAG_HELD, FLAG_HOLD_BAD_INPUT};
 use cosim::msg::{
     FromActuator, FromController, FromPlant, Header, ToActuator, ToController, ToPlant,
 };
 use cosim::stats::{percentiles, Percentiles};
-use cosim::{Endpoint, InProcess, Kind, LinkError, Role};
+use cosim::{Endpoint, InProcess, Kind, LinkError, ProcessFault, Role};
 use plant_proc::{Plant, PlantSettings};
 use serde::Serialize;
 
+use crate::degraded::{FallbackController, NeutralBar};
+use crate::links::{
+    Event, Fallback, FaultAction, LinkSet, OnBadData, OnFailure, ScheduledFault, EVENTS_HEADER,
+};
 use crate::record::Recorder;
 use crate::scenario::{Master, Scenario, Transport};
 
@@ -29,12 +34,18 @@ pub struct RunOptions {
     pub out_dir: PathBuf,
     /// Executable that serves `participant ROLE ...` (normally `tiltsim` itself).
     pub participant_exe: PathBuf,
+    /// Other executables for some roles (test participants that misbehave on purpose).
+    pub participant_overrides: Vec<(Role, PathBuf)>,
     /// iceoryx2 prefix; a unique one is made when `None`.
     pub ipc_prefix: Option<String>,
     /// Set by Ctrl-C.
     pub interrupt: Arc<AtomicBool>,
     /// Draw `plots/` after the run.
     pub plots: bool,
+    /// Write `trace.csv` (every exchange's timestamps) and the latency histogram.
+    pub trace: bool,
+    /// Run the lock-step at this many simulated seconds per wall second.
+    pub pace: Option<f64>,
 }
 
 impl RunOptions {
@@ -44,9 +55,12 @@ impl RunOptions {
         RunOptions {
             out_dir,
             participant_exe,
+            participant_overrides: Vec::new(),
             ipc_prefix: None,
             interrupt: Arc::new(AtomicBool::new(false)),
             plots: true,
+            trace: false,
+            pace: None,
         }
     }
 }
@@ -59,6 +73,8 @@ pub enum Status {
     Completed,
     /// A participant failed; the message names it and the step.
     Failed,
+    /// Every step done, but a participant was lost and replaced by its degraded mode.
+    Degraded,
     /// Ctrl-C.
     Interrupted,
 }
@@ -146,6 +162,10 @@ pub struct Summary {
     pub timing: Timing,
     /// A quick look at the results.
     pub results: QuickLook,
+    /// Wall-clock latency of each participant's exchanges (request, reply, round trip; µs).
+    pub link_latency: Vec<LinkLatency>,
+    /// Real-time pacing (`--pace`), every tick counted.
+    pub pacing: Option<PacingReport>,
     /// The MPC's QP solver (absent for controllers without one).
     pub controller_solver: Option<SolverReport>,
     /// Ride comfort (Table 4 rows), from the recorded series.
@@ -256,14 +276,18 @@ struct Participants {
 fn start(s: &Scenario, opts: &RunOptions, prefix: &str) -> Result<Participants, RunError> {
     let inits = Inits::from(s);
     match s.run.transport {
-        Transport::InProcess => Ok(Participants {
-            plant: Box::new(InProcess::new(Plant::new(&inits.plant))),
-            actuator: Box::new(InProcess::new(Actuator::new(&inits.actuator))),
-            controller: Box::new(InProcess::new(
-                Controller::new(&inits.controller).map_err(RunError::Design)?,
-            )),
-            hub: None,
-        }),
+        Transport::InProcess => {
+            let d = Duration::from_millis(s.run.deadline_ms);
+            Ok(Participants {
+                plant: Box::new(InProcess::new(Plant::new(&inits.plant)).with_deadline(d)),
+                actuator: Box::new(InProcess::new(Actuator::new(&inits.actuator)).with_deadline(d)),
+                controller: Box::new(
+                    InProcess::new(Controller::new(&inits.controller).map_err(RunError::Design)?)
+                        .with_deadline(d),
+                ),
+                hub: None,
+            })
+        }
         Transport::Ipc => {
             let plan = if s.run.pin_cpus {
                 cosim::ipc::cpu_plan()
@@ -281,7 +305,11 @@ fn start(s: &Scenario, opts: &RunOptions, prefix: &str) -> Result<Participants, 
             }
             let startup = Duration::from_millis(s.run.startup_ms);
             let launch = |role: Role, params: String| Launch {
-                program: opts.participant_exe.clone(),
+                program: opts
+                    .participant_overrides
+                    .iter()
+                    .find(|(r, _)| *r == role)
+                    .map_or_else(|| opts.participant_exe.clone(), |(_, p)| p.clone()),
                 args: vec![
                     "participant".into(),
                     role.name().into(),
@@ -339,123 +367,509 @@ struct Compute {
     solver_failures: u64,
 }
 
+/// Wall-clock timing of the exchanges with one participant (µs).
+#[derive(Default)]
+struct LinkClock {
+    /// Orchestrator sent the request → participant took it.
+    request: Vec<f64>,
+    /// Participant sent the reply → orchestrator had it.
+    reply: Vec<f64>,
+    /// Whole exchange as the orchestrator saw it.
+    round_trip: Vec<f64>,
+}
+
+/// One exchange of the trace (`trace.csv`); times in ns from the start of the loop.
+struct TraceRow {
+    step: u64,
+    role: Role,
+    sent: u64,
+    received: u64,
+    started: u64,
+    finished: u64,
+    reply_sent: u64,
+    reply_received: u64,
+}
+
+/// Everything the lock-step loop keeps besides the participants.
+struct Loop<'a> {
+    s: &'a Scenario,
+    links: LinkSet,
+    events: Vec<Event>,
+    compute: Compute,
+    clocks: [LinkClock; 3],
+    trace: Option<Vec<TraceRow>>,
+    origin_ns: u64,
+    /// Flags for the next request of each role (crash faults, bad-data policy).
+    flags: [u32; 3],
+    /// Exit reports of participants replaced by degraded-mode stand-ins.
+    lost: [Option<ExitReport>; 3],
+    degraded: bool,
+    overhead: Vec<f64>,
+    ticks: Vec<f64>,
+    pacing: Option<Pacing>,
+}
+
+fn idx(r: Role) -> usize {
+    match r {
+        Role::Plant => 0,
+        Role::Actuator => 1,
+        Role::Controller => 2,
+    }
+}
+
+impl Loop<'_> {
+    fn event(&mut self, k: u64, source: &str, event: &'static str, value: f64, detail: String) {
+        self.events.push(Event {
+            step: k,
+            t: k as f64 * self.s.run.dt_s,
+            source: source.to_string(),
+            event,
+            value,
+            detail,
+        });
+    }
+
+    /// Sends one request with this tick's flags; returns the send time.
+    fn post<I: Message, O: Message>(
+        &mut self,
+        ep: &mut Box<dyn Endpoint<I, O>>,
+        mut req: I,
+    ) -> Result<u64, LinkError> {
+        let role = ep.role();
+        req.header_mut().flags |= std::mem::take(&mut self.flags[idx(role)]);
+        if self.s.faults.on_bad_data == OnBadData::Hold {
+            req.header_mut().flags |= FLAG_HOLD_BAD_INPUT;
+        }
+        let t0 = now_ns();
+        ep.send(&req)?;
+        Ok(t0)
+    }
+
+    /// Receives the reply to a request sent at `t0`, logs held bad data, records timing.
+    fn collect<I: Message, O: Message>(
+        &mut self,
+        ep: &mut Box<dyn Endpoint<I, O>>,
+        k: u64,
+        kind: Kind,
+        t0: u64,
+    ) -> Result<O, LinkError> {
+        let role = ep.role();
+        let reply = ep.receive(k, kind)?;
+        let t3 = now_ns();
+        let h = *reply.header();
+        if h.flags & FLAG_HELD != 0 {
+            self.event(
+                k,
+                role.name(),
+                "bad-input-held",
+                f64::NAN,
+                format!(
+                    "non-finite `{}` in {}; last good input used",
+                    cosim::endpoint::field_name::<I>(h.field),
+                    I::NAME
+                ),
+            );
+        }
+        let us = |a: u64, b: u64| b.saturating_sub(a) as f64 * 1e-3;
+        let c = &mut self.clocks[idx(role)];
+        c.request.push(us(t0, h.recv_ns));
+        c.reply.push(us(h.sent_ns, t3));
+        c.round_trip.push(us(t0, t3));
+        if let Some(tr) = &mut self.trace {
+            let rel = |t: u64| t.saturating_sub(self.origin_ns);
+            tr.push(TraceRow {
+                step: k,
+                role,
+                sent: rel(t0),
+                received: rel(h.recv_ns),
+                started: rel(h.recv_ns),
+                finished: rel(h.recv_ns + h.compute_ns),
+                reply_sent: rel(h.sent_ns),
+                reply_received: rel(t3),
+            });
+        }
+        Ok(reply)
+    }
+
+    /// One request and its reply.
+    fn exchange<I: Message, O: Message>(
+        &mut self,
+        ep: &mut Box<dyn Endpoint<I, O>>,
+        req: I,
+        kind: Kind,
+    ) -> Result<O, LinkError> {
+        let k = req.header().step;
+        let t0 = self.post(ep, req)?;
+        self.collect(ep, k, kind, t0)
+    }
+
+    /// Replaces a failed participant by its degraded-mode stand-in when the scenario says
+    /// so; otherwise returns the error.
+    fn degrade(
+        &mut self,
+        ps: &mut Participants,
+        h: &Held,
+        k: u64,
+        e: LinkError,
+    ) -> Result<(), LinkError> {
+        let role = e.role();
+        if self.s.faults.on_failure != OnFailure::Degrade
+            || role == Role::Plant
+            || self.lost[idx(role)].is_some()
+        {
+            return Err(e);
+        }
+        let f = &self.s.faults;
+        let detail = match role {
+            Role::Actuator => {
+                let old = std::mem::replace(
+                    &mut ps.actuator,
+                    Box::new(InProcess::new(NeutralBar::new(
+                        h.a.delta_a,
+                        f.neutral_ramp_s,
+                        self.s.run.dt_s,
+                    ))),
+                );
+                self.lost[1] = Some(shutdown_box(old));
+                format!("bar ramps to neutral over {} s", f.neutral_ramp_s)
+            }
+            _ => {
+                let ramp = match f.controller_fallback {
+                    Fallback::Neutral => Some(f.neutral_ramp_s),
+                    Fallback::Hold => None,
+                };
+                let old = std::mem::replace(
+                    &mut ps.controller,
+                    Box::new(InProcess::new(FallbackController::new(
+                        h.c.delta_a_cmd,
+                        ramp,
+                        self.s.controller.period_s,
+                    ))),
+                );
+                self.lost[2] = Some(shutdown_box(old));
+                match ramp {
+                    Some(r) => format!("bar command ramps to neutral over {r} s"),
+                    None => "last bar command held".into(),
+                }
+            }
+        };
+        self.event(
+            k,
+            role.name(),
+            "participant-lost",
+            f64::NAN,
+            e.cause().into(),
+        );
+        self.event(k, role.name(), "degraded", f64::NAN, detail);
+        tracing::warn!("{e}; continuing degraded");
+        self.degraded = true;
+        Ok(())
+    }
+
+    /// Applies the faults scheduled for tick `k`.
+    fn inject(&mut self, ps: &mut Participants, k: u64) {
+        let dt = self.s.run.dt_s;
+        let due: Vec<ScheduledFault> = self
+            .s
+            .faults
+            .schedule
+            .iter()
+            .filter(|f| ((f.at_s / dt).round().max(0.0) as u64) == k)
+            .cloned()
+            .collect();
+        for f in due {
+            let Some(role) = Role::parse(&f.participant) else {
+                continue;
+            };
+            if self.lost[idx(role)].is_some() {
+                continue;
+            }
+            let fault = match f.action {
+                FaultAction::Kill => Some(ProcessFault::Kill),
+                FaultAction::Stall => Some(ProcessFault::Stall(Duration::from_secs_f64(f.stall_s))),
+                FaultAction::Crash => {
+                    self.flags[idx(role)] |= FLAG_CRASH;
+                    None
+                }
+            };
+            if let Some(fault) = fault {
+                match role {
+                    Role::Plant => ps.plant.inject(fault),
+                    Role::Actuator => ps.actuator.inject(fault),
+                    Role::Controller => ps.controller.inject(fault),
+                }
+            }
+            let value = if f.action == FaultAction::Stall {
+                f.stall_s
+            } else {
+                f64::NAN
+            };
+            self.event(
+                k,
+                role.name(),
+                "fault-injected",
+                value,
+                format!("{:?}", f.action).to_lowercase(),
+            );
+        }
+    }
+}
+
+fn shutdown_box<I: Message, O: Message>(mut ep: Box<dyn Endpoint<I, O>>) -> ExitReport {
+    ep.shutdown()
+}
+
+/// Real-time pacing of the loop (`--pace`).
+struct Pacing {
+    factor: f64,
+    overruns: u64,
+    late_us: Vec<f64>,
+}
+
+/// What `--pace` achieved, every tick counted.
+#[derive(Debug, Clone, Serialize)]
+pub struct PacingReport {
+    /// Requested simulated seconds per wall second.
+    pub factor: f64,
+    /// Ticks that finished after their wall-clock deadline.
+    pub overruns: u64,
+    /// Ticks paced.
+    pub ticks: u64,
+    /// How late the late ticks were (µs).
+    pub lateness_us: Percentiles,
+    /// Simulated time over wall time of the whole loop.
+    pub achieved_realtime_factor: f64,
+}
+
+/// Per-link wall-clock latency (µs) of one participant's exchanges.
+#[derive(Debug, Clone, Serialize)]
+pub struct LinkLatency {
+    /// Participant.
+    pub participant: Role,
+    /// Request: orchestrator sent → participant received.
+    pub request_us: Percentiles,
+    /// Reply: participant sent → orchestrator received.
+    pub reply_us: Percentiles,
+    /// Whole exchange seen by the orchestrator.
+    pub round_trip_us: Percentiles,
+}
+
+/// Sleeps until the monotonic instant `target`, spinning the last 100 µs.
+fn wait_until(target: Instant) {
+    loop {
+        let now = Instant::now();
+        if now >= target {
+            return;
+        }
+        let left = target - now;
+        if left > Duration::from_micros(200) {
+            std::thread::sleep(left - Duration::from_micros(100));
+        } else {
+            std::hint::spin_loop();
+        }
+    }
+}
+
 /// Steps every tick; returns the error that stopped it, if any.
 fn lockstep(
-    s: &Scenario,
+    lp: &mut Loop,
     ps: &mut Participants,
     rec: &mut Recorder,
     interrupt: &AtomicBool,
-    overhead: &mut Vec<f64>,
-    ticks: &mut Vec<f64>,
-    compute: &mut Compute,
 ) -> Result<(), LinkError> {
+    let s = lp.s;
     // Initial outputs at t_0.
     let init = (|| -> Result<Held, LinkError> {
-        ps.plant.send(&ToPlant {
-            header: hdr(0, Kind::Init),
-            ..Default::default()
-        })?;
-        ps.actuator.send(&ToActuator {
-            header: hdr(0, Kind::Init),
-            ..Default::default()
-        })?;
-        ps.controller.send(&ToController {
-            header: hdr(0, Kind::Init),
-            ..Default::default()
-        })?;
-        Ok(Held {
-            p: ps.plant.receive(0, Kind::Init)?,
-            a: ps.actuator.receive(0, Kind::Init)?,
-            c: ps.controller.receive(0, Kind::Init)?,
-        })
+        let p = lp.exchange(
+            &mut ps.plant,
+            ToPlant {
+                header: hdr(0, Kind::Init),
+                ..Default::default()
+            },
+            Kind::Init,
+        )?;
+        let a = lp.exchange(
+            &mut ps.actuator,
+            ToActuator {
+                header: hdr(0, Kind::Init),
+                ..Default::default()
+            },
+            Kind::Init,
+        )?;
+        let c = lp.exchange(
+            &mut ps.controller,
+            ToController {
+                header: hdr(0, Kind::Init),
+                ..Default::default()
+            },
+            Kind::Init,
+        )?;
+        Ok(Held { p, a, c })
     })();
     let mut h = init?;
     let n = s.steps();
     let c_period = s.controller_period_ticks();
+    let dt = s.run.dt_s;
+    let loop_start = Instant::now();
     for k in 0..n {
         if interrupt.load(Ordering::Relaxed) {
             return Ok(());
         }
+        if let Some(p) = &lp.pacing {
+            wait_until(loop_start + Duration::from_secs_f64(k as f64 * dt / p.factor));
+        }
         let started = Instant::now();
+        lp.inject(ps, k);
         let c_due = k % c_period == 0;
         let step = hdr(k, Kind::Step);
-        let to_c = |p: &FromPlant| ToController {
+        let t = k as f64 * dt;
+        let mut ev = std::mem::take(&mut lp.events);
+        // The links carry this tick's values: what each sender last produced.
+        let meas = lp.links.links[2].carry(k, t, h.p.theta_v_meas, &mut ev);
+        let twist = lp.links.links[3].carry(k, t, h.p.psi, &mut ev);
+        lp.events = ev;
+        let to_c = ToController {
             header: step,
-            t: p.t,
-            s: p.s,
-            theta_v_meas: p.theta_v_meas,
+            t: h.p.t,
+            s: h.p.s,
+            theta_v_meas: meas,
         };
-        let res = (|| -> Result<f64, LinkError> {
-            let (cp, ca, mut cc);
-            cc = 0u64;
-            match s.run.master {
-                Master::GaussSeidel => {
-                    if c_due {
-                        ps.controller.send(&to_c(&h.p))?;
-                        h.c = ps.controller.receive(k, Kind::Step)?;
-                        cc = h.c.header.compute_ns;
+        let mut cc = 0u64;
+        let mut rx = [0.0; 4];
+        rx[2] = meas;
+        rx[3] = twist;
+        let mut crit_parts = [0u64; 3];
+        // Each exchange: on failure, the degraded-mode stand-in takes over and the same
+        // request is answered by it (or the error ends the run).
+        macro_rules! ask {
+            ($ep:ident, $req:expr) => {{
+                let req = $req;
+                match lp.exchange(&mut ps.$ep, req, Kind::Step) {
+                    Ok(r) => r,
+                    Err(e) => {
+                        lp.degrade(ps, &h, k, e)?;
+                        lp.exchange(&mut ps.$ep, req, Kind::Step)?
                     }
-                    ps.actuator.send(&ToActuator {
-                        header: step,
-                        delta_a_cmd: h.c.delta_a_cmd,
-                        psi: h.p.psi,
-                    })?;
-                    h.a = ps.actuator.receive(k, Kind::Step)?;
-                    ca = h.a.header.compute_ns;
-                    ps.plant.send(&ToPlant {
-                        header: step,
-                        delta_a: h.a.delta_a,
-                    })?;
-                    h.p = ps.plant.receive(k, Kind::Step)?;
-                    cp = h.p.header.compute_ns;
-                    Ok(((cp + ca + cc) as f64 * 1e-3, cp, ca, cc))
                 }
-                Master::Jacobi => {
-                    if c_due {
-                        ps.controller.send(&to_c(&h.p))?;
+            }};
+        }
+        macro_rules! post {
+            ($ep:ident, $req:expr) => {{
+                match lp.post(&mut ps.$ep, $req) {
+                    Ok(t0) => Some(t0),
+                    Err(e) => {
+                        lp.degrade(ps, &h, k, e)?;
+                        None
                     }
-                    ps.actuator.send(&ToActuator {
-                        header: step,
-                        delta_a_cmd: h.c.delta_a_cmd,
-                        psi: h.p.psi,
-                    })?;
-                    ps.plant.send(&ToPlant {
-                        header: step,
-                        delta_a: h.a.delta_a,
-                    })?;
-                    if c_due {
-                        h.c = ps.controller.receive(k, Kind::Step)?;
-                        cc = h.c.header.compute_ns;
+                }
+            }};
+        }
+        macro_rules! collect {
+            ($ep:ident, $req:expr, $t0:expr) => {{
+                let req = $req;
+                let got = match $t0 {
+                    Some(t0) => lp.collect(&mut ps.$ep, k, Kind::Step, t0),
+                    None => lp.exchange(&mut ps.$ep, req, Kind::Step),
+                };
+                match got {
+                    Ok(r) => r,
+                    Err(e) => {
+                        lp.degrade(ps, &h, k, e)?;
+                        lp.exchange(&mut ps.$ep, req, Kind::Step)?
                     }
-                    h.a = ps.actuator.receive(k, Kind::Step)?;
-                    h.p = ps.plant.receive(k, Kind::Step)?;
-                    ca = h.a.header.compute_ns;
-                    cp = h.p.header.compute_ns;
-                    Ok((cp.max(ca).max(cc) as f64 * 1e-3, cp, ca, cc))
+                }
+            }};
+        }
+        let mut ev = std::mem::take(&mut lp.events);
+        match s.run.master {
+            // Gauss-Seidel: controller, actuator, plant in turn, each with the newest output.
+            Master::GaussSeidel => {
+                lp.events = ev;
+                if c_due {
+                    h.c = ask!(controller, to_c);
+                    cc = h.c.header.compute_ns;
+                }
+                let mut ev = std::mem::take(&mut lp.events);
+                rx[0] = lp.links.links[0].carry(k, t, h.c.delta_a_cmd, &mut ev);
+                lp.events = ev;
+                h.a = ask!(
+                    actuator,
+                    ToActuator {
+                        header: step,
+                        delta_a_cmd: rx[0],
+                        psi: twist,
+                    }
+                );
+                let mut ev = std::mem::take(&mut lp.events);
+                rx[1] = lp.links.links[1].carry(k, t, h.a.delta_a, &mut ev);
+                lp.events = ev;
+                h.p = ask!(
+                    plant,
+                    ToPlant {
+                        header: step,
+                        delta_a: rx[1],
+                    }
+                );
+            }
+            // Jacobi: every request from the previous outputs first, then every reply.
+            Master::Jacobi => {
+                rx[0] = lp.links.links[0].carry(k, t, h.c.delta_a_cmd, &mut ev);
+                rx[1] = lp.links.links[1].carry(k, t, h.a.delta_a, &mut ev);
+                lp.events = ev;
+                let to_a = ToActuator {
+                    header: step,
+                    delta_a_cmd: rx[0],
+                    psi: twist,
+                };
+                let to_p = ToPlant {
+                    header: step,
+                    delta_a: rx[1],
+                };
+                let tc = if c_due { post!(controller, to_c) } else { None };
+                let ta = post!(actuator, to_a);
+                let tp = post!(plant, to_p);
+                if c_due {
+                    h.c = collect!(controller, to_c, tc);
+                    cc = h.c.header.compute_ns;
+                }
+                h.a = collect!(actuator, to_a, ta);
+                h.p = collect!(plant, to_p, tp);
+            }
+        }
+        crit_parts[0] = h.p.header.compute_ns;
+        crit_parts[1] = h.a.header.compute_ns;
+        crit_parts[2] = cc;
+        let [cp, ca, _] = crit_parts;
+        let crit = match s.run.master {
+            Master::GaussSeidel => (cp + ca + cc) as f64 * 1e-3,
+            Master::Jacobi => cp.max(ca).max(cc) as f64 * 1e-3,
+        };
+        let comp = &mut lp.compute;
+        comp.plant.push(cp as f64 * 1e-3);
+        comp.actuator.push(ca as f64 * 1e-3);
+        if c_due {
+            comp.controller.push(cc as f64 * 1e-3);
+            match h.c.solver_status {
+                0 => {}
+                1 => comp.solver_iterations.push(h.c.solver_iterations as f64),
+                _ => {
+                    comp.solver_iterations.push(h.c.solver_iterations as f64);
+                    comp.solver_failures += 1;
                 }
             }
-            .map(|(crit, cp, ca, cc)| {
-                compute.plant.push(cp as f64 * 1e-3);
-                compute.actuator.push(ca as f64 * 1e-3);
-                if c_due {
-                    compute.controller.push(cc as f64 * 1e-3);
-                    match h.c.solver_status {
-                        0 => {}
-                        1 => compute.solver_iterations.push(h.c.solver_iterations as f64),
-                        _ => {
-                            compute.solver_iterations.push(h.c.solver_iterations as f64);
-                            compute.solver_failures += 1;
-                        }
-                    }
-                }
-                crit
-            })
-        })();
-        let crit_us = res?;
+        }
         let tick_us = started.elapsed().as_secs_f64() * 1e6;
-        ticks.push(tick_us);
-        overhead.push((tick_us - crit_us).max(0.0));
-        rec.row(k, &h.p, &h.a, &h.c)
+        lp.ticks.push(tick_us);
+        lp.overhead.push((tick_us - crit).max(0.0));
+        if let Some(p) = &mut lp.pacing {
+            let deadline = loop_start + Duration::from_secs_f64((k + 1) as f64 * dt / p.factor);
+            let now = Instant::now();
+            if now > deadline {
+                p.overruns += 1;
+                p.late_us.push((now - deadline).as_secs_f64() * 1e6);
+            }
+        }
+        rec.row(k, &h.p, &h.a, &h.c, &rx)
             .map_err(|e| LinkError::Transport {
                 role: Role::Plant,
                 what: format!("cannot record: {e}"),
@@ -497,40 +911,79 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
     // process that runs several scenarios (sweeps, benchmarks) starts each one alike.
     let cpus_before = cpus_before_run;
     let loop_started = Instant::now();
-    let mut overhead = Vec::with_capacity(s.steps() as usize);
-    let mut ticks = Vec::with_capacity(s.steps() as usize);
-    let mut compute = Compute {
-        plant: Vec::new(),
-        actuator: Vec::new(),
-        controller: Vec::new(),
-        solver_iterations: Vec::new(),
-        solver_failures: 0,
-    };
-    let outcome = lockstep(
+    let mut lp = Loop {
         s,
-        &mut ps,
-        &mut rec,
-        &opts.interrupt,
-        &mut overhead,
-        &mut ticks,
-        &mut compute,
-    );
+        links: LinkSet::new(&s.links, s.run.seed),
+        events: LinkSet::describe(&s.links),
+        compute: Compute {
+            plant: Vec::new(),
+            actuator: Vec::new(),
+            controller: Vec::new(),
+            solver_iterations: Vec::new(),
+            solver_failures: 0,
+        },
+        clocks: Default::default(),
+        trace: opts.trace.then(Vec::new),
+        origin_ns: now_ns(),
+        flags: [0; 3],
+        lost: [None, None, None],
+        degraded: false,
+        overhead: Vec::with_capacity(s.steps() as usize),
+        ticks: Vec::with_capacity(s.steps() as usize),
+        pacing: opts.pace.map(|factor| Pacing {
+            factor,
+            overruns: 0,
+            late_us: Vec::new(),
+        }),
+    };
+    let outcome = lockstep(&mut lp, &mut ps, &mut rec, &opts.interrupt);
     let wall = loop_started.elapsed().as_secs_f64();
     let _ = rec.flush();
+    if let Err(e) = &outcome {
+        let k = rec.rows();
+        lp.event(k, e.role().name(), "run-failed", f64::NAN, e.cause().into());
+    }
+    let events_path = opts.out_dir.join("events.csv");
+    let mut text = String::from(EVENTS_HEADER);
+    text.push('\n');
+    for e in &lp.events {
+        text.push_str(&e.line());
+        text.push('\n');
+    }
+    std::fs::write(&events_path, text).map_err(io(events_path))?;
+    if let Some(tr) = &lp.trace {
+        write_trace(&opts.out_dir, tr, s.run.dt_s, &lp.clocks)
+            .map_err(io(opts.out_dir.join("trace.csv")))?;
+    }
+    let Loop {
+        mut compute,
+        clocks,
+        lost,
+        degraded,
+        overhead,
+        mut ticks,
+        pacing,
+        ..
+    } = lp;
 
     let (status, error) = match &outcome {
         Ok(_) if opts.interrupt.load(Ordering::Relaxed) => (
             Status::Interrupted,
             Some("interrupted by Ctrl-C".to_string()),
         ),
+        Ok(_) if degraded => (
+            Status::Degraded,
+            Some("a participant was lost; the run continued degraded (events.csv)".into()),
+        ),
         Ok(_) => (Status::Completed, None),
         Err(e) => (Status::Failed, Some(e.to_string())),
     };
     // Stop every participant (a dead or hung one is killed and reaped), then clean up.
+    let [l0, l1, l2] = lost;
     let exits = [
-        ps.plant.shutdown(),
-        ps.actuator.shutdown(),
-        ps.controller.shutdown(),
+        l0.unwrap_or_else(|| ps.plant.shutdown()),
+        l1.unwrap_or_else(|| ps.actuator.shutdown()),
+        l2.unwrap_or_else(|| ps.controller.shutdown()),
     ];
     let mut leftover = Vec::new();
     if let Some(hub) = ps.hub.take() {
@@ -550,6 +1003,28 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
     let steps_completed = rec.rows();
     let mut ov = overhead;
     let o = percentiles(&mut ov);
+    let steps_done = rec.rows();
+    let pacing = pacing.map(|mut p| PacingReport {
+        factor: p.factor,
+        overruns: p.overruns,
+        ticks: steps_done,
+        lateness_us: percentiles(&mut p.late_us),
+        achieved_realtime_factor: if wall > 0.0 {
+            steps_done as f64 * s.run.dt_s / wall
+        } else {
+            0.0
+        },
+    });
+    let link_latency = Role::ALL
+        .iter()
+        .zip(clocks)
+        .map(|(r, mut c)| LinkLatency {
+            participant: *r,
+            request_us: percentiles(&mut c.request),
+            reply_us: percentiles(&mut c.reply),
+            round_trip_us: percentiles(&mut c.round_trip),
+        })
+        .collect();
     let periods = [s.run.dt_s, s.run.dt_s, s.controller.period_s];
     let solver = (!compute.solver_iterations.is_empty()).then(|| SolverReport {
         solves: compute.solver_iterations.len() as u64,
@@ -609,11 +1084,87 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
             },
         },
         results,
+        link_latency,
+        pacing,
         controller_solver: solver,
         comfort,
         ipc_prefix: prefix,
         leftover_ipc_files: leftover,
     })
+}
+
+/// Writes `trace.csv` and the latency histogram `plots/latency_histogram.{svg,png}`.
+fn write_trace(
+    dir: &std::path::Path,
+    rows: &[TraceRow],
+    dt: f64,
+    clocks: &[LinkClock; 3],
+) -> std::io::Result<()> {
+    use std::fmt::Write as _;
+    let mut t = String::from(
+        "step,t,participant,request_sent_ns,request_received_ns,step_started_ns,step_finished_ns,reply_sent_ns,reply_received_ns\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            t,
+            "{},{},{},{},{},{},{},{},{}",
+            r.step,
+            r.step as f64 * dt,
+            r.role,
+            r.sent,
+            r.received,
+            r.started,
+            r.finished,
+            r.reply_sent,
+            r.reply_received
+        );
+    }
+    std::fs::write(dir.join("trace.csv"), t)?;
+    // Histogram of the request latency per participant, 0.5 µs bins up to the 99.9th
+    // percentile of all of them.
+    let mut all: Vec<f64> = clocks
+        .iter()
+        .flat_map(|c| c.request.iter().copied())
+        .collect();
+    all.sort_by(|a, b| a.total_cmp(b));
+    let top = all
+        .get(((all.len() as f64) * 0.999) as usize)
+        .copied()
+        .unwrap_or(1.0)
+        .max(1.0);
+    let bin = (top / 80.0).max(0.05);
+    let nb = (top / bin).ceil() as usize + 1;
+    let x: Vec<f64> = (0..nb).map(|i| (i as f64 + 0.5) * bin).collect();
+    let lines = Role::ALL
+        .iter()
+        .zip(clocks)
+        .enumerate()
+        .map(|(k, (role, c))| {
+            let mut h = vec![0.0; nb];
+            for v in &c.request {
+                let i = ((v / bin) as usize).min(nb - 1);
+                h[i] += 1.0;
+            }
+            crate::plot::Line {
+                label: role.name(),
+                y: h,
+                colour: crate::plot::PALETTE[k],
+                dashed: false,
+            }
+        })
+        .collect();
+    let chart = crate::plot::Chart {
+        title: "Request latency: orchestrator sent → participant received",
+        x_label: "latency (µs)",
+        y_label: "exchanges per bin",
+        lines,
+        bands: Vec::new(),
+        note: "",
+    };
+    let plots = dir.join("plots");
+    std::fs::create_dir_all(&plots)?;
+    crate::plot::write_chart(&plots, "latency_histogram", &chart, &x)?;
+    Ok(())
 }
 
 /// Times (s) at which the vehicle enters the first transition, the steady curve, the second

@@ -4,8 +4,10 @@
 pub mod cli;
 pub mod comfort;
 pub mod compare;
+pub mod degraded;
 pub mod engine;
 pub mod linearize;
+pub mod links;
 pub mod plot;
 pub mod record;
 pub mod scenario;

@@ -7,7 +7,8 @@ use std::path::Path;
 
 use cosim::msg::{FromActuator, FromController, FromPlant};
 
-/// Column names, SI units and radians (units in README).
+/// Column names, SI units and radians (units in README). The `rx_*` columns are the values
+/// as the receiving participant got them over each link (after delay, drop, bias, ...).
 pub const COLUMNS: &[&str] = &[
     "step",
     "t",
@@ -36,6 +37,10 @@ pub const COLUMNS: &[&str] = &[
     "dc_power",
     "actuator_limits",
     "solver_status",
+    "rx_actuator_command",
+    "rx_bar_angle",
+    "rx_measurement",
+    "rx_bar_twist",
 ];
 
 /// Writes the time series.
@@ -65,6 +70,7 @@ impl Recorder {
         p: &FromPlant,
         a: &FromActuator,
         c: &FromController,
+        rx: &[f64; 4],
     ) -> std::io::Result<()> {
         use std::fmt::Write as _;
         self.line.clear();
@@ -92,7 +98,11 @@ impl Recorder {
         for v in [a.motor_torque, a.motor_speed, a.motor_current, a.dc_power] {
             put(v);
         }
-        let _ = writeln!(self.line, ",{},{}", a.limits, c.solver_status);
+        let _ = write!(self.line, ",{},{}", a.limits, c.solver_status);
+        for v in rx {
+            let _ = write!(self.line, ",{v}");
+        }
+        self.line.push('\n');
         self.out.write_all(self.line.as_bytes())?;
         self.rows += 1;
         if self.rows.is_multiple_of(1000) {

@@ -117,6 +117,10 @@ pub struct Scenario {
     pub controller: ControllerSettings,
     /// Comfort evaluation.
     pub comfort: crate::comfort::ComfortSettings,
+    /// Link effects between the processes (`[links.<name>]`).
+    pub links: crate::links::Links,
+    /// Process faults and what follows failures and bad data (`[faults]`).
+    pub faults: crate::links::Faults,
     /// The vehicle the controller was designed for, when it differs from the true `[vehicle]`
     /// the plant simulates (robustness studies: `tiltsim sweep` sets it to the nominal
     /// vehicle). Absent: the controller knows the vehicle exactly.
@@ -205,6 +209,8 @@ impl Scenario {
         all.merge(self.actuator.validate("actuator"));
         all.merge(self.controller.validate("controller"));
         all.merge(self.comfort.validate("comfort"));
+        all.merge(self.links.validate("links"));
+        all.merge(self.faults.validate("faults"));
         if let Some(v) = &self.design_vehicle {
             all.merge(v.validate("design_vehicle"));
         }
