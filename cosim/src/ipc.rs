@@ -333,6 +333,9 @@ pub struct IpcEndpoint<I: Message, O: Message> {
 
 impl<I: Message, O: Message> IpcEndpoint<I, O> {
     fn exited(&mut self) -> Option<String> {
+        if let Some(r) = &self.exit {
+            return Some(r.status.clone());
+        }
         self.child.as_ref()?;
         let report = try_reap(self.pid, false)?;
         self.child = None;
@@ -417,6 +420,15 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
     fn receive(&mut self, step: u64, kind: Kind) -> Result<O, LinkError> {
         let mut backoff = Backoff::new(self.wait);
         let mut found = None;
+        if let Some(r) = &self.exit {
+            // Already known to be gone (a kill fault reaps at once).
+            return Err(LinkError::Exited {
+                role: self.role,
+                pid: self.pid,
+                step,
+                status: r.status.clone(),
+            });
+        }
         loop {
             drain(self.role, &self.subscriber, step, &mut found)?;
             if let Some(reply) = found {
@@ -448,10 +460,15 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
     fn inject(&mut self, fault: ProcessFault) {
         let pid = self.pid as libc::pid_t;
         match fault {
-            // SAFETY: signals to our own child, which we have not reaped yet.
-            ProcessFault::Kill => unsafe {
-                libc::kill(pid, libc::SIGKILL);
-            },
+            ProcessFault::Kill => {
+                // SAFETY: a signal to our own child, which we have not reaped yet.
+                unsafe { libc::kill(pid, libc::SIGKILL) };
+                // Reap it now, so that the next exchange finds it gone, deterministically.
+                let until = Instant::now() + Duration::from_secs(2);
+                while self.exited().is_none() && Instant::now() < until {
+                    std::thread::sleep(Duration::from_micros(200));
+                }
+            }
             ProcessFault::Stall(d) => {
                 // SAFETY: as above; the thread resumes it after `d` (a no-op if it died).
                 unsafe { libc::kill(pid, libc::SIGSTOP) };
@@ -586,6 +603,19 @@ pub fn serve<P: Participant>(
     spin_polls: u32,
     idle_limit: Duration,
 ) -> Result<(), IpcError> {
+    serve_with(p, prefix, wait, spin_polls, idle_limit, |_| {})
+}
+
+/// [`serve`] with a hook that may alter each reply before it is sent: the test participants
+/// under `tests/` use it to send bad data on purpose. Production participants use `serve`.
+pub fn serve_with<P: Participant>(
+    p: P,
+    prefix: &str,
+    wait: WaitStrategy,
+    spin_polls: u32,
+    idle_limit: Duration,
+    mut tamper: impl FnMut(&mut P::Output),
+) -> Result<(), IpcError> {
     quiet_iceoryx_logs();
     let role = P::ROLE;
     set_process_name(role.process_name());
@@ -647,7 +677,8 @@ pub fn serve<P: Participant>(
             // A scheduled `crash` fault: die as a crashing process does.
             std::process::abort();
         }
-        let reply = served.answer(&request);
+        let mut reply = served.answer(&request);
+        tamper(&mut reply);
         publisher.send_copy(reply).map_err(iox("send"))?;
     }
 }
@@ -733,6 +764,19 @@ where
     S: serde::de::DeserializeOwned,
     P: Participant,
 {
+    participant_main_with(args, make, |_| {})
+}
+
+/// [`participant_main`] with a reply hook (see [`serve_with`]); for test participants.
+pub fn participant_main_with<S, P>(
+    args: &[String],
+    make: impl FnOnce(S) -> Result<P, String>,
+    tamper: impl FnMut(&mut P::Output),
+) -> Result<(), String>
+where
+    S: serde::de::DeserializeOwned,
+    P: Participant,
+{
     let a = ParticipantArgs::parse(args)?;
     let settings: S = serde_json::from_str(&a.params)
         .map_err(|e| format!("{}: bad --params: {e}", P::ROLE.process_name()))?;
@@ -746,6 +790,6 @@ where
     } else {
         crate::wait::SPIN_POLLS
     };
-    serve(model, &a.prefix, a.wait, spin, IDLE_LIMIT)
+    serve_with(model, &a.prefix, a.wait, spin, IDLE_LIMIT, tamper)
         .map_err(|e| format!("{}: {e}", P::ROLE.process_name()))
 }

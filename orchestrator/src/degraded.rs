@@ -8,18 +8,21 @@ use cosim::{Participant, Role};
 /// Failsafe of a lost actuator: the bar returns from where it was to neutral (δ_a = 0) at a
 /// constant rate, reaching it `ramp_s` after the loss; the motor is de-energised.
 pub struct NeutralBar {
+    start: f64,
     delta_a: f64,
-    rate: f64,
-    dt: f64,
+    /// Steps to neutral.
+    steps: f64,
+    n: u64,
 }
 
 impl NeutralBar {
     /// Starts from `delta_a` (rad); base tick `dt` (s).
     pub fn new(delta_a: f64, ramp_s: f64, dt: f64) -> Self {
         NeutralBar {
+            start: delta_a,
             delta_a,
-            rate: delta_a.abs() / ramp_s,
-            dt,
+            steps: (ramp_s / dt).round().max(1.0),
+            n: 0,
         }
     }
     fn out(&self) -> FromActuator {
@@ -38,26 +41,30 @@ impl Participant for NeutralBar {
         self.out()
     }
     fn step(&mut self, _: &ToActuator) -> FromActuator {
-        let step = (self.rate * self.dt).min(self.delta_a.abs());
-        self.delta_a -= step * self.delta_a.signum();
+        // From the step count, so the bar is exactly neutral after `ramp_s`.
+        self.n += 1;
+        self.delta_a = self.start * (1.0 - self.n as f64 / self.steps).max(0.0);
         self.out()
     }
 }
 
 /// Fallback of a lost controller: hold the last command, or ramp it to neutral in `ramp_s`.
 pub struct FallbackController {
+    start: f64,
     cmd: f64,
-    rate: f64,
-    period: f64,
+    /// Calls to neutral (None: hold).
+    steps: Option<f64>,
+    n: u64,
 }
 
 impl FallbackController {
     /// Starts from command `cmd` (rad); `ramp_s` = None holds it. Called every `period` s.
     pub fn new(cmd: f64, ramp_s: Option<f64>, period: f64) -> Self {
         FallbackController {
+            start: cmd,
             cmd,
-            rate: ramp_s.map_or(0.0, |r| cmd.abs() / r),
-            period,
+            steps: ramp_s.map(|r| (r / period).round().max(1.0)),
+            n: 0,
         }
     }
 }
@@ -73,8 +80,10 @@ impl Participant for FallbackController {
         }
     }
     fn step(&mut self, i: &ToController) -> FromController {
-        let step = (self.rate * self.period).min(self.cmd.abs());
-        self.cmd -= step * self.cmd.signum();
+        self.n += 1;
+        if let Some(steps) = self.steps {
+            self.cmd = self.start * (1.0 - self.n as f64 / steps).max(0.0);
+        }
         FromController {
             delta_a_cmd: self.cmd,
             theta_ref: 0.0,

@@ -1,0 +1,343 @@
+//! Link effects, process faults, bad data, tracing and pacing (issue 6).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use tiltsim_suite::{leftovers, prefix, run, scenario, summary, temp_dir, tiltsim, Series};
+
+/// `paper-lqg` with the ideal actuator (the controller, links and faults are what matter here)
+/// and `extra` TOML appended.
+fn lqg_with(name: &str, extra: &str) -> PathBuf {
+    let text = std::fs::read_to_string(scenario("paper-lqg.toml")).unwrap();
+    let text = text.replace("model = \"bldc\"", "model = \"ideal\"");
+    let p = temp_dir(&format!("{name}-scenario")).join(format!("{name}.toml"));
+    std::fs::write(&p, format!("{text}\n{extra}\n")).unwrap();
+    p
+}
+
+/// Runs `tiltsim run` over `transport` into `dir` with a fixed prefix; returns (code, stderr).
+fn go(sc: &Path, dir: &Path, transport: &str, pfx: &str, extra: &[&str]) -> (i32, String) {
+    let mut args = vec![
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--transport",
+        transport,
+        "--ipc-prefix",
+        pfx,
+        "-q",
+    ];
+    args.extend(extra);
+    let (code, _, err) = run(&args);
+    assert!(
+        leftovers(pfx).is_empty(),
+        "shared-memory files left: {:?}",
+        leftovers(pfx)
+    );
+    (code, err)
+}
+
+fn bytes(p: PathBuf) -> Vec<u8> {
+    std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+#[test]
+fn link_effects_change_the_recorded_signals_exactly_as_declared_on_both_transports() {
+    let sc = lqg_with(
+        "links",
+        "[links.actuator_command]\ndelay_ticks = 20\n\
+         [links.measurement]\nbias = 0.002\n\
+         [links.bar_angle]\nfreeze_window = { start_s = 4.0, end_s = 4.5 }\n",
+    );
+    let dir = temp_dir("links");
+    let pfx = prefix("links");
+    let ipc = dir.join("ipc");
+    let (code, err) = go(&sc, &ipc, "ipc", &pfx, &["--duration", "6"]);
+    assert_eq!(code, 0, "{err}");
+    let local = dir.join("in-process");
+    let (code, err) = go(&sc, &local, "in-process", &pfx, &["--duration", "6"]);
+    assert_eq!(code, 0, "{err}");
+    for f in ["timeseries.csv", "events.csv"] {
+        assert!(
+            bytes(ipc.join(f)) == bytes(local.join(f)),
+            "{f} differs between transports"
+        );
+    }
+    let s = Series::read(&ipc.join("timeseries.csv"));
+    let (cmd, rx_cmd) = (s.col("delta_a_cmd"), s.col("rx_actuator_command"));
+    // A delay of 20 ticks shifts the command series by 20 rows; before the first sample
+    // arrives, the actuator holds the first command.
+    for n in 0..cmd.len() {
+        let want = if n >= 20 { cmd[n - 20] } else { cmd[0] };
+        assert_eq!(rx_cmd[n], want, "row {n}");
+    }
+    assert!(
+        cmd.iter().any(|c| c.abs() > 0.01),
+        "the controller commands something"
+    );
+    // The bias is added to every measurement the controller receives. In tick k the
+    // controller gets the plant's output at t_k, recorded in row k − 1.
+    let (meas, rx_meas) = (s.col("theta_v_meas"), s.col("rx_measurement"));
+    for k in 1..meas.len() {
+        assert_eq!(rx_meas[k], meas[k - 1] + 0.002, "row {k}");
+    }
+    // Frozen bar angle: the plant sees δ_a of row 4000 over [4.0, 4.5) s, then live again.
+    let (da, rx_da) = (s.col("delta_a"), s.col("rx_bar_angle"));
+    for k in 3990..4600 {
+        let want = if (4000..4500).contains(&k) {
+            da[4000]
+        } else {
+            da[k]
+        };
+        assert_eq!(rx_da[k], want, "row {k}");
+    }
+    assert_ne!(
+        da[4499], da[4000],
+        "the bar moved while its reading was frozen"
+    );
+    let events = std::fs::read_to_string(ipc.join("events.csv")).unwrap();
+    assert!(events.starts_with("step,t,source,event,value,detail\n"));
+    assert!(
+        events.contains("0,0,actuator_command,delay,20,"),
+        "{events}"
+    );
+    assert!(
+        events.contains("4000,4,bar_angle,freeze-window,,begins"),
+        "{events}"
+    );
+    assert!(
+        events.contains("4500,4.5,bar_angle,freeze-window,,ends"),
+        "{events}"
+    );
+}
+
+#[test]
+fn a_nan_on_a_link_is_caught_by_its_receiver_and_ends_or_degrades_the_run() {
+    let window = "[links.measurement]\nnan_window = { start_s = 5.0, end_s = 5.1 }\n";
+    let dir = temp_dir("nan-link");
+    let pfx = prefix("nanlink");
+    let sc = lqg_with("nan-abort", window);
+    let (code, err) = go(&sc, &dir.join("abort"), "ipc", &pfx, &["--duration", "6"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("participant controller rejected step 5000: non-finite value in field `theta_v_meas` of to_controller"),
+        "{err}"
+    );
+    let s = Series::read(&dir.join("abort/timeseries.csv"));
+    assert_eq!(s.rows.len(), 5000, "every row before the bad sample kept");
+
+    let sc = lqg_with(
+        "nan-hold",
+        &format!("{window}[faults]\non_bad_data = \"hold\"\n"),
+    );
+    let (code, err) = go(
+        &sc,
+        &dir.join("hold"),
+        "in-process",
+        &pfx,
+        &["--duration", "6"],
+    );
+    assert_eq!(code, 0, "{err}");
+    let events = std::fs::read_to_string(dir.join("hold/events.csv")).unwrap();
+    let held: Vec<&str> = events
+        .lines()
+        .filter(|l| l.contains("bad-input-held"))
+        .collect();
+    assert_eq!(
+        held.len(),
+        100,
+        "one per 1 ms controller step in the 0.1 s window"
+    );
+    assert!(held[0].starts_with("5000,5,controller,bad-input-held,,non-finite `theta_v_meas`"));
+    let s = Series::read(&dir.join("hold/timeseries.csv"));
+    assert!(s.col("rx_measurement")[5050].is_nan());
+    assert!(s.col("delta_a_cmd").iter().all(|v| v.is_finite()));
+}
+
+#[test]
+fn a_killed_actuator_in_degraded_mode_returns_the_bar_to_neutral_in_the_declared_time() {
+    let sc = lqg_with(
+        "kill-actuator",
+        "[faults]\non_failure = \"degrade\"\nneutral_ramp_s = 1.5\n\
+         [[faults.schedule]]\nparticipant = \"actuator\"\naction = \"kill\"\nat_s = 8.0\n",
+    );
+    let dir = temp_dir("kill-actuator");
+    let pfx = prefix("killact");
+    let (code, err) = go(&sc, &dir.join("ipc"), "ipc", &pfx, &["--duration", "11"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("degraded mode"), "{err}");
+    let sum = summary(&dir.join("ipc"));
+    assert_eq!(sum["status"], "degraded");
+    let actuator = &sum["participants"][1]["exit"]["status"];
+    assert!(
+        actuator.as_str().unwrap().contains("signal 9"),
+        "{actuator}"
+    );
+    let s = Series::read(&dir.join("ipc/timeseries.csv"));
+    assert_eq!(s.rows.len(), 11_000, "the run went on to the end");
+    let da = s.col("delta_a");
+    assert!(
+        da[7999].abs() > 0.03,
+        "tilted mid-curve before the kill: {}",
+        da[7999]
+    );
+    // Linear ramp from δ_a(7999) to zero, reached 1.5 s (1500 ticks) after the loss.
+    for k in 8000..11_000 {
+        let n = (k - 7999) as f64;
+        let want = da[7999] * (1.0 - n / 1500.0).max(0.0);
+        assert!((da[k] - want).abs() < 1e-12, "row {k}: {} vs {want}", da[k]);
+    }
+    assert_eq!(da[9499], 0.0);
+    let events = std::fs::read_to_string(dir.join("ipc/events.csv")).unwrap();
+    assert!(
+        events.contains("8000,8,actuator,fault-injected,,kill"),
+        "{events}"
+    );
+    assert!(
+        events.contains("8000,8,actuator,participant-lost,,exited"),
+        "{events}"
+    );
+    assert!(events.contains("8000,8,actuator,degraded,,bar ramps to neutral over 1.5 s"));
+    // The same fault in-process gives the same rows and events, byte for byte.
+    let (code, err) = go(
+        &sc,
+        &dir.join("local"),
+        "in-process",
+        &pfx,
+        &["--duration", "11"],
+    );
+    assert_eq!(code, 0, "{err}");
+    for f in ["timeseries.csv", "events.csv"] {
+        assert!(
+            bytes(dir.join("ipc").join(f)) == bytes(dir.join("local").join(f)),
+            "{f}"
+        );
+    }
+}
+
+#[test]
+fn a_killed_controller_with_the_abort_policy_ends_the_run_naming_it_and_repeats_exactly() {
+    let sc = lqg_with(
+        "kill-controller",
+        "[[faults.schedule]]\nparticipant = \"controller\"\naction = \"kill\"\nat_s = 3.0\n",
+    );
+    let dir = temp_dir("kill-controller");
+    let pfx = prefix("killctl");
+    for name in ["a", "b"] {
+        let (code, err) = go(&sc, &dir.join(name), "ipc", &pfx, &[]);
+        assert_eq!(code, 1, "{err}");
+        assert!(err.contains("participant controller (pid"), "{err}");
+        assert!(
+            err.contains("exited (killed by signal 9) while step 3000 was pending"),
+            "{err}"
+        );
+        assert!(err.contains("3000 of 16800 steps recorded"), "{err}");
+    }
+    for f in ["timeseries.csv", "events.csv"] {
+        assert!(
+            bytes(dir.join("a").join(f)) == bytes(dir.join("b").join(f)),
+            "{f}"
+        );
+    }
+    assert_eq!(Series::read(&dir.join("a/timeseries.csv")).rows.len(), 3000);
+    assert_eq!(summary(&dir.join("a"))["status"], "failed");
+}
+
+#[test]
+fn bad_samples_from_a_process_are_caught_where_they_arrive_and_named() {
+    let exe = env!("CARGO_BIN_EXE_faulty-plant");
+    let dir = temp_dir("faulty");
+    let pfx = prefix("faulty");
+    let sc = scenario("paper-passive.toml");
+    for (mode, expect) in [
+        (
+            "nan",
+            "participant plant: non-finite value in field `lat_acc` of from_plant at step 1500",
+        ),
+        (
+            "version",
+            "participant plant: malformed sample for step 1500: protocol version 99",
+        ),
+        (
+            "size",
+            "participant plant: malformed sample for step 1500: from_plant of 8 bytes",
+        ),
+        (
+            "skip",
+            "participant plant: sample for step 1501 arrived out of order, expected step 1500",
+        ),
+        ("panic", "while step 1500 was pending"),
+        ("hang", "did not answer step 1500 within 300 ms"),
+    ] {
+        let out_dir = dir.join(mode);
+        let output = Command::new(tiltsim())
+            .args([
+                "run",
+                sc.to_str().unwrap(),
+                "--out",
+                out_dir.to_str().unwrap(),
+                "--transport",
+                "ipc",
+                "--ipc-prefix",
+                &pfx,
+                "--duration",
+                "3",
+                "--deadline-ms",
+                "300",
+                "--participant-exe",
+                &format!("plant={exe}"),
+                "-q",
+            ])
+            .env("TILTSIM_FAULT", format!("{mode}@1500"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{mode}: {err}");
+        assert!(err.contains(expect), "{mode}: {err}");
+        let rows = Series::read(&out_dir.join("timeseries.csv")).rows.len();
+        assert_eq!(rows, 1500, "{mode}: rows before the bad sample kept");
+        assert!(leftovers(&pfx).is_empty(), "{mode}: {:?}", leftovers(&pfx));
+    }
+}
+
+#[test]
+fn trace_and_pace_report_every_exchange_and_every_tick() {
+    let dir = temp_dir("trace");
+    let pfx = prefix("trace");
+    let sc = scenario("paper-passive.toml");
+    let (code, err) = go(
+        &sc,
+        &dir,
+        "ipc",
+        &pfx,
+        &["--duration", "1", "--trace", "--pace", "4"],
+    );
+    assert_eq!(code, 0, "{err}");
+    let trace = std::fs::read_to_string(dir.join("trace.csv")).unwrap();
+    let rows: Vec<Vec<u64>> = trace
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            f[3..].iter().map(|x| x.parse().unwrap()).collect()
+        })
+        .collect();
+    // Init plus 1000 steps, three participants each (the passive controller runs every tick).
+    assert_eq!(rows.len(), 3 * 1001);
+    for r in &rows {
+        // sent ≤ received ≤ started ≤ finished ≤ reply sent ≤ reply received (one clock).
+        assert!(r.windows(2).all(|w| w[0] <= w[1]), "{r:?}");
+    }
+    let sum = summary(&dir);
+    let p = &sum["pacing"];
+    assert_eq!(p["ticks"], 1000);
+    // Paced at 4x, the loop cannot take less than 999 ticks × 0.25 ms.
+    let achieved = p["achieved_realtime_factor"].as_f64().unwrap();
+    assert!(achieved <= 4.0 * 1000.0 / 999.0 + 1e-9, "{achieved}");
+    assert!(p["overruns"].as_u64().unwrap() <= 1000);
+    let lat = &sum["link_latency"][0];
+    assert_eq!(lat["participant"], "plant");
+    assert_eq!(lat["request_us"]["n"], 1001);
+    assert!(dir.join("plots/latency_histogram.png").exists());
+}
