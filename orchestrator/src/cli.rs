@@ -74,6 +74,19 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Measure this machine: the iceoryx2 round-trip floor, the per-tick coordination
+    /// overhead of every master algorithm and wait strategy, and in-process vs IPC wall time.
+    Bench {
+        /// Scenario to run in every configuration.
+        #[arg(default_value = "scenarios/paper-passive.toml")]
+        scenario: PathBuf,
+        /// Simulated seconds per configuration.
+        #[arg(long, default_value_t = 2.0)]
+        duration: f64,
+        /// JSON report.
+        #[arg(long, default_value = "out/bench.json")]
+        out: PathBuf,
+    },
     /// Print the linear design model (matrices, eigenvalues, damping, frequencies) and the
     /// scenario controller's gains as JSON.
     Linearize {
@@ -230,6 +243,11 @@ pub fn main() -> i32 {
         Command::Run(a) => run(a),
         Command::Linearize { scenario, out } => linearize(&scenario, out.as_deref()),
         Command::Sweep(a) => sweep(a),
+        Command::Bench {
+            scenario,
+            duration,
+            out,
+        } => bench(&scenario, duration, &out),
         Command::SweepMerge { shards, out } => match crate::sweep::merge(&shards) {
             Ok((base, plan, rows)) => {
                 match crate::sweep::write_outputs(&out, &base, &plan, None, &rows) {
@@ -473,6 +491,49 @@ fn sweep(a: SweepArgs) -> i32 {
             out.display()
         );
     }
+    0
+}
+
+fn bench(scenario: &std::path::Path, duration: f64, out: &std::path::Path) -> i32 {
+    let s = match Scenario::load(scenario) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_INVALID;
+        }
+    };
+    if !(duration.is_finite() && duration > 0.0 && duration <= 600.0) {
+        eprintln!("error: command line: --duration {duration}: allowed (0, 600] s");
+        return EXIT_INVALID;
+    }
+    let Ok(exe) = std::env::current_exe() else {
+        eprintln!("error: cannot find the tiltsim executable to start participants");
+        return EXIT_FAILED;
+    };
+    let scratch = crate::bench::scratch_dir(out);
+    let report = crate::bench::run(&s, duration, &exe, &scratch, |name| {
+        eprintln!("  measuring {name} ...");
+    });
+    let _ = std::fs::remove_dir_all(&scratch);
+    let report = match report {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: bench: {e}");
+            return EXIT_FAILED;
+        }
+    };
+    println!("{}", crate::bench::table(&report));
+    if let Some(dir) = out.parent() {
+        let _ = std::fs::create_dir_all(dir);
+    }
+    if let Err(e) = std::fs::write(
+        out,
+        serde_json::to_string_pretty(&report).unwrap_or_default() + "\n",
+    ) {
+        eprintln!("error: {}: {e}", out.display());
+        return EXIT_FAILED;
+    }
+    println!("wrote {}", out.display());
     0
 }
 

@@ -1,6 +1,7 @@
 //! `orchestrator`: scenario, lock-step scheduling, recording and reporting, and the `tiltsim`
 //! command-line program.
 
+pub mod bench;
 pub mod cli;
 pub mod comfort;
 pub mod compare;

@@ -1,0 +1,201 @@
+//! `tiltsim bench`: the machine's numbers for the co-simulation, measured in one run.
+//!
+//! 1. The iceoryx2 round-trip floor: orchestrator → participant → orchestrator through shared
+//!    memory for the plant, whose step takes about 0.1 µs, minus that step (p50, p99).
+//! 2. The per-tick coordination overhead (tick wall time minus the participants' compute on
+//!    the critical path) of every master algorithm and wait strategy over IPC.
+//! 3. The wall time of the same scenario in-process and across processes, and their ratio.
+//!
+//! Each configuration is a real `engine::run` of the scenario for `duration` simulated
+//! seconds; nothing is modelled. Results print as a table and go to JSON.
+
+use std::path::{Path, PathBuf};
+
+use cosim::wait::WaitStrategy;
+use serde::Serialize;
+
+use crate::engine::{self, RunOptions, Status, Summary};
+use crate::scenario::{Master, Scenario, Transport};
+
+/// One measured configuration.
+#[derive(Debug, Clone, Serialize)]
+pub struct Config {
+    /// Transport.
+    pub transport: &'static str,
+    /// Master algorithm.
+    pub master: &'static str,
+    /// Wait strategy.
+    pub wait: &'static str,
+    /// Ticks run.
+    pub ticks: u64,
+    /// Coordination overhead per tick, p50 (µs).
+    pub overhead_p50_us: f64,
+    /// Coordination overhead per tick, p99 (µs).
+    pub overhead_p99_us: f64,
+    /// Plant round trip minus its compute, p50 (µs).
+    pub plant_round_trip_p50_us: f64,
+    /// Plant round trip, p99 (µs).
+    pub plant_round_trip_p99_us: f64,
+    /// Wall time of the loop (s).
+    pub wall_s: f64,
+    /// CPU seconds, orchestrator + participants.
+    pub cpu_s: f64,
+}
+
+/// The whole report.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// Scenario measured.
+    pub scenario: String,
+    /// Simulated seconds per configuration.
+    pub duration_s: f64,
+    /// CPUs available.
+    pub cpus: usize,
+    /// iceoryx2 round-trip floor: the smallest plant round-trip p50 over the IPC
+    /// configurations, minus the plant's compute (µs).
+    pub ipc_round_trip_floor_us: f64,
+    /// Every configuration.
+    pub configs: Vec<Config>,
+    /// Wall time in-process (s), Gauss-Seidel.
+    pub wall_in_process_s: f64,
+    /// Wall time across processes (s), Gauss-Seidel, adaptive wait.
+    pub wall_ipc_s: f64,
+    /// `wall_ipc_s / wall_in_process_s`.
+    pub ipc_over_in_process: f64,
+}
+
+fn measure(s: &Scenario, exe: &Path, dir: &Path) -> Result<Summary, String> {
+    let mut opts = RunOptions::new(dir.to_path_buf(), exe.to_path_buf());
+    opts.plots = false;
+    let sum = engine::run(s, &s.name, &opts).map_err(|e| e.to_string())?;
+    let _ = std::fs::remove_dir_all(dir);
+    if sum.status != Status::Completed {
+        return Err(sum.error.unwrap_or_else(|| "run failed".into()));
+    }
+    Ok(sum)
+}
+
+/// Runs every configuration; `progress` is told each one's name.
+pub fn run(
+    base: &Scenario,
+    duration: f64,
+    exe: &Path,
+    scratch: &Path,
+    mut progress: impl FnMut(&str),
+) -> Result<Report, String> {
+    let mut plan: Vec<(Transport, Master, WaitStrategy)> = vec![(
+        Transport::InProcess,
+        Master::GaussSeidel,
+        WaitStrategy::Adaptive,
+    )];
+    for m in [Master::GaussSeidel, Master::Jacobi] {
+        for w in [
+            WaitStrategy::Adaptive,
+            WaitStrategy::Spin,
+            WaitStrategy::Sleep,
+        ] {
+            plan.push((Transport::Ipc, m, w));
+        }
+    }
+    let mut configs = Vec::new();
+    let mut wall_local = 0.0;
+    let mut wall_ipc = 0.0;
+    for (i, (t, m, w)) in plan.into_iter().enumerate() {
+        let mut s = base.clone();
+        // Spinning waiters on a 2-CPU machine starve each other (a tick costs whole
+        // scheduler slices), so spin gets a tenth of the ticks; the table shows how many.
+        s.run.duration_s = Some(if w == WaitStrategy::Spin && t == Transport::Ipc {
+            (duration / 10.0).max(s.run.dt_s * 100.0)
+        } else {
+            duration
+        });
+        s.run.transport = t;
+        s.run.master = m;
+        s.run.wait = w;
+        let name = format!("{} {} {}", t.name(), m.name(), w.name());
+        progress(&name);
+        let sum = measure(&s, exe, &scratch.join(format!("config-{i}")))
+            .map_err(|e| format!("{name}: {e}"))?;
+        let plant = &sum.link_latency[0];
+        let compute = sum.participants[0].compute_us.p50;
+        if t == Transport::InProcess {
+            wall_local = sum.wall_time_s;
+        } else if m == Master::GaussSeidel && w == WaitStrategy::Adaptive {
+            wall_ipc = sum.wall_time_s;
+        }
+        configs.push(Config {
+            transport: t.name(),
+            master: m.name(),
+            wait: if t == Transport::InProcess {
+                "-"
+            } else {
+                w.name()
+            },
+            ticks: sum.steps_completed,
+            overhead_p50_us: sum.timing.p50,
+            overhead_p99_us: sum.timing.p99,
+            plant_round_trip_p50_us: (plant.round_trip_us.p50 - compute).max(0.0),
+            plant_round_trip_p99_us: plant.round_trip_us.p99,
+            wall_s: sum.wall_time_s,
+            cpu_s: sum.timing.cpu_s.orchestrator + sum.timing.cpu_s.participants,
+        });
+    }
+    let floor = configs
+        .iter()
+        .filter(|c| c.transport == "ipc")
+        .map(|c| c.plant_round_trip_p50_us)
+        .fold(f64::INFINITY, f64::min);
+    Ok(Report {
+        scenario: base.name.clone(),
+        duration_s: duration,
+        cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        ipc_round_trip_floor_us: floor,
+        configs,
+        wall_in_process_s: wall_local,
+        wall_ipc_s: wall_ipc,
+        ipc_over_in_process: if wall_local > 0.0 {
+            wall_ipc / wall_local
+        } else {
+            f64::NAN
+        },
+    })
+}
+
+/// The report as a Markdown table.
+pub fn table(r: &Report) -> String {
+    use std::fmt::Write as _;
+    let mut s = format!(
+        "tiltsim bench: {} for {} s simulated per configuration on {} CPUs\n\n\
+         | transport | master | wait | ticks | overhead p50 (µs) | p99 (µs) | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
+         |---|---|---|---|---|---|---|---|---|---|\n",
+        r.scenario, r.duration_s, r.cpus
+    );
+    for c in &r.configs {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.3} | {:.2} |",
+            c.transport,
+            c.master,
+            c.wait,
+            c.ticks,
+            c.overhead_p50_us,
+            c.overhead_p99_us,
+            c.plant_round_trip_p50_us,
+            c.plant_round_trip_p99_us,
+            c.wall_s,
+            c.cpu_s
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\niceoryx2 round-trip floor (best p50 over the IPC configurations): {:.2} µs\n\
+         wall time: in-process {:.3} s, IPC (gauss-seidel, adaptive) {:.3} s, ratio {:.2}",
+        r.ipc_round_trip_floor_us, r.wall_in_process_s, r.wall_ipc_s, r.ipc_over_in_process
+    );
+    s
+}
+
+/// Where the scratch runs go.
+pub fn scratch_dir(out: &Path) -> PathBuf {
+    out.with_extension("runs")
+}
