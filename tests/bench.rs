@@ -1,0 +1,42 @@
+//! `tiltsim bench` (issue 6, item 7): every configuration measured, one JSON report.
+
+use tiltsim_suite::{run, scenario, temp_dir};
+
+#[test]
+fn bench_measures_every_master_and_wait_strategy_and_both_transports() {
+    let dir = temp_dir("bench");
+    let out = dir.join("bench.json");
+    let (code, stdout, err) = run(&[
+        "bench",
+        scenario("paper-passive.toml").to_str().unwrap(),
+        "--duration",
+        "0.2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(stdout.contains("iceoryx2 round-trip floor"), "{stdout}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let configs = r["configs"].as_array().unwrap();
+    // In-process, then IPC × {gauss-seidel, jacobi} × {adaptive, spin, sleep}.
+    assert_eq!(configs.len(), 7);
+    let mut seen = std::collections::BTreeSet::new();
+    for c in configs {
+        seen.insert(format!("{} {} {}", c["transport"], c["master"], c["wait"]));
+        let ticks = c["ticks"].as_u64().unwrap();
+        let want = if c["wait"] == "spin" { 100 } else { 200 };
+        assert_eq!(ticks, want, "{c}");
+    }
+    assert_eq!(seen.len(), 7);
+    // The ratio is the two wall times it names, and the floor is the best IPC round trip.
+    let ratio = r["wall_ipc_s"].as_f64().unwrap() / r["wall_in_process_s"].as_f64().unwrap();
+    assert!((r["ipc_over_in_process"].as_f64().unwrap() - ratio).abs() < 1e-9 * ratio);
+    let floor = configs
+        .iter()
+        .filter(|c| c["transport"] == "ipc")
+        .map(|c| c["plant_round_trip_p50_us"].as_f64().unwrap())
+        .fold(f64::INFINITY, f64::min);
+    assert_eq!(r["ipc_round_trip_floor_us"].as_f64().unwrap(), floor);
+    assert!(!dir.join("bench.runs").exists(), "scratch runs removed");
+}
