@@ -319,13 +319,7 @@ fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<Transport
             }
         }
     }
-    let interrupt = Arc::new(AtomicBool::new(false));
-    {
-        let flag = interrupt.clone();
-        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
-    }
-    let Ok(exe) = std::env::current_exe() else {
-        eprintln!("error: cannot find the tiltsim executable to start participants");
+    let Some((interrupt, exe)) = interrupt_and_exe() else {
         return EXIT_FAILED;
     };
     let mut entries = Vec::new();
@@ -386,6 +380,21 @@ fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<Transport
     0
 }
 
+/// The Ctrl-C flag (handler installed) and the executable that serves participants; `None`
+/// (after saying why) when the executable cannot be found.
+fn interrupt_and_exe() -> Option<(Arc<AtomicBool>, PathBuf)> {
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let flag = interrupt.clone();
+    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    match std::env::current_exe() {
+        Ok(exe) => Some((interrupt, exe)),
+        Err(e) => {
+            eprintln!("error: cannot find the tiltsim executable to start participants: {e}");
+            None
+        }
+    }
+}
+
 fn sweep(a: SweepArgs) -> i32 {
     use crate::sweep::{Exec, Plan, Shard};
     let mut s = match Scenario::load(&a.scenario) {
@@ -440,13 +449,7 @@ fn sweep(a: SweepArgs) -> i32 {
             return EXIT_INVALID;
         }
     };
-    let interrupt = Arc::new(AtomicBool::new(false));
-    {
-        let flag = interrupt.clone();
-        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
-    }
-    let Ok(exe) = std::env::current_exe() else {
-        eprintln!("error: cannot find the tiltsim executable to start participants");
+    let Some((interrupt, exe)) = interrupt_and_exe() else {
         return EXIT_FAILED;
     };
     let out = a
@@ -632,17 +635,8 @@ fn run(a: RunArgs) -> i32 {
         return EXIT_INVALID;
     }
     let out = a.out.unwrap_or_else(|| PathBuf::from("out").join(&s.name));
-    let interrupt = Arc::new(AtomicBool::new(false));
-    {
-        let flag = interrupt.clone();
-        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
-    }
-    let exe = match std::env::current_exe() {
-        Ok(p) => p,
-        Err(e) => {
-            eprintln!("error: cannot find the tiltsim executable to start participants: {e}");
-            return EXIT_FAILED;
-        }
+    let Some((interrupt, exe)) = interrupt_and_exe() else {
+        return EXIT_FAILED;
     };
     if let Some(p) = a.pace {
         if !(p.is_finite() && p > 0.0 && p <= 1000.0) {
