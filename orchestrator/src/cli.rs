@@ -782,7 +782,7 @@ fn print_report(s: &engine::Summary, out: &std::path::Path) {
         );
     }
     println!(
-        "  wrote {}/timeseries.csv, summary.json, scenario.toml, plots/*.svg|png",
+        "  wrote {}/timeseries.csv, summary.json, events.csv, scenario.toml, plots/*.svg|png",
         out.display()
     );
 }
