@@ -723,11 +723,9 @@ fn lockstep(
         let c_due = k % c_period == 0;
         let step = hdr(k, Kind::Step);
         let t = k as f64 * dt;
-        let mut ev = std::mem::take(&mut lp.events);
         // The links carry this tick's values: what each sender last produced.
-        let meas = lp.links.links[2].carry(k, t, h.p.theta_v_meas, &mut ev);
-        let twist = lp.links.links[3].carry(k, t, h.p.psi, &mut ev);
-        lp.events = ev;
+        let meas = lp.links.links[2].carry(k, t, h.p.theta_v_meas, &mut lp.events);
+        let twist = lp.links.links[3].carry(k, t, h.p.psi, &mut lp.events);
         let to_c = ToController {
             header: step,
             t: h.p.t,
@@ -738,7 +736,6 @@ fn lockstep(
         let mut rx = [0.0; 4];
         rx[2] = meas;
         rx[3] = twist;
-        let mut crit_parts = [0u64; 3];
         // Each exchange: on failure, the degraded-mode stand-in takes over and the same
         // request is answered by it (or the error ends the run).
         macro_rules! ask {
@@ -780,18 +777,14 @@ fn lockstep(
                 }
             }};
         }
-        let mut ev = std::mem::take(&mut lp.events);
         match s.run.master {
             // Gauss-Seidel: controller, actuator, plant in turn, each with the newest output.
             Master::GaussSeidel => {
-                lp.events = ev;
                 if c_due {
                     h.c = ask!(controller, to_c);
                     cc = h.c.header.compute_ns;
                 }
-                let mut ev = std::mem::take(&mut lp.events);
-                rx[0] = lp.links.links[0].carry(k, t, h.c.delta_a_cmd, &mut ev);
-                lp.events = ev;
+                rx[0] = lp.links.links[0].carry(k, t, h.c.delta_a_cmd, &mut lp.events);
                 h.a = ask!(
                     actuator,
                     ToActuator {
@@ -800,9 +793,7 @@ fn lockstep(
                         psi: twist,
                     }
                 );
-                let mut ev = std::mem::take(&mut lp.events);
-                rx[1] = lp.links.links[1].carry(k, t, h.a.delta_a, &mut ev);
-                lp.events = ev;
+                rx[1] = lp.links.links[1].carry(k, t, h.a.delta_a, &mut lp.events);
                 h.p = ask!(
                     plant,
                     ToPlant {
@@ -813,9 +804,8 @@ fn lockstep(
             }
             // Jacobi: every request from the previous outputs first, then every reply.
             Master::Jacobi => {
-                rx[0] = lp.links.links[0].carry(k, t, h.c.delta_a_cmd, &mut ev);
-                rx[1] = lp.links.links[1].carry(k, t, h.a.delta_a, &mut ev);
-                lp.events = ev;
+                rx[0] = lp.links.links[0].carry(k, t, h.c.delta_a_cmd, &mut lp.events);
+                rx[1] = lp.links.links[1].carry(k, t, h.a.delta_a, &mut lp.events);
                 let to_a = ToActuator {
                     header: step,
                     delta_a_cmd: rx[0],
@@ -836,10 +826,7 @@ fn lockstep(
                 h.p = collect!(plant, to_p, tp);
             }
         }
-        crit_parts[0] = h.p.header.compute_ns;
-        crit_parts[1] = h.a.header.compute_ns;
-        crit_parts[2] = cc;
-        let [cp, ca, _] = crit_parts;
+        let (cp, ca) = (h.p.header.compute_ns, h.a.header.compute_ns);
         let crit = match s.run.master {
             Master::GaussSeidel => (cp + ca + cc) as f64 * 1e-3,
             Master::Jacobi => cp.max(ca).max(cc) as f64 * 1e-3,
@@ -1045,8 +1032,8 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
         })
         .collect::<Vec<_>>();
     let cpu_participants = exits.iter().filter_map(|e| e.cpu_s).fold(0.0, |a, b| a + b);
-    let results = quick_look(s, &csv);
-    let comfort = comfort_of(s, &csv);
+    let results = quick_look(s, &opts.out_dir);
+    let comfort = comfort_of(s, &opts.out_dir);
     if !opts.plots {
     } else if let Err(e) = write_plots(s, &opts.out_dir) {
         tracing::warn!("plots not written: {e}");
@@ -1177,10 +1164,11 @@ fn section_times(tp: &plant_proc::TrackParams) -> [f64; 4] {
     [t1, t2, t3, t3 + tp.transition_m / v]
 }
 
-/// Reads the recorded series back into the signals the comfort assessment needs.
-pub fn signals_from_csv(s: &Scenario, csv: &std::path::Path) -> crate::comfort::Signals {
+/// Reads a run's recorded series (`dir/timeseries.csv`) back into the signals the comfort
+/// assessment needs.
+pub fn signals_from_run(s: &Scenario, dir: &std::path::Path) -> crate::comfort::Signals {
     use crate::comfort::Signals;
-    let Ok(text) = std::fs::read_to_string(csv) else {
+    let Ok(all) = read_rows(dir) else {
         return Signals::default();
     };
     let cols = crate::record::COLUMNS;
@@ -1198,17 +1186,7 @@ pub fn signals_from_csv(s: &Scenario, csv: &std::path::Path) -> crate::comfort::
         "theta_b",
     ]
     .map(col);
-    let mut rows: Vec<[f64; 10]> = Vec::new();
-    for line in text.lines().skip(1) {
-        let f: Vec<f64> = line
-            .split(',')
-            .map(|x| x.parse().unwrap_or(f64::NAN))
-            .collect();
-        if f.len() < cols.len() {
-            continue;
-        }
-        rows.push(idx.map(|i| f[i]));
-    }
+    let rows: Vec<[f64; 10]> = all.iter().map(|f| idx.map(|i| f[i])).collect();
     let veh = plant_proc::Vehicle::new(s.vehicle.clone(), s.track.speed());
     let n = rows.len();
     let dt = s.run.dt_s;
@@ -1340,13 +1318,13 @@ pub fn write_compare_plots(
     Ok(files)
 }
 
-fn comfort_of(s: &Scenario, csv: &std::path::Path) -> crate::comfort::Comfort {
-    crate::comfort::assess(&signals_from_csv(s, csv), &s.comfort)
+fn comfort_of(s: &Scenario, dir: &std::path::Path) -> crate::comfort::Comfort {
+    crate::comfort::assess(&signals_from_run(s, dir), &s.comfort)
 }
 
 /// Reads back the recorded series for the headline numbers (works on partial runs too).
-fn quick_look(s: &Scenario, csv: &std::path::Path) -> QuickLook {
-    let Ok(text) = std::fs::read_to_string(csv) else {
+fn quick_look(s: &Scenario, dir: &std::path::Path) -> QuickLook {
+    let Ok(rows) = read_rows(dir) else {
         return QuickLook::default();
     };
     let col = |name: &str| {
@@ -1360,14 +1338,7 @@ fn quick_look(s: &Scenario, csv: &std::path::Path) -> QuickLook {
     let t_mid = (tp.straight_before_m + tp.transition_m + tp.curve_m / 2.0) / tp.speed();
     let mut q = QuickLook::default();
     let mut best = f64::INFINITY;
-    for line in text.lines().skip(1) {
-        let f: Vec<f64> = line
-            .split(',')
-            .map(|x| x.parse().unwrap_or(f64::NAN))
-            .collect();
-        if f.len() < crate::record::COLUMNS.len() {
-            continue;
-        }
+    for f in &rows {
         q.lat_acc_peak = q.lat_acc_peak.max(f[ilat].abs());
         q.delta_a_peak = q.delta_a_peak.max(f[ida].abs());
         if (f[it] - t_mid).abs() < best {

@@ -31,7 +31,7 @@ use serde::{Deserialize, Serialize};
 use crate::compare::{fmt, values, ROWS};
 use crate::engine::{self, RunOptions, Status};
 use crate::plot::{Chart, Line, PALETTE};
-use crate::scenario::{Scenario, Transport};
+use crate::scenario::Scenario;
 
 /// Short metric names (CSV headers), in [`ROWS`] order.
 pub const METRICS: [&str; 10] = [
@@ -791,11 +791,6 @@ pub fn merge(dirs: &[PathBuf]) -> Result<(Scenario, Plan, Vec<Row>), String> {
         ));
     }
     Ok((base, plan, rows))
-}
-
-/// The transport sweep runs use unless the scenario or a flag says otherwise.
-pub fn default_transport() -> Transport {
-    Transport::InProcess
 }
 
 #[cfg(test)]
