@@ -5,7 +5,7 @@
 
 use std::time::Instant;
 
-use actuator_proc::{Bldc, BldcParams, Electrics};
+use actuator_proc::{Bldc, BldcParams, DcLinkParams, Electrics};
 
 fn main() {
     let p = BldcParams::default();
@@ -13,7 +13,7 @@ fn main() {
         let mut per_ms = Vec::new();
         let mut total = 0.0;
         for _ in 0..3 {
-            let mut m = Bldc::new(&p, kind, 2.0e6);
+            let mut m = Bldc::new(&p, &DcLinkParams::default(), kind, 2.0e6);
             let started = Instant::now();
             for k in 0..16_800u32 {
                 let t = k as f64 * 1e-3;
@@ -29,7 +29,7 @@ fn main() {
         let q = |f: f64| per_ms[((per_ms.len() - 1) as f64 * f) as usize];
         println!(
             "{kind:?} (step {} us): {:.1} us wall per simulated ms (p50), p99 {:.1} us; a 16.8 s run takes {:.3} s",
-            Bldc::new(&p, kind, 2.0e6).dt() * 1e6,
+            Bldc::new(&p, &DcLinkParams::default(), kind, 2.0e6).dt() * 1e6,
             q(0.5),
             q(0.99),
             total / 3.0

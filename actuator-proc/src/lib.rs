@@ -11,6 +11,8 @@
 //!   2.3 assumption "assumed to be ideal").
 
 pub mod bldc;
+pub mod dc_link;
+pub mod shaping;
 
 use cosim::msg::{FromActuator, ToActuator};
 use cosim::settings::Checker;
@@ -18,6 +20,8 @@ use cosim::{Participant, Role};
 use serde::{Deserialize, Serialize};
 
 pub use bldc::{Bldc, BldcParams, Electrics};
+pub use dc_link::{DcLink, DcLinkParams};
+pub use shaping::{CommandShaping, Shaper};
 
 /// Which actuator model runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -40,6 +44,10 @@ pub struct ActuatorSettings {
     pub model: ActuatorModel,
     /// Motor, drive and bar parameters (`[actuator.bldc]`).
     pub bldc: BldcParams,
+    /// Rectifier, capacitor and braking chopper (`[actuator.dc_link]`).
+    pub dc_link: DcLinkParams,
+    /// How a new set-point is applied between controller updates (`hold` or `ramp`).
+    pub command_shaping: CommandShaping,
 }
 
 impl ActuatorSettings {
@@ -47,6 +55,7 @@ impl ActuatorSettings {
     pub fn validate(&self, prefix: &str) -> Checker {
         let mut c = Checker::new(prefix);
         self.bldc.validate(&mut c);
+        self.dc_link.validate(&mut c, self.bldc.v_dc);
         let b = &self.bldc;
         for (name, dt) in [
             ("bldc.dt_switched_s", b.dt_switched_s),
@@ -78,6 +87,8 @@ pub struct ActuatorInit {
     pub dt_s: f64,
     /// Anti-roll bar stiffness k_vr (N·m/rad), from the vehicle parameters.
     pub k_vr: f64,
+    /// Period at which the controller sends new set-points (s), for `command_shaping`.
+    pub command_period_s: f64,
 }
 
 /// The actuator participant.
@@ -85,6 +96,8 @@ pub struct Actuator {
     settings: ActuatorSettings,
     dt: f64,
     drive: Option<Bldc>,
+    /// The ideal bar's set-point shaping (the drive shapes its own at its electrical step).
+    shaper: Shaper,
     last: FromActuator,
 }
 
@@ -93,14 +106,19 @@ impl Actuator {
     pub fn new(init: &ActuatorInit) -> Self {
         let a = &init.actuator;
         let drive = match a.model {
-            ActuatorModel::Ideal => None,
-            ActuatorModel::Bldc => Some(Bldc::new(&a.bldc, Electrics::Switched, init.k_vr)),
-            ActuatorModel::BldcAveraged => Some(Bldc::new(&a.bldc, Electrics::Averaged, init.k_vr)),
-        };
+            ActuatorModel::Ideal => None::<Electrics>,
+            ActuatorModel::Bldc => Some(Electrics::Switched),
+            ActuatorModel::BldcAveraged => Some(Electrics::Averaged),
+        }
+        .map(|kind| {
+            Bldc::new(&a.bldc, &a.dc_link, kind, init.k_vr)
+                .with_shaping(a.command_shaping, init.command_period_s)
+        });
         Actuator {
             settings: a.clone(),
             dt: init.dt_s,
             drive,
+            shaper: Shaper::new(a.command_shaping, init.command_period_s, init.dt_s),
             last: FromActuator::default(),
         }
     }
@@ -120,19 +138,29 @@ impl Participant for Actuator {
     }
     fn step(&mut self, input: &ToActuator) -> FromActuator {
         self.last = match &mut self.drive {
-            None => FromActuator {
-                delta_a: input.delta_a_cmd,
-                ..Default::default()
-            },
+            None => {
+                self.shaper.receive(input.delta_a_cmd);
+                self.shaper.advance(1);
+                let d = self.shaper.value_after(0);
+                FromActuator {
+                    delta_a: d,
+                    delta_a_ref: d,
+                    ..Default::default()
+                }
+            }
             Some(d) => {
                 let t = d.advance(input.delta_a_cmd, input.psi, self.dt);
                 FromActuator {
                     header: Default::default(),
                     delta_a: t.delta_a,
+                    delta_a_ref: t.delta_a_ref,
                     motor_torque: t.torque,
                     motor_speed: t.speed,
                     motor_current: t.current,
                     dc_power: t.dc_power,
+                    phase_current_peak: t.phase_current_peak,
+                    v_dc: t.v_dc,
+                    chopper_power: t.chopper_power,
                     limits: t.limits,
                 }
             }

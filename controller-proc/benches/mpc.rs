@@ -26,7 +26,15 @@ fn main() {
                 preview,
                 ..Default::default()
             };
-            let mut mpc = Mpc::new(&model, &s, &KalmanSettings::default(), period, 3.5).unwrap();
+            let mut mpc = Mpc::new(
+                &model,
+                &s,
+                &KalmanSettings::default(),
+                period,
+                3.5,
+                controller_proc::InputShape::Hold,
+            )
+            .unwrap();
             // The tilt command of the paper's track at ρ = 0.50, from the controller's own
             // reference generator.
             let ctrl = controller_proc::Controller::new(&ControllerInit {
@@ -37,6 +45,7 @@ fn main() {
                 },
                 track: track.clone(),
                 vehicle: VehicleParams::default(),
+                input_shape: controller_proc::InputShape::Hold,
             })
             .unwrap();
             let d = model.discretise(period);

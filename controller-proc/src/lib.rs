@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 
 pub use design::LinearModel;
 pub use lqg::{KalmanSettings, Lqg, LqgSettings};
-pub use mpc::{Mpc, MpcSettings};
+pub use mpc::{InputShape, Mpc, MpcSettings};
 
 /// Controller mode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -149,6 +149,9 @@ pub struct ControllerInit {
     pub track: TrackParams,
     /// The vehicle's design model (the same parameters as the plant: one source of truth).
     pub vehicle: VehicleParams,
+    /// How the actuator applies each new command (`actuator.command_shaping`); the MPC's
+    /// prediction model assumes the same.
+    pub input_shape: InputShape,
 }
 
 /// Tilt command of eq 18: θ_v^d = v²/(gR) − ÿ^d/g − θ_o with ÿ^d = (1 − ρ)·ÿ_passive.
@@ -219,8 +222,15 @@ impl Controller {
                     .map_err(|e| format!("LQG design: {e}"))?,
             )),
             Mode::Mpc => Law::Mpc(Box::new(
-                Mpc::new(&model(), &c.mpc, &c.kalman, c.period_s, c.u_max_deg)
-                    .map_err(|e| format!("MPC design: {e}"))?,
+                Mpc::new(
+                    &model(),
+                    &c.mpc,
+                    &c.kalman,
+                    c.period_s,
+                    c.u_max_deg,
+                    init.input_shape,
+                )
+                .map_err(|e| format!("MPC design: {e}"))?,
             )),
         };
         let roll_gains = passive_roll_gains(&init.vehicle, v);
@@ -426,7 +436,15 @@ mod design_tests {
     fn unconstrained_mpc_equals_its_closed_form() {
         let m = model();
         let s = MpcSettings::default();
-        let mut mpc = Mpc::new(&m, &s, &KalmanSettings::default(), 0.05, 3.5).unwrap();
+        let mut mpc = Mpc::new(
+            &m,
+            &s,
+            &KalmanSettings::default(),
+            0.05,
+            3.5,
+            InputShape::Hold,
+        )
+        .unwrap();
         eprintln!("L_est = {}", mpc.l_est.transpose());
         // A state and reference where no constraint binds: the QP optimum must equal
         // Δu* = −(ΘᵀΛΘ + Λ_Δu)⁻¹ ΘᵀΛ (f − r).

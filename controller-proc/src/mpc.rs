@@ -90,6 +90,19 @@ impl MpcSettings {
     }
 }
 
+/// How the command is applied over each MPC period, as the prediction model assumes it
+/// (it must match the actuator's `command_shaping`; the engine derives it from there).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum InputShape {
+    /// Zero-order hold: u(t) = u_k over [t_k, t_k + T) (the paper's eq 30).
+    #[default]
+    Hold,
+    /// Linear ramp from u_{k−1} to u_k over the period, then held:
+    /// x_{k+1} = Φ x_k + Γ u_{k−1} + Γ₁ Δu_k with Γ₁ = ∫₀ᵀ e^{A(T−τ)} B τ/T dτ.
+    Ramp,
+}
+
 /// The inputs of one MPC update.
 #[derive(Debug, Clone)]
 pub struct MpcInput<'a> {
@@ -124,6 +137,10 @@ pub struct Mpc {
     /// Augmented discrete model (10 states).
     a: DMatrix<f64>,
     b: DMatrix<f64>,
+    /// Response to a unit move ramped over the period (Γ₁; equal to `b` for a hold).
+    b1: DMatrix<f64>,
+    /// The input shape the prediction assumes.
+    pub input_shape: InputShape,
     g: DMatrix<f64>,
     c: DMatrix<f64>,
     /// Kalman gain L_est (10×1), current-estimate form.
@@ -169,6 +186,7 @@ impl Mpc {
         k: &KalmanSettings,
         period: f64,
         u_max_deg: f64,
+        input_shape: InputShape,
     ) -> Result<Self, DesignError> {
         let d = m.discretise(period);
         let (n, p, mm) = (10, s.horizon_p, s.horizon_m);
@@ -176,6 +194,23 @@ impl Mpc {
         a.view_mut((0, 0), (9, 9)).copy_from(&d.a);
         let mut b = DMatrix::zeros(n, 1);
         b.view_mut((0, 0), (9, 1)).copy_from(&d.b);
+        let b1 = match input_shape {
+            InputShape::Hold => b.clone(),
+            InputShape::Ramp => {
+                // The ramp as the state of an integrator driven by 1/T: [ẋ; u̇] =
+                // [A B; 0 0][x; u] + [0; 1/T]·1, discretised exactly over T from u = 0.
+                let mut aa = DMatrix::zeros(10, 10);
+                aa.view_mut((0, 0), (9, 9)).copy_from(&m.a);
+                aa.view_mut((0, 9), (9, 1)).copy_from(&m.b);
+                let mut bb = DMatrix::zeros(10, 1);
+                bb[(9, 0)] = 1.0 / period;
+                let (_, g1) = crate::linalg::c2d(&aa, &bb, period);
+                let mut b1 = DMatrix::zeros(n, 1);
+                b1.view_mut((0, 0), (9, 1))
+                    .copy_from(&g1.view((0, 0), (9, 1)));
+                b1
+            }
+        };
         let mut g = DMatrix::zeros(n, 6);
         g.view_mut((0, 0), (9, 6)).copy_from(&d.g);
         let mut c = DMatrix::zeros(1, n);
@@ -212,11 +247,13 @@ impl Mpc {
                     .collect()
             })
             .collect();
-        // Θ_{i,l} = S_{i−l} for i > l (move l affects every later output).
+        // Θ_{i,l}: move l affects every later output, ramped in over its own period and held
+        // after it: S_{i−l−1} + C A^{i−l−1} Γ₁ (= S_{i−l} for a hold).
         let mut theta = DMatrix::zeros(p, mm);
         for i in 1..=p {
             for l in 0..mm.min(i) {
-                theta[(i - 1, l)] = step[i - l];
+                let k = i - l - 1;
+                theta[(i - 1, l)] = step[k] + (&c * &powers[k] * &b1)[(0, 0)];
             }
         }
         let h = theta.transpose() * &theta * s.output_weight
@@ -272,6 +309,8 @@ impl Mpc {
             y_max: s.theta_v_max_deg.to_radians(),
             a,
             b,
+            b1,
+            input_shape,
             g,
             c,
             l_est,
@@ -376,9 +415,10 @@ impl Mpc {
         let (du, iterations, solved) = self.solve(&f, input.r);
         // Clamp against rounding at the limits (the QP holds them to ~1e-8 rad).
         let du0 = du[0].clamp(-self.du_max, self.du_max);
-        let u = (self.u_prev + du0).clamp(-self.u_max, self.u_max);
+        let u_old = self.u_prev;
+        let u = (u_old + du0).clamp(-self.u_max, self.u_max);
         self.u_prev = u;
-        let mut next = &self.a * &x_f + &self.b * u;
+        let mut next = &self.a * &x_f + &self.b * u_old + &self.b1 * (u - u_old);
         if self.track_input {
             if let Some(w) = input.w.first() {
                 next += &self.g * DMatrix::from_column_slice(6, 1, w);

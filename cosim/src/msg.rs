@@ -11,7 +11,7 @@
 use iceoryx2::prelude::ZeroCopySend;
 
 /// Version of the sample layouts below. Bumped whenever a field changes.
-pub const PROTOCOL_VERSION: u32 = 3;
+pub const PROTOCOL_VERSION: u32 = 4;
 
 /// What a sample asks for or answers.
 #[repr(u32)]
@@ -209,6 +209,8 @@ message!(
     FromActuator, "from_actuator" {
         /// Achieved bar angle δ_a (rad).
         delta_a: f64,
+        /// The set-point the drive's position loop follows after command shaping (rad).
+        delta_a_ref: f64,
         /// Electromagnetic torque (N·m).
         motor_torque: f64,
         /// Rotor speed (rad/s).
@@ -217,6 +219,12 @@ message!(
         motor_current: f64,
         /// Power drawn from the DC link (W).
         dc_power: f64,
+        /// Largest |phase current| in any electrical step of the interval (A).
+        phase_current_peak: f64,
+        /// DC-link voltage (V).
+        v_dc: f64,
+        /// Power dumped in the braking chopper (W).
+        chopper_power: f64,
         /// Bit set of active limits (actuator-specific).
         limits: u32,
     }

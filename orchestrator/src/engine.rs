@@ -246,12 +246,9 @@ impl Inits {
                 actuator: s.actuator.clone(),
                 dt_s: s.run.dt_s,
                 k_vr: s.vehicle.k_vr,
+                command_period_s: s.controller.period_s,
             },
-            controller: ControllerInit {
-                controller: s.controller.clone(),
-                track: s.track.clone(),
-                vehicle: s.controller_vehicle().clone(),
-            },
+            controller: s.controller_init(),
         }
     }
 }

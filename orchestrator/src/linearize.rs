@@ -56,9 +56,17 @@ pub fn report(s: &Scenario) -> Result<Value, String> {
             });
         }
         Mode::Mpc => {
-            let mpc =
-                Mpc::new(&m, &c.mpc, &c.kalman, period, c.u_max_deg).map_err(|e| e.to_string())?;
+            let mpc = Mpc::new(
+                &m,
+                &c.mpc,
+                &c.kalman,
+                period,
+                c.u_max_deg,
+                s.controller_init().input_shape,
+            )
+            .map_err(|e| e.to_string())?;
             out["mpc"] = json!({
+                "prediction_input_shape": mpc.input_shape,
                 "L_est": rows(&mpc.l_est),
                 "Theta": rows(&mpc.theta),
                 "hessian": rows(&mpc.h),

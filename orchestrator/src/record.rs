@@ -31,10 +31,14 @@ pub const COLUMNS: &[&str] = &[
     "theta_ref",
     "delta_a_cmd",
     "delta_a",
+    "delta_a_ref",
     "motor_torque",
     "motor_speed",
     "motor_current",
     "dc_power",
+    "phase_current_peak",
+    "v_dc",
+    "chopper_power",
     "actuator_limits",
     "solver_status",
     "rx_actuator_command",
@@ -92,10 +96,19 @@ impl Recorder {
             c.theta_ref,
             c.delta_a_cmd,
             a.delta_a,
+            a.delta_a_ref,
         ] {
             put(v);
         }
-        for v in [a.motor_torque, a.motor_speed, a.motor_current, a.dc_power] {
+        for v in [
+            a.motor_torque,
+            a.motor_speed,
+            a.motor_current,
+            a.dc_power,
+            a.phase_current_peak,
+            a.v_dc,
+            a.chopper_power,
+        ] {
             put(v);
         }
         let _ = write!(self.line, ",{},{}", a.limits, c.solver_status);

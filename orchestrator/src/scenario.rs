@@ -226,11 +226,7 @@ impl Scenario {
         if all.errors.is_empty() {
             // The LQG and MPC designs solve Riccati equations and set up the QP: a setting
             // for which they have no solution is a scenario error, reported before any start.
-            let init = controller_proc::ControllerInit {
-                controller: self.controller.clone(),
-                track: self.track.clone(),
-                vehicle: self.controller_vehicle().clone(),
-            };
+            let init = self.controller_init();
             if let Err(e) = controller_proc::Controller::new(&init) {
                 let mut c = Checker::new("controller");
                 c.require(
@@ -248,6 +244,20 @@ impl Scenario {
     /// The vehicle the controller's design and reference use.
     pub fn controller_vehicle(&self) -> &VehicleParams {
         self.design_vehicle.as_ref().unwrap_or(&self.vehicle)
+    }
+
+    /// What the controller process receives: its settings, the track database, its design
+    /// vehicle and the command shape the actuator applies (the MPC predicts with it).
+    pub fn controller_init(&self) -> controller_proc::ControllerInit {
+        controller_proc::ControllerInit {
+            controller: self.controller.clone(),
+            track: self.track.clone(),
+            vehicle: self.controller_vehicle().clone(),
+            input_shape: match self.actuator.command_shaping {
+                actuator_proc::CommandShaping::Hold => controller_proc::InputShape::Hold,
+                actuator_proc::CommandShaping::Ramp => controller_proc::InputShape::Ramp,
+            },
+        }
     }
 
     /// Simulated duration (s).
