@@ -37,7 +37,7 @@ fn compare_writes_table_4_with_the_papers_values_and_our_differences() {
     // it reports.
     let p = summary(&dir.join("paper-passive"));
     let c = &p["comfort"];
-    assert_eq!(c["method"], "paper-peak");
+    assert_eq!(c["method"], "whole-run-peaks");
     let peak = c["lat_acc_peak_pct_g"].as_f64().unwrap();
     assert!((11.8..12.6).contains(&peak), "{peak}");
     assert!(c["deflection_of_bump_stop_pct"].as_f64().unwrap() < 100.0);

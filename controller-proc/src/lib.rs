@@ -16,6 +16,7 @@ pub mod design;
 pub mod linalg;
 pub mod lqg;
 pub mod mpc;
+pub mod pi_loop;
 
 use cosim::msg::{FromController, ToController};
 use cosim::settings::Checker;

@@ -95,6 +95,19 @@ enum Command {
         /// Write the JSON here instead of standard output.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Also design a PI for this scenario's vehicle and actuator: the largest K_p with
+        /// integral time --ti whose margins reach --phase-margin and --gain-margin.
+        #[arg(long)]
+        design_pi: bool,
+        /// Phase-margin target of --design-pi (deg).
+        #[arg(long, default_value_t = 60.0)]
+        phase_margin: f64,
+        /// Gain-margin target of --design-pi (dB).
+        #[arg(long, default_value_t = 6.0)]
+        gain_margin: f64,
+        /// Integral time K_p/K_i of --design-pi (s).
+        #[arg(long, default_value_t = 0.25)]
+        ti: f64,
     },
 }
 
@@ -241,7 +254,21 @@ pub fn main() -> i32 {
             }
         },
         Command::Run(a) => run(a),
-        Command::Linearize { scenario, out } => linearize(&scenario, out.as_deref()),
+        Command::Linearize {
+            scenario,
+            out,
+            design_pi,
+            phase_margin,
+            gain_margin,
+            ti,
+        } => {
+            let targets = design_pi.then_some(crate::linearize::PiTargets {
+                phase_margin_deg: phase_margin,
+                gain_margin_db: gain_margin,
+                ti_s: ti,
+            });
+            linearize(&scenario, out.as_deref(), targets)
+        }
         Command::Sweep(a) => sweep(a),
         Command::Bench {
             scenario,
@@ -358,8 +385,9 @@ fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<Transport
                 return EXIT_FAILED;
             }
         }
+        let ideal = crate::comfort::ideal_tilt(&engine::signals_from_run(&s, &dir), &s.comfort);
         runs.push((s.name.clone(), s.clone(), dir));
-        entries.push(crate::compare::entry(s, summary));
+        entries.push(crate::compare::entry(s, summary, ideal));
     }
     let (md, csv) = crate::compare::tables(&entries);
     for (name, text) in [("table.md", &md), ("table.csv", &csv)] {
@@ -542,7 +570,23 @@ fn bench(scenario: &std::path::Path, duration: f64, out: &std::path::Path) -> i3
     0
 }
 
-fn linearize(scenario: &std::path::Path, out: Option<&std::path::Path>) -> i32 {
+fn linearize(
+    scenario: &std::path::Path,
+    out: Option<&std::path::Path>,
+    design: Option<crate::linearize::PiTargets>,
+) -> i32 {
+    if let Some(t) = design {
+        for (flag, v, lo, hi) in [
+            ("--phase-margin", t.phase_margin_deg, 0.0, 89.0),
+            ("--gain-margin", t.gain_margin_db, 0.0, 40.0),
+            ("--ti", t.ti_s, 1e-3, 100.0),
+        ] {
+            if !(lo..=hi).contains(&v) {
+                eprintln!("error: {flag} = {v}: allowed {lo} to {hi}");
+                return EXIT_INVALID;
+            }
+        }
+    }
     let s = match Scenario::load(scenario) {
         Ok(s) => s,
         Err(e) => {
@@ -550,7 +594,7 @@ fn linearize(scenario: &std::path::Path, out: Option<&std::path::Path>) -> i32 {
             return EXIT_INVALID;
         }
     };
-    let report = match crate::linearize::report(&s) {
+    let report = match crate::linearize::report(&s, design) {
         Ok(r) => r,
         Err(e) => {
             eprintln!("error: {}: controller design: {e}", scenario.display());
@@ -750,7 +794,7 @@ fn print_report(s: &engine::Summary, out: &std::path::Path) {
     );
     let c = &s.comfort;
     println!(
-        "  comfort: P_CT standing {:.2} %, seated {:.2} % (paper-peak; EN 12299 per transition {:.2} / {:.2} %); lateral acceleration RMS deviation {:.3} %g, peak {:.2} %g; jerk {:.2} %g/s",
+        "  comfort: P_CT standing {:.2} %, seated {:.2} % (whole-run peaks, as the paper; EN 12299 per transition {:.2} / {:.2} %); lateral acceleration RMS deviation {:.3} %g, peak {:.2} %g; jerk {:.2} %g/s",
         c.p_ct.standing,
         c.p_ct.seated,
         c.p_ct_en12299.standing,
@@ -759,6 +803,19 @@ fn print_report(s: &engine::Summary, out: &std::path::Path) {
         c.lat_acc_peak_pct_g,
         c.jerk_peak_pct_g_s
     );
+    let flags = s.flags.describe();
+    if flags.is_empty() {
+        println!(
+            "  flags: all clear (no oscillation, bump stop, drive limit, chopper duty or P_CT out of range)"
+        );
+    } else {
+        for f in flags {
+            println!("  FLAG {f}");
+        }
+        if s.flags.ride_invalid() {
+            println!("  the comfort numbers above do not describe a working tilt system");
+        }
+    }
     for p in &s.participants {
         println!(
             "  {} compute per call: p50 {:.1} us, p99 {:.1} us, max {:.1} us ({} calls)",

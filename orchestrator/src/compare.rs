@@ -32,12 +32,17 @@ pub const ROWS: [&str; 10] = [
     "Roll speed RMS deviation (rad/s)",
     "Roll speed peak (rad/s)",
     "Peak jerk level (%g/s)",
-    "P_CT standing, paper-peak (%)",
-    "P_CT seated, paper-peak (%)",
+    "P_CT standing, whole-run peaks as the paper (%)",
+    "P_CT seated, whole-run peaks as the paper (%)",
     "P_CT standing, EN 12299 per transition (%)",
     "P_CT seated, EN 12299 per transition (%)",
     "Secondary lateral deflection peak (mm, bump stop 60)",
 ];
+
+/// Rows of [`ROWS`] that are P_CT values (flagged above 100 %).
+const PCT_ROWS: [usize; 4] = [5, 6, 7, 8];
+/// The deflection row: the ideal tilt has none (the body is not simulated).
+const DEFLECTION_ROW: usize = 9;
 
 /// A run's values in [`ROWS`] order.
 pub fn values(c: &Comfort) -> [f64; 10] {
@@ -63,6 +68,8 @@ pub struct Entry {
     pub scenario: Scenario,
     /// Its summary.
     pub summary: Summary,
+    /// The ideal tilt on the same track at the same ρ: the body follows eq 18 exactly.
+    pub ideal: Comfort,
 }
 
 fn label(s: &Scenario) -> String {
@@ -76,12 +83,13 @@ fn label(s: &Scenario) -> String {
     format!("{mode} [{}]", s.name)
 }
 
-/// Builds an entry.
-pub fn entry(scenario: Scenario, summary: Summary) -> Entry {
+/// Builds an entry; `ideal` is [`crate::comfort::ideal_tilt`] of the run's signals.
+pub fn entry(scenario: Scenario, summary: Summary, ideal: Comfort) -> Entry {
     Entry {
         label: label(&scenario),
         scenario,
         summary,
+        ideal,
     }
 }
 
@@ -95,61 +103,210 @@ pub(crate) fn fmt(v: f64) -> String {
     }
 }
 
+/// The ideal-tilt columns: one per distinct (ρ, track irregularity, seed), in order of first
+/// appearance, and each entry's column index.
+fn ideal_columns(entries: &[Entry]) -> (Vec<(String, &Comfort)>, Vec<usize>) {
+    let key = |e: &Entry| {
+        format!(
+            "ρ = {:.2}{}",
+            e.scenario.controller.rho,
+            if e.scenario.track.irregularity.amplitude_deg > 0.0 {
+                format!(
+                    ", irregular track ±{}°, seed {}",
+                    e.scenario.track.irregularity.amplitude_deg, e.scenario.run.seed
+                )
+            } else {
+                String::new()
+            }
+        )
+    };
+    let mut cols: Vec<(String, &Comfort)> = Vec::new();
+    let mut of = Vec::new();
+    for e in entries {
+        let k = key(e);
+        let i = match cols.iter().position(|(c, _)| *c == k) {
+            Some(i) => i,
+            None => {
+                cols.push((k, &e.ideal));
+                cols.len() - 1
+            }
+        };
+        of.push(i);
+    }
+    (cols, of)
+}
+
+/// Why a run's value in row `r` is not to be read as a number, if it is not.
+fn cell_flags(e: &Entry, r: usize, v: f64) -> Vec<String> {
+    let f = &e.summary.flags;
+    let mut tags = Vec::new();
+    if f.oscillation.raised {
+        tags.push(format!(
+            "oscillating ±{:.2}° at {:.2} Hz",
+            f.oscillation.amplitude_deg, f.oscillation.frequency_hz
+        ));
+    }
+    if f.bump_stop.raised {
+        tags.push(format!(
+            "bump stop {:.0} mm",
+            f.bump_stop.deflection_peak_mm
+        ));
+    }
+    if PCT_ROWS.contains(&r) && v > 100.0 {
+        tags.push("P_CT > 100 %".into());
+    }
+    tags
+}
+
 /// `table.md` and `table.csv`.
 pub fn tables(entries: &[Entry]) -> (String, String) {
     let mut md = String::new();
-    let mut csv = String::from("metric,column,scenario,value,paper,difference\n");
+    let mut csv = String::from("metric,column,scenario,value,paper,difference,flags\n");
     let _ = writeln!(
         md,
         "# Comfort assessment (the paper's Table 4 layout)\n\nOurs, with the paper's value in \
          brackets and our difference where the paper gives one. P_CT headline: whole-run peaks \
-         as the paper evaluates them; the EN 12299 rows use per-transition windows on 0.3 Hz \
-         filtered signals (docs/results.md).\n"
+         plugged into the formula, as the paper evaluates it; the EN 12299 rows use \
+         per-transition windows on 0.3 Hz filtered signals. The ideal-tilt columns are the floor: \
+         the body follows the tilt command of eq 18 exactly at the run's ρ. A cell marked ⚠ is \
+         not a valid ride measure (the run oscillates, hits its bump stops, or the formula is \
+         outside its 0-100 % range); its value is given for the record only.\n"
     );
+    let (ideal, of) = ideal_columns(entries);
     let _ = write!(md, "| metric |");
+    for (k, _) in &ideal {
+        let _ = write!(md, " ideal tilt ({k}) |");
+    }
     for e in entries {
         let _ = write!(md, " {} |", e.label);
     }
     let _ = write!(md, "\n|---|");
-    for _ in entries {
+    for _ in 0..ideal.len() + entries.len() {
         let _ = write!(md, "---|");
     }
     md.push('\n');
     for (r, name) in ROWS.iter().enumerate() {
         let _ = write!(md, "| {name} |");
+        for (k, c) in &ideal {
+            if r == DEFLECTION_ROW {
+                let _ = write!(md, " — |");
+            } else {
+                let v = values(c)[r];
+                let _ = write!(md, " {} |", fmt(v));
+                let _ = writeln!(csv, "\"{name}\",\"ideal tilt ({k})\",ideal-tilt,{v},,,");
+            }
+        }
         for e in entries {
             let v = values(&e.summary.comfort)[r];
             let paper = paper_column(&e.scenario).and_then(|p| p.get(r).copied());
-            match paper {
-                Some(p) => {
-                    let _ = write!(md, " {} [{}] ({:+}) |", fmt(v), fmt(p), fmt(v - p));
-                    let _ = writeln!(
-                        csv,
-                        "\"{name}\",\"{}\",{},{v},{p},{}",
-                        e.label,
-                        e.scenario.name,
-                        v - p
-                    );
-                }
-                None => {
-                    let _ = write!(md, " {} |", fmt(v));
-                    let _ = writeln!(csv, "\"{name}\",\"{}\",{},{v},,", e.label, e.scenario.name);
-                }
+            let mut text = match paper {
+                Some(p) => format!("{} [{}] ({:+})", fmt(v), fmt(p), fmt(v - p)),
+                None => fmt(v),
+            };
+            let tags = cell_flags(e, r, v);
+            if !tags.is_empty() {
+                text = format!("⚠ {text} ({})", tags.join("; "));
             }
+            let _ = write!(md, " {text} |");
+            let (p, d) = paper.map_or((String::new(), String::new()), |p| {
+                (p.to_string(), (v - p).to_string())
+            });
+            let _ = writeln!(
+                csv,
+                "\"{name}\",\"{}\",{},{v},{p},{d},\"{}\"",
+                e.label,
+                e.scenario.name,
+                tags.join("; ")
+            );
         }
         md.push('\n');
     }
-    let _ = writeln!(md, "\n| run | status | steps | wall (s) | actuator | controller compute p99 (µs) |\n|---|---|---|---|---|---|");
+    // Differences from the ideal tilt.
+    for (name, r, unit) in [
+        ("Lateral acceleration peak over ideal tilt", 1, "%g"),
+        ("P_CT standing (whole-run peaks) over ideal tilt", 5, "points"),
+        ("P_CT seated (whole-run peaks) over ideal tilt", 6, "points"),
+        ("P_CT standing (EN 12299) over ideal tilt", 7, "points"),
+    ] {
+        let _ = write!(md, "| {name} ({unit}) |");
+        for _ in &ideal {
+            let _ = write!(md, " 0 |");
+        }
+        for (e, i) in entries.iter().zip(&of) {
+            let v = values(&e.summary.comfort)[r] - values(ideal[*i].1)[r];
+            let tags = cell_flags(e, r, values(&e.summary.comfort)[r]);
+            if tags.is_empty() {
+                let _ = write!(md, " {:+.3} |", v);
+            } else {
+                let _ = write!(md, " ⚠ {:+.3} |", v);
+            }
+            let _ = writeln!(
+                csv,
+                "\"{name} ({unit})\",\"{}\",{},{v},,,\"{}\"",
+                e.label,
+                e.scenario.name,
+                tags.join("; ")
+            );
+        }
+        md.push('\n');
+    }
+    // Validity flags, each with its measured value.
+    let flag_rows: [(&str, fn(&crate::validity::Flags) -> (bool, String)); 5] = [
+        ("Oscillation of θ_v − θ_ref (amplitude, frequency)", |f| {
+            let o = &f.oscillation;
+            (o.raised, format!("±{:.3}° at {:.2} Hz", o.amplitude_deg, o.frequency_hz))
+        }),
+        ("Bump-stop contact (peak deflection, time)", |f| {
+            let b = &f.bump_stop;
+            (b.raised, format!("{:.1} mm, {:.3} s", b.deflection_peak_mm, b.time_in_contact_s))
+        }),
+        ("Time at a drive limit (s)", |f| {
+            let d = &f.drive_limit;
+            (d.raised, format!("{:.3} (torque {:.3}, speed {:.3})", d.time_at_any_limit_s, d.torque_s, d.speed_s))
+        }),
+        ("Energy dumped in the braking chopper (kJ)", |f| {
+            let c = &f.chopper;
+            (c.raised, format!("{:.2}", c.energy_j / 1e3))
+        }),
+        ("Largest P_CT (%; the formula's range is 0-100)", |f| {
+            let p = &f.p_ct_range;
+            (p.raised, format!("{:.1}", p.largest_pct))
+        }),
+    ];
+    for (name, get) in flag_rows {
+        let _ = write!(md, "| {name} |");
+        for _ in &ideal {
+            let _ = write!(md, " — |");
+        }
+        for e in entries {
+            let (raised, text) = get(&e.summary.flags);
+            if raised {
+                let _ = write!(md, " ⚠ {text} |");
+            } else {
+                let _ = write!(md, " clear ({text}) |");
+            }
+            let _ = writeln!(
+                csv,
+                "\"{name}\",\"{}\",{},\"{text}\",,,{}",
+                e.label,
+                e.scenario.name,
+                if raised { "raised" } else { "clear" }
+            );
+        }
+        md.push('\n');
+    }
+    let _ = writeln!(md, "\n| run | status | steps | wall (s) | actuator | command shaping | controller compute p99 (µs) |\n|---|---|---|---|---|---|---|");
     for e in entries {
         let s = &e.summary;
         let _ = writeln!(
             md,
-            "| {} | {:?} | {} | {:.2} | {:?} | {:.1} |",
+            "| {} | {:?} | {} | {:.2} | {:?} | {:?} | {:.1} |",
             e.scenario.name,
             s.status,
             s.steps_completed,
             s.wall_time_s,
             e.scenario.actuator.model,
+            e.scenario.actuator.command_shaping,
             s.participants
                 .get(2)
                 .map(|p| p.compute_us.p99)

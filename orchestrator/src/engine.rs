@@ -170,6 +170,8 @@ pub struct Summary {
     pub controller_solver: Option<SolverReport>,
     /// Ride comfort (Table 4 rows), from the recorded series.
     pub comfort: crate::comfort::Comfort,
+    /// Whether the numbers are valid: oscillation, bump stop, drive limits, chopper, P_CT range.
+    pub flags: crate::validity::Flags,
     /// iceoryx2 prefix of the run ("" in-process).
     pub ipc_prefix: String,
     /// Files of the run still present after clean-up (must be empty).
@@ -1031,6 +1033,7 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
     let cpu_participants = exits.iter().filter_map(|e| e.cpu_s).fold(0.0, |a, b| a + b);
     let results = quick_look(s, &opts.out_dir);
     let comfort = comfort_of(s, &opts.out_dir);
+    let flags = flags_of(s, &opts.out_dir, &comfort);
     if !opts.plots {
     } else if let Err(e) = write_plots(s, &opts.out_dir) {
         tracing::warn!("plots not written: {e}");
@@ -1072,6 +1075,7 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
         pacing,
         controller_solver: solver,
         comfort,
+        flags,
         ipc_prefix: prefix,
         leftover_ipc_files: leftover,
     })
@@ -1313,6 +1317,40 @@ pub fn write_compare_plots(
         files.extend(crate::plot::write_chart(&plots, name, &chart, &t)?);
     }
     Ok(files)
+}
+
+/// The validity flags of a finished run, from its recorded series.
+pub fn flags_of(
+    s: &Scenario,
+    dir: &std::path::Path,
+    comfort: &crate::comfort::Comfort,
+) -> crate::validity::Flags {
+    let Ok(rows) = read_rows(dir) else {
+        return crate::validity::Flags::default();
+    };
+    let col = |name: &str| {
+        crate::record::COLUMNS
+            .iter()
+            .position(|c| *c == name)
+            .unwrap_or(0)
+    };
+    let get = |name: &str| -> Vec<f64> {
+        let i = col(name);
+        rows.iter().map(|r| r[i]).collect()
+    };
+    let (tv, tr) = (get("theta_v"), get("theta_ref"));
+    let inputs = crate::validity::FlagInputs {
+        dt: s.run.dt_s,
+        roll_error: tv.iter().zip(&tr).map(|(a, b)| a - b).collect(),
+        reference: tr,
+        deflection: signals_from_run(s, dir).deflection,
+        clearance: s.comfort.bump_stop_m,
+        limits: get("actuator_limits").iter().map(|v| *v as u32).collect(),
+        phase_current_peak: get("phase_current_peak"),
+        chopper_power: get("chopper_power"),
+        v_dc: get("v_dc"),
+    };
+    crate::validity::assess(&inputs, comfort)
 }
 
 fn comfort_of(s: &Scenario, dir: &std::path::Path) -> crate::comfort::Comfort {

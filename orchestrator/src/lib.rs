@@ -13,6 +13,7 @@ pub mod plot;
 pub mod record;
 pub mod scenario;
 pub mod sweep;
+pub mod validity;
 
 pub use engine::{run, RunOptions, Summary};
 pub use scenario::{Master, Scenario, Transport};

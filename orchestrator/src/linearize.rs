@@ -3,13 +3,43 @@
 //! MPC modes, the gains the controller will run with.
 
 use controller_proc::design::{modes_of, rows, LinearModel};
+use actuator_proc::ActuatorModel;
+use controller_proc::pi_loop::{ActuatorLag, PiLoop};
 use controller_proc::{Lqg, Mode, Mpc};
 use serde_json::{json, Value};
 
 use crate::scenario::Scenario;
 
-/// The report for scenario `s`.
-pub fn report(s: &Scenario) -> Result<Value, String> {
+/// Targets of `tiltsim linearize --design-pi`.
+#[derive(Debug, Clone, Copy)]
+pub struct PiTargets {
+    /// Phase margin (deg).
+    pub phase_margin_deg: f64,
+    /// Gain margin (dB).
+    pub gain_margin_db: f64,
+    /// Integral time K_p/K_i (s).
+    pub ti_s: f64,
+}
+
+/// The PI loop of scenario `s`: its vehicle, its actuator's closed-loop response and its
+/// sampling delays (controller-proc `pi_loop`).
+pub fn pi_loop(s: &Scenario) -> PiLoop {
+    let m = LinearModel::new(s.controller_vehicle(), s.track.speed());
+    let b = &s.actuator.bldc;
+    let lag = match s.actuator.model {
+        ActuatorModel::Ideal => ActuatorLag::Ideal,
+        ActuatorModel::Bldc | ActuatorModel::BldcAveraged => ActuatorLag::Drive {
+            position_gain: b.position_gain,
+            speed_kp: b.speed_kp,
+            speed_ki: b.speed_ki,
+            j_rot: b.j_rot,
+        },
+    };
+    PiLoop::new(m, lag, s.controller.period_s, s.run.dt_s)
+}
+
+/// The report for scenario `s`, with a PI designed for `design` when given.
+pub fn report(s: &Scenario, design: Option<PiTargets>) -> Result<Value, String> {
     let v = s.track.speed();
     let m = LinearModel::new(&s.vehicle, v);
     let c = &s.controller;
@@ -72,7 +102,28 @@ pub fn report(s: &Scenario) -> Result<Value, String> {
                 "hessian": rows(&mpc.h),
             });
         }
-        _ => {}
+        Mode::Pi => {
+            let l = pi_loop(s);
+            out["pi_loop"] = json!({
+                "kp": c.pi.kp,
+                "ki": c.pi.ki,
+                "actuator": l.actuator,
+                "delay_s": l.delay_s,
+                "margins": l.margins(c.pi.kp, c.pi.ki),
+                "note": "linear loop; the drive's rate limit (speed_limit_fraction) is not in it",
+            });
+        }
+        Mode::Passive => {}
+    }
+    if let Some(t) = design {
+        let l = pi_loop(s);
+        out["pi_design"] = match l.design(t.phase_margin_deg, t.gain_margin_db, t.ti_s) {
+            Some(d) => json!(d),
+            None => return Err(format!(
+                "no PI with integral time {} s reaches a phase margin of {}° and a gain margin of {} dB",
+                t.ti_s, t.phase_margin_deg, t.gain_margin_db
+            )),
+        };
     }
     Ok(out)
 }

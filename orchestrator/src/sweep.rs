@@ -605,7 +605,7 @@ fn write_plots(
             p.sort_by(|a, b| a.total_cmp(b));
             let frac: Vec<f64> = (1..=p.len()).map(|i| i as f64 / p.len() as f64).collect();
             let chart = Chart {
-                title: "Distribution of P_CT (standing, paper-peak) over the samples",
+                title: "Distribution of P_CT (standing, whole-run peaks) over the samples",
                 x_label: "P_CT standing (%)",
                 y_label: "fraction of samples ≤ P_CT",
                 lines: vec![Line {

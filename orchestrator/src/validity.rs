@@ -1,0 +1,401 @@
+//! Whether a run's numbers mean what they say: flags in `summary.json` → `flags`, each with the
+//! measured value that raised it or would have (docs/results.md, "Reading the flags").
+//!
+//! * `oscillation`: a sustained oscillation of the roll error θ_v − θ_v^d where the reference
+//!   is steady (straights and steady curve, from 2 s after the reference last moved: a
+//!   transition's own tracking error is not an oscillation). The error is high-passed (itself
+//!   minus its 0.3 Hz Butterworth low-pass, which removes a steady offset) and cut into 2 s
+//!   windows; a window oscillates when its amplitude √2·RMS exceeds `threshold_deg` (0.1°,
+//!   i.e. 0.2° peak to peak). The loop oscillates when more than half of the windows do. The
+//!   frequency is the peak of the amplitude spectrum (0.2-20 Hz) of the window with the
+//!   largest amplitude.
+//! * `bump_stop`: the secondary lateral deflection reached the bump-stop clearance.
+//! * `drive_limit`: time (ms counted from `actuator_limits`) during which the drive was at its
+//!   torque, current, speed or stroke limit, on its end stop, or had a protection block its
+//!   gates.
+//! * `chopper`: energy dumped in the braking chopper; raised above `threshold_j` = 1 kJ. Below
+//!   that the chopper only trims what small regenerative flows leave on an idle link (the
+//!   capacitor alone buffers ½C(850² − 780²) = 125 J); above it, braking is part of the duty
+//!   and the energy is lost.
+//! * `p_ct_range`: a P_CT above 100 % (the formula gives the percentage of passengers
+//!   uncomfortable; past 100 % it is extrapolated and says only "worse than the scale").
+
+use serde::Serialize;
+
+use actuator_proc::bldc::limit;
+
+use crate::comfort::{low_pass, Comfort};
+
+/// Amplitude above which a 2 s window of θ_v − θ_v^d counts as oscillating (deg).
+pub const OSCILLATION_THRESHOLD_DEG: f64 = 0.1;
+/// Chopper energy above which the chopper flag is raised (J).
+pub const CHOPPER_THRESHOLD_J: f64 = 1000.0;
+const WINDOW_S: f64 = 2.0;
+/// Time after the reference last moved before a window may start (s).
+const SETTLE_S: f64 = 2.0;
+
+/// Oscillation of the roll error.
+#[derive(Debug, Clone, Serialize, Default, PartialEq)]
+pub struct Oscillation {
+    /// Raised.
+    pub raised: bool,
+    /// Largest window amplitude √2·RMS (deg).
+    pub amplitude_deg: f64,
+    /// Dominant frequency of the window with the largest amplitude (Hz).
+    pub frequency_hz: f64,
+    /// Windows above the threshold, of all.
+    pub windows_oscillating: usize,
+    /// Windows (2 s each, where the reference is steady).
+    pub windows: usize,
+    /// Threshold (deg amplitude).
+    pub threshold_deg: f64,
+}
+
+/// Bump-stop contact.
+#[derive(Debug, Clone, Serialize, Default, PartialEq)]
+pub struct BumpStop {
+    /// Raised.
+    pub raised: bool,
+    /// Largest |secondary lateral deflection| (mm).
+    pub deflection_peak_mm: f64,
+    /// Clearance (mm).
+    pub clearance_mm: f64,
+    /// Time at or beyond the clearance (s).
+    pub time_in_contact_s: f64,
+}
+
+/// Time at the drive's limits (s).
+#[derive(Debug, Clone, Serialize, Default, PartialEq)]
+pub struct DriveLimit {
+    /// Raised.
+    pub raised: bool,
+    /// At any of the limits below (s).
+    pub time_at_any_limit_s: f64,
+    /// Torque limit (s).
+    pub torque_s: f64,
+    /// Current limit reached by a measured phase current (s).
+    pub current_s: f64,
+    /// Speed (DC-link voltage) limit (s).
+    pub speed_s: f64,
+    /// Command outside the stroke (s).
+    pub stroke_command_s: f64,
+    /// On the end stop (s).
+    pub end_stop_s: f64,
+    /// Over-current protection blocked the gates (s).
+    pub overcurrent_trip_s: f64,
+    /// Over-voltage protection blocked the gates (s).
+    pub overvoltage_s: f64,
+    /// Largest phase current in any electrical step (A).
+    pub phase_current_peak_a: f64,
+}
+
+/// Energy dumped in the braking chopper.
+#[derive(Debug, Clone, Serialize, Default, PartialEq)]
+pub struct Chopper {
+    /// Raised.
+    pub raised: bool,
+    /// Energy dumped (J).
+    pub energy_j: f64,
+    /// Threshold (J).
+    pub threshold_j: f64,
+    /// Time the chopper was on (s).
+    pub time_on_s: f64,
+    /// Largest DC-link voltage recorded (V).
+    pub v_dc_max: f64,
+}
+
+/// P_CT outside the formula's meaningful range.
+#[derive(Debug, Clone, Serialize, Default, PartialEq)]
+pub struct PctRange {
+    /// Raised.
+    pub raised: bool,
+    /// The largest P_CT of the run (whole-run peaks or EN 12299, standing or seated) (%).
+    pub largest_pct: f64,
+}
+
+/// Every flag of a run.
+#[derive(Debug, Clone, Serialize, Default, PartialEq)]
+pub struct Flags {
+    /// Roll-error oscillation.
+    pub oscillation: Oscillation,
+    /// Bump-stop contact.
+    pub bump_stop: BumpStop,
+    /// Time at a drive limit.
+    pub drive_limit: DriveLimit,
+    /// Chopper energy.
+    pub chopper: Chopper,
+    /// P_CT above 100 %.
+    pub p_ct_range: PctRange,
+}
+
+/// What a run's flags are computed from, one value per recorded row.
+#[derive(Debug, Clone, Default)]
+pub struct FlagInputs {
+    /// Row period (s).
+    pub dt: f64,
+    /// θ_v − θ_v^d (rad).
+    pub roll_error: Vec<f64>,
+    /// θ_v^d (rad), to find where the reference is steady.
+    pub reference: Vec<f64>,
+    /// Secondary lateral deflection (m).
+    pub deflection: Vec<f64>,
+    /// Bump-stop clearance (m).
+    pub clearance: f64,
+    /// `actuator_limits` bits.
+    pub limits: Vec<u32>,
+    /// Largest phase current per row (A).
+    pub phase_current_peak: Vec<f64>,
+    /// Chopper power per row (W).
+    pub chopper_power: Vec<f64>,
+    /// DC-link voltage per row (V).
+    pub v_dc: Vec<f64>,
+}
+
+impl Flags {
+    /// The flags' names that are raised.
+    pub fn raised(&self) -> Vec<&'static str> {
+        [
+            (self.oscillation.raised, "oscillation"),
+            (self.bump_stop.raised, "bump stop"),
+            (self.drive_limit.raised, "drive limit"),
+            (self.chopper.raised, "chopper"),
+            (self.p_ct_range.raised, "P_CT > 100 %"),
+        ]
+        .into_iter()
+        .filter_map(|(r, n)| r.then_some(n))
+        .collect()
+    }
+
+    /// The flags that make comfort numbers meaningless (the ride is not the controller's
+    /// intended one): oscillation and bump-stop contact.
+    pub fn ride_invalid(&self) -> bool {
+        self.oscillation.raised || self.bump_stop.raised
+    }
+
+    /// One line per raised flag, with its value.
+    pub fn describe(&self) -> Vec<String> {
+        let mut v = Vec::new();
+        let o = &self.oscillation;
+        if o.raised {
+            v.push(format!(
+                "oscillation: θ_v − θ_ref oscillates ±{:.2}° at {:.2} Hz ({} of {} windows of 2 s)",
+                o.amplitude_deg, o.frequency_hz, o.windows_oscillating, o.windows
+            ));
+        }
+        let b = &self.bump_stop;
+        if b.raised {
+            v.push(format!(
+                "bump stop: secondary deflection {:.1} mm against a {:.0} mm clearance, {:.3} s in contact",
+                b.deflection_peak_mm, b.clearance_mm, b.time_in_contact_s
+            ));
+        }
+        let d = &self.drive_limit;
+        if d.raised {
+            v.push(format!(
+                "drive limit: {:.3} s at a limit (torque {:.3} s, current {:.3} s, speed {:.3} s, stroke {:.3} s, end stop {:.3} s, over-current trip {:.3} s, over-voltage {:.3} s)",
+                d.time_at_any_limit_s, d.torque_s, d.current_s, d.speed_s, d.stroke_command_s,
+                d.end_stop_s, d.overcurrent_trip_s, d.overvoltage_s
+            ));
+        }
+        let c = &self.chopper;
+        if c.raised {
+            v.push(format!(
+                "chopper: {:.1} kJ of braking energy dumped ({:.3} s on, link up to {:.0} V)",
+                c.energy_j / 1e3,
+                c.time_on_s,
+                c.v_dc_max
+            ));
+        }
+        if self.p_ct_range.raised {
+            v.push(format!(
+                "P_CT {:.1} % is outside the formula's range (0-100 %)",
+                self.p_ct_range.largest_pct
+            ));
+        }
+        v
+    }
+}
+
+/// Amplitude of the sinusoid at `f` Hz in `x` (step `dt`), by correlation.
+fn amplitude_at(x: &[f64], dt: f64, f: f64) -> f64 {
+    let w = std::f64::consts::TAU * f * dt;
+    let (mut c, mut s) = (0.0, 0.0);
+    for (k, v) in x.iter().enumerate() {
+        let a = w * k as f64;
+        c += v * a.cos();
+        s += v * a.sin();
+    }
+    2.0 * (c * c + s * s).sqrt() / x.len() as f64
+}
+
+/// Start indices of the 2 s windows (`n` samples) that lie where `reference` has not moved
+/// for at least `settle` samples.
+fn steady_windows(reference: &[f64], n: usize, settle: usize) -> Vec<usize> {
+    let mut out = Vec::new();
+    let mut still = 0usize; // samples since the reference last moved
+    let mut start: Option<usize> = None;
+    for k in 0..reference.len() {
+        let moved = k > 0 && reference[k] != reference[k - 1];
+        still = if moved { 0 } else { still + 1 };
+        // A window may begin once the reference has been still for `settle` samples, or at
+        // the start of the run (the vehicle starts at rest on a steady reference).
+        let steady = !moved && (still > settle || still == k + 1);
+        match (steady, start) {
+            (true, None) => start = Some(k),
+            (false, Some(_)) => start = None,
+            _ => {}
+        }
+        if let Some(s0) = start {
+            if k + 1 - s0 == n {
+                out.push(s0);
+                start = Some(k + 1);
+            }
+        }
+    }
+    out
+}
+
+/// The oscillation flag of a roll-error series `e` against its `reference` (step `dt`).
+pub fn oscillation(e: &[f64], reference: &[f64], dt: f64) -> Oscillation {
+    let mut o = Oscillation {
+        threshold_deg: OSCILLATION_THRESHOLD_DEG,
+        ..Default::default()
+    };
+    let n = (WINDOW_S / dt).round() as usize;
+    if n < 2 || e.len() < n || reference.len() != e.len() {
+        return o;
+    }
+    let lp = low_pass(e, dt, 0.3);
+    let hp: Vec<f64> = e.iter().zip(&lp).map(|(a, b)| a - b).collect();
+    let mut best = (0.0, None);
+    for s0 in steady_windows(reference, n, (SETTLE_S / dt).round() as usize) {
+        let chunk = &hp[s0..s0 + n];
+        let rms = (chunk.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
+        let amp = (std::f64::consts::SQRT_2 * rms).to_degrees();
+        o.windows += 1;
+        if amp > OSCILLATION_THRESHOLD_DEG {
+            o.windows_oscillating += 1;
+        }
+        if amp > best.0 {
+            best = (amp, Some(s0));
+        }
+    }
+    let Some(s0) = best.1 else {
+        return o;
+    };
+    o.amplitude_deg = best.0;
+    let win = &hp[s0..s0 + n];
+    // Spectrum peak, 0.2-20 Hz in steps of 0.02 Hz (the 2 s window resolves 0.5 Hz; the fine
+    // grid places the peak within it).
+    let mut peak = (0.0, 0.0);
+    let mut f = 0.2;
+    while f <= 20.0 {
+        let a = amplitude_at(win, dt, f);
+        if a > peak.0 {
+            peak = (a, f);
+        }
+        f += 0.02;
+    }
+    o.frequency_hz = peak.1;
+    o.raised = 2 * o.windows_oscillating > o.windows;
+    o
+}
+
+/// Every flag of a run.
+pub fn assess(inp: &FlagInputs, comfort: &Comfort) -> Flags {
+    let dt = inp.dt;
+    let time = |bits: u32| inp.limits.iter().filter(|&&l| l & bits != 0).count() as f64 * dt;
+    let any = limit::TORQUE
+        | limit::CURRENT
+        | limit::SPEED
+        | limit::STROKE_COMMAND
+        | limit::END_STOP
+        | limit::OVERCURRENT_TRIP
+        | limit::OVERVOLTAGE;
+    let drive = DriveLimit {
+        raised: time(any) > 0.0,
+        time_at_any_limit_s: time(any),
+        torque_s: time(limit::TORQUE),
+        current_s: time(limit::CURRENT),
+        speed_s: time(limit::SPEED),
+        stroke_command_s: time(limit::STROKE_COMMAND),
+        end_stop_s: time(limit::END_STOP),
+        overcurrent_trip_s: time(limit::OVERCURRENT_TRIP),
+        overvoltage_s: time(limit::OVERVOLTAGE),
+        phase_current_peak_a: inp.phase_current_peak.iter().fold(0.0, |m, v| m.max(*v)),
+    };
+    let energy: f64 = inp.chopper_power.iter().sum::<f64>() * dt;
+    let chopper = Chopper {
+        raised: energy > CHOPPER_THRESHOLD_J,
+        energy_j: energy,
+        threshold_j: CHOPPER_THRESHOLD_J,
+        time_on_s: time(limit::CHOPPER),
+        v_dc_max: inp.v_dc.iter().fold(0.0, |m, v| m.max(*v)),
+    };
+    let peak = inp.deflection.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let contact = inp
+        .deflection
+        .iter()
+        .filter(|v| v.abs() >= inp.clearance)
+        .count() as f64
+        * dt;
+    let bump = BumpStop {
+        raised: peak >= inp.clearance,
+        deflection_peak_mm: peak * 1e3,
+        clearance_mm: inp.clearance * 1e3,
+        time_in_contact_s: contact,
+    };
+    let largest = [
+        comfort.p_ct.standing,
+        comfort.p_ct.seated,
+        comfort.p_ct_en12299.standing,
+        comfort.p_ct_en12299.seated,
+    ]
+    .into_iter()
+    .fold(0.0, f64::max);
+    Flags {
+        oscillation: oscillation(&inp.roll_error, &inp.reference, dt),
+        bump_stop: bump,
+        drive_limit: drive,
+        chopper,
+        p_ct_range: PctRange {
+            raised: largest > 100.0,
+            largest_pct: largest,
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sinusoid_is_found_with_its_amplitude_and_frequency() {
+        let dt = 1e-3;
+        // 0.5° at 1.3 Hz on top of a slow ramp (a transition's quasi-static error).
+        let e: Vec<f64> = (0..16_000)
+            .map(|k| {
+                let t = k as f64 * dt;
+                0.5f64.to_radians() * (std::f64::consts::TAU * 1.3 * t).sin() + 1e-3 * t
+            })
+            .collect();
+        // A reference that is steady except for a ramp from 6 to 8 s: windows at 0, 2, 4 s and
+        // from just after 10 s (2 s after the ramp): 10-12 and 12-14 s (the next would end
+        // after 16 s).
+        let r: Vec<f64> = (0..16_000)
+            .map(|k| (k as f64 * dt - 6.0).clamp(0.0, 2.0))
+            .collect();
+        let o = oscillation(&e, &r, dt);
+        assert!(o.raised);
+        assert_eq!(o.windows, 5, "{o:?}");
+        // x − LP(x) at 1.3 Hz: the 0.3 Hz low-pass still passes 5 % at about −160°, so the
+        // high-pass shows up to 1.05 times the amplitude, plus what is left of the ramp's
+        // filter transient: within 10 %.
+        assert!((o.amplitude_deg - 0.5).abs() < 0.05, "{o:?}");
+        assert!((o.frequency_hz - 1.3).abs() < 0.05, "{o:?}");
+        // Below the threshold: clear, amplitude still reported.
+        let small: Vec<f64> = e.iter().map(|v| v * 0.1).collect();
+        let o = oscillation(&small, &r, dt);
+        assert!(!o.raised && o.amplitude_deg > 0.04, "{o:?}");
+    }
+}
