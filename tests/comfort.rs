@@ -20,7 +20,9 @@ fn compare_writes_table_4_with_the_papers_values_and_our_differences() {
     let csv = std::fs::read_to_string(dir.join("table.csv")).unwrap();
     // Paper's LQG peak lateral acceleration, 9.796 %g, shown next to ours.
     assert!(md.contains("[9.796]"), "{md}");
-    assert!(md.contains("| metric | passive [paper-passive] | LQG [paper-lqg] |"));
+    assert!(md.contains(
+        "| metric | ideal tilt (ρ = 0.30) | passive [paper-passive] | LQG [paper-lqg] |"
+    ));
     // The CSV carries the same numbers as each run's summary.json.
     let s = summary(&dir.join("paper-lqg"));
     let ours = s["comfort"]["lat_acc_peak_pct_g"].as_f64().unwrap();

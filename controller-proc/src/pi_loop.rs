@@ -172,8 +172,7 @@ impl PiLoop {
                     let gm = -20.0 * m.log10();
                     if out.gain_margin_db.is_none_or(|g| gm < g) {
                         out.gain_margin_db = Some(gm);
-                        out.phase_crossover_hz =
-                            Some((w0 + f * (w - w0)) / std::f64::consts::TAU);
+                        out.phase_crossover_hz = Some((w0 + f * (w - w0)) / std::f64::consts::TAU);
                     }
                 }
             }
@@ -192,7 +191,8 @@ impl PiLoop {
         let ok = |kp: f64| {
             let m = self.margins(kp, kp / ti_s);
             // No gain crossover in the scan (NaN): the loop gain stays below 1 above 0.01 Hz.
-            !(m.phase_margin_deg < pm_deg) && m.gain_margin_db.is_none_or(|g| g >= gm_db)
+            (m.phase_margin_deg.is_nan() || m.phase_margin_deg >= pm_deg)
+                && m.gain_margin_db.is_none_or(|g| g >= gm_db)
         };
         let (mut lo, mut hi) = (1e-3f64, 1e3f64);
         if !ok(lo) {

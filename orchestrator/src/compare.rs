@@ -158,6 +158,9 @@ fn cell_flags(e: &Entry, r: usize, v: f64) -> Vec<String> {
     tags
 }
 
+/// A flag row's cell: raised, and the measured value as text.
+type FlagCell = fn(&crate::validity::Flags) -> (bool, String);
+
 /// `table.md` and `table.csv`.
 pub fn tables(entries: &[Entry]) -> (String, String) {
     let mut md = String::new();
@@ -224,7 +227,11 @@ pub fn tables(entries: &[Entry]) -> (String, String) {
     // Differences from the ideal tilt.
     for (name, r, unit) in [
         ("Lateral acceleration peak over ideal tilt", 1, "%g"),
-        ("P_CT standing (whole-run peaks) over ideal tilt", 5, "points"),
+        (
+            "P_CT standing (whole-run peaks) over ideal tilt",
+            5,
+            "points",
+        ),
         ("P_CT seated (whole-run peaks) over ideal tilt", 6, "points"),
         ("P_CT standing (EN 12299) over ideal tilt", 7, "points"),
     ] {
@@ -251,18 +258,36 @@ pub fn tables(entries: &[Entry]) -> (String, String) {
         md.push('\n');
     }
     // Validity flags, each with its measured value.
-    let flag_rows: [(&str, fn(&crate::validity::Flags) -> (bool, String)); 5] = [
-        ("Oscillation of θ_v − θ_ref (amplitude, frequency)", |f| {
-            let o = &f.oscillation;
-            (o.raised, format!("±{:.3}° at {:.2} Hz", o.amplitude_deg, o.frequency_hz))
-        }),
+    let flag_rows: [(&str, FlagCell); 5] = [
+        (
+            "Oscillation of θ_v − θ_ref (amplitude, frequency)",
+            |f| {
+                let o = &f.oscillation;
+                (
+                    o.raised,
+                    format!("±{:.3}° at {:.2} Hz", o.amplitude_deg, o.frequency_hz),
+                )
+            },
+        ),
         ("Bump-stop contact (peak deflection, time)", |f| {
             let b = &f.bump_stop;
-            (b.raised, format!("{:.1} mm, {:.3} s", b.deflection_peak_mm, b.time_in_contact_s))
+            (
+                b.raised,
+                format!(
+                    "{:.1} mm, {:.3} s",
+                    b.deflection_peak_mm, b.time_in_contact_s
+                ),
+            )
         }),
         ("Time at a drive limit (s)", |f| {
             let d = &f.drive_limit;
-            (d.raised, format!("{:.3} (torque {:.3}, speed {:.3})", d.time_at_any_limit_s, d.torque_s, d.speed_s))
+            (
+                d.raised,
+                format!(
+                    "{:.3} (torque {:.3}, speed {:.3})",
+                    d.time_at_any_limit_s, d.torque_s, d.speed_s
+                ),
+            )
         }),
         ("Energy dumped in the braking chopper (kJ)", |f| {
             let c = &f.chopper;
@@ -295,18 +320,29 @@ pub fn tables(entries: &[Entry]) -> (String, String) {
         }
         md.push('\n');
     }
-    let _ = writeln!(md, "\n| run | status | steps | wall (s) | actuator | command shaping | controller compute p99 (µs) |\n|---|---|---|---|---|---|---|");
+    let _ = writeln!(
+        md,
+        "\n| run | status | steps | wall (s) | actuator | command shaping | torque peak (N·m) | \
+         phase current peak (A) | motoring / braking power peak (kW) | chopper (kJ) | \
+         controller compute p99 (µs) |\n|---|---|---|---|---|---|---|---|---|---|---|"
+    );
     for e in entries {
         let s = &e.summary;
+        let d = &s.flags.drive_limit;
         let _ = writeln!(
             md,
-            "| {} | {:?} | {} | {:.2} | {:?} | {:?} | {:.1} |",
+            "| {} | {:?} | {} | {:.2} | {:?} | {:?} | {:.0} | {:.1} | {:.1} / {:.1} | {:.2} | {:.1} |",
             e.scenario.name,
             s.status,
             s.steps_completed,
             s.wall_time_s,
             e.scenario.actuator.model,
             e.scenario.actuator.command_shaping,
+            d.torque_peak_nm,
+            d.phase_current_peak_a,
+            d.motoring_power_peak_w / 1e3,
+            d.braking_power_peak_w / 1e3,
+            s.flags.chopper.energy_j / 1e3,
             s.participants
                 .get(2)
                 .map(|p| p.compute_us.p99)

@@ -1187,7 +1187,25 @@ pub fn signals_from_run(s: &Scenario, dir: &std::path::Path) -> crate::comfort::
         "theta_b",
     ]
     .map(col);
-    let rows: Vec<[f64; 10]> = all.iter().map(|f| idx.map(|i| f[i])).collect();
+    let raw: Vec<[f64; 10]> = all.iter().map(|f| idx.map(|i| f[i])).collect();
+    // The reference of eq 18 at each row's own position, continuous: the recorded θ_ref is
+    // the controller's, held over its period (50 ms for the MPC), whose steps would read as
+    // roll-speed spikes of the reference.
+    let s_col = col("s");
+    let positions: Vec<f64> = all.iter().map(|f| f[s_col]).collect();
+    let reference: Vec<f64> = match controller_proc::Controller::new(&s.controller_init()) {
+        Ok(c) => positions.iter().map(|&x| c.reference_at(x)).collect(),
+        Err(_) => raw.iter().map(|r| r[2]).collect(),
+    };
+    let rows: Vec<[f64; 10]> = raw
+        .iter()
+        .zip(&reference)
+        .map(|(r, &th)| {
+            let mut r = *r;
+            r[2] = th;
+            r
+        })
+        .collect();
     let veh = plant_proc::Vehicle::new(s.vehicle.clone(), s.track.speed());
     let n = rows.len();
     let dt = s.run.dt_s;
@@ -1347,6 +1365,8 @@ pub fn flags_of(
         clearance: s.comfort.bump_stop_m,
         limits: get("actuator_limits").iter().map(|v| *v as u32).collect(),
         phase_current_peak: get("phase_current_peak"),
+        torque: get("motor_torque"),
+        dc_power: get("dc_power"),
         chopper_power: get("chopper_power"),
         v_dc: get("v_dc"),
     };

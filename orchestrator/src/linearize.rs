@@ -2,8 +2,8 @@
 //! discrete matrices, eigenvalues with natural frequencies and damping) and, for the LQG and
 //! MPC modes, the gains the controller will run with.
 
-use controller_proc::design::{modes_of, rows, LinearModel};
 use actuator_proc::ActuatorModel;
+use controller_proc::design::{modes_of, rows, LinearModel};
 use controller_proc::pi_loop::{ActuatorLag, PiLoop};
 use controller_proc::{Lqg, Mode, Mpc};
 use serde_json::{json, Value};

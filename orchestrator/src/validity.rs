@@ -96,6 +96,12 @@ pub struct DriveLimit {
     pub overvoltage_s: f64,
     /// Largest phase current in any electrical step (A).
     pub phase_current_peak_a: f64,
+    /// Largest |electromagnetic torque| of any millisecond (N·m).
+    pub torque_peak_nm: f64,
+    /// Largest power drawn from the DC link in any millisecond (W).
+    pub motoring_power_peak_w: f64,
+    /// Largest power returned to the DC link in any millisecond (W).
+    pub braking_power_peak_w: f64,
 }
 
 /// Energy dumped in the braking chopper.
@@ -154,6 +160,10 @@ pub struct FlagInputs {
     pub limits: Vec<u32>,
     /// Largest phase current per row (A).
     pub phase_current_peak: Vec<f64>,
+    /// Mean electromagnetic torque per row (N·m).
+    pub torque: Vec<f64>,
+    /// Power drawn from the DC link per row (W).
+    pub dc_power: Vec<f64>,
     /// Chopper power per row (W).
     pub chopper_power: Vec<f64>,
     /// DC-link voltage per row (V).
@@ -294,9 +304,9 @@ pub fn oscillation(e: &[f64], reference: &[f64], dt: f64) -> Oscillation {
     o.amplitude_deg = amp;
     o.frequency_hz = f;
     let a_min = per.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
-    let (f_min, f_max) = per
-        .iter()
-        .fold((f64::INFINITY, 0.0f64), |(lo, hi), p| (lo.min(p.1), hi.max(p.1)));
+    let (f_min, f_max) = per.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), p| {
+        (lo.min(p.1), hi.max(p.1))
+    });
     o.amplitude_ratio = if amp > 0.0 { a_min / amp } else { 0.0 };
     o.frequency_spread_hz = f_max - f_min;
     o.raised = 2 * o.windows_oscillating > o.windows
@@ -341,6 +351,9 @@ pub fn assess(inp: &FlagInputs, comfort: &Comfort) -> Flags {
         overcurrent_trip_s: time(limit::OVERCURRENT_TRIP),
         overvoltage_s: time(limit::OVERVOLTAGE),
         phase_current_peak_a: inp.phase_current_peak.iter().fold(0.0, |m, v| m.max(*v)),
+        torque_peak_nm: inp.torque.iter().fold(0.0, |m, v| m.max(v.abs())),
+        motoring_power_peak_w: inp.dc_power.iter().fold(0.0, |m, v| m.max(*v)),
+        braking_power_peak_w: inp.dc_power.iter().fold(0.0, |m, v| m.max(-*v)),
     };
     let energy: f64 = inp.chopper_power.iter().sum::<f64>() * dt;
     let chopper = Chopper {
