@@ -9,13 +9,17 @@ use crate::comfort::Comfort;
 use crate::engine::Summary;
 use crate::scenario::Scenario;
 
-/// The paper's Table 4 columns for its own controllers (ρ = 0.30, no preview), in row order.
+/// The paper's Table 4 columns for its own controllers (its PI gains, ρ = 0.30, deterministic
+/// track, no preview), in row order.
 fn paper_column(s: &Scenario) -> Option<[f64; 7]> {
     let c = &s.controller;
-    if (c.rho - 0.30).abs() > 1e-9 {
+    // The paper's Table 4 is for its deterministic track at ρ = 0.30.
+    if (c.rho - 0.30).abs() > 1e-9 || s.track.irregularity.amplitude_deg > 0.0 {
         return None;
     }
+    let paper_pi = controller_proc::PiGains::default();
     match c.mode {
+        Mode::Pi if c.pi != paper_pi => None,
         Mode::Pi => Some([0.133, 8.491, 0.033, 0.118, 4.373, 35.975, 8.397]),
         Mode::Lqg => Some([0.832, 9.796, 0.008, 0.100, 4.893, 36.412, 9.448]),
         Mode::Mpc if !c.mpc.preview && !c.kalman.track_input => {
