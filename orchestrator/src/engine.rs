@@ -406,6 +406,8 @@ struct Loop<'a> {
     overhead: Vec<f64>,
     ticks: Vec<f64>,
     pacing: Option<Pacing>,
+    /// The actuator's limit bits of the previous tick (protection events on rising edges).
+    drive_bits: u32,
 }
 
 fn idx(r: Role) -> usize {
@@ -417,6 +419,38 @@ fn idx(r: Role) -> usize {
 }
 
 impl Loop<'_> {
+    /// Logs the drive's protections as they begin: an over-current or over-voltage trip and
+    /// the braking chopper switching on (value: the phase-current peak, A, or link voltage, V).
+    fn drive_events(&mut self, k: u64, a: &FromActuator) {
+        use actuator_proc::bldc::limit;
+        let rising = a.limits & !self.drive_bits;
+        self.drive_bits = a.limits;
+        for (bit, name, value, detail) in [
+            (
+                limit::OVERCURRENT_TRIP,
+                "overcurrent-trip",
+                a.phase_current_peak,
+                "a phase current passed the current limit plus half the band; gates blocked",
+            ),
+            (
+                limit::OVERVOLTAGE,
+                "overvoltage-trip",
+                a.v_dc,
+                "the DC link passed its over-voltage trip level; gates blocked",
+            ),
+            (
+                limit::CHOPPER,
+                "chopper-on",
+                a.v_dc,
+                "the DC link reached the chopper threshold; braking energy dumped",
+            ),
+        ] {
+            if rising & bit != 0 {
+                self.event(k, "actuator", name, value, detail.into());
+            }
+        }
+    }
+
     fn event(&mut self, k: u64, source: &str, event: &'static str, value: f64, detail: String) {
         self.events.push(Event {
             step: k,
@@ -833,6 +867,8 @@ fn lockstep(
         let comp = &mut lp.compute;
         comp.plant.push(cp as f64 * 1e-3);
         comp.actuator.push(ca as f64 * 1e-3);
+        lp.drive_events(k, &h.a);
+        let comp = &mut lp.compute;
         if c_due {
             comp.controller.push(cc as f64 * 1e-3);
             match h.c.solver_status {
@@ -916,6 +952,7 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
         degraded: false,
         overhead: Vec::with_capacity(s.steps() as usize),
         ticks: Vec::with_capacity(s.steps() as usize),
+        drive_bits: 0,
         pacing: opts.pace.map(|factor| Pacing {
             factor,
             overruns: 0,
