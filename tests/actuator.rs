@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use tiltsim_suite::{run, scenario_with, temp_dir, Series};
+use tiltsim_suite::{run_in_process, scenario_with, Series};
 
 fn run_model(name: &str, file: &str, model: &str, extra_toml: &str) -> PathBuf {
     let path = scenario_with(
@@ -12,19 +12,7 @@ fn run_model(name: &str, file: &str, model: &str, extra_toml: &str) -> PathBuf {
         &format!("model = \"{model}\"\n{extra_toml}"),
         name,
     );
-    let dir = temp_dir(name);
-    let out = dir.join("out");
-    let (code, _, err) = run(&[
-        "run",
-        path.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--transport",
-        "in-process",
-        "-q",
-    ]);
-    assert_eq!(code, 0, "{name}: {err}");
-    out
+    run_in_process(name, &path)
 }
 
 fn series(d: &Path) -> Series {

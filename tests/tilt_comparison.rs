@@ -2,25 +2,10 @@
 //! valid (issue 11): phase currents and torque over whole paper runs, command shaping, the PI
 //! designed for the drive against the paper's PI, validity flags and the ideal-tilt floor.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
+use tiltsim_suite::run_in_process as run_file;
 use tiltsim_suite::{run, scenario, summary, temp_dir, Series};
-
-/// Runs `path` in-process into a fresh directory named `name`; returns the run directory.
-fn run_file(name: &str, path: &Path) -> PathBuf {
-    let out = temp_dir(name).join("out");
-    let (code, _, err) = run(&[
-        "run",
-        path.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--transport",
-        "in-process",
-        "-q",
-    ]);
-    assert_eq!(code, 0, "{name}: {err}");
-    out
-}
 
 /// A shipped scenario with its actuator model and command shaping set.
 fn variant(file: &str, model: &str, shaping: &str) -> PathBuf {
@@ -37,6 +22,18 @@ fn variant(file: &str, model: &str, shaping: &str) -> PathBuf {
 
 fn max_abs(v: &[f64]) -> f64 {
     v.iter().fold(0.0f64, |m, x| m.max(x.abs()))
+}
+
+const FLAGS: [&str; 5] = [
+    "oscillation",
+    "bump_stop",
+    "drive_limit",
+    "chopper",
+    "p_ct_range",
+];
+
+fn peak_to_peak(v: &[f64]) -> f64 {
+    v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min)
 }
 
 #[test]
@@ -169,9 +166,7 @@ fn the_papers_pi_is_flagged_as_oscillating_and_the_drive_designed_pi_is_clean() 
         "flag {f_flag} Hz, zero crossings {f} Hz"
     );
     let amp = osc["amplitude_deg"].as_f64().unwrap();
-    let pp = (e.iter().cloned().fold(f64::MIN, f64::max)
-        - e.iter().cloned().fold(f64::MAX, f64::min))
-    .to_degrees();
+    let pp = peak_to_peak(&e).to_degrees();
     assert!(
         amp > 1.0 && amp < pp,
         "amplitude {amp}°, peak to peak {pp}°"
@@ -194,9 +189,7 @@ fn the_papers_pi_is_flagged_as_oscillating_and_the_drive_designed_pi_is_clean() 
         .filter(|&k| t[k] < 3.0)
         .map(|k| tv[k] - tr[k])
         .collect();
-    let pp = (straight.iter().cloned().fold(f64::MIN, f64::max)
-        - straight.iter().cloned().fold(f64::MAX, f64::min))
-    .to_degrees();
+    let pp = peak_to_peak(&straight).to_degrees();
     assert!(pp < 0.2, "θ_v − θ_ref {pp}° peak to peak on the straight");
     let passive = Series::read(
         &run_file("pi-passive", &scenario("paper-passive.toml")).join("timeseries.csv"),
@@ -216,13 +209,7 @@ fn the_papers_pi_is_flagged_as_oscillating_and_the_drive_designed_pi_is_clean() 
         "steady curve {got} vs (1 − ρ)·passive {want} m/s²"
     );
     let flags = summary(&dir)["flags"].clone();
-    for f in [
-        "oscillation",
-        "bump_stop",
-        "drive_limit",
-        "chopper",
-        "p_ct_range",
-    ] {
+    for f in FLAGS {
         assert_eq!(flags[f]["raised"], false, "pi-drive flag {f}: {}", flags[f]);
     }
 }
@@ -230,13 +217,7 @@ fn the_papers_pi_is_flagged_as_oscillating_and_the_drive_designed_pi_is_clean() 
 #[test]
 fn a_clean_lqg_run_has_every_flag_clear() {
     let flags = summary(&run_file("lqg-clean", &scenario("paper-lqg.toml")))["flags"].clone();
-    for f in [
-        "oscillation",
-        "bump_stop",
-        "drive_limit",
-        "chopper",
-        "p_ct_range",
-    ] {
+    for f in FLAGS {
         assert_eq!(
             flags[f]["raised"], false,
             "paper-lqg flag {f}: {}",

@@ -177,6 +177,23 @@ pub fn scenario_with(file: &str, from: &str, to: &str, name: &str) -> PathBuf {
     p
 }
 
+/// Runs scenario file `path` in-process into a fresh directory named after `name` and returns
+/// the run directory; the run must complete.
+pub fn run_in_process(name: &str, path: &Path) -> PathBuf {
+    let out = temp_dir(name).join("out");
+    let (code, _, err) = run(&[
+        "run",
+        path.to_str().expect("utf-8 path"),
+        "--out",
+        out.to_str().expect("utf-8 path"),
+        "--transport",
+        "in-process",
+        "-q",
+    ]);
+    assert_eq!(code, 0, "{name}: {err}");
+    out
+}
+
 /// Reads `summary.json`.
 pub fn summary(dir: &Path) -> serde_json::Value {
     let p = dir.join("summary.json");
