@@ -998,6 +998,24 @@ mod tests {
                 out
             );
             assert!(e.copper > 0.0 && e.load.abs() > 0.0);
+            // The DC link closes too: what the rectifier delivered went to the inverter, the
+            // chopper or the capacitor (exact on the link's own booking), and what the link
+            // booked as drawn by the inverter (on each step's mean link voltage) is what the
+            // motor booked (on the start-of-step voltage) within ½·Δv·i·dt per step: 1e-4.
+            let l = m.link.energy;
+            let c0 = 0.5 * DcLinkParams::default().capacitance_f * p.v_dc * p.v_dc;
+            let link_out = l.inverter + l.chopper + (m.link.stored() - c0);
+            assert!(
+                (l.rectifier - link_out).abs() < 1e-9 * l.rectifier,
+                "{kind:?}: rectifier {} J, out {link_out} J",
+                l.rectifier
+            );
+            assert!(
+                (l.inverter - e.electrical_in).abs() < 1e-4 * l.rectifier,
+                "{kind:?}: link {} J, motor {} J",
+                l.inverter,
+                e.electrical_in
+            );
         }
     }
 
