@@ -1,8 +1,9 @@
 //! Physics of the plant against values derived independently of the simulation.
 
 use nalgebra::{Matrix5, Vector5};
-use plant_proc::vehicle::ix;
-use plant_proc::{Plant, PlantSettings, TrackParams, Vehicle, VehicleParams, G};
+use plant_proc::{Plant, PlantSettings};
+use vehicle_model::vehicle::ix;
+use vehicle_model::{TrackParams, Vehicle, VehicleParams, G};
 
 /// Static equilibrium on a steady curve, solved by hand from the force and moment balances of
 /// model-notes (eqs 9-12, A.2 with every rate zero): unknowns [y_v, θ_v, y_b, θ_b, θ_r].
@@ -126,10 +127,10 @@ fn every_mode_of_the_vehicle_is_stable_and_the_primary_lateral_mode_is_where_phy
 fn state_space_matches_the_simulation_model() {
     let veh = Vehicle::new(VehicleParams::default(), 45.0);
     let ss = veh.state_space();
-    let x = plant_proc::vehicle::State::from_fn(|i, _| {
+    let x = vehicle_model::vehicle::State::from_fn(|i, _| {
         0.01 * (i as f64 + 1.0) * if i % 2 == 0 { 1.0 } else { -1.0 }
     });
-    let w = plant_proc::TrackInput {
+    let w = vehicle_model::TrackInput {
         curvature: 1e-3,
         cant: 0.1,
         cant_acc: 0.3,

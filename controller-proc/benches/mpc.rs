@@ -10,7 +10,7 @@ use controller_proc::mpc::MpcInput;
 use controller_proc::{
     ControllerInit, ControllerSettings, KalmanSettings, LinearModel, Mode, Mpc, MpcSettings,
 };
-use plant_proc::{TrackParams, VehicleParams};
+use vehicle_model::{TrackParams, VehicleParams};
 
 fn main() {
     let track = TrackParams::default();

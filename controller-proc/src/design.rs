@@ -1,9 +1,9 @@
 //! The linear design model (paper eqs 14-15, 30-31), derived from the plant's own equations
-//! ([`plant_proc::Vehicle::state_space`]) so that plant and controllers share one source of truth.
+//! ([`vehicle_model::Vehicle::state_space`]) so that plant and controllers share one source of truth.
 
 use nalgebra::DMatrix;
-use plant_proc::{Vehicle, VehicleParams};
 use serde::Serialize;
+use vehicle_model::{Vehicle, VehicleParams};
 
 use crate::linalg::c2d;
 

@@ -1,7 +1,7 @@
 //! `controller-proc`: the tilt controller.
 //!
 //! The controller knows the track only through its onboard database (design curvature and
-//! cant along the route, [`plant_proc::Track::design`]) and the vehicle's position, never
+//! cant along the route, [`vehicle_model::Track::design`]) and the vehicle's position, never
 //! through the plant's state. Modes (`controller.mode`):
 //! * `passive`: zero command (a non-tilting vehicle); the reference is still computed and
 //!   recorded.
@@ -21,8 +21,8 @@ pub mod pi_loop;
 use cosim::msg::{FromController, ToController};
 use cosim::settings::Checker;
 use cosim::{Participant, Role};
-use plant_proc::{Track, TrackParams, Vehicle, VehicleParams, G};
 use serde::{Deserialize, Serialize};
+use vehicle_model::{Track, TrackParams, Vehicle, VehicleParams, G};
 
 pub use design::LinearModel;
 pub use lqg::{KalmanSettings, Lqg, LqgSettings};
@@ -179,8 +179,8 @@ pub fn passive_roll_gains(vehicle: &VehicleParams, v: f64) -> (f64, f64) {
     let x_k = -(inv * ss.g.column(0));
     let x_c = -(inv * ss.g.column(1));
     (
-        x_k[plant_proc::vehicle::ix::TH_V],
-        x_c[plant_proc::vehicle::ix::TH_V],
+        x_k[vehicle_model::vehicle::ix::TH_V],
+        x_c[vehicle_model::vehicle::ix::TH_V],
     )
 }
 

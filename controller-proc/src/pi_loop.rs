@@ -221,7 +221,7 @@ impl PiLoop {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use plant_proc::{TrackParams, VehicleParams};
+    use vehicle_model::{TrackParams, VehicleParams};
 
     fn lp(actuator: ActuatorLag) -> PiLoop {
         let m = LinearModel::new(&VehicleParams::default(), TrackParams::default().speed());

@@ -1194,7 +1194,7 @@ fn write_trace(
 
 /// Times (s) at which the vehicle enters the first transition, the steady curve, the second
 /// transition and the final straight.
-fn section_times(tp: &plant_proc::TrackParams) -> [f64; 4] {
+fn section_times(tp: &vehicle_model::TrackParams) -> [f64; 4] {
     let v = tp.speed();
     let t1 = tp.straight_before_m / v;
     let t2 = t1 + tp.transition_m / v;
@@ -1243,7 +1243,7 @@ pub fn signals_from_run(s: &Scenario, dir: &std::path::Path) -> crate::comfort::
             r
         })
         .collect();
-    let veh = plant_proc::Vehicle::new(s.vehicle.clone(), s.track.speed());
+    let veh = vehicle_model::Vehicle::new(s.vehicle.clone(), s.track.speed());
     let n = rows.len();
     let dt = s.run.dt_s;
     let deriv = |k: usize, f: &dyn Fn(&[f64; 10]) -> f64| {

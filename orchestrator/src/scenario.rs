@@ -7,8 +7,9 @@ use actuator_proc::ActuatorSettings;
 use controller_proc::ControllerSettings;
 use cosim::settings::{Checker, FieldError};
 use cosim::wait::WaitStrategy;
-use plant_proc::{SensorParams, TrackParams, VehicleParams};
+use plant_proc::SensorParams;
 use serde::{Deserialize, Serialize};
+use vehicle_model::{TrackParams, VehicleParams};
 
 /// Master algorithm of the lock-step (docs/architecture.md, "Coupling").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]

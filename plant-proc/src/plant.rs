@@ -17,8 +17,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
 use crate::params::PlantSettings;
-use crate::track::Track;
-use crate::vehicle::{ix, State, TrackInput, Vehicle};
+use vehicle_model::vehicle::{ix, State, TrackInput, Vehicle};
+use vehicle_model::Track;
 
 /// The plant: vehicle, track, sensor and time.
 pub struct Plant {

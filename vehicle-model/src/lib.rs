@@ -1,0 +1,19 @@
+//! `vehicle-model`: the tilting vehicle's end-view model and the track it runs on, shared by
+//! the plant (which simulates them) and the controller (whose design model and onboard track
+//! database they are), so that no process crate depends on another.
+//!
+//! * [`params`]: vehicle and track settings with the paper's values as defaults.
+//! * [`track`]: deterministic curve (straight, transition, steady curve, transition, straight)
+//!   and the seeded, band-limited cant irregularity.
+//! * [`vehicle`]: the 9-state model of paper eqs 9-13 and A.2, read as `model-notes.md` says.
+
+pub mod params;
+pub mod track;
+pub mod vehicle;
+
+pub use params::{IrregularityParams, TrackParams, VehicleParams};
+pub use track::Track;
+pub use vehicle::{TrackInput, Vehicle};
+
+/// Standard gravity (m/s²).
+pub const G: f64 = 9.81;
