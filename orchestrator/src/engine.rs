@@ -891,7 +891,7 @@ fn lockstep(
                 p.late_us.push((now - deadline).as_secs_f64() * 1e6);
             }
         }
-        rec.row(k, &h.p, &h.a, &h.c, &rx)
+        rec.write(&crate::record::Row::new(k, &h.p, &h.a, &h.c, &rx))
             .map_err(|e| LinkError::Transport {
                 role: Role::Plant,
                 what: format!("cannot record: {e}"),
@@ -1206,87 +1206,52 @@ fn section_times(tp: &vehicle_model::TrackParams) -> [f64; 4] {
 /// assessment needs.
 pub fn signals_from_run(s: &Scenario, dir: &std::path::Path) -> crate::comfort::Signals {
     use crate::comfort::Signals;
-    let Ok(all) = read_rows(dir) else {
+    let Ok(rows) = read_rows(dir) else {
         return Signals::default();
     };
-    let cols = crate::record::COLUMNS;
-    let col = |name: &str| cols.iter().position(|c| *c == name).unwrap_or(0);
-    let idx = [
-        "t",
-        "lat_acc",
-        "theta_ref",
-        "curvature",
-        "cant",
-        "dtheta_v",
-        "y_v",
-        "theta_v",
-        "y_b",
-        "theta_b",
-    ]
-    .map(col);
-    let raw: Vec<[f64; 10]> = all.iter().map(|f| idx.map(|i| f[i])).collect();
     // The reference of eq 18 at each row's own position, continuous: the recorded θ_ref is
     // the controller's, held over its period (50 ms for the MPC), whose steps would read as
     // roll-speed spikes of the reference.
-    let s_col = col("s");
-    let positions: Vec<f64> = all.iter().map(|f| f[s_col]).collect();
     let reference: Vec<f64> = match controller_proc::Controller::new(&s.controller_init()) {
-        Ok(c) => positions.iter().map(|&x| c.reference_at(x)).collect(),
-        Err(_) => raw.iter().map(|r| r[2]).collect(),
+        Ok(c) => rows.iter().map(|r| c.reference_at(r.s)).collect(),
+        Err(_) => rows.iter().map(|r| r.theta_ref).collect(),
     };
-    let rows: Vec<[f64; 10]> = raw
-        .iter()
-        .zip(&reference)
-        .map(|(r, &th)| {
-            let mut r = *r;
-            r[2] = th;
-            r
-        })
-        .collect();
     let veh = vehicle_model::Vehicle::new(s.vehicle.clone(), s.track.speed());
     let n = rows.len();
     let dt = s.run.dt_s;
-    let deriv = |k: usize, f: &dyn Fn(&[f64; 10]) -> f64| {
+    // Central difference of a per-row quantity (one-sided at the ends).
+    let deriv = |k: usize, f: &dyn Fn(usize) -> f64| {
         if n < 2 {
             return 0.0;
         }
         let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
-        (f(&rows[b]) - f(&rows[a])) / ((b - a) as f64 * dt)
+        (f(b) - f(a)) / ((b - a) as f64 * dt)
     };
     let (h1, h2) = (s.vehicle.h1, s.vehicle.h2);
     let [t1, t2, t3, t4] = section_times(&s.track);
     Signals {
-        t: rows.iter().map(|r| r[0]).collect(),
-        lat_acc: rows.iter().map(|r| r[1]).collect(),
+        t: rows.iter().map(|r| r.t).collect(),
+        lat_acc: rows.iter().map(|r| r.lat_acc).collect(),
         lat_acc_ref: rows
             .iter()
-            .map(|r| veh.lateral_acceleration(r[2], r[3], r[4]))
+            .zip(&reference)
+            .map(|(r, th)| veh.lateral_acceleration(*th, r.curvature, r.cant))
             .collect(),
-        roll_speed: (0..n).map(|k| rows[k][5] + deriv(k, &|r| r[4])).collect(),
-        roll_speed_ref: (0..n).map(|k| deriv(k, &|r| r[4] + r[2])).collect(),
+        roll_speed: (0..n)
+            .map(|k| rows[k].dtheta_v + deriv(k, &|i| rows[i].cant))
+            .collect(),
+        roll_speed_ref: (0..n)
+            .map(|k| deriv(k, &|i| rows[i].cant + reference[i]))
+            .collect(),
         deflection: rows
             .iter()
-            .map(|r| r[6] - h1 * r[7] - r[8] - h2 * r[9])
+            .map(|r| r.y_v - h1 * r.theta_v - r.y_b - h2 * r.theta_b)
             .collect(),
         transitions: vec![(t1, t2), (t3, t4)],
     }
 }
 
-/// Reads `dir/timeseries.csv` back as numeric rows (complete rows only).
-pub fn read_rows(dir: &std::path::Path) -> std::io::Result<Vec<Vec<f64>>> {
-    let text = std::fs::read_to_string(dir.join("timeseries.csv"))?;
-    let n = crate::record::COLUMNS.len();
-    Ok(text
-        .lines()
-        .skip(1)
-        .map(|l| {
-            l.split(',')
-                .map(|x| x.parse().unwrap_or(f64::NAN))
-                .collect()
-        })
-        .filter(|r: &Vec<f64>| r.len() >= n)
-        .collect())
-}
+pub use crate::record::read_rows;
 
 pub(crate) fn bands(s: &Scenario) -> Vec<(f64, f64, bool)> {
     let [t1, t2, t3, t4] = section_times(&s.track);
@@ -1296,13 +1261,7 @@ pub(crate) fn bands(s: &Scenario) -> Vec<(f64, f64, bool)> {
 /// Writes `dir/plots/*.svg` and `*.png` from `dir/timeseries.csv`.
 pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<PathBuf>> {
     let rows = read_rows(dir)?;
-    crate::plot::write_run_plots(
-        dir,
-        crate::record::COLUMNS,
-        &rows,
-        &bands(s),
-        s.controller.u_max_deg,
-    )
+    crate::plot::write_run_plots(dir, &rows, &bands(s), s.controller.u_max_deg)
 }
 
 /// Writes the figures that put several runs side by side (`out/plots/compare_*`): lateral
@@ -1313,8 +1272,7 @@ pub fn write_compare_plots(
     out: &std::path::Path,
 ) -> std::io::Result<Vec<PathBuf>> {
     use crate::plot::{Chart, Line, PALETTE};
-    let cols = crate::record::COLUMNS;
-    let col = |name: &str| cols.iter().position(|c| *c == name).unwrap_or(0);
+    use crate::record::Row;
     let mut data = Vec::new();
     for (label, _, dir) in runs {
         data.push((label.as_str(), read_rows(dir)?));
@@ -1322,36 +1280,36 @@ pub fn write_compare_plots(
     let n = data.iter().map(|(_, r)| r.len()).min().unwrap_or(0);
     let t: Vec<f64> = data
         .first()
-        .map(|(_, r)| r[..n].iter().map(|x| x[col("t")]).collect())
+        .map(|(_, r)| r[..n].iter().map(|x| x.t).collect())
         .unwrap_or_default();
     let plots = out.join("plots");
     std::fs::create_dir_all(&plots)?;
     let bands = runs.first().map(|r| bands(&r.1)).unwrap_or_default();
     let mut files = Vec::new();
-    for (name, title, y_label, column, scale) in [
+    let figures: [(&str, &str, &str, fn(&Row) -> f64, f64); 3] = [
         (
             "compare_lateral_acceleration",
             "Passenger lateral acceleration of each run (Figs 14-15)",
             "lateral acceleration (m/s²)",
-            "lat_acc",
+            |r| r.lat_acc,
             1.0,
         ),
         (
             "compare_body_roll",
             "Carbody roll of each run (Fig. 16)",
             "roll θ_v (deg)",
-            "theta_v",
+            |r| r.theta_v,
             1f64.to_degrees(),
         ),
         (
             "compare_control",
             "Achieved anti-roll-bar angle of each run (Fig. 17)",
             "bar angle δ_a (deg)",
-            "delta_a",
+            |r| r.delta_a,
             1f64.to_degrees(),
         ),
-    ] {
-        let i = col(column);
+    ];
+    for (name, title, y_label, column, scale) in figures {
         let chart = Chart {
             title,
             x_label: "time (s)",
@@ -1361,7 +1319,7 @@ pub fn write_compare_plots(
                 .enumerate()
                 .map(|(k, (label, rows))| Line {
                     label,
-                    y: rows[..n].iter().map(|r| r[i] * scale).collect(),
+                    y: rows[..n].iter().map(|r| column(r) * scale).collect(),
                     colour: PALETTE[k % PALETTE.len()],
                     dashed: false,
                 })
@@ -1383,29 +1341,19 @@ pub fn flags_of(
     let Ok(rows) = read_rows(dir) else {
         return crate::validity::Flags::default();
     };
-    let col = |name: &str| {
-        crate::record::COLUMNS
-            .iter()
-            .position(|c| *c == name)
-            .unwrap_or(0)
-    };
-    let get = |name: &str| -> Vec<f64> {
-        let i = col(name);
-        rows.iter().map(|r| r[i]).collect()
-    };
-    let (tv, tr) = (get("theta_v"), get("theta_ref"));
+    let get = |f: fn(&crate::record::Row) -> f64| -> Vec<f64> { rows.iter().map(f).collect() };
     let inputs = crate::validity::FlagInputs {
         dt: s.run.dt_s,
-        roll_error: tv.iter().zip(&tr).map(|(a, b)| a - b).collect(),
-        reference: tr,
+        roll_error: get(|r| r.theta_v - r.theta_ref),
+        reference: get(|r| r.theta_ref),
         deflection: signals_from_run(s, dir).deflection,
         clearance: s.comfort.bump_stop_m,
-        limits: get("actuator_limits").iter().map(|v| *v as u32).collect(),
-        phase_current_peak: get("phase_current_peak"),
-        torque: get("motor_torque"),
-        dc_power: get("dc_power"),
-        chopper_power: get("chopper_power"),
-        v_dc: get("v_dc"),
+        limits: rows.iter().map(|r| r.actuator_limits).collect(),
+        phase_current_peak: get(|r| r.phase_current_peak),
+        torque: get(|r| r.motor_torque),
+        dc_power: get(|r| r.dc_power),
+        chopper_power: get(|r| r.chopper_power),
+        v_dc: get(|r| r.v_dc),
     };
     crate::validity::assess(&inputs, comfort)
 }
@@ -1419,24 +1367,17 @@ fn quick_look(s: &Scenario, dir: &std::path::Path) -> QuickLook {
     let Ok(rows) = read_rows(dir) else {
         return QuickLook::default();
     };
-    let col = |name: &str| {
-        crate::record::COLUMNS
-            .iter()
-            .position(|c| *c == name)
-            .unwrap_or(0)
-    };
-    let (it, ilat, ith, ida) = (col("t"), col("lat_acc"), col("theta_v"), col("delta_a"));
     let tp = &s.track;
     let t_mid = (tp.straight_before_m + tp.transition_m + tp.curve_m / 2.0) / tp.speed();
     let mut q = QuickLook::default();
     let mut best = f64::INFINITY;
-    for f in &rows {
-        q.lat_acc_peak = q.lat_acc_peak.max(f[ilat].abs());
-        q.delta_a_peak = q.delta_a_peak.max(f[ida].abs());
-        if (f[it] - t_mid).abs() < best {
-            best = (f[it] - t_mid).abs();
-            q.lat_acc_mid_curve = f[ilat];
-            q.theta_v_mid_curve = f[ith];
+    for r in &rows {
+        q.lat_acc_peak = q.lat_acc_peak.max(r.lat_acc.abs());
+        q.delta_a_peak = q.delta_a_peak.max(r.delta_a.abs());
+        if (r.t - t_mid).abs() < best {
+            best = (r.t - t_mid).abs();
+            q.lat_acc_mid_curve = r.lat_acc;
+            q.theta_v_mid_curve = r.theta_v;
         }
     }
     q

@@ -612,16 +612,13 @@ pub const SECTION_NOTE: &str = "shaded: transitions (light), steady curve (dark)
 /// Writes the standard set of plots for a run into `dir/plots/`; returns the files written.
 pub fn write_run_plots(
     dir: &Path,
-    cols: &[&str],
-    rows: &[Vec<f64>],
+    rows: &[crate::record::Row],
     sections: &[(f64, f64, bool)],
     u_max: f64,
 ) -> std::io::Result<Vec<PathBuf>> {
-    let col = |name: &str| -> Vec<f64> {
-        let i = cols.iter().position(|c| *c == name).unwrap_or(0);
-        rows.iter().map(|r| r[i]).collect()
-    };
-    let t = col("t");
+    let col =
+        |field: fn(&crate::record::Row) -> f64| -> Vec<f64> { rows.iter().map(field).collect() };
+    let t = col(|r| r.t);
     let deg = |v: Vec<f64>| v.into_iter().map(f64::to_degrees).collect::<Vec<_>>();
     let line = |label, y, colour, dashed| Line {
         label,
@@ -644,7 +641,7 @@ pub fn write_run_plots(
             chart(
                 "Passenger lateral acceleration (eq 13; Figs 8b, 14-15)",
                 "lateral acceleration (m/s²)",
-                vec![line("ÿ", col("lat_acc"), "#1f77b4", false)],
+                vec![line("ÿ", col(|r| r.lat_acc), "#1f77b4", false)],
             ),
         ),
         (
@@ -653,12 +650,22 @@ pub fn write_run_plots(
                 "Carbody roll relative to the track (Figs 8a, 12-13, 16)",
                 "roll (deg)",
                 vec![
-                    line("θ_v measured", deg(col("theta_v_meas")), "#bbbbbb", false),
-                    line("θ_v", deg(col("theta_v")), "#1f77b4", false),
-                    line("θ̂_v estimate", deg(col("theta_v_hat")), "#2ca02c", false),
+                    line(
+                        "θ_v measured",
+                        deg(col(|r| r.theta_v_meas)),
+                        "#bbbbbb",
+                        false,
+                    ),
+                    line("θ_v", deg(col(|r| r.theta_v)), "#1f77b4", false),
+                    line(
+                        "θ̂_v estimate",
+                        deg(col(|r| r.theta_v_hat)),
+                        "#2ca02c",
+                        false,
+                    ),
                     line(
                         "θ_v^d reference (eq 18)",
-                        deg(col("theta_ref")),
+                        deg(col(|r| r.theta_ref)),
                         "#d62728",
                         true,
                     ),
@@ -671,8 +678,8 @@ pub fn write_run_plots(
                 "Anti-roll bar: command and achieved angle with limits (Fig. 17)",
                 "bar angle δ_a (deg)",
                 vec![
-                    line("δ_a command", deg(col("delta_a_cmd")), "#ff7f0e", false),
-                    line("δ_a achieved", deg(col("delta_a")), "#1f77b4", false),
+                    line("δ_a command", deg(col(|r| r.delta_a_cmd)), "#ff7f0e", false),
+                    line("δ_a achieved", deg(col(|r| r.delta_a)), "#1f77b4", false),
                     line("+u_max", vec![u_max; n], "#d62728", true),
                     line("−u_max", vec![-u_max; n], "#d62728", true),
                 ],
@@ -684,10 +691,10 @@ pub fn write_run_plots(
                 "BLDC motor: electromagnetic torque and current (Fig. 18)",
                 "torque (N·m), current (A)",
                 vec![
-                    line("torque (N·m)", col("motor_torque"), "#9467bd", false),
+                    line("torque (N·m)", col(|r| r.motor_torque), "#9467bd", false),
                     line(
                         "current T_e/k_t (A)",
-                        col("motor_current"),
+                        col(|r| r.motor_current),
                         "#8c564b",
                         false,
                     ),

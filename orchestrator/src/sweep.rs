@@ -291,18 +291,14 @@ fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
     opts.interrupt = ex.interrupt.clone();
     opts.plots = ex.keep_runs;
     let summary = engine::run(&s, &format!("{} (sample {j})", base.name), &opts);
-    let rows = engine::read_rows(&dir).unwrap_or_default();
+    let rows = crate::record::read_rows(&dir).unwrap_or_default();
     let every = (SERIES_DT / s.run.dt_s).round().max(1.0) as usize;
-    let lat = crate::record::COLUMNS
-        .iter()
-        .position(|c| *c == "lat_acc")
-        .unwrap_or(0);
     // Row k holds t_{k+1}; keep t = 10 ms, 20 ms, ...
     let series: Vec<f64> = rows
         .iter()
         .skip(every - 1)
         .step_by(every)
-        .map(|r| r[lat])
+        .map(|r| r.lat_acc)
         .collect();
     if ex.keep_runs {
         if let Ok(sum) = &summary {
