@@ -1286,7 +1286,9 @@ pub fn write_compare_plots(
     std::fs::create_dir_all(&plots)?;
     let bands = runs.first().map(|r| bands(&r.1)).unwrap_or_default();
     let mut files = Vec::new();
-    let figures: [(&str, &str, &str, fn(&Row) -> f64, f64); 3] = [
+    /// (file name, title, y label, column, scale).
+    type Figure = (&'static str, &'static str, &'static str, fn(&Row) -> f64, f64);
+    let figures: [Figure; 3] = [
         (
             "compare_lateral_acceleration",
             "Passenger lateral acceleration of each run (Figs 14-15)",
