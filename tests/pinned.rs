@@ -49,7 +49,12 @@ fn faulted() -> PathBuf {
     p
 }
 
-fn outputs(name: &str, file: &PathBuf, transport: &str, master: &str) -> Vec<(String, String)> {
+fn outputs(
+    name: &str,
+    file: &std::path::Path,
+    transport: &str,
+    master: &str,
+) -> Vec<(String, String)> {
     let out = temp_dir(name).join("out");
     let pfx = prefix(name);
     let (code, _, err) = run(&[

@@ -1287,7 +1287,13 @@ pub fn write_compare_plots(
     let bands = runs.first().map(|r| bands(&r.1)).unwrap_or_default();
     let mut files = Vec::new();
     /// (file name, title, y label, column, scale).
-    type Figure = (&'static str, &'static str, &'static str, fn(&Row) -> f64, f64);
+    type Figure = (
+        &'static str,
+        &'static str,
+        &'static str,
+        fn(&Row) -> f64,
+        f64,
+    );
     let figures: [Figure; 3] = [
         (
             "compare_lateral_acceleration",
