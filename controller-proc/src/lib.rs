@@ -28,6 +28,29 @@ pub use design::LinearModel;
 pub use lqg::{KalmanSettings, Lqg, LqgSettings};
 pub use mpc::{InputShape, Mpc, MpcSettings};
 
+/// Outcome of a controller update's QP, as carried in `FromController::solver_status`.
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolverStatus {
+    /// No QP in this update (not an MPC).
+    NoQp = 0,
+    /// Solved (or almost solved) to Clarabel's tolerances.
+    Solved = 1,
+    /// Not solved; the previous command was held.
+    Failed = 2,
+}
+
+impl SolverStatus {
+    /// Decodes the value carried in a sample (anything unknown counts as a failure).
+    pub fn from_raw(v: u32) -> Self {
+        match v {
+            0 => SolverStatus::NoQp,
+            1 => SolverStatus::Solved,
+            _ => SolverStatus::Failed,
+        }
+    }
+}
+
 /// Controller mode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -291,7 +314,11 @@ impl Controller {
                 out.delta_a_cmd = u.u;
                 out.theta_v_hat = u.theta_v_hat;
                 out.solver_iterations = u.iterations;
-                out.solver_status = if u.solved { 1 } else { 2 };
+                out.solver_status = if u.solved {
+                    SolverStatus::Solved
+                } else {
+                    SolverStatus::Failed
+                } as u32;
             }
         }
         out

@@ -38,9 +38,9 @@ fn main() {
         let r = run(&s, &file.display().to_string(), &opts).expect("run");
         println!(
             "| {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.1} | {:.3} | {:.2} | {:.2} |",
-            r.transport,
-            r.master_algorithm,
-            r.wait_strategy,
+            r.transport.name(),
+            r.master_algorithm.name(),
+            r.wait_strategy.name(),
             r.timing.tick_us.p50,
             r.timing.p50,
             r.timing.p99,

@@ -306,7 +306,7 @@ pub fn main() -> i32 {
                     return EXIT_INVALID;
                 }
             };
-            match engine::write_plots(&s, &dir) {
+            match crate::analysis::write_plots(&s, &dir) {
                 Ok(files) => {
                     for f in files {
                         println!("wrote {}", f.display());
@@ -355,7 +355,7 @@ fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<Transport
         let dir = out.join(&s.name);
         let mut opts = RunOptions::new(dir.clone(), exe.clone());
         opts.interrupt = interrupt.clone();
-        let summary = match engine::run(&s, &file.display().to_string(), &opts) {
+        let summary = match crate::analysis::run(&s, &file.display().to_string(), &opts) {
             Ok(sum) => sum,
             Err(e) => {
                 eprintln!("error: {}: {e}", file.display());
@@ -385,7 +385,8 @@ fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<Transport
                 return EXIT_FAILED;
             }
         }
-        let ideal = crate::comfort::ideal_tilt(&engine::signals_from_run(&s, &dir), &s.comfort);
+        let ideal =
+            crate::comfort::ideal_tilt(&crate::analysis::signals_from_run(&s, &dir), &s.comfort);
         runs.push((s.name.clone(), s.clone(), dir));
         entries.push(crate::compare::entry(s, summary, ideal));
     }
@@ -397,7 +398,7 @@ fn compare(files: &[PathBuf], out: &std::path::Path, transport: Option<Transport
             return EXIT_FAILED;
         }
     }
-    if let Err(e) = engine::write_compare_plots(&runs, out) {
+    if let Err(e) = crate::analysis::write_compare_plots(&runs, out) {
         eprintln!("error: {}: {e}", out.join("plots").display());
         return EXIT_FAILED;
     }
@@ -713,7 +714,7 @@ fn run(a: RunArgs) -> i32 {
         trace: a.trace,
         pace: a.pace,
     };
-    let summary = match engine::run(&s, &a.scenario.display().to_string(), &opts) {
+    let summary = match crate::analysis::run(&s, &a.scenario.display().to_string(), &opts) {
         Ok(sum) => sum,
         Err(e) => {
             eprintln!("error: {e}");
@@ -772,9 +773,9 @@ fn print_report(s: &engine::Summary, out: &std::path::Path) {
     );
     println!(
         "  transport {}, master {}, wait {}; pids: {}",
-        s.transport,
-        s.master_algorithm,
-        s.wait_strategy,
+        s.transport.name(),
+        s.master_algorithm.name(),
+        s.wait_strategy.name(),
         s.participants
             .iter()
             .map(|p| format!("{}={}", p.process, p.pid))

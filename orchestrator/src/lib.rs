@@ -1,16 +1,20 @@
 //! `orchestrator`: scenario, lock-step scheduling, recording and reporting, and the `tiltsim`
 //! command-line program.
 
+pub mod analysis;
 pub mod bench;
 pub mod cli;
 pub mod comfort;
 pub mod compare;
 pub mod degraded;
 pub mod engine;
+pub mod events;
+pub mod faults;
 pub mod linearize;
 pub mod links;
 pub mod plot;
 pub mod record;
+pub mod roles;
 pub mod scenario;
 pub mod sweep;
 pub mod validity;

@@ -1,5 +1,5 @@
-//! Link effects and process faults: what the transport between two processes does to the
-//! samples it carries, and what happens to the processes themselves.
+//! Link effects (section `[links.<name>]`): what the transport between two processes does to
+//! the samples it carries.
 //!
 //! Every sample between participants passes through the orchestrator (a star), so the
 //! effects are applied there, on the value in flight, and the models never know. Links are
@@ -13,12 +13,13 @@
 //! are added; then a NaN or a fixed (out-of-range) value overrides it inside its window.
 
 use std::collections::VecDeque;
-use std::fmt::Write as _;
 
 use cosim::settings::Checker;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Exp, Normal};
 use serde::{Deserialize, Serialize};
+
+use crate::events::{EventKind, EventLog};
 
 /// A time window in simulated seconds, `[start, end)`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -162,6 +163,33 @@ pub struct Links {
     pub bar_twist: LinkEffects,
 }
 
+/// The four links, in the order of the `rx_*` columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LinkId {
+    /// Controller → actuator: δ_a,cmd.
+    ActuatorCommand = 0,
+    /// Actuator → plant: δ_a.
+    BarAngle = 1,
+    /// Plant → controller: θ_v measured.
+    Measurement = 2,
+    /// Plant → actuator: ψ.
+    BarTwist = 3,
+}
+
+impl LinkId {
+    /// All links, in column order.
+    pub const ALL: [LinkId; 4] = [
+        LinkId::ActuatorCommand,
+        LinkId::BarAngle,
+        LinkId::Measurement,
+        LinkId::BarTwist,
+    ];
+    /// The name in scenario files and `events.csv`.
+    pub fn name(self) -> &'static str {
+        LINK_NAMES[self as usize]
+    }
+}
+
 /// Link names in column order.
 pub const LINK_NAMES: [&str; 4] = ["actuator_command", "bar_angle", "measurement", "bar_twist"];
 
@@ -182,165 +210,6 @@ impl Links {
             &self.measurement,
             &self.bar_twist,
         ]
-    }
-}
-
-/// What the run does when a participant fails.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum OnFailure {
-    /// End the run, name the participant, keep the rows.
-    #[default]
-    Abort,
-    /// Continue as a tilting train would: a lost actuator's bar returns to neutral over
-    /// `neutral_ramp_s`; a lost controller is replaced by `controller_fallback`. A lost plant
-    /// always aborts.
-    Degrade,
-}
-
-/// What a participant does with a NaN or infinite input.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum OnBadData {
-    /// Reject it: the run ends naming participant, field and step.
-    #[default]
-    Abort,
-    /// Use the last good input instead and log it.
-    Hold,
-}
-
-/// The controller's replacement in degraded mode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Fallback {
-    /// Ramp the bar command to neutral over `neutral_ramp_s`.
-    #[default]
-    Neutral,
-    /// Hold the last command.
-    Hold,
-}
-
-/// A scheduled process fault.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum FaultAction {
-    /// SIGKILL.
-    Kill,
-    /// SIGSTOP for `stall_s` of wall time, then SIGCONT.
-    Stall,
-    /// The process aborts itself on its next request.
-    Crash,
-}
-
-/// One scheduled fault (`[[faults.schedule]]`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ScheduledFault {
-    /// `plant`, `actuator` or `controller`.
-    pub participant: String,
-    /// What happens.
-    pub action: FaultAction,
-    /// Simulated time (s); applied before the first tick at or after it.
-    pub at_s: f64,
-    /// Wall-clock length of a stall (s).
-    #[serde(default)]
-    pub stall_s: f64,
-}
-
-/// Section `[faults]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct Faults {
-    /// What follows a participant failure.
-    pub on_failure: OnFailure,
-    /// What follows a NaN or infinite input.
-    pub on_bad_data: OnBadData,
-    /// Degraded mode: time for the bar to return to neutral (s).
-    pub neutral_ramp_s: f64,
-    /// Degraded mode: what replaces a lost controller.
-    pub controller_fallback: Fallback,
-    /// Scheduled faults.
-    pub schedule: Vec<ScheduledFault>,
-}
-
-impl Default for Faults {
-    fn default() -> Self {
-        Faults {
-            on_failure: OnFailure::Abort,
-            on_bad_data: OnBadData::Abort,
-            neutral_ramp_s: 2.0,
-            controller_fallback: Fallback::Neutral,
-            schedule: Vec::new(),
-        }
-    }
-}
-
-impl Faults {
-    /// Checks the section.
-    pub fn validate(&self, prefix: &str) -> Checker {
-        let mut c = Checker::new(prefix);
-        c.range("neutral_ramp_s", self.neutral_ramp_s, 1e-3, 60.0, "s");
-        for (i, f) in self.schedule.iter().enumerate() {
-            c.require(
-                cosim::Role::parse(&f.participant).is_some(),
-                &format!("schedule[{i}].participant"),
-                &f.participant,
-                "one of plant, actuator, controller",
-            );
-            c.range(&format!("schedule[{i}].at_s"), f.at_s, 0.0, 1e6, "s");
-            if f.action == FaultAction::Stall {
-                c.range(
-                    &format!("schedule[{i}].stall_s"),
-                    f.stall_s,
-                    1e-3,
-                    600.0,
-                    "s",
-                );
-            }
-        }
-        c
-    }
-}
-
-/// One line of `events.csv`.
-#[derive(Debug, Clone)]
-pub struct Event {
-    /// Tick.
-    pub step: u64,
-    /// Simulated time (s).
-    pub t: f64,
-    /// Link or participant.
-    pub source: String,
-    /// What happened.
-    pub event: &'static str,
-    /// A number that goes with it (delay in ticks, value, ...), or NaN.
-    pub value: f64,
-    /// Words.
-    pub detail: String,
-}
-
-/// `events.csv` header.
-pub const EVENTS_HEADER: &str = "step,t,source,event,value,detail";
-
-impl Event {
-    /// The CSV line.
-    pub fn line(&self) -> String {
-        let mut s = String::new();
-        let v = if self.value.is_nan() {
-            String::new()
-        } else {
-            format!("{}", self.value)
-        };
-        let _ = write!(
-            s,
-            "{},{},{},{},{v},{}",
-            self.step,
-            self.t,
-            self.source,
-            self.event,
-            self.detail.replace([',', '\n'], ";")
-        );
-        s
     }
 }
 
@@ -374,31 +243,22 @@ impl Link {
         }
     }
 
-    fn window_edge(
-        &mut self,
-        i: usize,
-        now: bool,
-        k: u64,
-        t: f64,
-        what: &'static str,
-        ev: &mut Vec<Event>,
-    ) {
+    fn window_edge(&mut self, i: usize, now: bool, k: u64, what: EventKind, ev: &mut EventLog) {
         if now != self.in_window[i] {
             self.in_window[i] = now;
-            ev.push(Event {
-                step: k,
-                t,
-                source: self.name.into(),
-                event: what,
-                value: f64::NAN,
-                detail: if now { "begins" } else { "ends" }.into(),
-            });
+            ev.push(
+                k,
+                self.name,
+                what,
+                f64::NAN,
+                if now { "begins" } else { "ends" },
+            );
         }
     }
 
     /// Carries value `v` sent at tick `k` (simulated time `t`); returns what the receiver
     /// gets, and logs what the link did.
-    pub fn carry(&mut self, k: u64, t: f64, v: f64, ev: &mut Vec<Event>) -> f64 {
+    pub fn carry(&mut self, k: u64, t: f64, v: f64, ev: &mut EventLog) -> f64 {
         let fx = self.fx.clone();
         if fx.is_identity() {
             return v;
@@ -432,32 +292,24 @@ impl Link {
         };
         let dropped = in_drop_window || u_drop < fx.drop_probability;
         let name = self.name;
-        self.window_edge(0, in_drop_window, k, t, "drop-window", ev);
-        self.window_edge(1, freeze, k, t, "freeze-window", ev);
-        self.window_edge(2, nan, k, t, "nan-window", ev);
-        self.window_edge(3, over.is_some(), k, t, "value-window", ev);
+        self.window_edge(0, in_drop_window, k, EventKind::DropWindow, ev);
+        self.window_edge(1, freeze, k, EventKind::FreezeWindow, ev);
+        self.window_edge(2, nan, k, EventKind::NanWindow, ev);
+        self.window_edge(3, over.is_some(), k, EventKind::ValueWindow, ev);
         if dropped {
             if !in_drop_window {
-                ev.push(Event {
-                    step: k,
-                    t,
-                    source: name.into(),
-                    event: "drop",
-                    value: v,
-                    detail: "sample lost".into(),
-                });
+                ev.push(k, name, EventKind::Drop, v, "sample lost");
             }
         } else {
             let d = fx.delay_ticks + extra;
             if extra > 0 {
-                ev.push(Event {
-                    step: k,
-                    t,
-                    source: name.into(),
-                    event: "jitter",
-                    value: d as f64,
-                    detail: format!("delay {d} ticks"),
-                });
+                ev.push(
+                    k,
+                    name,
+                    EventKind::Jitter,
+                    d as f64,
+                    format!("delay {d} ticks"),
+                );
             }
             self.queue.push_back((k + d, k, v));
         }
@@ -493,10 +345,10 @@ impl Link {
     }
 }
 
-/// The four links of a run.
+/// The four links of a run: the manipulator of the values in flight.
 pub struct LinkSet {
-    /// In [`LINK_NAMES`] order.
-    pub links: Vec<Link>,
+    /// In [`LinkId`] order.
+    links: Vec<Link>,
     /// Whether any link does something (a run without effects skips the bookkeeping).
     pub active: bool,
 }
@@ -514,45 +366,48 @@ impl LinkSet {
             active: l.all().iter().any(|fx| !fx.is_identity()),
         }
     }
+    /// Carries `v`, sent at tick `k` (time `t`), over link `id`; returns what the receiver
+    /// gets.
+    pub fn carry(&mut self, id: LinkId, k: u64, t: f64, v: f64, ev: &mut EventLog) -> f64 {
+        self.links[id as usize].carry(k, t, v, ev)
+    }
+
     /// Start-of-run events describing the static effects.
-    pub fn describe(l: &Links) -> Vec<Event> {
-        let mut ev = Vec::new();
+    pub fn describe(l: &Links, ev: &mut EventLog) {
         for (name, fx) in LINK_NAMES.iter().zip(l.all()) {
-            let mut add = |event, value, detail: String| {
-                ev.push(Event {
-                    step: 0,
-                    t: 0.0,
-                    source: (*name).into(),
-                    event,
-                    value,
-                    detail,
-                })
-            };
+            let mut add = |kind, value, detail: String| ev.push(0, name, kind, value, detail);
             if fx.delay_ticks > 0 {
                 add(
-                    "delay",
+                    EventKind::Delay,
                     fx.delay_ticks as f64,
                     format!("fixed delay {} ticks", fx.delay_ticks),
                 );
             }
             if fx.jitter != Jitter::None {
                 add(
-                    "jitter-on",
+                    EventKind::JitterOn,
                     fx.jitter_ticks,
                     format!("{:?} jitter, scale {} ticks", fx.jitter, fx.jitter_ticks),
                 );
             }
             if fx.drop_probability > 0.0 {
-                add("drop-on", fx.drop_probability, "random sample loss".into());
+                add(
+                    EventKind::DropOn,
+                    fx.drop_probability,
+                    "random sample loss".into(),
+                );
             }
             if fx.bias != 0.0 {
-                add("bias", fx.bias, "offset added".into());
+                add(EventKind::Bias, fx.bias, "offset added".into());
             }
             if fx.noise_std > 0.0 {
-                add("noise", fx.noise_std, "Gaussian noise added (std)".into());
+                add(
+                    EventKind::Noise,
+                    fx.noise_std,
+                    "Gaussian noise added (std)".into(),
+                );
             }
         }
-        ev
     }
 }
 
@@ -560,13 +415,13 @@ impl LinkSet {
 mod tests {
     use super::*;
 
-    fn run(fx: LinkEffects, n: u64) -> (Vec<f64>, Vec<Event>) {
+    fn run(fx: LinkEffects, n: u64) -> (Vec<f64>, Vec<crate::events::Event>) {
         let mut l = Link::new(0, &fx, 1);
-        let mut ev = Vec::new();
+        let mut ev = EventLog::new(1e-3);
         let out = (0..n)
             .map(|k| l.carry(k, k as f64 * 1e-3, k as f64, &mut ev))
             .collect();
-        (out, ev)
+        (out, ev.events)
     }
 
     #[test]
@@ -599,7 +454,7 @@ mod tests {
             let age = k as f64 - v;
             assert!((2.0..=6.0).contains(&age), "age {age} at {k}");
         }
-        assert!(ev.iter().any(|e| e.event == "jitter"));
+        assert!(ev.iter().any(|e| e.kind == EventKind::Jitter));
     }
 
     #[test]
@@ -616,7 +471,12 @@ mod tests {
             10,
         );
         assert_eq!(out, [0.5, 1.5, 2.5, 3.5, 4.5, 4.5, 4.5, 4.5, 8.5, 9.5]);
-        assert_eq!(ev.iter().filter(|e| e.event == "drop-window").count(), 2);
+        assert_eq!(
+            ev.iter()
+                .filter(|e| e.kind == EventKind::DropWindow)
+                .count(),
+            2
+        );
         let (out, _) = run(
             LinkEffects {
                 freeze_window: Some(Window {
@@ -647,7 +507,7 @@ mod tests {
             },
             20_000,
         );
-        let p = ev.iter().filter(|e| e.event == "drop").count() as f64 / 20_000.0;
+        let p = ev.iter().filter(|e| e.kind == EventKind::Drop).count() as f64 / 20_000.0;
         assert!((p - 0.3).abs() < 0.015, "{p}");
     }
 }

@@ -121,7 +121,7 @@ pub struct Scenario {
     /// Link effects between the processes (`[links.<name>]`).
     pub links: crate::links::Links,
     /// Process faults and what follows failures and bad data (`[faults]`).
-    pub faults: crate::links::Faults,
+    pub faults: crate::faults::Faults,
     /// The vehicle the controller was designed for, when it differs from the true `[vehicle]`
     /// the plant simulates (robustness studies: `tiltsim sweep` sets it to the nominal
     /// vehicle). Absent: the controller knows the vehicle exactly.

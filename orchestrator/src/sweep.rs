@@ -29,7 +29,7 @@ use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
 use crate::compare::{fmt, values, ROWS};
-use crate::engine::{self, RunOptions, Status};
+use crate::engine::{RunOptions, Status};
 use crate::plot::{Chart, Line, PALETTE};
 use crate::scenario::Scenario;
 
@@ -290,7 +290,7 @@ fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
     let mut opts = RunOptions::new(dir.clone(), ex.exe.clone());
     opts.interrupt = ex.interrupt.clone();
     opts.plots = ex.keep_runs;
-    let summary = engine::run(&s, &format!("{} (sample {j})", base.name), &opts);
+    let summary = crate::analysis::run(&s, &format!("{} (sample {j})", base.name), &opts);
     let rows = crate::record::read_rows(&dir).unwrap_or_default();
     let every = (SERIES_DT / s.run.dt_s).round().max(1.0) as usize;
     // Row k holds t_{k+1}; keep t = 10 ms, 20 ms, ...
@@ -550,7 +550,7 @@ fn write_plots(
     let ok: Vec<&Row> = rows.iter().filter(|r| r.status == "completed").collect();
     let n = ok.iter().map(|r| r.series.len()).min().unwrap_or(0);
     let t: Vec<f64> = (0..n).map(|i| (i + 1) as f64 * SERIES_DT).collect();
-    let bands = engine::bands(base);
+    let bands = crate::analysis::bands(base);
     let mut files = Vec::new();
     match plan {
         Plan::MonteCarlo { .. } => {

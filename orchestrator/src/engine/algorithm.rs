@@ -1,0 +1,130 @@
+//! Master algorithms: in which order one tick's requests go out and its replies come back
+//! (docs/architecture.md, "Coupling").
+//!
+//! * [`GaussSeidel`]: controller (when due), actuator, plant in turn, each with the newest
+//!   output of the one before. No delay on the forward links.
+//! * [`Jacobi`]: every request from the previous tick's outputs first, then every reply. One
+//!   tick on every link; the participants compute in parallel.
+
+use cosim::msg::{Header, ToActuator, ToController, ToPlant};
+use cosim::{Kind, LinkError};
+
+use super::team::{actuator, controller, plant, Team};
+use crate::links::LinkId;
+use crate::scenario::Master;
+
+/// What a tick's exchanges leave besides the held outputs.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct TickIo {
+    /// What each receiver got, in [`LinkId`] order.
+    pub rx: [f64; 4],
+}
+
+/// A master algorithm.
+pub(crate) trait Algorithm {
+    /// Steps every participant due at tick `k` through `team`.
+    fn tick(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<TickIo, LinkError>;
+
+    /// The participants' compute time on the tick's critical path (ns): the sum when they run
+    /// one after the other, the largest when they run in parallel.
+    fn critical_path(&self, compute_ns: [u64; 3]) -> u64;
+}
+
+/// The algorithm of `m`.
+pub(crate) fn of(m: Master) -> &'static dyn Algorithm {
+    match m {
+        Master::GaussSeidel => &GaussSeidel,
+        Master::Jacobi => &Jacobi,
+    }
+}
+
+/// The measurement and the bar twist carried to their receivers, and the controller's request.
+fn plant_outputs(team: &mut Team, k: u64, io: &mut TickIo) -> ToController {
+    let p = team.held.p;
+    let meas = team.carry(LinkId::Measurement, k, p.theta_v_meas);
+    io.rx[LinkId::Measurement as usize] = meas;
+    io.rx[LinkId::BarTwist as usize] = team.carry(LinkId::BarTwist, k, p.psi);
+    ToController {
+        header: Header::new(k, Kind::Step),
+        t: p.t,
+        s: p.s,
+        theta_v_meas: meas,
+    }
+}
+
+/// Gauss-Seidel: one participant after the other.
+pub(crate) struct GaussSeidel;
+
+impl Algorithm for GaussSeidel {
+    fn tick(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<TickIo, LinkError> {
+        let mut io = TickIo::default();
+        let step = Header::new(k, Kind::Step);
+        let to_c = plant_outputs(team, k, &mut io);
+        if controller_due {
+            team.held.c = team.ask(controller, to_c)?;
+        }
+        let cmd = team.carry(LinkId::ActuatorCommand, k, team.held.c.delta_a_cmd);
+        io.rx[LinkId::ActuatorCommand as usize] = cmd;
+        let to_a = ToActuator {
+            header: step,
+            delta_a_cmd: cmd,
+            psi: io.rx[LinkId::BarTwist as usize],
+        };
+        team.held.a = team.ask(actuator, to_a)?;
+        let bar = team.carry(LinkId::BarAngle, k, team.held.a.delta_a);
+        io.rx[LinkId::BarAngle as usize] = bar;
+        team.held.p = team.ask(
+            plant,
+            ToPlant {
+                header: step,
+                delta_a: bar,
+            },
+        )?;
+        Ok(io)
+    }
+
+    fn critical_path(&self, c: [u64; 3]) -> u64 {
+        c.iter().sum()
+    }
+}
+
+/// Jacobi: all requests, then all replies.
+pub(crate) struct Jacobi;
+
+impl Algorithm for Jacobi {
+    fn tick(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<TickIo, LinkError> {
+        let mut io = TickIo::default();
+        let step = Header::new(k, Kind::Step);
+        let to_c = plant_outputs(team, k, &mut io);
+        let cmd = team.carry(LinkId::ActuatorCommand, k, team.held.c.delta_a_cmd);
+        let bar = team.carry(LinkId::BarAngle, k, team.held.a.delta_a);
+        io.rx[LinkId::ActuatorCommand as usize] = cmd;
+        io.rx[LinkId::BarAngle as usize] = bar;
+        let to_a = ToActuator {
+            header: step,
+            delta_a_cmd: cmd,
+            psi: io.rx[LinkId::BarTwist as usize],
+        };
+        let to_p = ToPlant {
+            header: step,
+            delta_a: bar,
+        };
+        let tc = if controller_due {
+            team.post_step(controller, to_c)?
+        } else {
+            None
+        };
+        let ta = team.post_step(actuator, to_a)?;
+        let tp = team.post_step(plant, to_p)?;
+        if controller_due {
+            team.held.c = team.answer(controller, to_c, tc)?;
+        }
+        team.held.a = team.answer(actuator, to_a, ta)?;
+        team.held.p = team.answer(plant, to_p, tp)?;
+        Ok(io)
+    }
+
+    fn critical_path(&self, c: [u64; 3]) -> u64 {
+        c.into_iter().max().unwrap_or(0)
+    }
+}

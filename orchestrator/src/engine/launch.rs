@@ -1,0 +1,177 @@
+//! Launch and shut-down of the participants: their settings derived from the scenario, the
+//! endpoints over either transport, and what each exit left behind.
+
+use std::time::Duration;
+
+use actuator_proc::{Actuator, ActuatorInit};
+use controller_proc::{Controller, ControllerInit};
+use cosim::endpoint::ExitReport;
+use cosim::ipc::{IpcHub, IpcSettings, Launch};
+use cosim::msg::{FromActuator, FromController, FromPlant, ToActuator, ToController, ToPlant};
+use cosim::{Endpoint, InProcess, Role};
+use plant_proc::{Plant, PlantSettings};
+use serde::Serialize;
+
+use super::{RunError, RunOptions};
+use crate::roles::RoleMap;
+use crate::scenario::{Scenario, Transport};
+
+/// The plant's endpoint.
+pub(crate) type PlantEp = Box<dyn Endpoint<ToPlant, FromPlant>>;
+/// The actuator's endpoint.
+pub(crate) type ActuatorEp = Box<dyn Endpoint<ToActuator, FromActuator>>;
+/// The controller's endpoint.
+pub(crate) type ControllerEp = Box<dyn Endpoint<ToController, FromController>>;
+
+/// The three participants' settings as their processes receive them.
+pub struct Inits {
+    /// Plant.
+    pub plant: PlantSettings,
+    /// Actuator.
+    pub actuator: ActuatorInit,
+    /// Controller.
+    pub controller: ControllerInit,
+}
+
+impl Inits {
+    /// Derives every participant's settings from the scenario (one source of truth).
+    pub fn from(s: &Scenario) -> Self {
+        Inits {
+            plant: PlantSettings {
+                vehicle: s.vehicle.clone(),
+                track: s.track.clone(),
+                sensor: s.sensor.clone(),
+                dt_s: s.run.dt_s,
+                seed: s.run.seed,
+            },
+            actuator: ActuatorInit {
+                actuator: s.actuator.clone(),
+                dt_s: s.run.dt_s,
+                k_vr: s.vehicle.k_vr,
+                command_period_s: s.controller.period_s,
+            },
+            controller: s.controller_init(),
+        }
+    }
+}
+
+/// The running participants, one typed endpoint each, and the iceoryx2 hub of an IPC run.
+pub(crate) struct Participants {
+    /// Plant.
+    pub plant: PlantEp,
+    /// Actuator.
+    pub actuator: ActuatorEp,
+    /// Controller.
+    pub controller: ControllerEp,
+    /// The transport's hub (IPC only).
+    pub hub: Option<IpcHub>,
+}
+
+impl Participants {
+    /// Process ids (this process's for in-process participants).
+    pub fn pids(&self) -> RoleMap<u32> {
+        RoleMap::new([self.plant.pid(), self.actuator.pid(), self.controller.pid()])
+    }
+
+    /// Stops every participant still in place (a dead or hung one is killed and reaped);
+    /// `lost` holds the exit reports of those already replaced by degraded-mode stand-ins.
+    pub fn shut_down(&mut self, lost: RoleMap<Option<ExitReport>>) -> RoleMap<ExitReport> {
+        let [p, a, c] = lost.into_array();
+        RoleMap::new([
+            p.unwrap_or_else(|| self.plant.shutdown()),
+            a.unwrap_or_else(|| self.actuator.shutdown()),
+            c.unwrap_or_else(|| self.controller.shutdown()),
+        ])
+    }
+}
+
+/// CPU time of this process, user + system (s).
+pub(crate) fn cpu_self() -> f64 {
+    // SAFETY: an all-zero rusage is valid; getrusage only writes into it.
+    let mut u: libc::rusage = unsafe { core::mem::zeroed() };
+    // SAFETY: RUSAGE_SELF with a valid pointer.
+    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) };
+    (u.ru_utime.tv_sec + u.ru_stime.tv_sec) as f64
+        + (u.ru_utime.tv_usec + u.ru_stime.tv_usec) as f64 * 1e-6
+}
+
+/// Starts the participants of `s` on its transport: in this process, or as processes of
+/// `opts.participant_exe` connected over iceoryx2 with `prefix`.
+pub(crate) fn start(
+    s: &Scenario,
+    opts: &RunOptions,
+    prefix: &str,
+) -> Result<Participants, RunError> {
+    let inits = Inits::from(s);
+    match s.run.transport {
+        Transport::InProcess => {
+            let d = Duration::from_millis(s.run.deadline_ms);
+            Ok(Participants {
+                plant: Box::new(InProcess::new(Plant::new(&inits.plant)).with_deadline(d)),
+                actuator: Box::new(InProcess::new(Actuator::new(&inits.actuator)).with_deadline(d)),
+                controller: Box::new(
+                    InProcess::new(Controller::new(&inits.controller).map_err(RunError::Design)?)
+                        .with_deadline(d),
+                ),
+                hub: None,
+            })
+        }
+        Transport::Ipc => {
+            let plan = if s.run.pin_cpus {
+                cosim::ipc::cpu_plan()
+            } else {
+                None
+            };
+            let hub = IpcHub::new(IpcSettings {
+                prefix: prefix.to_string(),
+                wait: s.run.wait,
+                deadline: Duration::from_millis(s.run.deadline_ms),
+                participant_cpu: plan.map(|p| p.1),
+            })?;
+            if let Some((own, _)) = plan {
+                cosim::ipc::pin_to_cpu(own);
+            }
+            let startup = Duration::from_millis(s.run.startup_ms);
+            let launch = |role: Role, params: String| Launch {
+                program: opts
+                    .participant_overrides
+                    .iter()
+                    .find(|(r, _)| *r == role)
+                    .map_or_else(|| opts.participant_exe.clone(), |(_, p)| p.clone()),
+                args: vec![
+                    "participant".into(),
+                    role.name().into(),
+                    "--params".into(),
+                    params.into(),
+                ],
+            };
+            let plant = hub.spawn::<ToPlant, FromPlant>(
+                Role::Plant,
+                &launch(Role::Plant, json(&inits.plant)),
+                startup,
+            )?;
+            let actuator = hub.spawn::<ToActuator, FromActuator>(
+                Role::Actuator,
+                &launch(Role::Actuator, json(&inits.actuator)),
+                startup,
+            )?;
+            let controller = hub.spawn::<ToController, FromController>(
+                Role::Controller,
+                &launch(Role::Controller, json(&inits.controller)),
+                startup,
+            )?;
+            Ok(Participants {
+                plant: Box::new(plant),
+                actuator: Box::new(actuator),
+                controller: Box::new(controller),
+                hub: Some(hub),
+            })
+        }
+    }
+}
+
+/// Settings as the JSON a participant process receives. Plain settings structs (no maps with
+/// non-string keys) always serialise.
+fn json<T: Serialize>(v: &T) -> String {
+    serde_json::to_string(v).unwrap_or_default()
+}

@@ -1,0 +1,320 @@
+//! The lock-step engine: owns simulated time and steps the participants tick by tick.
+//!
+//! A run is composed of small parts, one concern per file:
+//! * [`launch`]: the participants' settings, their start on either transport, their shut-down;
+//! * [`team`]: the participants handle the master algorithm works through, with the
+//!   manipulators on the way ([`manipulator`]: scheduled faults, degraded replacement; link
+//!   effects in `crate::links`);
+//! * [`algorithm`]: the master algorithms, Gauss-Seidel and Jacobi;
+//! * [`observer`]: the recorder, timing, compute, latency, trace, pacing and drive events;
+//! * [`summary`]: the schema of `summary.json`.
+//!
+//! [`run`] reads as: launch, loop, shut down, report. Analysis of the recorded series (quick
+//! look, comfort, flags, figures) is the caller's step (`crate::analysis`).
+
+pub(crate) mod algorithm;
+pub(crate) mod launch;
+pub(crate) mod manipulator;
+pub(crate) mod observer;
+mod options;
+pub mod summary;
+pub(crate) mod team;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use cosim::msg::now_ns;
+use cosim::{LinkError, Role};
+
+pub use launch::Inits;
+pub use options::{RunError, RunOptions, Status};
+pub use summary::{
+    CpuTime, LinkLatency, PacingReport, ParticipantReport, QuickLook, SolverReport, Summary, Timing,
+};
+
+use crate::record::Recorder;
+use crate::roles::RoleMap;
+use crate::scenario::{Scenario, Transport};
+use observer::{ComputeStats, DriveEvents, Latency, Observer, Pacing, RowRecorder, TickRecord};
+use observer::{TickTiming, Trace};
+use team::Team;
+
+/// The observers of one run.
+struct Observers {
+    recorder: RowRecorder,
+    timing: TickTiming,
+    compute: ComputeStats,
+    latency: Latency,
+    drive: DriveEvents,
+    trace: Option<Trace>,
+    pacing: Option<Pacing>,
+}
+
+impl Observers {
+    fn new(s: &Scenario, opts: &RunOptions, recorder: Recorder) -> Self {
+        Observers {
+            recorder: RowRecorder(recorder),
+            timing: TickTiming::default(),
+            compute: ComputeStats::default(),
+            latency: Latency::default(),
+            drive: DriveEvents::default(),
+            trace: opts.trace.then(|| Trace::new(now_ns())),
+            pacing: opts.pace.map(|f| Pacing::new(f, s.run.dt_s)),
+        }
+    }
+
+    fn all(&mut self) -> Vec<&mut dyn Observer> {
+        let mut v: Vec<&mut dyn Observer> = vec![
+            &mut self.recorder,
+            &mut self.timing,
+            &mut self.compute,
+            &mut self.latency,
+            &mut self.drive,
+        ];
+        if let Some(t) = &mut self.trace {
+            v.push(t);
+        }
+        if let Some(p) = &mut self.pacing {
+            v.push(p);
+        }
+        v
+    }
+}
+
+/// Steps every tick; returns the error that stopped the run, if any.
+fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Result<(), LinkError> {
+    let s = team.scenario();
+    // The Init exchanges stay in `team.exchanges`: the observers see them with tick 0's.
+    team.initialise()?;
+    let algorithm = algorithm::of(s.run.master);
+    let c_period = s.controller_period_ticks();
+    for k in 0..s.steps() {
+        if interrupt.load(Ordering::Relaxed) {
+            return Ok(());
+        }
+        for o in obs.all() {
+            o.before_tick(k);
+        }
+        let started = Instant::now();
+        team.inject_faults(k);
+        let due = k % c_period == 0;
+        let io = algorithm.tick(team, k, due)?;
+        let h = team.held;
+        let compute = RoleMap::new([
+            h.p.header.compute_ns,
+            h.a.header.compute_ns,
+            if due { h.c.header.compute_ns } else { 0 },
+        ]);
+        let record = TickRecord {
+            k,
+            held: &h,
+            rx: &io.rx,
+            controller_due: due,
+            critical_us: algorithm.critical_path(compute.clone().into_array()) as f64 * 1e-3,
+            compute_ns: compute,
+            started,
+            exchanges: &team.exchanges,
+        };
+        for o in obs.all() {
+            o.after_tick(&record, &mut team.events)
+                .map_err(|e| LinkError::Transport {
+                    role: Role::Plant,
+                    what: format!("cannot record: {e}"),
+                })?;
+        }
+        team.exchanges.clear();
+    }
+    Ok(())
+}
+
+/// The files a run writes as it goes: the output directory, `timeseries.csv` (header first)
+/// and `scenario.toml` (the scenario as run).
+fn create_outputs(s: &Scenario, opts: &RunOptions) -> Result<Recorder, RunError> {
+    let dir = &opts.out_dir;
+    std::fs::create_dir_all(dir).map_err(RunError::io(dir.clone()))?;
+    let csv = dir.join("timeseries.csv");
+    let rec = Recorder::create(&csv).map_err(RunError::io(csv))?;
+    let resolved = dir.join("scenario.toml");
+    std::fs::write(&resolved, toml::to_string(s).unwrap_or_default())
+        .map_err(RunError::io(resolved))?;
+    Ok(rec)
+}
+
+/// What a finished loop leaves for the report.
+struct Ended {
+    outcome: Result<(), LinkError>,
+    wall: f64,
+    cpu_orchestrator: f64,
+    exits: RoleMap<cosim::endpoint::ExitReport>,
+    pids: RoleMap<u32>,
+    leftover: Vec<String>,
+    degraded: bool,
+}
+
+/// Stops every participant, removes the run's shared-memory files and restores this
+/// process's CPU set.
+fn shut_down(
+    mut team: Team,
+    prefix: &str,
+    cpus: &[usize],
+    outcome: Result<(), LinkError>,
+    wall: f64,
+    cpu0: f64,
+) -> Ended {
+    let pids = team.ps.pids();
+    let lost = team.take_lost();
+    let exits = team.ps.shut_down(lost);
+    let degraded = team.degraded();
+    let mut leftover = Vec::new();
+    if let Some(hub) = team.ps.hub.take() {
+        hub.cleanup_dead();
+        drop(team);
+        drop(hub);
+        cosim::ipc::remove_run_files(prefix);
+        leftover = cosim::ipc::leftover_files(prefix)
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect();
+    }
+    if !cpus.is_empty() {
+        cosim::ipc::set_cpus(cpus);
+    }
+    Ended {
+        outcome,
+        wall,
+        cpu_orchestrator: launch::cpu_self() - cpu0,
+        exits,
+        pids,
+        leftover,
+        degraded,
+    }
+}
+
+/// Runs a validated scenario: launch, loop, shut down, report. Always writes what it has to
+/// `out_dir` (`timeseries.csv`, `events.csv`, `scenario.toml`, `trace.csv` with `--trace`);
+/// the returned summary says whether the run completed. `results`, `comfort` and `flags` are
+/// left for the caller's analysis (`crate::analysis::analyse`).
+pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summary, RunError> {
+    let recorder = create_outputs(s, opts)?;
+    let prefix = match s.run.transport {
+        Transport::Ipc => opts
+            .ipc_prefix
+            .clone()
+            .unwrap_or_else(cosim::ipc::unique_prefix),
+        Transport::InProcess => String::new(),
+    };
+    let cpu0 = launch::cpu_self();
+    // `start` may pin this process to one CPU for the run; the set is restored afterwards so
+    // a process that runs several scenarios (sweeps, benchmarks) starts each one alike.
+    let cpus = cosim::ipc::allowed_cpus();
+    let ps = launch::start(s, opts, &prefix).inspect_err(|_| {
+        if !prefix.is_empty() {
+            cosim::ipc::remove_run_files(&prefix);
+        }
+    })?;
+    let mut team = Team::new(s, ps);
+    let mut obs = Observers::new(s, opts, recorder);
+    let loop_started = Instant::now();
+    let outcome = lockstep(&mut team, &mut obs, &opts.interrupt);
+    let wall = loop_started.elapsed().as_secs_f64();
+    let rows = obs.recorder.0.rows();
+    let _ = obs.recorder.0.flush();
+    if let Err(e) = &outcome {
+        team.log_failure(rows, e);
+    }
+    let events = opts.out_dir.join("events.csv");
+    team.events.write(&events).map_err(RunError::io(events))?;
+    if let Some(tr) = &obs.trace {
+        write_trace(opts, s, tr, &obs.latency)?;
+    }
+    let ended = shut_down(team, &prefix, &cpus, outcome, wall, cpu0);
+    Ok(report(s, scenario_file, opts, &prefix, obs, ended, rows))
+}
+
+/// `trace.csv` and the latency histogram.
+fn write_trace(opts: &RunOptions, s: &Scenario, tr: &Trace, lat: &Latency) -> Result<(), RunError> {
+    let path = opts.out_dir.join("trace.csv");
+    tr.write(&path, s.run.dt_s)
+        .map_err(RunError::io(path.clone()))?;
+    crate::analysis::latency_histogram(&opts.out_dir, &lat.requests()).map_err(RunError::io(path))
+}
+
+/// The run's own part of `summary.json`.
+fn report(
+    s: &Scenario,
+    scenario_file: &str,
+    opts: &RunOptions,
+    prefix: &str,
+    mut obs: Observers,
+    e: Ended,
+    rows: u64,
+) -> Summary {
+    let (status, error) = match &e.outcome {
+        Ok(_) if opts.interrupt.load(Ordering::Relaxed) => (
+            Status::Interrupted,
+            Some("interrupted by Ctrl-C".to_string()),
+        ),
+        Ok(_) if e.degraded => (
+            Status::Degraded,
+            Some("a participant was lost; the run continued degraded (events.csv)".into()),
+        ),
+        Ok(_) => (Status::Completed, None),
+        Err(err) => (Status::Failed, Some(err.to_string())),
+    };
+    let periods = RoleMap::new([s.run.dt_s, s.run.dt_s, s.controller.period_s]);
+    let compute = obs.compute.percentiles();
+    let participants = Role::ALL
+        .into_iter()
+        .map(|role| ParticipantReport {
+            role,
+            process: role.process_name(),
+            pid: e.pids[role],
+            period_s: periods[role],
+            exit: e.exits[role].clone(),
+            compute_us: compute[role],
+        })
+        .collect();
+    let simulated = rows as f64 * s.run.dt_s;
+    let o = cosim::stats::percentiles(&mut obs.timing.overhead);
+    Summary {
+        tiltsim_version: env!("CARGO_PKG_VERSION"),
+        scenario: s.name.clone(),
+        scenario_file: scenario_file.to_string(),
+        seed: s.run.seed,
+        transport: s.run.transport,
+        master_algorithm: s.run.master,
+        wait_strategy: s.run.wait,
+        status,
+        error,
+        participants,
+        dt_s: s.run.dt_s,
+        steps_planned: s.steps(),
+        steps_completed: rows,
+        simulated_time_s: simulated,
+        wall_time_s: e.wall,
+        realtime_factor: if e.wall > 0.0 {
+            simulated / e.wall
+        } else {
+            0.0
+        },
+        timing: Timing {
+            p50: o.p50,
+            p99: o.p99,
+            max: o.max,
+            mean: o.mean,
+            tick_us: cosim::stats::percentiles(&mut obs.timing.ticks),
+            cpu_s: CpuTime {
+                orchestrator: e.cpu_orchestrator,
+                participants: e.exits.iter().filter_map(|(_, x)| x.cpu_s).sum(),
+            },
+        },
+        results: QuickLook::default(),
+        link_latency: obs.latency.report(),
+        pacing: obs.pacing.as_mut().map(|p| p.report(rows, e.wall)),
+        controller_solver: obs.compute.solver(),
+        comfort: Default::default(),
+        flags: Default::default(),
+        ipc_prefix: prefix.to_string(),
+        leftover_ipc_files: e.leftover,
+    }
+}

@@ -1,0 +1,86 @@
+//! How to run a scenario, how a run ended, and why it could not start.
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use cosim::Role;
+use serde::Serialize;
+
+/// How to run a scenario (command-line choices on top of the file).
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Output directory.
+    pub out_dir: PathBuf,
+    /// Executable that serves `participant ROLE ...` (normally `tiltsim` itself).
+    pub participant_exe: PathBuf,
+    /// Other executables for some roles (test participants that misbehave on purpose).
+    pub participant_overrides: Vec<(Role, PathBuf)>,
+    /// iceoryx2 prefix; a unique one is made when `None`.
+    pub ipc_prefix: Option<String>,
+    /// Set by Ctrl-C.
+    pub interrupt: Arc<AtomicBool>,
+    /// Draw `plots/` after the run (the caller's analysis step reads this).
+    pub plots: bool,
+    /// Write `trace.csv` (every exchange's timestamps) and the latency histogram.
+    pub trace: bool,
+    /// Run the lock-step at this many simulated seconds per wall second.
+    pub pace: Option<f64>,
+}
+
+impl RunOptions {
+    /// Options for a run into `out_dir` with participants served by `participant_exe`: a
+    /// unique iceoryx2 prefix, plots drawn, no interrupt flag shared.
+    pub fn new(out_dir: PathBuf, participant_exe: PathBuf) -> Self {
+        RunOptions {
+            out_dir,
+            participant_exe,
+            participant_overrides: Vec::new(),
+            ipc_prefix: None,
+            interrupt: Arc::new(AtomicBool::new(false)),
+            plots: true,
+            trace: false,
+            pace: None,
+        }
+    }
+}
+
+/// How the run ended.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub enum Status {
+    /// Every step done.
+    Completed,
+    /// A participant failed; the message names it and the step.
+    Failed,
+    /// Every step done, but a participant was lost and replaced by its degraded mode.
+    Degraded,
+    /// Ctrl-C.
+    Interrupted,
+}
+
+/// Why a run could not start or its outputs could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// Output directory or files.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// What the system said.
+        source: std::io::Error,
+    },
+    /// Transport set-up.
+    #[error(transparent)]
+    Ipc(#[from] cosim::ipc::IpcError),
+    /// The controller design failed.
+    #[error("controller design: {0}")]
+    Design(String),
+}
+
+impl RunError {
+    /// An I/O error on `path`.
+    pub fn io(path: PathBuf) -> impl FnOnce(std::io::Error) -> RunError {
+        move |source| RunError::Io { path, source }
+    }
+}

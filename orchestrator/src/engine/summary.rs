@@ -1,0 +1,163 @@
+//! The schema of `summary.json`: what a run reports about itself. The engine fills the run's
+//! own part (participants, steps, timing, latency, pacing, solver); the caller's analysis step
+//! fills `results`, `comfort` and `flags` from the recorded series (`crate::analysis`).
+
+use cosim::endpoint::ExitReport;
+use cosim::stats::Percentiles;
+use cosim::wait::WaitStrategy;
+use cosim::Role;
+use serde::Serialize;
+
+use super::Status;
+use crate::scenario::{Master, Transport};
+
+/// One participant in the summary.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParticipantReport {
+    /// Role.
+    pub role: Role,
+    /// Process name.
+    pub process: &'static str,
+    /// Process id.
+    pub pid: u32,
+    /// Period (s).
+    pub period_s: f64,
+    /// How it ended.
+    pub exit: ExitReport,
+    /// Wall time spent inside its model's step per call (µs), as it reports.
+    pub compute_us: Percentiles,
+}
+
+/// Timing of the run.
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct Timing {
+    /// Per-tick coordination overhead (µs): tick wall time minus the participants' compute
+    /// time on the critical path (the sum for Gauss-Seidel, the largest for Jacobi).
+    pub p50: f64,
+    /// 99th percentile of the overhead (µs).
+    pub p99: f64,
+    /// Largest overhead (µs).
+    pub max: f64,
+    /// Mean overhead (µs).
+    pub mean: f64,
+    /// Whole tick wall time (µs).
+    pub tick_us: Percentiles,
+    /// Orchestrator CPU time, user + system (s), and the participants' (s), when measurable.
+    pub cpu_s: CpuTime,
+}
+
+/// CPU time spent.
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct CpuTime {
+    /// The orchestrator process (s).
+    pub orchestrator: f64,
+    /// All participant processes together (s); 0 in-process.
+    pub participants: f64,
+}
+
+/// Result of a run, written as `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    /// tiltsim version.
+    pub tiltsim_version: &'static str,
+    /// Scenario name.
+    pub scenario: String,
+    /// Scenario file.
+    pub scenario_file: String,
+    /// Seed.
+    pub seed: u64,
+    /// Transport.
+    pub transport: Transport,
+    /// Master algorithm.
+    pub master_algorithm: Master,
+    /// Wait strategy.
+    pub wait_strategy: WaitStrategy,
+    /// Outcome.
+    pub status: Status,
+    /// The failure, naming participant and step.
+    pub error: Option<String>,
+    /// Participants.
+    pub participants: Vec<ParticipantReport>,
+    /// Base tick (s).
+    pub dt_s: f64,
+    /// Steps planned.
+    pub steps_planned: u64,
+    /// Steps completed (= rows in timeseries.csv).
+    pub steps_completed: u64,
+    /// Simulated time covered (s).
+    pub simulated_time_s: f64,
+    /// Wall time of the lock-step loop (s).
+    pub wall_time_s: f64,
+    /// Simulated seconds per wall second.
+    pub realtime_factor: f64,
+    /// Coordination overhead and CPU use.
+    pub timing: Timing,
+    /// A quick look at the results.
+    pub results: QuickLook,
+    /// Wall-clock latency of each participant's exchanges (request, reply, round trip; µs).
+    pub link_latency: Vec<LinkLatency>,
+    /// Real-time pacing (`--pace`), every tick counted.
+    pub pacing: Option<PacingReport>,
+    /// The MPC's QP solver (absent for controllers without one).
+    pub controller_solver: Option<SolverReport>,
+    /// Ride comfort (Table 4 rows), from the recorded series.
+    pub comfort: crate::comfort::Comfort,
+    /// Whether the numbers are valid: oscillation, bump stop, drive limits, chopper, P_CT range.
+    pub flags: crate::validity::Flags,
+    /// iceoryx2 prefix of the run ("" in-process).
+    pub ipc_prefix: String,
+    /// Files of the run still present after clean-up (must be empty).
+    pub leftover_ipc_files: Vec<String>,
+}
+
+/// The controller's QP solves over the run.
+#[derive(Debug, Clone, Serialize)]
+pub struct SolverReport {
+    /// QPs solved or attempted.
+    pub solves: u64,
+    /// Solves that did not end `Solved`/`AlmostSolved`; the previous command was held.
+    pub failures: u64,
+    /// Clarabel iterations per solve.
+    pub iterations: Percentiles,
+}
+
+/// Headline numbers of a run (the full comfort assessment is separate).
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct QuickLook {
+    /// Largest |passenger lateral acceleration| (m/s²).
+    pub lat_acc_peak: f64,
+    /// Lateral acceleration at the middle of the steady curve (m/s²).
+    pub lat_acc_mid_curve: f64,
+    /// Body roll θ_v at the middle of the steady curve (rad).
+    pub theta_v_mid_curve: f64,
+    /// Largest |δ_a| (rad).
+    pub delta_a_peak: f64,
+}
+
+/// What `--pace` achieved, every tick counted.
+#[derive(Debug, Clone, Serialize)]
+pub struct PacingReport {
+    /// Requested simulated seconds per wall second.
+    pub factor: f64,
+    /// Ticks that finished after their wall-clock deadline.
+    pub overruns: u64,
+    /// Ticks paced.
+    pub ticks: u64,
+    /// How late the late ticks were (µs).
+    pub lateness_us: Percentiles,
+    /// Simulated time over wall time of the whole loop.
+    pub achieved_realtime_factor: f64,
+}
+
+/// Per-link wall-clock latency (µs) of one participant's exchanges.
+#[derive(Debug, Clone, Serialize)]
+pub struct LinkLatency {
+    /// Participant.
+    pub participant: Role,
+    /// Request: orchestrator sent → participant received.
+    pub request_us: Percentiles,
+    /// Reply: participant sent → orchestrator received.
+    pub reply_us: Percentiles,
+    /// Whole exchange seen by the orchestrator.
+    pub round_trip_us: Percentiles,
+}

@@ -1,0 +1,297 @@
+//! The participants handle the master algorithms work through: one request and its reply at a
+//! time, with the manipulators on the way (link effects on the values, scheduled faults and
+//! the bad-data flag on the requests, degraded replacement on a failure) and a record of every
+//! exchange for the observers.
+
+use cosim::endpoint::ExitReport;
+use cosim::msg::{now_ns, FromActuator, FromController, FromPlant, Header, Message};
+use cosim::msg::{ToActuator, ToController, ToPlant, FLAG_HELD, FLAG_HOLD_BAD_INPUT};
+use cosim::{Endpoint, Kind, LinkError, Role};
+
+use super::launch::Participants;
+use super::manipulator::{Degrader, FaultSchedule};
+use crate::events::{EventKind, EventLog};
+use crate::faults::OnBadData;
+use crate::links::{LinkId, LinkSet};
+use crate::roles::RoleMap;
+use crate::scenario::Scenario;
+
+/// The held (latest) outputs of every participant.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Held {
+    /// Plant.
+    pub p: FromPlant,
+    /// Actuator.
+    pub a: FromActuator,
+    /// Controller.
+    pub c: FromController,
+}
+
+/// One request and its reply, as the observers see it (monotonic ns).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Exchange {
+    /// Tick.
+    pub step: u64,
+    /// Participant.
+    pub role: Role,
+    /// The orchestrator sent the request.
+    pub sent_ns: u64,
+    /// The reply's header (participant's receive and send times, compute time).
+    pub reply: Header,
+    /// The orchestrator had the reply.
+    pub received_ns: u64,
+}
+
+/// Picks one participant's endpoint out of the set.
+pub(crate) type Pick<I, O> = fn(&mut Participants) -> &mut Box<dyn Endpoint<I, O>>;
+
+/// The plant's endpoint.
+pub(crate) fn plant(ps: &mut Participants) -> &mut Box<dyn Endpoint<ToPlant, FromPlant>> {
+    &mut ps.plant
+}
+/// The actuator's endpoint.
+pub(crate) fn actuator(ps: &mut Participants) -> &mut Box<dyn Endpoint<ToActuator, FromActuator>> {
+    &mut ps.actuator
+}
+/// The controller's endpoint.
+pub(crate) fn controller(
+    ps: &mut Participants,
+) -> &mut Box<dyn Endpoint<ToController, FromController>> {
+    &mut ps.controller
+}
+
+/// The participants with everything that acts on the way to and from them.
+pub(crate) struct Team<'a> {
+    s: &'a Scenario,
+    /// The participants.
+    pub ps: Participants,
+    /// Their latest outputs.
+    pub held: Held,
+    links: LinkSet,
+    faults: FaultSchedule,
+    degrader: Degrader,
+    /// Request flags for the next request of each role (crash faults).
+    flags: RoleMap<u32>,
+    /// What happened, in simulated time.
+    pub events: EventLog,
+    /// This tick's exchanges (the loop hands them to the observers and clears them).
+    pub exchanges: Vec<Exchange>,
+}
+
+impl<'a> Team<'a> {
+    /// The team of scenario `s` around running participants `ps`.
+    pub fn new(s: &'a Scenario, ps: Participants) -> Self {
+        let mut events = EventLog::new(s.run.dt_s);
+        LinkSet::describe(&s.links, &mut events);
+        Team {
+            s,
+            ps,
+            held: Held::default(),
+            links: LinkSet::new(&s.links, s.run.seed),
+            faults: FaultSchedule::new(&s.faults, s.run.dt_s),
+            degrader: Degrader::new(s),
+            flags: RoleMap::default(),
+            events,
+            exchanges: Vec::new(),
+        }
+    }
+
+    /// The scenario.
+    pub fn scenario(&self) -> &'a Scenario {
+        self.s
+    }
+
+    /// Whether a participant was lost and replaced.
+    pub fn degraded(&self) -> bool {
+        self.degrader.degraded()
+    }
+
+    /// Exit reports of participants replaced by their stand-ins.
+    pub fn take_lost(&mut self) -> RoleMap<Option<ExitReport>> {
+        self.degrader.take_lost()
+    }
+
+    /// Applies the faults scheduled for tick `k`.
+    pub fn inject_faults(&mut self, k: u64) {
+        self.faults.apply(
+            k,
+            &mut self.ps,
+            &mut self.flags,
+            self.degrader.lost_roles(),
+            &mut self.events,
+        );
+    }
+
+    /// Carries value `v` sent at tick `k` over `link`.
+    pub fn carry(&mut self, link: LinkId, k: u64, v: f64) -> f64 {
+        let t = k as f64 * self.s.run.dt_s;
+        self.links.carry(link, k, t, v, &mut self.events)
+    }
+
+    /// The initial outputs at t₀ of every participant.
+    pub fn initialise(&mut self) -> Result<(), LinkError> {
+        let h = |k| Header::new(k, Kind::Init);
+        self.held.p = self.exchange(
+            plant,
+            ToPlant {
+                header: h(0),
+                ..Default::default()
+            },
+            Kind::Init,
+        )?;
+        self.held.a = self.exchange(
+            actuator,
+            ToActuator {
+                header: h(0),
+                ..Default::default()
+            },
+            Kind::Init,
+        )?;
+        self.held.c = self.exchange(
+            controller,
+            ToController {
+                header: h(0),
+                ..Default::default()
+            },
+            Kind::Init,
+        )?;
+        Ok(())
+    }
+
+    /// Sends a request with this tick's flags; returns the send time.
+    fn post<I: Message, O: Message>(
+        &mut self,
+        pick: Pick<I, O>,
+        mut req: I,
+    ) -> Result<u64, LinkError> {
+        let ep = pick(&mut self.ps);
+        let role = ep.role();
+        req.header_mut().flags |= std::mem::take(&mut self.flags[role]);
+        if self.s.faults.on_bad_data == OnBadData::Hold {
+            req.header_mut().flags |= FLAG_HOLD_BAD_INPUT;
+        }
+        let t0 = now_ns();
+        ep.send(&req)?;
+        Ok(t0)
+    }
+
+    /// Receives the reply to a request sent at `t0`; logs held bad data and the exchange.
+    fn collect<I: Message, O: Message>(
+        &mut self,
+        pick: Pick<I, O>,
+        k: u64,
+        kind: Kind,
+        t0: u64,
+    ) -> Result<O, LinkError> {
+        let ep = pick(&mut self.ps);
+        let role = ep.role();
+        let reply = ep.receive(k, kind)?;
+        let t3 = now_ns();
+        let h = *reply.header();
+        if h.flags & FLAG_HELD != 0 {
+            self.events.push(
+                k,
+                role.name(),
+                EventKind::BadInputHeld,
+                f64::NAN,
+                format!(
+                    "non-finite `{}` in {}; last good input used",
+                    cosim::endpoint::field_name::<I>(h.field),
+                    I::NAME
+                ),
+            );
+        }
+        self.exchanges.push(Exchange {
+            step: k,
+            role,
+            sent_ns: t0,
+            reply: h,
+            received_ns: t3,
+        });
+        Ok(reply)
+    }
+
+    /// One request and its reply.
+    fn exchange<I: Message, O: Message>(
+        &mut self,
+        pick: Pick<I, O>,
+        req: I,
+        kind: Kind,
+    ) -> Result<O, LinkError> {
+        let k = req.header().step;
+        let t0 = self.post(pick, req)?;
+        self.collect(pick, k, kind, t0)
+    }
+
+    /// Replaces the participant that failed with `e` by its stand-in, or returns `e`.
+    fn recover(&mut self, k: u64, e: LinkError) -> Result<(), LinkError> {
+        self.degrader
+            .replace(&mut self.ps, &self.held, k, e, &mut self.events)
+    }
+
+    /// One step exchange; on failure the degraded-mode stand-in (if the scenario has one)
+    /// answers the same request.
+    pub fn ask<I: Message, O: Message>(
+        &mut self,
+        pick: Pick<I, O>,
+        req: I,
+    ) -> Result<O, LinkError> {
+        let k = req.header().step;
+        match self.exchange(pick, req, Kind::Step) {
+            Ok(r) => Ok(r),
+            Err(e) => {
+                self.recover(k, e)?;
+                self.exchange(pick, req, Kind::Step)
+            }
+        }
+    }
+
+    /// Sends a step request without waiting; `None` if the participant failed and was
+    /// replaced (its stand-in is asked in [`Team::answer`]).
+    pub fn post_step<I: Message, O: Message>(
+        &mut self,
+        pick: Pick<I, O>,
+        req: I,
+    ) -> Result<Option<u64>, LinkError> {
+        let k = req.header().step;
+        match self.post(pick, req) {
+            Ok(t0) => Ok(Some(t0)),
+            Err(e) => {
+                self.recover(k, e)?;
+                Ok(None)
+            }
+        }
+    }
+
+    /// The reply to a request posted with [`Team::post_step`].
+    pub fn answer<I: Message, O: Message>(
+        &mut self,
+        pick: Pick<I, O>,
+        req: I,
+        posted: Option<u64>,
+    ) -> Result<O, LinkError> {
+        let k = req.header().step;
+        let got = match posted {
+            Some(t0) => self.collect(pick, k, Kind::Step, t0),
+            None => self.exchange(pick, req, Kind::Step),
+        };
+        match got {
+            Ok(r) => Ok(r),
+            Err(e) => {
+                self.recover(k, e)?;
+                self.exchange(pick, req, Kind::Step)
+            }
+        }
+    }
+
+    /// Logs that the run stopped on `e` at tick `k`.
+    pub fn log_failure(&mut self, k: u64, e: &LinkError) {
+        self.events.push(
+            k,
+            e.role().name(),
+            EventKind::RunFailed,
+            f64::NAN,
+            e.cause(),
+        );
+    }
+}
