@@ -26,11 +26,12 @@ fn compare_writes_table_4_with_the_papers_values_and_our_differences() {
     // The CSV carries the same numbers as each run's summary.json.
     let s = summary(&dir.join("paper-lqg"));
     let ours = s["comfort"]["lat_acc_peak_pct_g"].as_f64().unwrap();
-    let row = csv
-        .lines()
-        .find(|l| l.starts_with("\"Lateral acceleration peak (%g)\",\"LQG"))
+    let mut rd = csv::Reader::from_reader(csv.as_bytes());
+    let f = rd
+        .records()
+        .map(|r| r.unwrap())
+        .find(|r| &r[0] == "Lateral acceleration peak (%g)" && r[1].starts_with("LQG"))
         .unwrap();
-    let f: Vec<&str> = row.split(',').collect();
     assert_eq!(f[3].parse::<f64>().unwrap(), ours);
     assert_eq!(f[4].parse::<f64>().unwrap(), 9.796);
     assert!((f[5].parse::<f64>().unwrap() - (ours - 9.796)).abs() < 1e-12);

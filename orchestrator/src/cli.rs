@@ -509,7 +509,7 @@ fn sweep(a: SweepArgs) -> i32 {
         eprintln!("error: {}: {e}", out.display());
         return EXIT_FAILED;
     }
-    let failed = rows.iter().filter(|r| r.status != "completed").count();
+    let failed = rows.iter().filter(|r| !r.status.completed()).count();
     if !a.quiet {
         if let Ok(t) = std::fs::read_to_string(out.join("table.md")) {
             println!("{t}");

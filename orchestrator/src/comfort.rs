@@ -165,6 +165,97 @@ pub struct Comfort {
     pub deflection_of_bump_stop_pct: f64,
 }
 
+/// One comfort metric of Table 4: its short name (CSV column), its label (with unit) and where
+/// it is in a [`Comfort`]. [`METRICS`] drives `compare`, the sweeps and their plots.
+#[derive(Debug, Clone, Copy)]
+pub struct Metric {
+    /// Short name, as a CSV column.
+    pub key: &'static str,
+    /// Label with unit, as a table row.
+    pub label: &'static str,
+    /// The value in a run's comfort.
+    pub get: fn(&Comfort) -> f64,
+    /// Whether it is a P_CT (%), whose formula is meaningful only up to 100 %.
+    pub is_p_ct: bool,
+}
+
+/// Every metric, in the paper's Table 4 order and then ours.
+pub const METRICS: [Metric; 10] = [
+    Metric {
+        key: "lat_acc_rms_dev_pct_g",
+        label: "Lateral acceleration RMS deviation (%g)",
+        get: |c| c.lat_acc_rms_dev_pct_g,
+        is_p_ct: false,
+    },
+    Metric {
+        key: "lat_acc_peak_pct_g",
+        label: "Lateral acceleration peak (%g)",
+        get: |c| c.lat_acc_peak_pct_g,
+        is_p_ct: false,
+    },
+    Metric {
+        key: "roll_speed_rms_dev_rad_s",
+        label: "Roll speed RMS deviation (rad/s)",
+        get: |c| c.roll_speed_rms_dev_rad_s,
+        is_p_ct: false,
+    },
+    Metric {
+        key: "roll_speed_peak_rad_s",
+        label: "Roll speed peak (rad/s)",
+        get: |c| c.roll_speed_peak_rad_s,
+        is_p_ct: false,
+    },
+    Metric {
+        key: "jerk_peak_pct_g_s",
+        label: "Peak jerk level (%g/s)",
+        get: |c| c.jerk_peak_pct_g_s,
+        is_p_ct: false,
+    },
+    Metric {
+        key: "p_ct_standing",
+        label: "P_CT standing, whole-run peaks as the paper (%)",
+        get: |c| c.p_ct.standing,
+        is_p_ct: true,
+    },
+    Metric {
+        key: "p_ct_seated",
+        label: "P_CT seated, whole-run peaks as the paper (%)",
+        get: |c| c.p_ct.seated,
+        is_p_ct: true,
+    },
+    Metric {
+        key: "p_ct_en12299_standing",
+        label: "P_CT standing, EN 12299 per transition (%)",
+        get: |c| c.p_ct_en12299.standing,
+        is_p_ct: true,
+    },
+    Metric {
+        key: "p_ct_en12299_seated",
+        label: "P_CT seated, EN 12299 per transition (%)",
+        get: |c| c.p_ct_en12299.seated,
+        is_p_ct: true,
+    },
+    Metric {
+        key: "deflection_peak_mm",
+        label: "Secondary lateral deflection peak (mm, bump stop 60)",
+        get: |c| c.deflection_peak_mm,
+        is_p_ct: false,
+    },
+];
+
+/// The index in [`METRICS`] of `key` (a compile-time name of this module's table).
+pub fn metric(key: &str) -> usize {
+    METRICS
+        .iter()
+        .position(|m| m.key == key)
+        .unwrap_or(usize::MAX)
+}
+
+/// A run's values in [`METRICS`] order.
+pub fn values(c: &Comfort) -> [f64; 10] {
+    METRICS.map(|m| (m.get)(c))
+}
+
 fn rms(v: impl Iterator<Item = f64>) -> f64 {
     let (mut s, mut n) = (0.0, 0usize);
     for x in v {
@@ -293,6 +384,14 @@ pub fn ideal_tilt(s: &Signals, c: &ComfortSettings) -> Comfort {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_metric_key_is_distinct_and_found() {
+        for (i, m) in METRICS.iter().enumerate() {
+            assert_eq!(metric(m.key), i);
+        }
+        assert_eq!(METRICS.iter().filter(|m| m.is_p_ct).count(), 4);
+    }
 
     #[test]
     fn p_ct_reproduces_the_papers_pi_and_lqg_columns_from_their_peaks() {

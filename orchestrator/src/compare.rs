@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 
 use controller_proc::Mode;
 
-use crate::comfort::Comfort;
+use crate::comfort::{metric, Comfort};
 use crate::engine::Summary;
 use crate::scenario::Scenario;
 
@@ -29,40 +29,7 @@ fn paper_column(s: &Scenario) -> Option<[f64; 7]> {
     }
 }
 
-/// Row labels (unit in parentheses), in the order of [`values`].
-pub const ROWS: [&str; 10] = [
-    "Lateral acceleration RMS deviation (%g)",
-    "Lateral acceleration peak (%g)",
-    "Roll speed RMS deviation (rad/s)",
-    "Roll speed peak (rad/s)",
-    "Peak jerk level (%g/s)",
-    "P_CT standing, whole-run peaks as the paper (%)",
-    "P_CT seated, whole-run peaks as the paper (%)",
-    "P_CT standing, EN 12299 per transition (%)",
-    "P_CT seated, EN 12299 per transition (%)",
-    "Secondary lateral deflection peak (mm, bump stop 60)",
-];
-
-/// Rows of [`ROWS`] that are P_CT values (flagged above 100 %).
-const PCT_ROWS: [usize; 4] = [5, 6, 7, 8];
-/// The deflection row: the ideal tilt has none (the body is not simulated).
-const DEFLECTION_ROW: usize = 9;
-
-/// A run's values in [`ROWS`] order.
-pub fn values(c: &Comfort) -> [f64; 10] {
-    [
-        c.lat_acc_rms_dev_pct_g,
-        c.lat_acc_peak_pct_g,
-        c.roll_speed_rms_dev_rad_s,
-        c.roll_speed_peak_rad_s,
-        c.jerk_peak_pct_g_s,
-        c.p_ct.standing,
-        c.p_ct.seated,
-        c.p_ct_en12299.standing,
-        c.p_ct_en12299.seated,
-        c.deflection_peak_mm,
-    ]
-}
+pub use crate::comfort::{values, METRICS};
 
 /// One compared run.
 pub struct Entry {
@@ -156,7 +123,7 @@ fn cell_flags(e: &Entry, r: usize, v: f64) -> Vec<String> {
             f.bump_stop.deflection_peak_mm
         ));
     }
-    if PCT_ROWS.contains(&r) && v > 100.0 {
+    if METRICS[r].is_p_ct && v > 100.0 {
         tags.push("P_CT > 100 %".into());
     }
     tags
@@ -165,23 +132,59 @@ fn cell_flags(e: &Entry, r: usize, v: f64) -> Vec<String> {
 /// A flag row's cell: raised, and the measured value as text.
 type FlagCell = fn(&crate::validity::Flags) -> (bool, String);
 
+/// `table.csv` as it is built: one record per cell, written by the `csv` crate.
+struct CsvTable(csv::Writer<Vec<u8>>);
+
+impl CsvTable {
+    fn new() -> Self {
+        let mut w = csv::Writer::from_writer(Vec::new());
+        let _ = w.write_record([
+            "metric",
+            "column",
+            "scenario",
+            "value",
+            "paper",
+            "difference",
+            "flags",
+        ]);
+        CsvTable(w)
+    }
+    fn cell(&mut self, fields: [&str; 7]) {
+        // Writing into memory cannot fail.
+        let _ = self.0.write_record(fields);
+    }
+    fn finish(self) -> String {
+        self.0
+            .into_inner()
+            .map(|b| String::from_utf8_lossy(&b).into_owned())
+            .unwrap_or_default()
+    }
+}
+
+const INTRO: &str = "# Comfort assessment (the paper's Table 4 layout)\n\nOurs, with the \
+    paper's value in brackets and our difference where the paper gives one. P_CT headline: \
+    whole-run peaks plugged into the formula, as the paper evaluates it; the EN 12299 rows use \
+    per-transition windows on 0.3 Hz filtered signals. The ideal-tilt columns are the floor: the \
+    body follows the tilt command of eq 18 exactly at the run's ρ. A cell marked ⚠ is not a valid \
+    ride measure (the run oscillates, hits its bump stops, or the formula is outside its 0-100 % \
+    range); its value is given for the record only.\n";
+
 /// `table.md` and `table.csv`.
 pub fn tables(entries: &[Entry]) -> (String, String) {
-    let mut md = String::new();
-    let mut csv = String::from("metric,column,scenario,value,paper,difference,flags\n");
-    let _ = writeln!(
-        md,
-        "# Comfort assessment (the paper's Table 4 layout)\n\nOurs, with the paper's value in \
-         brackets and our difference where the paper gives one. P_CT headline: whole-run peaks \
-         plugged into the formula, as the paper evaluates it; the EN 12299 rows use \
-         per-transition windows on 0.3 Hz filtered signals. The ideal-tilt columns are the floor: \
-         the body follows the tilt command of eq 18 exactly at the run's ρ. A cell marked ⚠ is \
-         not a valid ride measure (the run oscillates, hits its bump stops, or the formula is \
-         outside its 0-100 % range); its value is given for the record only.\n"
-    );
     let (ideal, of) = ideal_columns(entries);
-    let _ = write!(md, "| metric |");
-    for (k, _) in &ideal {
+    let mut md = String::from(INTRO);
+    let mut csv = CsvTable::new();
+    header(&mut md, &ideal, entries);
+    metric_rows(&mut md, &mut csv, &ideal, entries);
+    ideal_differences(&mut md, &mut csv, &ideal, &of, entries);
+    flag_rows(&mut md, &mut csv, ideal.len(), entries);
+    run_table(&mut md, entries);
+    (md, csv.finish())
+}
+
+fn header(md: &mut String, ideal: &[(String, &Comfort)], entries: &[Entry]) {
+    let _ = write!(md, "\n| metric |");
+    for (k, _) in ideal {
         let _ = write!(md, " ideal tilt ({k}) |");
     }
     for e in entries {
@@ -192,77 +195,108 @@ pub fn tables(entries: &[Entry]) -> (String, String) {
         let _ = write!(md, "---|");
     }
     md.push('\n');
-    for (r, name) in ROWS.iter().enumerate() {
-        let _ = write!(md, "| {name} |");
-        for (k, c) in &ideal {
-            if r == DEFLECTION_ROW {
+}
+
+fn metric_rows(
+    md: &mut String,
+    csv: &mut CsvTable,
+    ideal: &[(String, &Comfort)],
+    entries: &[Entry],
+) {
+    let deflection = metric("deflection_peak_mm");
+    for (r, m) in METRICS.iter().enumerate() {
+        let _ = write!(md, "| {} |", m.label);
+        for (k, c) in ideal {
+            if r == deflection {
                 let _ = write!(md, " — |");
             } else {
-                let v = values(c)[r];
+                let v = (m.get)(c);
                 let _ = write!(md, " {} |", fmt(v));
-                let _ = writeln!(csv, "\"{name}\",\"ideal tilt ({k})\",ideal-tilt,{v},,,");
+                let col = format!("ideal tilt ({k})");
+                csv.cell([m.label, &col, "ideal-tilt", &v.to_string(), "", "", ""]);
             }
         }
         for e in entries {
-            let v = values(&e.summary.comfort)[r];
+            let v = (m.get)(&e.summary.comfort);
             let paper = paper_column(&e.scenario).and_then(|p| p.get(r).copied());
             let mut text = match paper {
                 Some(p) => format!("{} [{}] ({:+})", fmt(v), fmt(p), fmt(v - p)),
                 None => fmt(v),
             };
-            let tags = cell_flags(e, r, v);
+            let tags = cell_flags(e, r, v).join("; ");
             if !tags.is_empty() {
-                text = format!("⚠ {text} ({})", tags.join("; "));
+                text = format!("⚠ {text} ({tags})");
             }
             let _ = write!(md, " {text} |");
             let (p, d) = paper.map_or((String::new(), String::new()), |p| {
                 (p.to_string(), (v - p).to_string())
             });
-            let _ = writeln!(
-                csv,
-                "\"{name}\",\"{}\",{},{v},{p},{d},\"{}\"",
-                e.label,
-                e.scenario.name,
-                tags.join("; ")
-            );
+            let name = &e.scenario.name;
+            csv.cell([m.label, &e.label, name, &v.to_string(), &p, &d, &tags]);
         }
         md.push('\n');
     }
-    // Differences from the ideal tilt.
-    for (name, r, unit) in [
-        ("Lateral acceleration peak over ideal tilt", 1, "%g"),
+}
+
+fn ideal_differences(
+    md: &mut String,
+    csv: &mut CsvTable,
+    ideal: &[(String, &Comfort)],
+    of: &[usize],
+    entries: &[Entry],
+) {
+    for (name, key, unit) in [
+        (
+            "Lateral acceleration peak over ideal tilt",
+            "lat_acc_peak_pct_g",
+            "%g",
+        ),
         (
             "P_CT standing (whole-run peaks) over ideal tilt",
-            5,
+            "p_ct_standing",
             "points",
         ),
-        ("P_CT seated (whole-run peaks) over ideal tilt", 6, "points"),
-        ("P_CT standing (EN 12299) over ideal tilt", 7, "points"),
+        (
+            "P_CT seated (whole-run peaks) over ideal tilt",
+            "p_ct_seated",
+            "points",
+        ),
+        (
+            "P_CT standing (EN 12299) over ideal tilt",
+            "p_ct_en12299_standing",
+            "points",
+        ),
     ] {
+        let r = metric(key);
+        let get = METRICS[r].get;
         let _ = write!(md, "| {name} ({unit}) |");
-        for _ in &ideal {
+        for _ in ideal {
             let _ = write!(md, " 0 |");
         }
-        for (e, i) in entries.iter().zip(&of) {
-            let v = values(&e.summary.comfort)[r] - values(ideal[*i].1)[r];
-            let tags = cell_flags(e, r, values(&e.summary.comfort)[r]);
-            if tags.is_empty() {
-                let _ = write!(md, " {:+.3} |", v);
-            } else {
-                let _ = write!(md, " ⚠ {:+.3} |", v);
-            }
-            let _ = writeln!(
-                csv,
-                "\"{name} ({unit})\",\"{}\",{},{v},,,\"{}\"",
-                e.label,
-                e.scenario.name,
-                tags.join("; ")
-            );
+        for (e, i) in entries.iter().zip(of) {
+            let own = get(&e.summary.comfort);
+            let v = own - get(ideal[*i].1);
+            let tags = cell_flags(e, r, own).join("; ");
+            let mark = if tags.is_empty() { "" } else { "⚠ " };
+            let _ = write!(md, " {mark}{v:+.3} |");
+            let label = format!("{name} ({unit})");
+            csv.cell([
+                &label,
+                &e.label,
+                &e.scenario.name,
+                &v.to_string(),
+                "",
+                "",
+                &tags,
+            ]);
         }
         md.push('\n');
     }
-    // Validity flags, each with its measured value.
-    let flag_rows: [(&str, FlagCell); 5] = [
+}
+
+/// Validity flags, each with its measured value.
+fn flag_rows(md: &mut String, csv: &mut CsvTable, ideal_columns: usize, entries: &[Entry]) {
+    let rows: [(&str, FlagCell); 5] = [
         (
             "Oscillation of θ_v − θ_ref (amplitude, frequency)",
             |f| {
@@ -285,12 +319,10 @@ pub fn tables(entries: &[Entry]) -> (String, String) {
         }),
         ("Time at a drive limit (s)", |f| {
             let d = &f.drive_limit;
+            let t = (d.time_at_any_limit_s, d.torque_s, d.speed_s);
             (
                 d.raised,
-                format!(
-                    "{:.3} (torque {:.3}, speed {:.3})",
-                    d.time_at_any_limit_s, d.torque_s, d.speed_s
-                ),
+                format!("{:.3} (torque {:.3}, speed {:.3})", t.0, t.1, t.2),
             )
         }),
         ("Energy dumped in the braking chopper (kJ)", |f| {
@@ -302,9 +334,9 @@ pub fn tables(entries: &[Entry]) -> (String, String) {
             (p.raised, format!("{:.1}", p.largest_pct))
         }),
     ];
-    for (name, get) in flag_rows {
+    for (name, get) in rows {
         let _ = write!(md, "| {name} |");
-        for _ in &ideal {
+        for _ in 0..ideal_columns {
             let _ = write!(md, " — |");
         }
         for e in entries {
@@ -314,16 +346,15 @@ pub fn tables(entries: &[Entry]) -> (String, String) {
             } else {
                 let _ = write!(md, " clear ({text}) |");
             }
-            let _ = writeln!(
-                csv,
-                "\"{name}\",\"{}\",{},\"{text}\",,,{}",
-                e.label,
-                e.scenario.name,
-                if raised { "raised" } else { "clear" }
-            );
+            let state = if raised { "raised" } else { "clear" };
+            csv.cell([name, &e.label, &e.scenario.name, &text, "", "", state]);
         }
         md.push('\n');
     }
+}
+
+/// Each run's status and its drive's peaks.
+fn run_table(md: &mut String, entries: &[Entry]) {
     let _ = writeln!(
         md,
         "\n| run | status | steps | wall (s) | actuator | command shaping | torque peak (N·m) | \
@@ -353,5 +384,4 @@ pub fn tables(entries: &[Entry]) -> (String, String) {
                 .unwrap_or(0.0)
         );
     }
-    (md, csv)
 }

@@ -28,24 +28,11 @@ use std::sync::{Arc, Mutex};
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
-use crate::compare::{fmt, values, ROWS};
+use crate::comfort::{metric, values, METRICS};
+use crate::compare::fmt;
 use crate::engine::{RunOptions, Status};
 use crate::plot::{Chart, Line, PALETTE};
 use crate::scenario::Scenario;
-
-/// Short metric names (CSV headers), in [`ROWS`] order.
-pub const METRICS: [&str; 10] = [
-    "lat_acc_rms_dev_pct_g",
-    "lat_acc_peak_pct_g",
-    "roll_speed_rms_dev_rad_s",
-    "roll_speed_peak_rad_s",
-    "jerk_peak_pct_g_s",
-    "p_ct_standing",
-    "p_ct_seated",
-    "p_ct_en12299_standing",
-    "p_ct_en12299_seated",
-    "deflection_peak_mm",
-];
 
 /// The vehicle parameters a Monte Carlo sweep perturbs: masses, inertias and suspension.
 pub const PERTURBED: [&str; 15] = [
@@ -214,6 +201,41 @@ pub fn sample(base: &Scenario, plan: &Plan, j: usize) -> Result<(Scenario, Vec<f
     }
 }
 
+/// How one sample ended (written `completed` or `failed: cause`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SampleStatus {
+    /// The run completed.
+    Completed,
+    /// The run failed, or the sample could not be set up.
+    Failed(String),
+}
+
+impl SampleStatus {
+    /// Whether the run completed.
+    pub fn completed(&self) -> bool {
+        *self == SampleStatus::Completed
+    }
+
+    /// Parses the text of `samples.csv`.
+    pub fn parse(s: &str) -> Option<Self> {
+        if s == "completed" {
+            Some(SampleStatus::Completed)
+        } else {
+            s.strip_prefix("failed: ")
+                .map(|why| SampleStatus::Failed(why.to_string()))
+        }
+    }
+}
+
+impl std::fmt::Display for SampleStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SampleStatus::Completed => f.write_str("completed"),
+            SampleStatus::Failed(why) => write!(f, "failed: {why}"),
+        }
+    }
+}
+
 /// One sample's result.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Row {
@@ -221,8 +243,8 @@ pub struct Row {
     pub sample: usize,
     /// Parameter values ([`Plan::columns`]).
     pub params: Vec<f64>,
-    /// "completed" or "failed: cause".
-    pub status: String,
+    /// How it ended.
+    pub status: SampleStatus,
     /// Metrics in [`METRICS`] order (NaN when the run failed).
     pub metrics: Vec<f64>,
     /// Lateral acceleration every [`SERIES_DT`] (m/s²), as far as recorded.
@@ -278,7 +300,7 @@ fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
     let failed = |params: Vec<f64>, why: String, series| Row {
         sample: j,
         params,
-        status: format!("failed: {why}"),
+        status: SampleStatus::Failed(why),
         metrics: vec![f64::NAN; METRICS.len()],
         series,
     };
@@ -314,7 +336,7 @@ fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
         Ok(sum) if sum.status == Status::Completed => Row {
             sample: j,
             params,
-            status: "completed".into(),
+            status: SampleStatus::Completed,
             metrics: values(&sum.comfort).to_vec(),
             series,
         },
@@ -354,7 +376,7 @@ pub fn run(base: &Scenario, plan: &Plan, shard: Option<Shard>, ex: &Exec) -> Opt
                     break;
                 }
                 let row = run_one(&base, plan, todo[i], ex);
-                if !row.status.starts_with("completed") {
+                if !row.status.completed() {
                     bar.set_message(format!("(sample {} failed)", row.sample));
                 }
                 if let Ok(mut r) = rows.lock() {
@@ -388,10 +410,6 @@ pub struct SweepFile {
     pub samples: Vec<usize>,
 }
 
-fn csv_text(s: &str) -> String {
-    s.replace([',', '\n', '\r', '"'], " ")
-}
-
 /// Linear-interpolation percentile (type 7) of sorted values.
 pub fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
@@ -400,6 +418,136 @@ pub fn percentile(sorted: &[f64], p: f64) -> f64 {
     let h = (sorted.len() - 1) as f64 * p;
     let (lo, hi) = (h.floor() as usize, h.ceil() as usize);
     sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
+}
+
+/// A CSV file in memory, written by the `csv` crate.
+fn csv_text(records: impl IntoIterator<Item = Vec<String>>) -> String {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for r in records {
+        // Writing into memory cannot fail.
+        let _ = w.write_record(&r);
+    }
+    w.into_inner()
+        .map(|b| String::from_utf8_lossy(&b).into_owned())
+        .unwrap_or_default()
+}
+
+fn numbers(v: &[f64]) -> impl Iterator<Item = String> + '_ {
+    v.iter().map(|x| x.to_string())
+}
+
+/// `samples.csv`: each sample's parameters, status and metrics.
+fn samples_csv(plan: &Plan, rows: &[Row]) -> String {
+    let cols = plan.columns();
+    let head = std::iter::once("sample".to_string())
+        .chain(cols.iter().map(|c| c.to_string()))
+        .chain(std::iter::once("status".to_string()))
+        .chain(METRICS.iter().map(|m| m.key.to_string()))
+        .collect();
+    let body = rows.iter().map(|r| {
+        let params = (0..cols.len()).map(|k| r.params.get(k).copied().unwrap_or(f64::NAN));
+        std::iter::once(r.sample.to_string())
+            .chain(params.map(|v| v.to_string()))
+            .chain(std::iter::once(r.status.to_string()))
+            .chain(numbers(&r.metrics))
+            .collect()
+    });
+    csv_text(std::iter::once(head).chain(body))
+}
+
+/// `series.csv`: each sample's lateral acceleration every [`SERIES_DT`].
+fn series_csv(rows: &[Row]) -> String {
+    let longest = rows.iter().map(|r| r.series.len()).max().unwrap_or(0);
+    let head = std::iter::once("sample".to_string())
+        .chain((0..longest).map(|i| ((i + 1) as f64 * SERIES_DT).to_string()))
+        .collect();
+    let body = rows.iter().map(|r| {
+        std::iter::once(r.sample.to_string())
+            .chain(numbers(&r.series))
+            .collect()
+    });
+    // Series of failed samples are shorter: the csv crate needs flexible records.
+    let mut w = csv::WriterBuilder::new()
+        .flexible(true)
+        .from_writer(Vec::new());
+    for r in std::iter::once(head).chain(body) {
+        let _ = w.write_record::<&Vec<String>, &String>(&r);
+    }
+    w.into_inner()
+        .map(|b| String::from_utf8_lossy(&b).into_owned())
+        .unwrap_or_default()
+}
+
+/// `table.md` and `table.csv` of a Monte Carlo sweep: each metric's distribution.
+fn monte_carlo_tables(base: &Scenario, spread: f64, seed: u64, rows: &[Row]) -> (String, String) {
+    let ok: Vec<&Row> = rows.iter().filter(|r| r.status.completed()).collect();
+    let mut md = format!(
+        "# Robustness sweep of `{}`\n\nMonte Carlo over the true vehicle: {} masses, \
+         inertias and suspension parameters each scaled by U(1 − {s}, 1 + {s}) (seed \
+         {seed}); the controller keeps the nominal design. {} of {} samples completed.\n\n\
+         | metric | median | p5 | p95 | min | max |\n|---|---|---|---|---|---|\n",
+        base.name,
+        PERTURBED.len(),
+        ok.len(),
+        rows.len(),
+        s = spread
+    );
+    let mut records = vec![["metric", "n", "median", "p5", "p95", "min", "max"]
+        .map(String::from)
+        .to_vec()];
+    for (m, metric) in METRICS.iter().enumerate() {
+        let mut v: Vec<f64> = ok.iter().map(|r| r.metrics[m]).collect();
+        v.sort_by(|a, b| a.total_cmp(b));
+        let q = [0.5, 0.05, 0.95, 0.0, 1.0].map(|p| percentile(&v, p));
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} | {} |",
+            metric.label,
+            fmt(q[0]),
+            fmt(q[1]),
+            fmt(q[2]),
+            fmt(q[3]),
+            fmt(q[4])
+        );
+        let mut rec = vec![metric.key.to_string(), v.len().to_string()];
+        rec.extend(numbers(&q));
+        records.push(rec);
+    }
+    (md, csv_text(records))
+}
+
+/// `table.md` and `table.csv` of a grid sweep: the metrics at each value.
+fn grid_tables(base: &Scenario, key: &str, rows: &[Row]) -> (String, String) {
+    let mut md = format!(
+        "# Sweep of `{}` over `{key}`\n\n| {key} | status | lat. acc. peak (%g) | \
+         P_CT standing (%) | P_CT seated (%) | P_CT EN 12299 standing (%) | roll speed \
+         peak (rad/s) | jerk peak (%g/s) |\n|---|---|---|---|---|---|---|---|\n",
+        base.name
+    );
+    let shown = [
+        "lat_acc_peak_pct_g",
+        "p_ct_standing",
+        "p_ct_seated",
+        "p_ct_en12299_standing",
+        "roll_speed_peak_rad_s",
+        "jerk_peak_pct_g_s",
+    ];
+    let head = [key.to_string(), "status".to_string()]
+        .into_iter()
+        .chain(METRICS.iter().map(|m| m.key.to_string()))
+        .collect();
+    let mut records = vec![head];
+    for r in rows {
+        let _ = write!(md, "| {} | {} |", r.params[0], r.status);
+        for k in shown {
+            let _ = write!(md, " {} |", fmt(r.metrics[metric(k)]));
+        }
+        md.push('\n');
+        let mut rec = vec![r.params[0].to_string(), r.status.to_string()];
+        rec.extend(numbers(&r.metrics));
+        records.push(rec);
+    }
+    (md, csv_text(records))
 }
 
 /// Writes every output file of a sweep (or shard) from its rows.
@@ -429,109 +577,11 @@ pub fn write_outputs(
         serde_json::to_string_pretty(&meta).unwrap_or_default() + "\n",
     )?;
     put("scenario.toml", toml::to_string(base).unwrap_or_default())?;
-
-    let cols = plan.columns();
-    let mut csv = format!("sample,{},status,{}\n", cols.join(","), METRICS.join(","));
-    for r in rows {
-        let _ = write!(csv, "{}", r.sample);
-        for (k, _) in cols.iter().enumerate() {
-            let _ = write!(csv, ",{}", r.params.get(k).copied().unwrap_or(f64::NAN));
-        }
-        let _ = write!(csv, ",{}", csv_text(&r.status));
-        for m in &r.metrics {
-            let _ = write!(csv, ",{m}");
-        }
-        csv.push('\n');
-    }
-    put("samples.csv", csv)?;
-
-    let longest = rows.iter().map(|r| r.series.len()).max().unwrap_or(0);
-    let mut ser = String::from("sample");
-    for i in 0..longest {
-        let _ = write!(ser, ",{}", (i + 1) as f64 * SERIES_DT);
-    }
-    ser.push('\n');
-    for r in rows {
-        let _ = write!(ser, "{}", r.sample);
-        for v in &r.series {
-            let _ = write!(ser, ",{v}");
-        }
-        ser.push('\n');
-    }
-    put("series.csv", ser)?;
-
-    let ok: Vec<&Row> = rows.iter().filter(|r| r.status == "completed").collect();
+    put("samples.csv", samples_csv(plan, rows))?;
+    put("series.csv", series_csv(rows))?;
     let (md, tcsv) = match plan {
-        Plan::MonteCarlo { spread, seed, .. } => {
-            let mut md = format!(
-                "# Robustness sweep of `{}`\n\nMonte Carlo over the true vehicle: {} masses, \
-                 inertias and suspension parameters each scaled by U(1 − {s}, 1 + {s}) (seed \
-                 {seed}); the controller keeps the nominal design. {} of {} samples completed.\n\n\
-                 | metric | median | p5 | p95 | min | max |\n|---|---|---|---|---|---|\n",
-                base.name,
-                PERTURBED.len(),
-                ok.len(),
-                rows.len(),
-                s = spread
-            );
-            let mut tcsv = String::from("metric,n,median,p5,p95,min,max\n");
-            for (m, name) in ROWS.iter().enumerate() {
-                let mut v: Vec<f64> = ok.iter().map(|r| r.metrics[m]).collect();
-                v.sort_by(|a, b| a.total_cmp(b));
-                let q = [0.5, 0.05, 0.95, 0.0, 1.0].map(|p| percentile(&v, p));
-                let _ = writeln!(
-                    md,
-                    "| {name} | {} | {} | {} | {} | {} |",
-                    fmt(q[0]),
-                    fmt(q[1]),
-                    fmt(q[2]),
-                    fmt(q[3]),
-                    fmt(q[4])
-                );
-                let _ = writeln!(
-                    tcsv,
-                    "{},{},{},{},{},{},{}",
-                    METRICS[m],
-                    v.len(),
-                    q[0],
-                    q[1],
-                    q[2],
-                    q[3],
-                    q[4]
-                );
-            }
-            (md, tcsv)
-        }
-        Plan::Grid { key, .. } => {
-            let mut md = format!(
-                "# Sweep of `{}` over `{key}`\n\n| {key} | status | lat. acc. peak (%g) | \
-                 P_CT standing (%) | P_CT seated (%) | P_CT EN 12299 standing (%) | roll speed \
-                 peak (rad/s) | jerk peak (%g/s) |\n|---|---|---|---|---|---|---|---|\n",
-                base.name
-            );
-            let mut tcsv = format!("{key},status,{}\n", METRICS.join(","));
-            for r in rows {
-                let m = &r.metrics;
-                let _ = writeln!(
-                    md,
-                    "| {} | {} | {} | {} | {} | {} | {} | {} |",
-                    r.params[0],
-                    csv_text(&r.status),
-                    fmt(m[1]),
-                    fmt(m[5]),
-                    fmt(m[6]),
-                    fmt(m[7]),
-                    fmt(m[3]),
-                    fmt(m[4])
-                );
-                let _ = write!(tcsv, "{},{}", r.params[0], csv_text(&r.status));
-                for v in m {
-                    let _ = write!(tcsv, ",{v}");
-                }
-                tcsv.push('\n');
-            }
-            (md, tcsv)
-        }
+        Plan::MonteCarlo { spread, seed, .. } => monte_carlo_tables(base, *spread, *seed, rows),
+        Plan::Grid { key, .. } => grid_tables(base, key, rows),
     };
     put("table.md", md)?;
     put("table.csv", tcsv)?;
@@ -547,7 +597,7 @@ fn write_plots(
 ) -> std::io::Result<Vec<PathBuf>> {
     let dir = out.join("plots");
     std::fs::create_dir_all(&dir)?;
-    let ok: Vec<&Row> = rows.iter().filter(|r| r.status == "completed").collect();
+    let ok: Vec<&Row> = rows.iter().filter(|r| r.status.completed()).collect();
     let n = ok.iter().map(|r| r.series.len()).min().unwrap_or(0);
     let t: Vec<f64> = (0..n).map(|i| (i + 1) as f64 * SERIES_DT).collect();
     let bands = crate::analysis::bands(base);
@@ -597,7 +647,10 @@ fn write_plots(
                 &t,
             )?);
             // Empirical distribution of P_CT.
-            let mut p: Vec<f64> = ok.iter().map(|r| r.metrics[5]).collect();
+            let mut p: Vec<f64> = ok
+                .iter()
+                .map(|r| r.metrics[metric("p_ct_standing")])
+                .collect();
             p.sort_by(|a, b| a.total_cmp(b));
             let frac: Vec<f64> = (1..=p.len()).map(|i| i as f64 / p.len() as f64).collect();
             let chart = Chart {
@@ -653,19 +706,28 @@ fn write_plots(
                 lines: vec![
                     Line {
                         label: "P_CT standing",
-                        y: ok.iter().map(|r| r.metrics[5]).collect(),
+                        y: ok
+                            .iter()
+                            .map(|r| r.metrics[metric("p_ct_standing")])
+                            .collect(),
                         colour: "#1f77b4",
                         dashed: false,
                     },
                     Line {
                         label: "P_CT seated",
-                        y: ok.iter().map(|r| r.metrics[6]).collect(),
+                        y: ok
+                            .iter()
+                            .map(|r| r.metrics[metric("p_ct_seated")])
+                            .collect(),
                         colour: "#2ca02c",
                         dashed: false,
                     },
                     Line {
                         label: "lat. acc. peak (%g)",
-                        y: ok.iter().map(|r| r.metrics[1]).collect(),
+                        y: ok
+                            .iter()
+                            .map(|r| r.metrics[metric("lat_acc_peak_pct_g")])
+                            .collect(),
                         colour: "#d62728",
                         dashed: true,
                     },
@@ -679,14 +741,48 @@ fn write_plots(
     Ok(files)
 }
 
-fn parse_f64s(fields: &[&str], what: &str) -> Result<Vec<f64>, String> {
+fn parse_f64s<'a>(fields: impl Iterator<Item = &'a str>, what: &str) -> Result<Vec<f64>, String> {
     fields
-        .iter()
         .map(|x| {
             x.parse::<f64>()
                 .map_err(|_| format!("{what}: `{x}` is not a number"))
         })
         .collect()
+}
+
+/// The records of a CSV file of a sweep's directory, each with its line number.
+fn records(dir: &Path, name: &str) -> Result<Vec<(String, csv::StringRecord)>, String> {
+    let p = dir.join(name);
+    let mut rd = csv::ReaderBuilder::new()
+        .flexible(true)
+        .from_path(&p)
+        .map_err(|e| format!("{}: {e}", p.display()))?;
+    rd.records()
+        .enumerate()
+        .map(|(i, r)| {
+            let at = format!("{} line {}", p.display(), i + 2);
+            r.map(|r| (at.clone(), r)).map_err(|e| format!("{at}: {e}"))
+        })
+        .collect()
+}
+
+/// One record of `samples.csv`.
+fn sample_row(at: &str, f: &csv::StringRecord, ncol: usize) -> Result<Row, String> {
+    let want = 2 + ncol + METRICS.len();
+    if f.len() != want {
+        return Err(format!("{at}: {} fields, expected {want}", f.len()));
+    }
+    let status = &f[1 + ncol];
+    Ok(Row {
+        sample: f[0]
+            .parse()
+            .map_err(|_| format!("{at}: bad sample index `{}`", &f[0]))?,
+        params: parse_f64s(f.iter().skip(1).take(ncol), at)?,
+        status: SampleStatus::parse(status)
+            .ok_or_else(|| format!("{at}: status `{status}` is neither completed nor failed"))?,
+        metrics: parse_f64s(f.iter().skip(2 + ncol), at)?,
+        series: Vec::new(),
+    })
 }
 
 /// Reads a sweep's (or shard's) outputs back: its meta, base scenario and rows.
@@ -700,40 +796,20 @@ pub fn read_outputs(dir: &Path) -> Result<(SweepFile, Scenario, Vec<Row>), Strin
     let base = Scenario::parse(&read("scenario.toml")?, &dir.join("scenario.toml"))
         .map_err(|e| e.to_string())?;
     let ncol = meta.plan.columns().len();
-    let samples_csv = dir.join("samples.csv").display().to_string();
-    let mut rows = Vec::new();
-    for (ln, line) in read("samples.csv")?.lines().skip(1).enumerate() {
-        let f: Vec<&str> = line.split(',').collect();
-        let at = format!("{samples_csv} line {}", ln + 2);
-        if f.len() != 2 + ncol + METRICS.len() {
-            return Err(format!(
-                "{at}: {} fields, expected {}",
-                f.len(),
-                2 + ncol + METRICS.len()
-            ));
-        }
-        rows.push(Row {
-            sample: f[0]
-                .parse()
-                .map_err(|_| format!("{at}: bad sample index `{}`", f[0]))?,
-            params: parse_f64s(&f[1..1 + ncol], &at)?,
-            status: f[1 + ncol].to_string(),
-            metrics: parse_f64s(&f[2 + ncol..], &at)?,
-            series: Vec::new(),
-        });
-    }
-    let series_csv = dir.join("series.csv").display().to_string();
-    for (ln, line) in read("series.csv")?.lines().skip(1).enumerate() {
-        let f: Vec<&str> = line.split(',').collect();
-        let at = format!("{series_csv} line {}", ln + 2);
-        let j: usize = f[0]
-            .parse()
-            .map_err(|_| format!("{at}: bad sample index"))?;
+    let mut rows = records(dir, "samples.csv")?
+        .iter()
+        .map(|(at, f)| sample_row(at, f, ncol))
+        .collect::<Result<Vec<_>, _>>()?;
+    for (at, f) in records(dir, "series.csv")? {
+        let j: usize = f
+            .get(0)
+            .and_then(|x| x.parse().ok())
+            .ok_or_else(|| format!("{at}: bad sample index"))?;
         let row = rows
             .iter_mut()
             .find(|r| r.sample == j)
             .ok_or_else(|| format!("{at}: sample {j} is not in samples.csv"))?;
-        row.series = parse_f64s(&f[1..], &at)?;
+        row.series = parse_f64s(f.iter().skip(1), &at)?;
     }
     Ok((meta, base, rows))
 }
