@@ -1,0 +1,94 @@
+//! What several commands share: the argument enums, loading a scenario, the Ctrl-C flag and
+//! the participants' executable, writing JSON.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use clap::ValueEnum;
+use cosim::wait::WaitStrategy;
+use serde::Serialize;
+
+use super::error::CliError;
+use crate::scenario::{Master, Scenario, Transport};
+
+/// `--transport`.
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum TransportArg {
+    /// Separate processes over iceoryx2.
+    Ipc,
+    /// Every participant in this process.
+    InProcess,
+}
+
+impl From<TransportArg> for Transport {
+    fn from(t: TransportArg) -> Self {
+        match t {
+            TransportArg::Ipc => Transport::Ipc,
+            TransportArg::InProcess => Transport::InProcess,
+        }
+    }
+}
+
+/// `--master`.
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum MasterArg {
+    /// One participant after the other.
+    GaussSeidel,
+    /// All in parallel from the previous outputs.
+    Jacobi,
+}
+
+impl From<MasterArg> for Master {
+    fn from(m: MasterArg) -> Self {
+        match m {
+            MasterArg::GaussSeidel => Master::GaussSeidel,
+            MasterArg::Jacobi => Master::Jacobi,
+        }
+    }
+}
+
+/// `--wait`.
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum WaitArg {
+    /// Busy-poll.
+    Spin,
+    /// Spin, yield, nap.
+    Adaptive,
+    /// Nap between polls.
+    Sleep,
+}
+
+impl From<WaitArg> for WaitStrategy {
+    fn from(w: WaitArg) -> Self {
+        match w {
+            WaitArg::Spin => WaitStrategy::Spin,
+            WaitArg::Adaptive => WaitStrategy::Adaptive,
+            WaitArg::Sleep => WaitStrategy::Sleep,
+        }
+    }
+}
+
+/// Loads and validates a scenario file.
+pub fn load(path: &Path) -> Result<Scenario, CliError> {
+    Scenario::load(path).map_err(|e| CliError::Invalid(e.to_string()))
+}
+
+/// The Ctrl-C flag (handler installed) and the executable that serves participants.
+pub fn interrupt_and_exe() -> Result<(Arc<AtomicBool>, PathBuf), CliError> {
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let flag = interrupt.clone();
+    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    let exe = std::env::current_exe().map_err(|e| {
+        CliError::Failed(format!(
+            "cannot find the tiltsim executable to start participants: {e}"
+        ))
+    })?;
+    Ok((interrupt, exe))
+}
+
+/// Writes `v` as pretty JSON to `path`.
+pub fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), CliError> {
+    let text = serde_json::to_string_pretty(v).unwrap_or_default() + "\n";
+    std::fs::write(path, text).map_err(|e| CliError::Failed(format!("{}: {e}", path.display())))
+}

@@ -1,0 +1,90 @@
+//! `tiltsim compare SCENARIO...`: several runs laid out like the paper's Table 4, with the
+//! ideal-tilt floor and the validity flags.
+
+use std::path::{Path, PathBuf};
+
+use super::common::{interrupt_and_exe, load, write_json, TransportArg};
+use super::error::{CliError, CliResult};
+use crate::compare::Entry;
+use crate::engine::{RunOptions, Status};
+use crate::scenario::Scenario;
+
+/// Arguments.
+#[derive(clap::Args, Debug)]
+pub struct CompareArgs {
+    /// Scenario files (TOML).
+    #[arg(required = true)]
+    scenarios: Vec<PathBuf>,
+    /// Output directory.
+    #[arg(long, default_value = "out/compare")]
+    out: PathBuf,
+    /// Transport for every run, overriding run.transport.
+    #[arg(long, value_enum)]
+    transport: Option<TransportArg>,
+}
+
+/// Runs one scenario into `out/<name>`; its table entry.
+fn one(file: &Path, s: Scenario, out: &Path, base: &RunOptions) -> Result<Entry, CliError> {
+    let dir = out.join(&s.name);
+    let mut opts = base.clone();
+    opts.out_dir = dir.clone();
+    let summary = crate::analysis::run(&s, &file.display().to_string(), &opts)
+        .map_err(|e| CliError::Failed(format!("{}: {e}", file.display())))?;
+    write_json(&dir.join("summary.json"), &summary)?;
+    println!(
+        "{}: {:?}, P_CT standing {:.2} %, peak lateral acceleration {:.2} %g",
+        s.name, summary.status, summary.comfort.p_ct.standing, summary.comfort.lat_acc_peak_pct_g
+    );
+    match summary.status {
+        Status::Completed | Status::Degraded => {}
+        Status::Interrupted => return Err(CliError::Interrupted("interrupted".into())),
+        Status::Failed => {
+            let why = summary.error.as_deref().unwrap_or("run failed");
+            return Err(CliError::Failed(format!("{}: {why}", s.name)));
+        }
+    }
+    let signals = crate::analysis::signals_from_run(&s, &dir);
+    let ideal = crate::comfort::ideal_tilt(&signals, &s.comfort);
+    Ok(crate::compare::entry(s, summary, ideal))
+}
+
+/// Runs the command.
+pub fn exec(a: CompareArgs) -> CliResult {
+    let mut loaded = Vec::new();
+    for f in &a.scenarios {
+        let mut s = load(f)?;
+        if let Some(t) = a.transport {
+            s.run.transport = t.into();
+        }
+        loaded.push((f.clone(), s));
+    }
+    let (interrupt, exe) = interrupt_and_exe()?;
+    let mut base = RunOptions::new(a.out.clone(), exe);
+    base.interrupt = interrupt;
+    let mut entries = Vec::new();
+    for (file, s) in loaded {
+        entries.push(one(&file, s, &a.out, &base)?);
+    }
+    let (md, csv) = crate::compare::tables(&entries);
+    for (name, text) in [("table.md", &md), ("table.csv", &csv)] {
+        let p = a.out.join(name);
+        std::fs::write(&p, text).map_err(|e| CliError::Failed(format!("{}: {e}", p.display())))?;
+    }
+    let runs: Vec<_> = entries
+        .iter()
+        .map(|e| {
+            (
+                e.label.clone(),
+                e.scenario.clone(),
+                a.out.join(&e.scenario.name),
+            )
+        })
+        .collect();
+    crate::analysis::write_compare_plots(&runs, &a.out)
+        .map_err(|e| CliError::Failed(format!("{}: {e}", a.out.join("plots").display())))?;
+    println!(
+        "wrote {0}/table.md, {0}/table.csv and {0}/plots/compare_*.svg|png",
+        a.out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,57 @@
+//! The command line's one error type and its exit codes.
+
+/// Exit code: the run failed.
+pub const EXIT_FAILED: i32 = 1;
+/// Exit code: invalid input.
+pub const EXIT_INVALID: i32 = 2;
+/// Exit code: interrupted.
+pub const EXIT_INTERRUPTED: i32 = 130;
+
+/// Why a command did not succeed.
+#[derive(Debug, thiserror::Error)]
+pub enum CliError {
+    /// Invalid input: the message names the file, the field and what is allowed.
+    #[error("error: {0}")]
+    Invalid(String),
+    /// The work failed (a participant died, stalled or sent bad data; an output could not be
+    /// written).
+    #[error("error: {0}")]
+    Failed(String),
+    /// A participant process ended with an error of its own (printed as it said it).
+    #[error("{0}")]
+    Participant(String),
+    /// Ctrl-C; the message says what was kept.
+    #[error("{0}")]
+    Interrupted(String),
+}
+
+impl CliError {
+    /// The process exit code (README, "Exit codes").
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            CliError::Invalid(_) => EXIT_INVALID,
+            CliError::Failed(_) | CliError::Participant(_) => EXIT_FAILED,
+            CliError::Interrupted(_) => EXIT_INTERRUPTED,
+        }
+    }
+}
+
+/// What a command returns.
+pub type CliResult = Result<(), CliError>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_error_has_its_documented_exit_code() {
+        assert_eq!(CliError::Invalid("x".into()).exit_code(), 2);
+        assert_eq!(CliError::Failed("x".into()).exit_code(), 1);
+        assert_eq!(CliError::Participant("x".into()).exit_code(), 1);
+        assert_eq!(CliError::Interrupted("x".into()).exit_code(), 130);
+        assert_eq!(
+            CliError::Invalid("f.toml: run.dt_s".into()).to_string(),
+            "error: f.toml: run.dt_s"
+        );
+    }
+}

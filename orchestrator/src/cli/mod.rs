@@ -1,0 +1,108 @@
+//! The `tiltsim` command line: one file per command, one error type ([`CliError`]) mapped to
+//! the exit code in one place ([`main`]).
+//!
+//! Exit codes: 0 success; 1 the run failed (a participant died, stalled or sent bad data);
+//! 2 invalid input (command line or scenario file); 130 interrupted by Ctrl-C.
+
+mod bench;
+mod common;
+mod compare;
+mod error;
+mod linearize;
+mod participant;
+mod plot;
+mod report;
+mod run;
+mod sweep;
+mod sweep_merge;
+mod validate;
+
+use clap::{Parser, Subcommand};
+
+pub use error::{CliError, CliResult, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_INVALID};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "tiltsim",
+    version,
+    about = "Co-simulator for active tilt control of railway vehicles"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+    /// More log output (repeat for more).
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Run a scenario and write DIR/timeseries.csv, DIR/summary.json, DIR/scenario.toml.
+    Run(run::RunArgs),
+    /// Check a scenario file without running it.
+    Validate(validate::ValidateArgs),
+    /// Run several scenarios and write DIR/table.md and DIR/table.csv laid out like the
+    /// paper's Table 4 (each run's files go to DIR/<scenario name>/).
+    Compare(compare::CompareArgs),
+    /// Redraw DIR/plots/*.svg and *.png from a finished run's DIR/timeseries.csv and DIR/scenario.toml.
+    Plot(plot::PlotArgs),
+    /// Robustness or parameter sweep: many runs in parallel, a table of comfort metrics
+    /// (median, 5th and 95th percentile) and plots in DIR. Either --samples (Monte Carlo
+    /// over masses, inertias and suspension, Fig. 21) or --grid KEY=START:STOP:STEP.
+    Sweep(sweep::SweepArgs),
+    /// Merge the outputs of `tiltsim sweep --shard i/n` runs into the whole sweep's files.
+    SweepMerge(sweep_merge::SweepMergeArgs),
+    /// Measure this machine: the iceoryx2 round-trip floor, the per-tick coordination
+    /// overhead of every master algorithm and wait strategy, and in-process vs IPC wall time.
+    Bench(bench::BenchArgs),
+    /// Print the linear design model (matrices, eigenvalues, damping, frequencies) and the
+    /// scenario controller's gains as JSON.
+    Linearize(linearize::LinearizeArgs),
+    /// Serve one participant over iceoryx2 (how the orchestrator starts its processes).
+    #[command(hide = true)]
+    Participant(participant::ParticipantArgs),
+}
+
+fn init_logging(verbose: u8) {
+    let level = match verbose {
+        0 => "warn",
+        1 => "info",
+        _ => "debug",
+    };
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| level.into()),
+        )
+        .with_writer(std::io::stderr)
+        .try_init();
+}
+
+/// Runs the program; returns the exit code.
+pub fn main() -> i32 {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() { EXIT_INVALID } else { 0 };
+        }
+    };
+    init_logging(cli.verbose);
+    let result = match cli.command {
+        Command::Run(a) => run::exec(a),
+        Command::Validate(a) => validate::exec(a),
+        Command::Compare(a) => compare::exec(a),
+        Command::Plot(a) => plot::exec(a),
+        Command::Sweep(a) => sweep::exec(a),
+        Command::SweepMerge(a) => sweep_merge::exec(a),
+        Command::Bench(a) => bench::exec(a),
+        Command::Linearize(a) => linearize::exec(a),
+        Command::Participant(a) => participant::exec(a),
+    };
+    match result {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("{e}");
+            e.exit_code()
+        }
+    }
+}

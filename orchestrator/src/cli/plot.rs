@@ -1,0 +1,25 @@
+//! `tiltsim plot DIR`: redraw a finished run's figures.
+
+use std::path::PathBuf;
+
+use super::common::load;
+use super::error::{CliError, CliResult};
+
+/// Arguments.
+#[derive(clap::Args, Debug)]
+pub struct PlotArgs {
+    /// A run's output directory.
+    dir: PathBuf,
+}
+
+/// Runs the command.
+pub fn exec(a: PlotArgs) -> CliResult {
+    let s = load(&a.dir.join("scenario.toml"))?;
+    let files = crate::analysis::write_plots(&s, &a.dir).map_err(|e| {
+        CliError::Invalid(format!("{}: {e}", a.dir.join("timeseries.csv").display()))
+    })?;
+    for f in files {
+        println!("wrote {}", f.display());
+    }
+    Ok(())
+}

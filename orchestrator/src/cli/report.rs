@@ -1,0 +1,97 @@
+//! What `tiltsim run` prints about a finished run.
+
+use std::path::Path;
+
+use crate::engine::Summary;
+
+/// Prints what a run did and found.
+pub fn print(s: &Summary, out: &Path) {
+    println!(
+        "{}: {:?}, {} steps ({:.3} s simulated) in {:.3} s wall ({:.1}x real time)",
+        s.scenario,
+        s.status,
+        s.steps_completed,
+        s.simulated_time_s,
+        s.wall_time_s,
+        s.realtime_factor
+    );
+    println!(
+        "  transport {}, master {}, wait {}; pids: {}",
+        s.transport.name(),
+        s.master_algorithm.name(),
+        s.wait_strategy.name(),
+        s.participants
+            .iter()
+            .map(|p| format!("{}={}", p.process, p.pid))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    println!(
+        "  coordination overhead per tick: p50 {:.2} us, p99 {:.2} us, max {:.1} us; CPU: orchestrator {:.2} s, participants {:.2} s",
+        s.timing.p50, s.timing.p99, s.timing.max, s.timing.cpu_s.orchestrator, s.timing.cpu_s.participants
+    );
+    println!(
+        "  lateral acceleration: peak {:.3} m/s², mid-curve {:.3} m/s²; body roll mid-curve {:.3} deg; peak delta_a {:.3} deg",
+        s.results.lat_acc_peak,
+        s.results.lat_acc_mid_curve,
+        s.results.theta_v_mid_curve.to_degrees(),
+        s.results.delta_a_peak.to_degrees()
+    );
+    let c = &s.comfort;
+    println!(
+        "  comfort: P_CT standing {:.2} %, seated {:.2} % (whole-run peaks, as the paper; EN 12299 per transition {:.2} / {:.2} %); lateral acceleration RMS deviation {:.3} %g, peak {:.2} %g; jerk {:.2} %g/s",
+        c.p_ct.standing,
+        c.p_ct.seated,
+        c.p_ct_en12299.standing,
+        c.p_ct_en12299.seated,
+        c.lat_acc_rms_dev_pct_g,
+        c.lat_acc_peak_pct_g,
+        c.jerk_peak_pct_g_s
+    );
+    let flags = s.flags.describe();
+    if flags.is_empty() {
+        println!(
+            "  flags: all clear (no oscillation, bump stop, drive limit, chopper duty or P_CT out of range)"
+        );
+    } else {
+        for f in flags {
+            println!("  FLAG {f}");
+        }
+        if s.flags.ride_invalid() {
+            println!("  the comfort numbers above do not describe a working tilt system");
+        }
+    }
+    print_timing(s);
+    println!(
+        "  wrote {}/timeseries.csv, summary.json, events.csv, scenario.toml, plots/*.svg|png",
+        out.display()
+    );
+}
+
+/// Compute, latency, pacing and solver figures.
+fn print_timing(s: &Summary) {
+    for p in &s.participants {
+        println!(
+            "  {} compute per call: p50 {:.1} us, p99 {:.1} us, max {:.1} us ({} calls)",
+            p.process, p.compute_us.p50, p.compute_us.p99, p.compute_us.max, p.compute_us.n
+        );
+    }
+    for l in &s.link_latency {
+        println!(
+            "  {} link latency: request p50 {:.1} us, p99 {:.1} us, max {:.1} us; reply p50 {:.1} us, p99 {:.1} us",
+            l.participant, l.request_us.p50, l.request_us.p99, l.request_us.max, l.reply_us.p50, l.reply_us.p99
+        );
+    }
+    if let Some(p) = &s.pacing {
+        println!(
+            "  paced at {}x real time: achieved {:.3}x; {} of {} ticks overran (late by p50 {:.1} us, max {:.1} us)",
+            p.factor, p.achieved_realtime_factor, p.overruns, p.ticks, p.lateness_us.p50, p.lateness_us.max
+        );
+    }
+    if let Some(q) = &s.controller_solver {
+        println!(
+            "  MPC QP: {} solves, {} failed (previous command held), iterations p50 {:.0}, max {:.0}",
+            q.solves, q.failures, q.iterations.p50, q.iterations.max
+        );
+    }
+}

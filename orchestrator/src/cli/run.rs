@@ -1,0 +1,160 @@
+//! `tiltsim run SCENARIO`: one run, its files and its report.
+
+use std::path::PathBuf;
+
+use super::common::{interrupt_and_exe, load, write_json, MasterArg, TransportArg, WaitArg};
+use super::error::{CliError, CliResult};
+use crate::engine::{RunOptions, Status, Summary};
+use crate::scenario::Scenario;
+
+/// Arguments.
+#[derive(clap::Args, Debug)]
+pub struct RunArgs {
+    /// Scenario file (TOML).
+    scenario: PathBuf,
+    /// Output directory [default: out/<scenario name>].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Transport, overriding run.transport.
+    #[arg(long, value_enum)]
+    transport: Option<TransportArg>,
+    /// Seed, overriding run.seed.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Master algorithm, overriding run.master.
+    #[arg(long, value_enum)]
+    master: Option<MasterArg>,
+    /// Wait strategy, overriding run.wait.
+    #[arg(long, value_enum)]
+    wait: Option<WaitArg>,
+    /// Stall deadline in ms, overriding run.deadline_ms.
+    #[arg(long)]
+    deadline_ms: Option<u64>,
+    /// Simulated duration in s, overriding run.duration_s.
+    #[arg(long)]
+    duration: Option<f64>,
+    /// iceoryx2 file prefix for this run (default: unique per run).
+    #[arg(long, hide = true)]
+    ipc_prefix: Option<String>,
+    /// Write DIR/trace.csv (every exchange: sent, received, step started and finished,
+    /// reply sent and received, monotonic ns) and plots/latency_histogram.
+    #[arg(long)]
+    trace: bool,
+    /// Run at FACTOR simulated seconds per wall second (1.0 = real time) and report every
+    /// tick that finished late.
+    #[arg(long, value_name = "FACTOR")]
+    pace: Option<f64>,
+    /// Serve ROLE from another executable (ROLE=PATH; for test participants).
+    #[arg(long, hide = true, value_name = "ROLE=PATH")]
+    participant_exe: Vec<String>,
+    /// Print nothing but errors.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// The scenario with the command line's overrides, validated again.
+fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
+    let mut s = load(&a.scenario)?;
+    if let Some(t) = a.transport {
+        s.run.transport = t.into();
+    }
+    if let Some(m) = a.master {
+        s.run.master = m.into();
+    }
+    if let Some(w) = a.wait {
+        s.run.wait = w.into();
+    }
+    if let Some(seed) = a.seed {
+        s.run.seed = seed;
+    }
+    if let Some(d) = a.deadline_ms {
+        s.run.deadline_ms = d;
+    }
+    if let Some(d) = a.duration {
+        s.run.duration_s = Some(d);
+    }
+    let errors = s.validate();
+    if !errors.is_empty() {
+        let lines: Vec<String> = errors
+            .iter()
+            .map(|e| format!("command line: {e}"))
+            .collect();
+        return Err(CliError::Invalid(lines.join("\nerror: ")));
+    }
+    if let Some(p) = a.pace {
+        if !(p.is_finite() && p > 0.0 && p <= 1000.0) {
+            return Err(CliError::Invalid(format!(
+                "command line: --pace {p}: allowed a factor in (0, 1000]"
+            )));
+        }
+    }
+    Ok(s)
+}
+
+/// `--participant-exe ROLE=PATH` overrides.
+fn overrides(a: &RunArgs) -> Result<Vec<(cosim::Role, PathBuf)>, CliError> {
+    a.participant_exe
+        .iter()
+        .map(|o| {
+            o.split_once('=')
+                .and_then(|(r, p)| Some((cosim::Role::parse(r)?, PathBuf::from(p))))
+                .ok_or_else(|| {
+                    CliError::Invalid(format!(
+                        "command line: --participant-exe {o}: expected ROLE=PATH"
+                    ))
+                })
+        })
+        .collect()
+}
+
+/// Runs the command.
+pub fn exec(a: RunArgs) -> CliResult {
+    let s = scenario(&a)?;
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("out").join(&s.name));
+    let (interrupt, exe) = interrupt_and_exe()?;
+    let opts = RunOptions {
+        out_dir: out.clone(),
+        participant_exe: exe,
+        participant_overrides: overrides(&a)?,
+        ipc_prefix: a.ipc_prefix.clone(),
+        interrupt,
+        plots: true,
+        trace: a.trace,
+        pace: a.pace,
+    };
+    let summary = crate::analysis::run(&s, &a.scenario.display().to_string(), &opts)
+        .map_err(|e| CliError::Failed(e.to_string()))?;
+    write_json(&out.join("summary.json"), &summary)?;
+    if !a.quiet {
+        super::report::print(&summary, &out);
+    }
+    outcome(&summary, &out)
+}
+
+/// The exit of a finished run, by its status.
+fn outcome(summary: &Summary, out: &std::path::Path) -> CliResult {
+    match summary.status {
+        Status::Completed => Ok(()),
+        Status::Degraded => {
+            eprintln!(
+                "warning: a participant was lost and the run continued in degraded mode; see {}",
+                out.join("events.csv").display()
+            );
+            Ok(())
+        }
+        Status::Failed => Err(CliError::Failed(format!(
+            "{}; {} of {} steps recorded in {}",
+            summary.error.as_deref().unwrap_or("run failed"),
+            summary.steps_completed,
+            summary.steps_planned,
+            out.join("timeseries.csv").display()
+        ))),
+        Status::Interrupted => Err(CliError::Interrupted(format!(
+            "interrupted: {} of {} steps recorded",
+            summary.steps_completed, summary.steps_planned
+        ))),
+    }
+}

@@ -1,0 +1,134 @@
+//! `tiltsim sweep SCENARIO --samples N | --grid KEY=...`: many runs in parallel, a table of
+//! comfort metrics and plots.
+
+use std::path::PathBuf;
+
+use super::common::{interrupt_and_exe, load, TransportArg};
+use super::error::{CliError, CliResult};
+use crate::scenario::{Scenario, Transport};
+use crate::sweep::{Exec, Plan, Shard};
+
+/// Arguments.
+#[derive(clap::Args, Debug)]
+pub struct SweepArgs {
+    /// Scenario file (TOML).
+    scenario: PathBuf,
+    /// Monte Carlo samples (uniform factors on masses, inertias and suspension).
+    #[arg(long, conflicts_with = "grid", required_unless_present = "grid")]
+    samples: Option<usize>,
+    /// Relative half-width of the Monte Carlo factors.
+    #[arg(long, default_value_t = 0.22)]
+    spread: f64,
+    /// Seed of the Monte Carlo draws.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Vary one scenario key instead: KEY=START:STOP:STEP or KEY=V1,V2,...
+    /// (e.g. links.actuator_command.delay_ticks=0:100:10).
+    #[arg(long)]
+    grid: Option<String>,
+    /// Run only samples j with j mod N = I, for a batch scheduler; merge with sweep-merge.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<String>,
+    /// Parallel runs [default: the number of CPUs].
+    #[arg(long)]
+    jobs: Option<usize>,
+    /// Transport of every run [default: in-process].
+    #[arg(long, value_enum)]
+    transport: Option<TransportArg>,
+    /// Output directory [default: out/sweep-<scenario name>].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Keep every sample's run directory (timeseries, summary, plots) under DIR/runs/.
+    #[arg(long)]
+    keep_runs: bool,
+    /// No progress bar and no table on standard output.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// The plan the arguments ask for, every sample's scenario checked before anything runs.
+fn plan(a: &SweepArgs, s: &Scenario) -> Result<Plan, CliError> {
+    let plan = match (&a.grid, a.samples) {
+        (Some(g), _) => crate::sweep::parse_grid(g).map_err(CliError::Invalid)?,
+        (None, Some(n)) => {
+            if n == 0 || !(0.0..1.0).contains(&a.spread) {
+                return Err(CliError::Invalid(
+                    "--samples must be at least 1 and --spread in [0, 1)".into(),
+                ));
+            }
+            Plan::MonteCarlo {
+                samples: n,
+                spread: a.spread,
+                seed: a.seed,
+            }
+        }
+        (None, None) => {
+            return Err(CliError::Invalid(
+                "give --samples N or --grid KEY=START:STOP:STEP".into(),
+            ))
+        }
+    };
+    if let Plan::Grid { key, values } = &plan {
+        for v in values {
+            crate::sweep::with_key(s, key, *v)
+                .map_err(|e| CliError::Invalid(format!("{}: {e}", a.scenario.display())))?;
+        }
+    }
+    Ok(plan)
+}
+
+/// Runs the command.
+pub fn exec(a: SweepArgs) -> CliResult {
+    let mut s = load(&a.scenario)?;
+    // In-process by default: a sample then costs no process start, and the results are the
+    // same bytes either way.
+    s.run.transport = a.transport.map_or(Transport::InProcess, Into::into);
+    let plan = plan(&a, &s)?;
+    let shard = a
+        .shard
+        .as_deref()
+        .map(Shard::parse)
+        .transpose()
+        .map_err(CliError::Invalid)?;
+    let (interrupt, exe) = interrupt_and_exe()?;
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("out").join(format!("sweep-{}", s.name)));
+    let jobs = a.jobs.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    let ex = Exec {
+        out: out.clone(),
+        jobs,
+        keep_runs: a.keep_runs,
+        exe,
+        interrupt,
+        progress: !a.quiet,
+    };
+    let started = std::time::Instant::now();
+    let rows = crate::sweep::run(&s, &plan, shard, &ex)
+        .ok_or_else(|| CliError::Interrupted("interrupted; nothing written".into()))?;
+    let wall = started.elapsed().as_secs_f64();
+    crate::sweep::write_outputs(&out, &s, &plan, shard, &rows)
+        .map_err(|e| CliError::Failed(format!("{}: {e}", out.display())))?;
+    if !a.quiet {
+        if let Ok(t) = std::fs::read_to_string(out.join("table.md")) {
+            println!("{t}");
+        }
+        let failed = rows.iter().filter(|r| !r.status.completed()).count();
+        println!(
+            "{} samples ({} failed) in {wall:.1} s wall with {jobs} parallel runs ({:.2} s per sample)",
+            rows.len(),
+            failed,
+            wall * jobs as f64 / rows.len().max(1) as f64
+        );
+        println!(
+            "wrote {0}/table.md, table.csv, samples.csv, series.csv, sweep.json, plots/",
+            out.display()
+        );
+    }
+    Ok(())
+}
