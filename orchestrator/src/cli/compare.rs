@@ -74,7 +74,7 @@ pub fn exec(a: CompareArgs) -> CliResult {
         .iter()
         .map(|e| {
             (
-                e.label.clone(),
+                e.scenario.name.clone(),
                 e.scenario.clone(),
                 a.out.join(&e.scenario.name),
             )
