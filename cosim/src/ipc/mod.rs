@@ -1,0 +1,171 @@
+//! iceoryx2 transport: one request and one reply publish-subscribe service per participant.
+//!
+//! The orchestrator creates both services of a participant, spawns its process and waits until
+//! the participant's subscriber and publisher are connected before it sends the first request
+//! (samples sent before a subscriber connects are lost). Each sample carries its step index and
+//! is checked on arrival; each wake-up drains every pending sample.
+//!
+//! Isolation: every run uses its own iceoryx2 file prefix, so parallel runs never meet, and
+//! [`IpcHub::cleanup`] removes what the run's dead participants left behind.
+
+//!
+//! Files: this one (settings, errors, configuration, services, draining), [`hub`] (the
+//! orchestrator's side: the hub and one endpoint per participant), [`serve`] (the
+//! participant's side), [`supervise`] (reaping participant processes), [`affinity`] (CPU
+//! placement) and [`cleanup`] (the run's shared-memory files).
+
+mod affinity;
+mod cleanup;
+mod hub;
+mod serve;
+mod supervise;
+
+pub use affinity::{allowed_cpus, cpu_plan, pin_to_cpu, set_cpus};
+pub use cleanup::{leftover_files, remove_run_files};
+pub use hub::{IpcEndpoint, IpcHub, Launch};
+pub use serve::{
+    participant_main, participant_main_with, serve, serve_with, ParticipantArgs, IDLE_LIMIT,
+};
+
+use std::time::Duration;
+
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
+
+use crate::endpoint::LinkError;
+use crate::msg::Message;
+use crate::participant::Role;
+use crate::wait::WaitStrategy;
+
+/// Per-run iceoryx2 settings shared by the orchestrator and its participants.
+#[derive(Debug, Clone)]
+pub struct IpcSettings {
+    /// File prefix unique to the run (iceoryx2 `global.prefix`).
+    pub prefix: String,
+    /// How waiters spend time between polls.
+    pub wait: WaitStrategy,
+    /// How long to wait for a reply before declaring the participant stalled.
+    pub deadline: Duration,
+    /// CPU the participants are pinned to, if any.
+    pub participant_cpu: Option<usize>,
+}
+
+/// Errors setting up the transport.
+#[derive(Debug, thiserror::Error)]
+pub enum IpcError {
+    /// iceoryx2 refused something.
+    #[error("iceoryx2: {0}")]
+    Iceoryx(String),
+    /// A participant process could not be started.
+    #[error("cannot start participant {role} ({program}): {source}")]
+    Spawn {
+        role: Role,
+        program: String,
+        source: std::io::Error,
+    },
+    /// A participant did not connect in time.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+}
+
+fn iox<E: core::fmt::Debug>(what: &str) -> impl FnOnce(E) -> IpcError + '_ {
+    move |e| IpcError::Iceoryx(format!("{what}: {e:?}"))
+}
+
+/// iceoryx2 configuration for a run: explicit (no config file is searched), with the run's prefix.
+pub fn config(prefix: &str) -> Result<Config, IpcError> {
+    let mut cfg = Config::default();
+    cfg.global.prefix = FileName::new(prefix.as_bytes()).map_err(iox("invalid prefix"))?;
+    Ok(cfg)
+}
+
+/// Silences iceoryx2's own logger except for errors (overridable with `IOX2_LOG_LEVEL`).
+pub fn quiet_iceoryx_logs() {
+    set_log_level_from_env_or(LogLevel::Error);
+}
+
+/// A run prefix unique on this machine: pid, a nonce from the wall clock (used only for
+/// uniqueness) and a per-process counter.
+pub fn unique_prefix() -> String {
+    use std::sync::atomic::{AtomicU32, Ordering};
+    static COUNTER: AtomicU32 = AtomicU32::new(0);
+    let nonce = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    format!(
+        "tiltsim_{}_{:08x}_{}_",
+        std::process::id(),
+        nonce,
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    )
+}
+
+fn node(cfg: &Config, name: &str) -> Result<Node<ipc::Service>, IpcError> {
+    NodeBuilder::new()
+        .config(cfg)
+        .name(&NodeName::new(name).map_err(iox("node name"))?)
+        // Signals are the orchestrator's business (Ctrl-C ends a run cleanly through it).
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(iox("create node"))
+}
+
+fn service<T: Message>(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<PubSubFactory<ipc::Service, T, ()>, IpcError> {
+    let name: ServiceName = name.try_into().map_err(iox("service name"))?;
+    node.service_builder(&name)
+        .publish_subscribe::<T>()
+        .max_publishers(1)
+        .max_subscribers(1)
+        .history_size(0)
+        .subscriber_max_buffer_size(4)
+        .open_or_create()
+        .map_err(iox("open or create service"))
+}
+
+fn request_service(role: Role) -> String {
+    format!("tiltsim/{}/request", role.name())
+}
+fn reply_service(role: Role) -> String {
+    format!("tiltsim/{}/reply", role.name())
+}
+
+/// Drains `sub` and returns the one sample for `step`, or an error for any other sample.
+fn drain<T: Message>(
+    role: Role,
+    sub: &Subscriber<ipc::Service, T, ()>,
+    step: u64,
+    found: &mut Option<T>,
+) -> Result<(), LinkError> {
+    loop {
+        let sample = sub.receive().map_err(|e| LinkError::Transport {
+            role,
+            what: format!("receive: {e:?}"),
+        })?;
+        let Some(sample) = sample else { return Ok(()) };
+        let value: T = *sample;
+        let got = value.header().step;
+        if got < step {
+            return Err(LinkError::Stale {
+                role,
+                expected: step,
+                got,
+            });
+        }
+        if got > step {
+            return Err(LinkError::OutOfOrder {
+                role,
+                expected: step,
+                got,
+            });
+        }
+        if found.is_some() {
+            return Err(LinkError::Duplicate { role, step });
+        }
+        *found = Some(value);
+    }
+}

@@ -1,0 +1,215 @@
+//! The participant's side of the transport: serving requests until told to stop.
+
+use std::time::Duration;
+
+use crate::endpoint::LinkError;
+use crate::msg::{Kind, Message, FLAG_CRASH};
+use crate::participant::{Participant, Served};
+use crate::wait::{Backoff, WaitStrategy};
+
+use super::{
+    config, iox, node, pin_to_cpu, quiet_iceoryx_logs, reply_service, request_service, service,
+    IpcError,
+};
+
+/// Participant side: serves requests for model `p` until asked to stop.
+///
+/// Returns an error if the orchestrator disappears (its requests stop for `idle_limit` and it
+/// is no longer our parent) or the transport fails.
+pub fn serve<P: Participant>(
+    p: P,
+    prefix: &str,
+    wait: WaitStrategy,
+    spin_polls: u32,
+    idle_limit: Duration,
+) -> Result<(), IpcError> {
+    serve_with(p, prefix, wait, spin_polls, idle_limit, |_| {})
+}
+
+/// [`serve`] with a hook that may alter each reply before it is sent: the test participants
+/// under `tests/` use it to send bad data on purpose. Production participants use `serve`.
+pub fn serve_with<P: Participant>(
+    p: P,
+    prefix: &str,
+    wait: WaitStrategy,
+    spin_polls: u32,
+    idle_limit: Duration,
+    mut tamper: impl FnMut(&mut P::Output),
+) -> Result<(), IpcError> {
+    quiet_iceoryx_logs();
+    let role = P::ROLE;
+    set_process_name(role.process_name());
+    let parent = unsafe { libc::getppid() };
+    let cfg = config(prefix)?;
+    let node = node(&cfg, role.process_name())?;
+    let req = service::<P::Input>(&node, &request_service(role))?;
+    let rep = service::<P::Output>(&node, &reply_service(role))?;
+    let subscriber = req
+        .subscriber_builder()
+        .create()
+        .map_err(iox("create subscriber"))?;
+    let publisher = rep
+        .publisher_builder()
+        .create()
+        .map_err(iox("create publisher"))?;
+
+    // Steps must arrive in increasing order after Init; multi-rate participants are asked only
+    // on their own ticks, so the next step may be any later one.
+    let mut last_step: Option<u64> = None;
+    let mut served = Served::new(p);
+    loop {
+        let mut backoff = Backoff::with_spin(wait, spin_polls);
+        let request = loop {
+            let sample = subscriber.receive().map_err(iox("receive"))?;
+            if let Some(s) = sample {
+                break *s;
+            }
+            if backoff.elapsed() > idle_limit && unsafe { libc::getppid() } != parent {
+                return Err(IpcError::Iceoryx(format!("{role}: orchestrator is gone")));
+            }
+            backoff.pause();
+        };
+        let h = *request.header();
+        match Kind::from_raw(h.kind) {
+            Some(Kind::Stop) => return Ok(()),
+            Some(Kind::Init) => last_step = None,
+            Some(Kind::Step) => {
+                if let Some(last) = last_step.filter(|&l| h.step <= l) {
+                    return Err(LinkError::OutOfOrder {
+                        role,
+                        expected: last + 1,
+                        got: h.step,
+                    }
+                    .into());
+                }
+                last_step = Some(h.step);
+            }
+            None => {
+                return Err(LinkError::Malformed {
+                    role,
+                    step: h.step,
+                    what: format!("kind {}", h.kind),
+                }
+                .into());
+            }
+        }
+        if h.flags & FLAG_CRASH != 0 {
+            // A scheduled `crash` fault: die as a crashing process does.
+            std::process::abort();
+        }
+        let mut reply = served.answer(&request);
+        tamper(&mut reply);
+        publisher.send_copy(reply).map_err(iox("send"))?;
+    }
+}
+
+fn set_process_name(name: &str) {
+    let mut buf = [0u8; 16];
+    let n = name.len().min(15);
+    buf[..n].copy_from_slice(&name.as_bytes()[..n]);
+    // SAFETY: PR_SET_NAME reads a NUL-terminated string of at most 16 bytes from `buf`.
+    unsafe {
+        libc::prctl(libc::PR_SET_NAME, buf.as_ptr() as libc::c_ulong, 0, 0, 0);
+    }
+}
+
+/// Arguments every participant process takes: `--params JSON --prefix P --wait W`.
+#[derive(Debug, Clone)]
+pub struct ParticipantArgs {
+    /// The model's settings as JSON.
+    pub params: String,
+    /// The run's iceoryx2 prefix.
+    pub prefix: String,
+    /// Wait strategy.
+    pub wait: WaitStrategy,
+    /// CPU to pin to.
+    pub cpu: Option<usize>,
+}
+
+impl ParticipantArgs {
+    /// Parses the arguments after the program name (and after a `participant ROLE` prefix).
+    pub fn parse(args: &[String]) -> Result<Self, String> {
+        let mut params = None;
+        let mut prefix = None;
+        let mut wait = WaitStrategy::default();
+        let mut cpu = None;
+        let mut it = args.iter();
+        while let Some(a) = it.next() {
+            let mut value = |name: &str| {
+                it.next()
+                    .cloned()
+                    .ok_or_else(|| format!("{name} needs a value"))
+            };
+            match a.as_str() {
+                "--params" => params = Some(value("--params")?),
+                "--prefix" => prefix = Some(value("--prefix")?),
+                "--wait" => {
+                    let w = value("--wait")?;
+                    wait = WaitStrategy::parse(&w)
+                        .ok_or_else(|| format!("--wait {w}: allowed spin, adaptive, sleep"))?;
+                }
+                "--cpu" => {
+                    let c = value("--cpu")?;
+                    cpu = Some(
+                        c.parse()
+                            .map_err(|_| format!("--cpu {c}: expected a CPU number"))?,
+                    );
+                }
+                other => {
+                    return Err(format!(
+                        "unknown argument `{other}`; expected --params, --prefix, --wait, --cpu"
+                    ))
+                }
+            }
+        }
+        Ok(ParticipantArgs {
+            params: params.ok_or("missing --params JSON")?,
+            prefix: prefix.ok_or("missing --prefix NAME")?,
+            wait,
+            cpu,
+        })
+    }
+}
+
+/// Idle time after which a participant checks that its orchestrator still exists.
+pub const IDLE_LIMIT: Duration = Duration::from_secs(2);
+
+/// Entry point of a participant process: parses the arguments, builds the model from its JSON
+/// settings with `make`, and serves until stopped.
+pub fn participant_main<S, P>(
+    args: &[String],
+    make: impl FnOnce(S) -> Result<P, String>,
+) -> Result<(), String>
+where
+    S: serde::de::DeserializeOwned,
+    P: Participant,
+{
+    participant_main_with(args, make, |_| {})
+}
+
+/// [`participant_main`] with a reply hook (see [`serve_with`]); for test participants.
+pub fn participant_main_with<S, P>(
+    args: &[String],
+    make: impl FnOnce(S) -> Result<P, String>,
+    tamper: impl FnMut(&mut P::Output),
+) -> Result<(), String>
+where
+    S: serde::de::DeserializeOwned,
+    P: Participant,
+{
+    let a = ParticipantArgs::parse(args)?;
+    let settings: S = serde_json::from_str(&a.params)
+        .map_err(|e| format!("{}: bad --params: {e}", P::ROLE.process_name()))?;
+    let model = make(settings)?;
+    if let Some(cpu) = a.cpu {
+        pin_to_cpu(cpu);
+    }
+    // Participants pinned together share a CPU: they yield at once instead of spinning.
+    let spin = if a.cpu.is_some() {
+        0
+    } else {
+        crate::wait::SPIN_POLLS
+    };
+    serve_with(model, &a.prefix, a.wait, spin, IDLE_LIMIT, tamper)
+        .map_err(|e| format!("{}: {e}", P::ROLE.process_name()))
+}
