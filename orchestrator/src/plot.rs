@@ -1,9 +1,10 @@
-//! Plots of a finished run (`DIR/plots/*.svg` and `*.png`), drawn without a plotting library.
+//! Plots of a finished run (`DIR/plots/*.svg` and `*.png`).
 //!
 //! A chart is laid out once into a [`Scene`] of primitives (filled rectangles, polylines,
-//! text). The scene is then written as SVG (vector, for papers) and rasterised as PNG (for a
-//! quick look anywhere) by our own small rasteriser, so both files always show the same
-//! thing. Text in the PNG uses the public-domain 8×8 bitmap font of the `font8x8` crate.
+//! text) and written as SVG (vector, for papers). The PNG (for a quick look anywhere) is that
+//! same SVG rendered by `resvg`, anti-aliased, at twice its size, with the DejaVu Sans font
+//! that the `dejavu` crate ships, so both files always show the same thing and a fresh machine
+//! needs no font installed.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -326,7 +327,7 @@ pub fn to_svg(sc: &Scene) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" font-family="sans-serif" font-size="12">"#,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" font-family="DejaVu Sans" font-size="12">"#,
         sc.w, sc.h
     );
     for prim in &sc.prims {
@@ -403,184 +404,55 @@ pub fn to_svg(sc: &Scene) -> String {
     s
 }
 
-/// Pixels per scene unit of the PNG (the PNG is drawn at twice the SVG's size).
-const PNG_SCALE: f64 = 2.0;
+/// The PNG is drawn at this many pixels per SVG unit.
+const PNG_SCALE: f32 = 2.0;
 
-/// An RGB raster.
-struct Canvas {
-    w: usize,
-    h: usize,
-    px: Vec<u8>,
+/// The font database: DejaVu Sans, regular and bold, from the `dejavu` crate.
+fn fonts() -> std::sync::Arc<resvg::usvg::fontdb::Database> {
+    static DB: std::sync::OnceLock<std::sync::Arc<resvg::usvg::fontdb::Database>> =
+        std::sync::OnceLock::new();
+    DB.get_or_init(|| {
+        let mut db = resvg::usvg::fontdb::Database::new();
+        db.load_font_data(dejavu::sans::regular().to_vec());
+        db.load_font_data(dejavu::sans::bold().to_vec());
+        db.set_sans_serif_family("DejaVu Sans");
+        std::sync::Arc::new(db)
+    })
+    .clone()
 }
 
-impl Canvas {
-    fn new(w: usize, h: usize) -> Self {
-        Canvas {
-            w,
-            h,
-            px: vec![255; w * h * 3],
-        }
-    }
-    fn set(&mut self, x: i64, y: i64, c: Rgb) {
-        if x >= 0 && y >= 0 && (x as usize) < self.w && (y as usize) < self.h {
-            let i = (y as usize * self.w + x as usize) * 3;
-            self.px[i..i + 3].copy_from_slice(&[c.0, c.1, c.2]);
-        }
-    }
-    fn fill(&mut self, x0: f64, y0: f64, x1: f64, y1: f64, c: Rgb) {
-        for y in y0.round() as i64..y1.round() as i64 {
-            for x in x0.round() as i64..x1.round() as i64 {
-                self.set(x, y, c);
-            }
-        }
-    }
-    /// A square brush of side `w` centred on (x, y).
-    fn dot(&mut self, x: f64, y: f64, w: f64, c: Rgb) {
-        let r = (w / 2.0).max(0.5);
-        self.fill(x - r, y - r, x + r, y + r, c);
-    }
-    fn path(&mut self, pts: &[(f64, f64)], w: f64, dash: Option<(f64, f64)>, c: Rgb) {
-        let mut along = 0.0;
-        for seg in pts.windows(2) {
-            let ((ax, ay), (bx, by)) = (seg[0], seg[1]);
-            let len = (bx - ax).hypot(by - ay);
-            let n = (len / 0.5).ceil().max(1.0) as usize;
-            for i in 0..=n {
-                let f = i as f64 / n as f64;
-                let on = dash.is_none_or(|(a, b)| (along + f * len) % (a + b) < a);
-                if on {
-                    self.dot(ax + f * (bx - ax), ay + f * (by - ay), w, c);
-                }
-            }
-            along += len;
-        }
-    }
-    fn glyph(ch: char) -> [u8; 8] {
-        use font8x8::UnicodeFonts;
-        let ch = match ch {
-            '−' | '–' => '-',
-            c => c,
-        };
-        font8x8::BASIC_FONTS
-            .get(ch)
-            .or_else(|| font8x8::LATIN_FONTS.get(ch))
-            .or_else(|| font8x8::GREEK_FONTS.get(ch))
-            .or_else(|| font8x8::MISC_FONTS.get(ch))
-            .unwrap_or([0x3c, 0x42, 0x02, 0x0c, 0x10, 0x00, 0x10, 0x00])
-    }
-    /// Draws text with pixel size `g` per font dot; (x, y) is the baseline start.
-    fn text(
-        &mut self,
-        (x, y): (f64, f64),
-        s: &str,
-        g: i64,
-        (vertical, bold): (bool, bool),
-        c: Rgb,
-    ) {
-        let (x, y) = (x.round() as i64, y.round() as i64);
-        let mut pen = 0i64;
-        for ch in s.chars() {
-            // Combining marks (the hat of θ̂) take no room and are not drawn.
-            if ('\u{300}'..='\u{36f}').contains(&ch) {
-                continue;
-            }
-            let rows = Self::glyph(ch);
-            for (gy, row) in rows.iter().enumerate() {
-                for gx in 0..8 {
-                    if row & (1 << gx) == 0 {
-                        continue;
-                    }
-                    for dy in 0..g {
-                        for dx in 0..g + i64::from(bold) {
-                            // Glyph cell (u along the text, v down from the cap line).
-                            let u = pen + gx * g + dx;
-                            let v = gy as i64 * g + dy - 7 * g;
-                            if vertical {
-                                self.set(x + v, y - u, c);
-                            } else {
-                                self.set(x + u, y + v, c);
-                            }
-                        }
-                    }
-                }
-            }
-            pen += 8 * g;
-        }
-    }
-}
-
-fn text_len(s: &str) -> usize {
-    s.chars()
-        .filter(|c| !('\u{300}'..='\u{36f}').contains(c))
-        .count()
-}
-
-/// Rasterises the scene as an RGB image (width, height, pixels).
-pub fn rasterise(sc: &Scene) -> (u32, u32, Vec<u8>) {
-    let k = PNG_SCALE;
-    let mut cv = Canvas::new((sc.w * k) as usize, (sc.h * k) as usize);
-    for prim in &sc.prims {
-        match prim {
-            Prim::Rect {
-                x,
-                y,
-                w,
-                h,
-                fill,
-                stroke,
-            } => {
-                let (x0, y0, x1, y1) = (x * k, y * k, (x + w) * k, (y + h) * k);
-                if let Some(c) = fill {
-                    cv.fill(x0, y0, x1, y1, *c);
-                }
-                if let Some(c) = stroke {
-                    let pts = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)];
-                    cv.path(&pts, k, None, *c);
-                }
-            }
-            Prim::Path {
-                pts,
-                colour,
-                width,
-                dash,
-            } => {
-                let pts: Vec<_> = pts.iter().map(|(x, y)| (x * k, y * k)).collect();
-                cv.path(&pts, width * k, dash.map(|(a, b)| (a * k, b * k)), *colour);
-            }
-            Prim::Text {
-                x,
-                y,
-                text,
-                size,
-                anchor,
-                vertical,
-                bold,
-                colour,
-            } => {
-                // Font dots per glyph row so that the glyph height matches the SVG size.
-                let g = ((size * k / 8.0) * 0.75).round().max(1.0) as i64;
-                let len = (text_len(text) as i64 * 8 * g) as f64;
-                let shift = match anchor {
-                    Anchor::Start => 0.0,
-                    Anchor::Middle => len / 2.0,
-                    Anchor::End => len,
-                };
-                let (mut px, mut py) = (x * k, y * k);
-                if *vertical {
-                    py += shift;
-                } else {
-                    px -= shift;
-                }
-                cv.text((px, py), text, g, (*vertical, *bold), *colour);
-            }
-        }
-    }
-    (cv.w as u32, cv.h as u32, cv.px)
+/// Renders the scene's SVG: width, height and RGB pixels on white.
+pub fn rasterise(sc: &Scene) -> std::io::Result<(u32, u32, Vec<u8>)> {
+    use resvg::{tiny_skia, usvg};
+    let opt = usvg::Options {
+        fontdb: fonts(),
+        ..Default::default()
+    };
+    let tree = usvg::Tree::from_str(&to_svg(sc), &opt).map_err(std::io::Error::other)?;
+    let (w, h) = (
+        (sc.w as f32 * PNG_SCALE).round() as u32,
+        (sc.h as f32 * PNG_SCALE).round() as u32,
+    );
+    let mut pixmap = tiny_skia::Pixmap::new(w, h)
+        .ok_or_else(|| std::io::Error::other(format!("cannot draw a {w}×{h} image")))?;
+    pixmap.fill(tiny_skia::Color::WHITE);
+    resvg::render(
+        &tree,
+        tiny_skia::Transform::from_scale(PNG_SCALE, PNG_SCALE),
+        &mut pixmap.as_mut(),
+    );
+    // Opaque on white: premultiplied RGBA is plain RGB.
+    let rgb = pixmap
+        .data()
+        .chunks_exact(4)
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect();
+    Ok((w, h, rgb))
 }
 
 /// Writes the scene as a PNG file.
 pub fn write_png(sc: &Scene, path: &Path) -> std::io::Result<()> {
-    let (w, h, px) = rasterise(sc);
+    let (w, h, px) = rasterise(sc)?;
     let file = std::io::BufWriter::new(std::fs::File::create(path)?);
     let mut enc = png::Encoder::new(file, w, h);
     enc.set_color(png::ColorType::Rgb);
@@ -754,10 +626,11 @@ mod tests {
     #[test]
     fn the_raster_draws_the_line_bands_and_text_where_the_scene_puts_them() {
         let (chart, t) = demo();
-        let (w, h, px) = rasterise(&layout(&chart, &t));
+        let (w, h, px) = rasterise(&layout(&chart, &t)).unwrap();
         assert_eq!((w, h), (1800, 840));
         let at = |x: f64, y: f64| {
-            let i = ((y * PNG_SCALE) as usize * w as usize + (x * PNG_SCALE) as usize) * 3;
+            let s = PNG_SCALE as f64;
+            let i = ((y * s) as usize * w as usize + (x * s) as usize) * 3;
             Rgb(px[i], px[i + 1], px[i + 2])
         };
         // The sine at t = π/2 (its maximum) is at the top of the padded range.
