@@ -150,28 +150,7 @@ fn text(x: f64, y: f64, s: impl Into<String>, anchor: Anchor) -> Prim {
 
 /// Lays out `chart` over `x` (one abscissa per sample, shared by every line).
 pub fn layout(chart: &Chart, x: &[f64]) -> Scene {
-    let (x0, x1) = (
-        x.first().copied().unwrap_or(0.0),
-        x.last().copied().unwrap_or(1.0),
-    );
-    let mut lo = f64::INFINITY;
-    let mut hi = f64::NEG_INFINITY;
-    for l in &chart.lines {
-        for v in l.y.iter().filter(|v| v.is_finite()) {
-            lo = lo.min(*v);
-            hi = hi.max(*v);
-        }
-    }
-    if !lo.is_finite() {
-        (lo, hi) = (-1.0, 1.0);
-    }
-    if hi - lo < 1e-12 {
-        (lo, hi) = (lo - 1.0, hi + 1.0);
-    }
-    let pad = 0.05 * (hi - lo);
-    (lo, hi) = (lo - pad, hi + pad);
-    let xs = |v: f64| L + (v - x0) / (x1 - x0).max(1e-12) * (W - L - R);
-    let ys = |y: f64| T + (hi - y) / (hi - lo) * (H - T - B);
+    let f = Frame::new(chart, x);
     let mut p = vec![Prim::Rect {
         x: 0.0,
         y: 0.0,
@@ -180,63 +159,182 @@ pub fn layout(chart: &Chart, x: &[f64]) -> Scene {
         fill: Some(Rgb(255, 255, 255)),
         stroke: None,
     }];
-    for &(a, b, dark) in &chart.bands {
-        let (a, b) = (xs(a.max(x0)), xs(b.min(x1)));
-        if b > a {
-            p.push(Prim::Rect {
-                x: a,
-                y: T,
-                w: b - a,
-                h: H - T - B,
-                fill: Some(if dark {
-                    Rgb(0xdd, 0xe6, 0xf2)
-                } else {
-                    Rgb(0xee, 0xf2, 0xf7)
-                }),
-                stroke: None,
-            });
+    f.bands(&mut p, &chart.bands);
+    f.x_axis(&mut p);
+    f.y_axis(&mut p);
+    labels(&mut p, chart);
+    f.lines(&mut p, chart, x);
+    if !chart.note.is_empty() {
+        p.push(Prim::Text {
+            x: L + 6.0,
+            y: H - B - 6.0,
+            text: chart.note.into(),
+            size: 12.0,
+            anchor: Anchor::Start,
+            vertical: false,
+            bold: false,
+            colour: Rgb(0x55, 0x55, 0x66),
+        });
+    }
+    Scene {
+        w: W,
+        h: H,
+        prims: p,
+    }
+}
+
+/// The data ranges of a chart and their mapping to the drawing area.
+struct Frame {
+    x0: f64,
+    x1: f64,
+    lo: f64,
+    hi: f64,
+}
+
+impl Frame {
+    /// The x range of `x` and the y range of every line, padded by 5 %.
+    fn new(chart: &Chart, x: &[f64]) -> Self {
+        let (x0, x1) = (
+            x.first().copied().unwrap_or(0.0),
+            x.last().copied().unwrap_or(1.0),
+        );
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        for l in &chart.lines {
+            for v in l.y.iter().filter(|v| v.is_finite()) {
+                lo = lo.min(*v);
+                hi = hi.max(*v);
+            }
+        }
+        if !lo.is_finite() {
+            (lo, hi) = (-1.0, 1.0);
+        }
+        if hi - lo < 1e-12 {
+            (lo, hi) = (lo - 1.0, hi + 1.0);
+        }
+        let pad = 0.05 * (hi - lo);
+        Frame {
+            x0,
+            x1,
+            lo: lo - pad,
+            hi: hi + pad,
         }
     }
-    let st = nice_step(x1 - x0);
-    let mut v = (x0 / st).ceil() * st;
-    while v <= x1 + 1e-9 {
-        p.push(Prim::Path {
-            pts: vec![(xs(v), H - B), (xs(v), H - B + 5.0)],
-            colour: BLACK,
-            width: 1.0,
-            dash: None,
-        });
-        p.push(text(
-            xs(v),
-            H - B + 18.0,
-            format!("{}", (v * 1e6).round() / 1e6),
-            Anchor::Middle,
-        ));
-        v += st;
+
+    fn xs(&self, v: f64) -> f64 {
+        L + (v - self.x0) / (self.x1 - self.x0).max(1e-12) * (W - L - R)
     }
-    let sy = nice_step(hi - lo);
-    let mut y = (lo / sy).ceil() * sy;
-    while y <= hi + 1e-12 {
-        p.push(Prim::Path {
-            pts: vec![(L, ys(y)), (W - R, ys(y))],
-            colour: Rgb(0xbb, 0xbb, 0xbb),
-            width: 1.0,
-            dash: Some((2.0, 3.0)),
-        });
-        let label = (y / sy).round() * sy;
-        // Round away binary noise (0.30000000000000004).
-        let label = (label * 1e9).round() / 1e9 + 0.0; // + 0.0 turns -0 into 0
-        p.push(text(L - 6.0, ys(y) + 4.0, format!("{label}"), Anchor::End));
-        y += sy;
+
+    fn ys(&self, y: f64) -> f64 {
+        T + (self.hi - y) / (self.hi - self.lo) * (H - T - B)
     }
-    p.push(Prim::Rect {
-        x: L,
-        y: T,
-        w: W - L - R,
-        h: H - T - B,
-        fill: None,
-        stroke: Some(BLACK),
-    });
+
+    /// Shaded sections (light or dark) behind the data.
+    fn bands(&self, p: &mut Vec<Prim>, bands: &[(f64, f64, bool)]) {
+        for &(a, b, dark) in bands {
+            let (a, b) = (self.xs(a.max(self.x0)), self.xs(b.min(self.x1)));
+            if b > a {
+                p.push(Prim::Rect {
+                    x: a,
+                    y: T,
+                    w: b - a,
+                    h: H - T - B,
+                    fill: Some(if dark {
+                        Rgb(0xdd, 0xe6, 0xf2)
+                    } else {
+                        Rgb(0xee, 0xf2, 0xf7)
+                    }),
+                    stroke: None,
+                });
+            }
+        }
+    }
+
+    /// Ticks and numbers under the plot.
+    fn x_axis(&self, p: &mut Vec<Prim>) {
+        let st = nice_step(self.x1 - self.x0);
+        let mut v = (self.x0 / st).ceil() * st;
+        while v <= self.x1 + 1e-9 {
+            p.push(Prim::Path {
+                pts: vec![(self.xs(v), H - B), (self.xs(v), H - B + 5.0)],
+                colour: BLACK,
+                width: 1.0,
+                dash: None,
+            });
+            let label = format!("{}", (v * 1e6).round() / 1e6);
+            p.push(text(self.xs(v), H - B + 18.0, label, Anchor::Middle));
+            v += st;
+        }
+    }
+
+    /// Dotted grid lines with their numbers, and the plot's frame.
+    fn y_axis(&self, p: &mut Vec<Prim>) {
+        let sy = nice_step(self.hi - self.lo);
+        let mut y = (self.lo / sy).ceil() * sy;
+        while y <= self.hi + 1e-12 {
+            p.push(Prim::Path {
+                pts: vec![(L, self.ys(y)), (W - R, self.ys(y))],
+                colour: Rgb(0xbb, 0xbb, 0xbb),
+                width: 1.0,
+                dash: Some((2.0, 3.0)),
+            });
+            let label = (y / sy).round() * sy;
+            // Round away binary noise (0.30000000000000004); + 0.0 turns -0 into 0.
+            let label = (label * 1e9).round() / 1e9 + 0.0;
+            p.push(text(
+                L - 6.0,
+                self.ys(y) + 4.0,
+                format!("{label}"),
+                Anchor::End,
+            ));
+            y += sy;
+        }
+        p.push(Prim::Rect {
+            x: L,
+            y: T,
+            w: W - L - R,
+            h: H - T - B,
+            fill: None,
+            stroke: Some(BLACK),
+        });
+    }
+
+    /// The data, decimated to at most about 2 points per pixel, with the legend.
+    fn lines(&self, p: &mut Vec<Prim>, chart: &Chart, x: &[f64]) {
+        let step = (x.len() / 1600).max(1);
+        for (k, l) in chart.lines.iter().enumerate() {
+            let colour = Rgb::hex(l.colour);
+            let dash = l.dashed.then_some((6.0, 4.0));
+            let path = |pts| Prim::Path {
+                pts,
+                colour,
+                width: 1.3,
+                dash,
+            };
+            let mut pts = Vec::new();
+            for i in (0..x.len().min(l.y.len())).step_by(step) {
+                if l.y[i].is_finite() {
+                    pts.push((self.xs(x[i]), self.ys(l.y[i])));
+                } else if pts.len() > 1 {
+                    // A gap in the data breaks the line.
+                    p.push(path(std::mem::take(&mut pts)));
+                }
+            }
+            p.push(path(pts));
+            let ly = T + 14.0 + 16.0 * k as f64;
+            p.push(Prim::Path {
+                pts: vec![(W - R - 230.0, ly), (W - R - 205.0, ly)],
+                colour,
+                width: 2.0,
+                dash,
+            });
+            p.push(text(W - R - 200.0, ly + 4.0, l.label, Anchor::Start));
+        }
+    }
+}
+
+/// Axis labels and the title.
+fn labels(p: &mut Vec<Prim>, chart: &Chart) {
     p.push(text(
         (L + W - R) / 2.0,
         H - 15.0,
@@ -263,57 +361,6 @@ pub fn layout(chart: &Chart, x: &[f64]) -> Scene {
         bold: true,
         colour: BLACK,
     });
-    // Lines, decimated to at most ~2 points per pixel.
-    let step = (x.len() / 1600).max(1);
-    for (k, l) in chart.lines.iter().enumerate() {
-        let colour = Rgb::hex(l.colour);
-        let dash = l.dashed.then_some((6.0, 4.0));
-        let mut pts = Vec::new();
-        for i in (0..x.len().min(l.y.len())).step_by(step) {
-            if l.y[i].is_finite() {
-                pts.push((xs(x[i]), ys(l.y[i])));
-            } else if pts.len() > 1 {
-                // A gap in the data breaks the line.
-                p.push(Prim::Path {
-                    pts: std::mem::take(&mut pts),
-                    colour,
-                    width: 1.3,
-                    dash,
-                });
-            }
-        }
-        p.push(Prim::Path {
-            pts,
-            colour,
-            width: 1.3,
-            dash,
-        });
-        let ly = T + 14.0 + 16.0 * k as f64;
-        p.push(Prim::Path {
-            pts: vec![(W - R - 230.0, ly), (W - R - 205.0, ly)],
-            colour,
-            width: 2.0,
-            dash,
-        });
-        p.push(text(W - R - 200.0, ly + 4.0, l.label, Anchor::Start));
-    }
-    if !chart.note.is_empty() {
-        p.push(Prim::Text {
-            x: L + 6.0,
-            y: H - B - 6.0,
-            text: chart.note.into(),
-            size: 12.0,
-            anchor: Anchor::Start,
-            vertical: false,
-            bold: false,
-            colour: Rgb(0x55, 0x55, 0x66),
-        });
-    }
-    Scene {
-        w: W,
-        h: H,
-        prims: p,
-    }
 }
 
 fn escape(s: &str) -> String {
@@ -481,6 +528,93 @@ pub fn write_chart(
 /// What the shaded bands of a run's charts mean.
 pub const SECTION_NOTE: &str = "shaded: transitions (light), steady curve (dark)";
 
+/// One line of a run's chart: its label, the value it takes from a row, colour and dash.
+type RowLine = (
+    &'static str,
+    Box<dyn Fn(&crate::record::Row) -> f64>,
+    &'static str,
+    bool,
+);
+
+/// The run's charts: file name, title, y label and lines (angles in degrees).
+fn run_charts(u_max: f64) -> Vec<(&'static str, &'static str, &'static str, Vec<RowLine>)> {
+    let d = 1f64.to_degrees();
+    vec![
+        (
+            "lateral_acceleration",
+            "Passenger lateral acceleration (eq 13; Figs 8b, 14-15)",
+            "lateral acceleration (m/s²)",
+            vec![("ÿ", Box::new(|r| r.lat_acc), "#1f77b4", false)],
+        ),
+        (
+            "body_roll",
+            "Carbody roll relative to the track (Figs 8a, 12-13, 16)",
+            "roll (deg)",
+            vec![
+                (
+                    "θ_v measured",
+                    Box::new(move |r| r.theta_v_meas * d),
+                    "#bbbbbb",
+                    false,
+                ),
+                ("θ_v", Box::new(move |r| r.theta_v * d), "#1f77b4", false),
+                (
+                    "θ̂_v estimate",
+                    Box::new(move |r| r.theta_v_hat * d),
+                    "#2ca02c",
+                    false,
+                ),
+                (
+                    "θ_v^d reference (eq 18)",
+                    Box::new(move |r| r.theta_ref * d),
+                    "#d62728",
+                    true,
+                ),
+            ],
+        ),
+        (
+            "control",
+            "Anti-roll bar: command and achieved angle with limits (Fig. 17)",
+            "bar angle δ_a (deg)",
+            vec![
+                (
+                    "δ_a command",
+                    Box::new(move |r| r.delta_a_cmd * d),
+                    "#ff7f0e",
+                    false,
+                ),
+                (
+                    "δ_a achieved",
+                    Box::new(move |r| r.delta_a * d),
+                    "#1f77b4",
+                    false,
+                ),
+                ("+u_max", Box::new(move |_| u_max), "#d62728", true),
+                ("−u_max", Box::new(move |_| -u_max), "#d62728", true),
+            ],
+        ),
+        (
+            "motor",
+            "BLDC motor: electromagnetic torque and current (Fig. 18)",
+            "torque (N·m), current (A)",
+            vec![
+                (
+                    "torque (N·m)",
+                    Box::new(|r| r.motor_torque),
+                    "#9467bd",
+                    false,
+                ),
+                (
+                    "current T_e/k_t (A)",
+                    Box::new(|r| r.motor_current),
+                    "#8c564b",
+                    false,
+                ),
+            ],
+        ),
+    ]
+}
+
 /// Writes the standard set of plots for a run into `dir/plots/`; returns the files written.
 pub fn write_run_plots(
     dir: &Path,
@@ -488,96 +622,27 @@ pub fn write_run_plots(
     sections: &[(f64, f64, bool)],
     u_max: f64,
 ) -> std::io::Result<Vec<PathBuf>> {
-    let col =
-        |field: fn(&crate::record::Row) -> f64| -> Vec<f64> { rows.iter().map(field).collect() };
-    let t = col(|r| r.t);
-    let deg = |v: Vec<f64>| v.into_iter().map(f64::to_degrees).collect::<Vec<_>>();
-    let line = |label, y, colour, dashed| Line {
-        label,
-        y,
-        colour,
-        dashed,
-    };
-    let chart = |title, y_label, lines| Chart {
-        title,
-        x_label: "time (s)",
-        y_label,
-        lines,
-        bands: sections.to_vec(),
-        note: SECTION_NOTE,
-    };
-    let n = t.len();
-    let charts = [
-        (
-            "lateral_acceleration",
-            chart(
-                "Passenger lateral acceleration (eq 13; Figs 8b, 14-15)",
-                "lateral acceleration (m/s²)",
-                vec![line("ÿ", col(|r| r.lat_acc), "#1f77b4", false)],
-            ),
-        ),
-        (
-            "body_roll",
-            chart(
-                "Carbody roll relative to the track (Figs 8a, 12-13, 16)",
-                "roll (deg)",
-                vec![
-                    line(
-                        "θ_v measured",
-                        deg(col(|r| r.theta_v_meas)),
-                        "#bbbbbb",
-                        false,
-                    ),
-                    line("θ_v", deg(col(|r| r.theta_v)), "#1f77b4", false),
-                    line(
-                        "θ̂_v estimate",
-                        deg(col(|r| r.theta_v_hat)),
-                        "#2ca02c",
-                        false,
-                    ),
-                    line(
-                        "θ_v^d reference (eq 18)",
-                        deg(col(|r| r.theta_ref)),
-                        "#d62728",
-                        true,
-                    ),
-                ],
-            ),
-        ),
-        (
-            "control",
-            chart(
-                "Anti-roll bar: command and achieved angle with limits (Fig. 17)",
-                "bar angle δ_a (deg)",
-                vec![
-                    line("δ_a command", deg(col(|r| r.delta_a_cmd)), "#ff7f0e", false),
-                    line("δ_a achieved", deg(col(|r| r.delta_a)), "#1f77b4", false),
-                    line("+u_max", vec![u_max; n], "#d62728", true),
-                    line("−u_max", vec![-u_max; n], "#d62728", true),
-                ],
-            ),
-        ),
-        (
-            "motor",
-            chart(
-                "BLDC motor: electromagnetic torque and current (Fig. 18)",
-                "torque (N·m), current (A)",
-                vec![
-                    line("torque (N·m)", col(|r| r.motor_torque), "#9467bd", false),
-                    line(
-                        "current T_e/k_t (A)",
-                        col(|r| r.motor_current),
-                        "#8c564b",
-                        false,
-                    ),
-                ],
-            ),
-        ),
-    ];
+    let t: Vec<f64> = rows.iter().map(|r| r.t).collect();
     let out = dir.join("plots");
     std::fs::create_dir_all(&out)?;
     let mut files = Vec::new();
-    for (name, chart) in charts {
+    for (name, title, y_label, lines) in run_charts(u_max) {
+        let chart = Chart {
+            title,
+            x_label: "time (s)",
+            y_label,
+            lines: lines
+                .into_iter()
+                .map(|(label, f, colour, dashed)| Line {
+                    label,
+                    y: rows.iter().map(|r| f(r)).collect(),
+                    colour,
+                    dashed,
+                })
+                .collect(),
+            bands: sections.to_vec(),
+            note: SECTION_NOTE,
+        };
         files.extend(write_chart(&out, name, &chart, &t)?);
     }
     Ok(files)

@@ -589,6 +589,128 @@ pub fn write_outputs(
     Ok(files)
 }
 
+fn line<'a>(label: &'a str, y: Vec<f64>, colour: &'static str, dashed: bool) -> Line<'a> {
+    Line {
+        label,
+        y,
+        colour,
+        dashed,
+    }
+}
+
+fn column(ok: &[&Row], key: &str) -> Vec<f64> {
+    let m = metric(key);
+    ok.iter().map(|r| r.metrics[m]).collect()
+}
+
+/// The lateral-acceleration envelope (5th, 50th, 95th percentile at each time) and the
+/// empirical distribution of P_CT.
+fn monte_carlo_plots(
+    dir: &Path,
+    ok: &[&Row],
+    t: &[f64],
+    bands: Vec<(f64, f64, bool)>,
+) -> std::io::Result<Vec<PathBuf>> {
+    let mut env = [Vec::new(), Vec::new(), Vec::new()];
+    for i in 0..t.len() {
+        let mut v: Vec<f64> = ok.iter().map(|r| r.series[i]).collect();
+        v.sort_by(|a, b| a.total_cmp(b));
+        for (k, p) in [0.05, 0.5, 0.95].iter().enumerate() {
+            env[k].push(percentile(&v, *p));
+        }
+    }
+    let [p5, p50, p95] = env;
+    let chart = Chart {
+        title: "Lateral acceleration across the perturbed vehicles (Fig. 21)",
+        x_label: "time (s)",
+        y_label: "lateral acceleration (m/s²)",
+        lines: vec![
+            line("95th percentile", p95, "#d62728", true),
+            line("median", p50, "#1f77b4", false),
+            line("5th percentile", p5, "#2ca02c", true),
+        ],
+        bands,
+        note: crate::plot::SECTION_NOTE,
+    };
+    let mut files =
+        crate::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)?.to_vec();
+    let mut p = column(ok, "p_ct_standing");
+    p.sort_by(|a, b| a.total_cmp(b));
+    let frac: Vec<f64> = (1..=p.len()).map(|i| i as f64 / p.len() as f64).collect();
+    let chart = Chart {
+        title: "Distribution of P_CT (standing, whole-run peaks) over the samples",
+        x_label: "P_CT standing (%)",
+        y_label: "fraction of samples ≤ P_CT",
+        lines: vec![line("empirical CDF", frac, "#1f77b4", false)],
+        bands: Vec::new(),
+        note: "",
+    };
+    files.extend(crate::plot::write_chart(dir, "sweep_p_ct", &chart, &p)?);
+    Ok(files)
+}
+
+/// The lateral acceleration for each swept value, and comfort against the value.
+fn grid_plots(
+    dir: &Path,
+    key: &str,
+    ok: &[&Row],
+    t: &[f64],
+    bands: Vec<(f64, f64, bool)>,
+) -> std::io::Result<Vec<PathBuf>> {
+    let labels: Vec<String> = ok
+        .iter()
+        .map(|r| format!("{key} = {}", r.params[0]))
+        .collect();
+    let chart = Chart {
+        title: "Lateral acceleration for each swept value",
+        x_label: "time (s)",
+        y_label: "lateral acceleration (m/s²)",
+        lines: ok
+            .iter()
+            .zip(&labels)
+            .enumerate()
+            .map(|(k, (r, label))| {
+                line(
+                    label,
+                    r.series[..t.len()].to_vec(),
+                    PALETTE[k % PALETTE.len()],
+                    false,
+                )
+            })
+            .collect(),
+        bands,
+        note: crate::plot::SECTION_NOTE,
+    };
+    let mut files =
+        crate::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)?.to_vec();
+    let x: Vec<f64> = ok.iter().map(|r| r.params[0]).collect();
+    let title = format!("Comfort against {key}");
+    let chart = Chart {
+        title: &title,
+        x_label: key,
+        y_label: "P_CT (%), peak lateral acceleration (%g)",
+        lines: vec![
+            line(
+                "P_CT standing",
+                column(ok, "p_ct_standing"),
+                "#1f77b4",
+                false,
+            ),
+            line("P_CT seated", column(ok, "p_ct_seated"), "#2ca02c", false),
+            line(
+                "lat. acc. peak (%g)",
+                column(ok, "lat_acc_peak_pct_g"),
+                "#d62728",
+                true,
+            ),
+        ],
+        bands: Vec::new(),
+        note: "",
+    };
+    files.extend(crate::plot::write_chart(dir, "sweep_comfort", &chart, &x)?);
+    Ok(files)
+}
+
 fn write_plots(
     out: &Path,
     base: &Scenario,
@@ -601,144 +723,10 @@ fn write_plots(
     let n = ok.iter().map(|r| r.series.len()).min().unwrap_or(0);
     let t: Vec<f64> = (0..n).map(|i| (i + 1) as f64 * SERIES_DT).collect();
     let bands = crate::analysis::bands(base);
-    let mut files = Vec::new();
     match plan {
-        Plan::MonteCarlo { .. } => {
-            let mut env = [Vec::new(), Vec::new(), Vec::new()];
-            for i in 0..n {
-                let mut v: Vec<f64> = ok.iter().map(|r| r.series[i]).collect();
-                v.sort_by(|a, b| a.total_cmp(b));
-                for (k, p) in [0.05, 0.5, 0.95].iter().enumerate() {
-                    env[k].push(percentile(&v, *p));
-                }
-            }
-            let [p5, p50, p95] = env;
-            let chart = Chart {
-                title: "Lateral acceleration across the perturbed vehicles (Fig. 21)",
-                x_label: "time (s)",
-                y_label: "lateral acceleration (m/s²)",
-                lines: vec![
-                    Line {
-                        label: "95th percentile",
-                        y: p95,
-                        colour: "#d62728",
-                        dashed: true,
-                    },
-                    Line {
-                        label: "median",
-                        y: p50,
-                        colour: "#1f77b4",
-                        dashed: false,
-                    },
-                    Line {
-                        label: "5th percentile",
-                        y: p5,
-                        colour: "#2ca02c",
-                        dashed: true,
-                    },
-                ],
-                bands,
-                note: crate::plot::SECTION_NOTE,
-            };
-            files.extend(crate::plot::write_chart(
-                &dir,
-                "sweep_lateral_acceleration",
-                &chart,
-                &t,
-            )?);
-            // Empirical distribution of P_CT.
-            let mut p: Vec<f64> = ok
-                .iter()
-                .map(|r| r.metrics[metric("p_ct_standing")])
-                .collect();
-            p.sort_by(|a, b| a.total_cmp(b));
-            let frac: Vec<f64> = (1..=p.len()).map(|i| i as f64 / p.len() as f64).collect();
-            let chart = Chart {
-                title: "Distribution of P_CT (standing, whole-run peaks) over the samples",
-                x_label: "P_CT standing (%)",
-                y_label: "fraction of samples ≤ P_CT",
-                lines: vec![Line {
-                    label: "empirical CDF",
-                    y: frac,
-                    colour: "#1f77b4",
-                    dashed: false,
-                }],
-                bands: Vec::new(),
-                note: "",
-            };
-            files.extend(crate::plot::write_chart(&dir, "sweep_p_ct", &chart, &p)?);
-        }
-        Plan::Grid { key, .. } => {
-            let labels: Vec<String> = ok
-                .iter()
-                .map(|r| format!("{key} = {}", r.params[0]))
-                .collect();
-            let chart = Chart {
-                title: "Lateral acceleration for each swept value",
-                x_label: "time (s)",
-                y_label: "lateral acceleration (m/s²)",
-                lines: ok
-                    .iter()
-                    .zip(&labels)
-                    .enumerate()
-                    .map(|(k, (r, label))| Line {
-                        label,
-                        y: r.series[..n].to_vec(),
-                        colour: PALETTE[k % PALETTE.len()],
-                        dashed: false,
-                    })
-                    .collect(),
-                bands,
-                note: crate::plot::SECTION_NOTE,
-            };
-            files.extend(crate::plot::write_chart(
-                &dir,
-                "sweep_lateral_acceleration",
-                &chart,
-                &t,
-            )?);
-            let x: Vec<f64> = ok.iter().map(|r| r.params[0]).collect();
-            let title = format!("Comfort against {key}");
-            let chart = Chart {
-                title: &title,
-                x_label: key,
-                y_label: "P_CT (%), peak lateral acceleration (%g)",
-                lines: vec![
-                    Line {
-                        label: "P_CT standing",
-                        y: ok
-                            .iter()
-                            .map(|r| r.metrics[metric("p_ct_standing")])
-                            .collect(),
-                        colour: "#1f77b4",
-                        dashed: false,
-                    },
-                    Line {
-                        label: "P_CT seated",
-                        y: ok
-                            .iter()
-                            .map(|r| r.metrics[metric("p_ct_seated")])
-                            .collect(),
-                        colour: "#2ca02c",
-                        dashed: false,
-                    },
-                    Line {
-                        label: "lat. acc. peak (%g)",
-                        y: ok
-                            .iter()
-                            .map(|r| r.metrics[metric("lat_acc_peak_pct_g")])
-                            .collect(),
-                        colour: "#d62728",
-                        dashed: true,
-                    },
-                ],
-                bands: Vec::new(),
-                note: "",
-            };
-            files.extend(crate::plot::write_chart(&dir, "sweep_comfort", &chart, &x)?);
-        }
+        Plan::MonteCarlo { .. } => monte_carlo_plots(&dir, &ok, &t, bands),
+        Plan::Grid { key, .. } => grid_plots(&dir, key, &ok, &t, bands),
     }
-    Ok(files)
 }
 
 fn parse_f64s<'a>(fields: impl Iterator<Item = &'a str>, what: &str) -> Result<Vec<f64>, String> {
