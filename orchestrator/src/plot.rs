@@ -635,7 +635,7 @@ pub fn write_run_plots(
                 .into_iter()
                 .map(|(label, f, colour, dashed)| Line {
                     label,
-                    y: rows.iter().map(|r| f(r)).collect(),
+                    y: rows.iter().map(&f).collect(),
                     colour,
                     dashed,
                 })
