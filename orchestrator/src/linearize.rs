@@ -38,8 +38,32 @@ pub fn pi_loop(s: &Scenario) -> PiLoop {
     PiLoop::new(m, lag, s.controller.period_s, s.run.dt_s)
 }
 
+/// Why a report could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum LinearizeError {
+    /// The scenario's controller has no design (a Riccati equation or the QP set-up failed).
+    #[error("{0}")]
+    Design(controller_proc::linalg::DesignError),
+    /// No PI reaches the requested margins.
+    #[error("no PI with integral time {ti_s} s reaches a phase margin of {pm_deg}° and a gain margin of {gm_db} dB")]
+    NoPi {
+        /// Integral time (s).
+        ti_s: f64,
+        /// Phase-margin target (deg).
+        pm_deg: f64,
+        /// Gain-margin target (dB).
+        gm_db: f64,
+    },
+}
+
+impl From<controller_proc::linalg::DesignError> for LinearizeError {
+    fn from(e: controller_proc::linalg::DesignError) -> Self {
+        LinearizeError::Design(e)
+    }
+}
+
 /// The report for scenario `s`, with a PI designed for `design` when given.
-pub fn report(s: &Scenario, design: Option<PiTargets>) -> Result<Value, String> {
+pub fn report(s: &Scenario, design: Option<PiTargets>) -> Result<Value, LinearizeError> {
     let v = s.track.speed();
     let m = LinearModel::new(&s.vehicle, v);
     let c = &s.controller;
@@ -71,7 +95,7 @@ pub fn report(s: &Scenario, design: Option<PiTargets>) -> Result<Value, String> 
     });
     match c.mode {
         Mode::Lqg => {
-            let l = Lqg::new(&m, &c.lqg, &c.kalman, period).map_err(|e| e.to_string())?;
+            let l = Lqg::new(&m, &c.lqg, &c.kalman, period)?;
             let g = &l.design;
             let cl = &g.a_i - &g.b_i * &g.k_op;
             out["lqg"] = json!({
@@ -93,8 +117,7 @@ pub fn report(s: &Scenario, design: Option<PiTargets>) -> Result<Value, String> 
                 period,
                 c.u_max_deg,
                 s.controller_init().input_shape,
-            )
-            .map_err(|e| e.to_string())?;
+            )?;
             out["mpc"] = json!({
                 "prediction_input_shape": mpc.input_shape,
                 "L_est": rows(&mpc.l_est),
@@ -117,13 +140,14 @@ pub fn report(s: &Scenario, design: Option<PiTargets>) -> Result<Value, String> 
     }
     if let Some(t) = design {
         let l = pi_loop(s);
-        out["pi_design"] = match l.design(t.phase_margin_deg, t.gain_margin_db, t.ti_s) {
-            Some(d) => json!(d),
-            None => return Err(format!(
-                "no PI with integral time {} s reaches a phase margin of {}° and a gain margin of {} dB",
-                t.ti_s, t.phase_margin_deg, t.gain_margin_db
-            )),
-        };
+        let d = l
+            .design(t.phase_margin_deg, t.gain_margin_db, t.ti_s)
+            .ok_or(LinearizeError::NoPi {
+                ti_s: t.ti_s,
+                pm_deg: t.phase_margin_deg,
+                gm_db: t.gain_margin_db,
+            })?;
+        out["pi_design"] = json!(d);
     }
     Ok(out)
 }

@@ -86,8 +86,26 @@ impl Plan {
     }
 }
 
+/// Why a sweep could not be set up or its files read back.
+#[derive(Debug, thiserror::Error)]
+pub enum SweepError {
+    /// A `--grid`, `--shard` or sweep key as given: the message names it and what is allowed.
+    #[error("{0}")]
+    Argument(String),
+    /// A sweep's files: the message names the file (and line) and what is wrong.
+    #[error("{0}")]
+    Files(String),
+    /// Shards that do not make one sweep together.
+    #[error("{0}")]
+    Merge(String),
+}
+
 /// Parses a grid `KEY=SPEC` where SPEC is `start:stop:step` (inclusive) or `v1,v2,...`.
-pub fn parse_grid(arg: &str) -> Result<Plan, String> {
+pub fn parse_grid(arg: &str) -> Result<Plan, SweepError> {
+    grid_plan(arg).map_err(SweepError::Argument)
+}
+
+fn grid_plan(arg: &str) -> Result<Plan, String> {
     let (key, spec) = arg
         .split_once('=')
         .ok_or_else(|| format!("--grid `{arg}`: expected KEY=START:STOP:STEP or KEY=V1,V2,..."))?;
@@ -126,7 +144,11 @@ pub fn parse_grid(arg: &str) -> Result<Plan, String> {
 
 /// Sets the dotted `key` of a scenario to `v` (an integer where the key holds one), and
 /// re-validates. Errors name the key.
-pub fn with_key(base: &Scenario, key: &str, v: f64) -> Result<Scenario, String> {
+pub fn with_key(base: &Scenario, key: &str, v: f64) -> Result<Scenario, SweepError> {
+    set_key(base, key, v).map_err(SweepError::Argument)
+}
+
+fn set_key(base: &Scenario, key: &str, v: f64) -> Result<Scenario, String> {
     let mut doc = toml::Value::try_from(base).map_err(|e| e.to_string())?;
     fn set(node: &mut toml::Value, parts: &[&str], key: &str, v: f64) -> Result<(), String> {
         let table = node
@@ -163,7 +185,7 @@ pub fn with_key(base: &Scenario, key: &str, v: f64) -> Result<Scenario, String> 
 }
 
 /// The scenario of sample `j` and its parameter values (factors or the grid value).
-pub fn sample(base: &Scenario, plan: &Plan, j: usize) -> Result<(Scenario, Vec<f64>), String> {
+pub fn sample(base: &Scenario, plan: &Plan, j: usize) -> Result<(Scenario, Vec<f64>), SweepError> {
     match plan {
         Plan::MonteCarlo { spread, seed, .. } => {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(*seed);
@@ -262,8 +284,12 @@ pub struct Shard {
 
 impl Shard {
     /// Parses `i/n` with `0 <= i < n`.
-    pub fn parse(s: &str) -> Result<Shard, String> {
-        let bad = || format!("--shard `{s}`: expected I/N with 0 <= I < N, e.g. 0/4");
+    pub fn parse(s: &str) -> Result<Shard, SweepError> {
+        let bad = || {
+            SweepError::Argument(format!(
+                "--shard `{s}`: expected I/N with 0 <= I < N, e.g. 0/4"
+            ))
+        };
         let (i, n) = s.split_once('/').ok_or_else(bad)?;
         let (index, count) = (
             i.trim().parse::<usize>().map_err(|_| bad())?,
@@ -306,7 +332,7 @@ fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
     };
     let (s, params) = match sample(base, plan, j) {
         Ok(x) => x,
-        Err(e) => return failed(Vec::new(), e, Vec::new()),
+        Err(e) => return failed(Vec::new(), e.to_string(), Vec::new()),
     };
     let dir = ex.out.join("runs").join(format!("sample-{j:04}"));
     let mut opts = RunOptions::new(dir.clone(), ex.exe.clone());
@@ -774,7 +800,11 @@ fn sample_row(at: &str, f: &csv::StringRecord, ncol: usize) -> Result<Row, Strin
 }
 
 /// Reads a sweep's (or shard's) outputs back: its meta, base scenario and rows.
-pub fn read_outputs(dir: &Path) -> Result<(SweepFile, Scenario, Vec<Row>), String> {
+pub fn read_outputs(dir: &Path) -> Result<(SweepFile, Scenario, Vec<Row>), SweepError> {
+    outputs(dir).map_err(SweepError::Files)
+}
+
+fn outputs(dir: &Path) -> Result<(SweepFile, Scenario, Vec<Row>), String> {
     let read = |name: &str| {
         let p = dir.join(name);
         std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))
@@ -803,11 +833,20 @@ pub fn read_outputs(dir: &Path) -> Result<(SweepFile, Scenario, Vec<Row>), Strin
 }
 
 /// Joins shard outputs: same plan and base scenario, every sample exactly once.
-pub fn merge(dirs: &[PathBuf]) -> Result<(Scenario, Plan, Vec<Row>), String> {
+pub fn merge(dirs: &[PathBuf]) -> Result<(Scenario, Plan, Vec<Row>), SweepError> {
+    let mut all = Vec::new();
+    for d in dirs {
+        all.push((d.clone(), read_outputs(d)?));
+    }
+    join(dirs, all).map_err(SweepError::Merge)
+}
+
+type ShardFiles = (PathBuf, (SweepFile, Scenario, Vec<Row>));
+
+fn join(dirs: &[PathBuf], shards: Vec<ShardFiles>) -> Result<(Scenario, Plan, Vec<Row>), String> {
     let mut first: Option<(Scenario, Plan)> = None;
     let mut rows: Vec<Row> = Vec::new();
-    for d in dirs {
-        let (meta, base, r) = read_outputs(d)?;
+    for (d, (meta, base, r)) in shards {
         match &first {
             None => first = Some((base, meta.plan)),
             Some((b, p)) => {
@@ -913,13 +952,15 @@ mod tests {
         assert_eq!(s.vehicle.m_v, 21000.0);
         let s = with_key(&base, "run.seed", 9.0).unwrap();
         assert_eq!(s.run.seed, 9);
-        assert!(with_key(&base, "run.seed", 1.5)
+        let e = with_key(&base, "run.seed", 1.5).unwrap_err().to_string();
+        assert!(e.contains("whole numbers"), "{e}");
+        let e = with_key(&base, "vehicle.m_vv", 1.0)
             .unwrap_err()
-            .contains("whole numbers"));
-        let e = with_key(&base, "vehicle.m_vv", 1.0).unwrap_err();
+            .to_string();
         assert!(e.contains("m_vv"), "{e}");
         let e = with_key(&base, "vehicle.m_v", -1.0).unwrap_err();
-        assert!(e.contains("vehicle.m_v"), "{e}");
+        assert!(matches!(e, SweepError::Argument(_)));
+        assert!(e.to_string().contains("vehicle.m_v"), "{e}");
     }
 
     #[test]

@@ -49,7 +49,9 @@ pub struct SweepArgs {
 /// The plan the arguments ask for, every sample's scenario checked before anything runs.
 fn plan(a: &SweepArgs, s: &Scenario) -> Result<Plan, CliError> {
     let plan = match (&a.grid, a.samples) {
-        (Some(g), _) => crate::sweep::parse_grid(g).map_err(CliError::Invalid)?,
+        (Some(g), _) => {
+            crate::sweep::parse_grid(g).map_err(|e| CliError::Invalid(e.to_string()))?
+        }
         (None, Some(n)) => {
             if n == 0 || !(0.0..1.0).contains(&a.spread) {
                 return Err(CliError::Invalid(
@@ -89,7 +91,7 @@ pub fn exec(a: SweepArgs) -> CliResult {
         .as_deref()
         .map(Shard::parse)
         .transpose()
-        .map_err(CliError::Invalid)?;
+        .map_err(|e| CliError::Invalid(e.to_string()))?;
     let (interrupt, exe) = interrupt_and_exe()?;
     let out = a
         .out

@@ -17,7 +17,8 @@ pub struct SweepMergeArgs {
 
 /// Runs the command.
 pub fn exec(a: SweepMergeArgs) -> CliResult {
-    let (base, plan, rows) = crate::sweep::merge(&a.shards).map_err(CliError::Invalid)?;
+    let (base, plan, rows) =
+        crate::sweep::merge(&a.shards).map_err(|e| CliError::Invalid(e.to_string()))?;
     crate::sweep::write_outputs(&a.out, &base, &plan, None, &rows)
         .map_err(|e| CliError::Failed(format!("{}: {e}", a.out.display())))?;
     println!(
