@@ -170,6 +170,6 @@ impl Participant for Actuator {
 }
 
 /// Participant process entry: `--params JSON --prefix P --wait W`.
-pub fn serve(args: &[String]) -> Result<(), String> {
+pub fn serve(args: &[String]) -> Result<(), cosim::ipc::ServeError> {
     cosim::ipc::participant_main(args, |s: ActuatorInit| Ok(Actuator::new(&s)))
 }

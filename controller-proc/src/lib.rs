@@ -360,7 +360,7 @@ impl Participant for Controller {
 }
 
 /// Participant process entry: `--params JSON --prefix P --wait W`.
-pub fn serve(args: &[String]) -> Result<(), String> {
+pub fn serve(args: &[String]) -> Result<(), cosim::ipc::ServeError> {
     cosim::ipc::participant_main(args, |s: ControllerInit| Controller::new(&s))
 }
 

@@ -64,13 +64,40 @@ pub struct Report {
     pub ipc_over_in_process: f64,
 }
 
-fn measure(s: &Scenario, exe: &Path, dir: &Path) -> Result<Summary, String> {
+/// Why a configuration could not be measured.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    /// The run could not start.
+    #[error("{config}: {source}")]
+    Start {
+        /// Transport, master and wait.
+        config: String,
+        /// Why.
+        source: crate::engine::RunError,
+    },
+    /// The run did not complete.
+    #[error("{config}: {why}")]
+    Run {
+        /// Transport, master and wait.
+        config: String,
+        /// The run's error.
+        why: String,
+    },
+}
+
+fn measure(s: &Scenario, exe: &Path, dir: &Path, config: &str) -> Result<Summary, BenchError> {
     let mut opts = RunOptions::new(dir.to_path_buf(), exe.to_path_buf());
     opts.plots = false;
-    let sum = engine::run(s, &s.name, &opts).map_err(|e| e.to_string())?;
+    let sum = engine::run(s, &s.name, &opts).map_err(|source| BenchError::Start {
+        config: config.to_string(),
+        source,
+    })?;
     let _ = std::fs::remove_dir_all(dir);
     if sum.status != Status::Completed {
-        return Err(sum.error.unwrap_or_else(|| "run failed".into()));
+        return Err(BenchError::Run {
+            config: config.to_string(),
+            why: sum.error.unwrap_or_else(|| "run failed".into()),
+        });
     }
     Ok(sum)
 }
@@ -82,7 +109,7 @@ pub fn run(
     exe: &Path,
     scratch: &Path,
     mut progress: impl FnMut(&str),
-) -> Result<Report, String> {
+) -> Result<Report, BenchError> {
     let mut plan: Vec<(Transport, Master, WaitStrategy)> = vec![(
         Transport::InProcess,
         Master::GaussSeidel,
@@ -114,8 +141,7 @@ pub fn run(
         s.run.wait = w;
         let name = format!("{} {} {}", t.name(), m.name(), w.name());
         progress(&name);
-        let sum = measure(&s, exe, &scratch.join(format!("config-{i}")))
-            .map_err(|e| format!("{name}: {e}"))?;
+        let sum = measure(&s, exe, &scratch.join(format!("config-{i}")), &name)?;
         let plant = &sum.link_latency[0];
         let compute = sum.participants[0].compute_us.p50;
         if t == Transport::InProcess {

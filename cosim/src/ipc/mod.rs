@@ -24,7 +24,8 @@ pub use affinity::{allowed_cpus, cpu_plan, pin_to_cpu, set_cpus};
 pub use cleanup::{leftover_files, remove_run_files};
 pub use hub::{IpcEndpoint, IpcHub, Launch};
 pub use serve::{
-    participant_main, participant_main_with, serve, serve_with, ParticipantArgs, IDLE_LIMIT,
+    participant_main, participant_main_with, serve, serve_with, ParticipantArgs, ServeError,
+    IDLE_LIMIT,
 };
 
 use std::time::Duration;

@@ -171,6 +171,43 @@ impl ParticipantArgs {
     }
 }
 
+/// Why a participant process could not serve.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// Its command line.
+    #[error("{process}: {what}")]
+    Arguments {
+        /// The participant's process name.
+        process: &'static str,
+        /// What is wrong and what is allowed.
+        what: String,
+    },
+    /// Its `--params` JSON does not describe its settings.
+    #[error("{process}: bad --params: {what}")]
+    Params {
+        /// The participant's process name.
+        process: &'static str,
+        /// The JSON error.
+        what: String,
+    },
+    /// Its model could not be built from the settings (a design failed).
+    #[error("{process}: {what}")]
+    Model {
+        /// The participant's process name.
+        process: &'static str,
+        /// Why.
+        what: String,
+    },
+    /// The transport failed or the orchestrator went away.
+    #[error("{process}: {source}")]
+    Link {
+        /// The participant's process name.
+        process: &'static str,
+        /// The failure.
+        source: IpcError,
+    },
+}
+
 /// Idle time after which a participant checks that its orchestrator still exists.
 pub const IDLE_LIMIT: Duration = Duration::from_secs(2);
 
@@ -179,7 +216,7 @@ pub const IDLE_LIMIT: Duration = Duration::from_secs(2);
 pub fn participant_main<S, P>(
     args: &[String],
     make: impl FnOnce(S) -> Result<P, String>,
-) -> Result<(), String>
+) -> Result<(), ServeError>
 where
     S: serde::de::DeserializeOwned,
     P: Participant,
@@ -192,15 +229,18 @@ pub fn participant_main_with<S, P>(
     args: &[String],
     make: impl FnOnce(S) -> Result<P, String>,
     tamper: impl FnMut(&mut P::Output),
-) -> Result<(), String>
+) -> Result<(), ServeError>
 where
     S: serde::de::DeserializeOwned,
     P: Participant,
 {
-    let a = ParticipantArgs::parse(args)?;
-    let settings: S = serde_json::from_str(&a.params)
-        .map_err(|e| format!("{}: bad --params: {e}", P::ROLE.process_name()))?;
-    let model = make(settings)?;
+    let process = P::ROLE.process_name();
+    let a = ParticipantArgs::parse(args).map_err(|what| ServeError::Arguments { process, what })?;
+    let settings: S = serde_json::from_str(&a.params).map_err(|e| ServeError::Params {
+        process,
+        what: e.to_string(),
+    })?;
+    let model = make(settings).map_err(|what| ServeError::Model { process, what })?;
     if let Some(cpu) = a.cpu {
         pin_to_cpu(cpu);
     }
@@ -211,5 +251,5 @@ where
         crate::wait::SPIN_POLLS
     };
     serve_with(model, &a.prefix, a.wait, spin, IDLE_LIMIT, tamper)
-        .map_err(|e| format!("{}: {e}", P::ROLE.process_name()))
+        .map_err(|source| ServeError::Link { process, source })
 }

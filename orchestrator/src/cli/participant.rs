@@ -26,5 +26,5 @@ pub fn exec(a: ParticipantArgs) -> CliResult {
         cosim::Role::Actuator => actuator_proc::serve(&a.rest),
         cosim::Role::Controller => controller_proc::serve(&a.rest),
     }
-    .map_err(CliError::Participant)
+    .map_err(|e| CliError::Participant(e.to_string()))
 }
