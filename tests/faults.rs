@@ -315,13 +315,9 @@ fn trace_and_pace_report_every_exchange_and_every_tick() {
     );
     assert_eq!(code, 0, "{err}");
     let trace = std::fs::read_to_string(dir.join("trace.csv")).unwrap();
-    let rows: Vec<Vec<u64>> = trace
-        .lines()
-        .skip(1)
-        .map(|l| {
-            let f: Vec<&str> = l.split(',').collect();
-            f[3..].iter().map(|x| x.parse().unwrap()).collect()
-        })
+    let rows: Vec<Vec<u64>> = tiltsim_suite::csv_table(&trace)[1..]
+        .iter()
+        .map(|f| f[3..].iter().map(|x| x.parse().unwrap()).collect())
         .collect();
     // Init plus 1000 steps, three participants each (the passive controller runs every tick).
     assert_eq!(rows.len(), 3 * 1001);

@@ -1,6 +1,6 @@
 //! `tiltsim sweep` and `tiltsim sweep-merge` (issue 5, item 4).
 
-use tiltsim_suite::{run, scenario, scenario_with, summary, temp_dir};
+use tiltsim_suite::{csv_table, run, scenario, scenario_with, summary, temp_dir};
 
 fn read(p: &std::path::Path) -> Vec<u8> {
     std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
@@ -8,12 +8,9 @@ fn read(p: &std::path::Path) -> Vec<u8> {
 
 /// Median of a column of samples.csv, computed here from the raw values.
 fn median_of(csv: &str, col: &str) -> f64 {
-    let mut lines = csv.lines();
-    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let i = head.iter().position(|h| *h == col).unwrap();
-    let mut v: Vec<f64> = lines
-        .map(|l| l.split(',').nth(i).unwrap().parse().unwrap())
-        .collect();
+    let t = csv_table(csv);
+    let i = t[0].iter().position(|h| h == col).unwrap();
+    let mut v: Vec<f64> = t[1..].iter().map(|r| r[i].parse().unwrap()).collect();
     v.sort_by(|a, b| a.total_cmp(b));
     let n = v.len();
     if n % 2 == 1 {
@@ -85,17 +82,12 @@ fn a_sharded_monte_carlo_sweep_merges_into_the_whole_sweep_byte_for_byte() {
     }
     // Shard 0 of 2 holds samples 0, 2, 4.
     let s0 = std::fs::read_to_string(shards[0].join("samples.csv")).unwrap();
-    let idx: Vec<&str> = s0
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').next().unwrap())
-        .collect();
+    let idx: Vec<String> = csv_table(&s0)[1..].iter().map(|r| r[0].clone()).collect();
     assert_eq!(idx, ["0", "2", "4"]);
 
     // Every factor inside ±22 %; every sample completed; the table's median is the median.
     let csv = std::fs::read_to_string(whole.join("samples.csv")).unwrap();
-    for line in csv.lines().skip(1) {
-        let f: Vec<&str> = line.split(',').collect();
+    for f in &csv_table(&csv)[1..] {
         for x in &f[1..16] {
             let x: f64 = x.parse().unwrap();
             assert!((0.78..=1.22).contains(&x), "factor {x}");
@@ -103,12 +95,8 @@ fn a_sharded_monte_carlo_sweep_merges_into_the_whole_sweep_byte_for_byte() {
         assert_eq!(f[16], "completed");
     }
     let table = std::fs::read_to_string(whole.join("table.csv")).unwrap();
-    let row: Vec<&str> = table
-        .lines()
-        .find(|l| l.starts_with("p_ct_standing,"))
-        .unwrap()
-        .split(',')
-        .collect();
+    let rows = csv_table(&table);
+    let row = rows.iter().find(|r| r[0] == "p_ct_standing").unwrap();
     assert_eq!(row[1], "5");
     assert_eq!(
         row[2].parse::<f64>().unwrap(),
@@ -161,12 +149,8 @@ fn a_grid_sweep_gives_each_value_the_metrics_of_a_plain_run_with_that_value() {
     let want = summary(&dir.join("heavy"))["comfort"]["p_ct"]["standing"]
         .as_f64()
         .unwrap();
-    let row: Vec<&str> = table
-        .lines()
-        .find(|l| l.starts_with("22000,"))
-        .unwrap()
-        .split(',')
-        .collect();
+    let rows = csv_table(&table);
+    let row = rows.iter().find(|r| r[0] == "22000").unwrap();
     assert_eq!(row[1], "completed");
     assert_eq!(row[2 + 5].parse::<f64>().unwrap(), want);
     assert!(dir.join("grid/plots/sweep_comfort.png").exists());

@@ -131,6 +131,23 @@ pub fn wait_with_limit(mut child: Child, limit: Duration) -> (i32, String, Strin
     }
 }
 
+/// The records of a CSV text, the header first, read with the `csv` crate (fields quoted
+/// where they hold commas are read whole).
+pub fn csv_table(text: &str) -> Vec<Vec<String>> {
+    let mut rd = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .from_reader(text.as_bytes());
+    rd.records()
+        .map(|r| {
+            r.expect("a CSV record")
+                .iter()
+                .map(str::to_string)
+                .collect()
+        })
+        .collect()
+}
+
 /// A recorded time series.
 pub struct Series {
     /// Column names.
@@ -140,19 +157,15 @@ pub struct Series {
 }
 
 impl Series {
-    /// Reads `timeseries.csv`.
+    /// Reads `timeseries.csv` (with the `csv` crate).
     pub fn read(path: &Path) -> Series {
         let text =
             std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let mut lines = text.lines();
-        let header = lines
-            .next()
-            .unwrap_or_default()
-            .split(',')
-            .map(str::to_string)
-            .collect();
-        let rows = lines
-            .map(|l| l.split(',').map(|v| v.parse().expect("number")).collect())
+        let mut t = csv_table(&text);
+        let header = t.remove(0);
+        let rows = t
+            .iter()
+            .map(|r| r.iter().map(|v| v.parse().expect("number")).collect())
             .collect();
         Series { header, rows }
     }
