@@ -62,6 +62,69 @@ impl From<controller_proc::linalg::DesignError> for LinearizeError {
     }
 }
 
+/// The gains of the scenario's controller, under their key of the report.
+fn controller_gains(
+    s: &Scenario,
+    m: &LinearModel,
+) -> Result<Option<(&'static str, Value)>, LinearizeError> {
+    let c = &s.controller;
+    let period = c.period_s;
+    Ok(match c.mode {
+        Mode::Lqg => {
+            let l = Lqg::new(m, &c.lqg, &c.kalman, period)?;
+            let g = &l.design;
+            let cl = &g.a_i - &g.b_i * &g.k_op;
+            Some((
+                "lqg",
+                json!({
+                    "K_op": rows(&g.k_op),
+                    "K_est": rows(&g.k_est),
+                    "care_residual_control": g.residual_k,
+                    "care_residual_filter": g.residual_e,
+                    "closed_loop_modes": modes_of(&cl),
+                    "estimator_modes": modes_of(&(&m.a - &g.k_est * &m.c)),
+                    "discrete_loop_spectral_radius":
+                        controller_proc::linalg::spectral_radius(&l.closed_loop()),
+                }),
+            ))
+        }
+        Mode::Mpc => {
+            let mpc = Mpc::new(
+                m,
+                &c.mpc,
+                &c.kalman,
+                period,
+                c.u_max_deg,
+                s.controller_init().input_shape,
+            )?;
+            Some((
+                "mpc",
+                json!({
+                    "prediction_input_shape": mpc.input_shape,
+                    "L_est": rows(&mpc.l_est),
+                    "Theta": rows(&mpc.theta),
+                    "hessian": rows(&mpc.h),
+                }),
+            ))
+        }
+        Mode::Pi => {
+            let l = pi_loop(s);
+            Some((
+                "pi_loop",
+                json!({
+                    "kp": c.pi.kp,
+                    "ki": c.pi.ki,
+                    "actuator": l.actuator,
+                    "delay_s": l.delay_s,
+                    "margins": l.margins(c.pi.kp, c.pi.ki),
+                    "note": "linear loop; the drive's rate limit (speed_limit_fraction) is not in it",
+                }),
+            ))
+        }
+        Mode::Passive => None,
+    })
+}
+
 /// The report for scenario `s`, with a PI designed for `design` when given.
 pub fn report(s: &Scenario, design: Option<PiTargets>) -> Result<Value, LinearizeError> {
     let v = s.track.speed();
@@ -93,50 +156,8 @@ pub fn report(s: &Scenario, design: Option<PiTargets>) -> Result<Value, Lineariz
             "eigenvalues": zd,
         },
     });
-    match c.mode {
-        Mode::Lqg => {
-            let l = Lqg::new(&m, &c.lqg, &c.kalman, period)?;
-            let g = &l.design;
-            let cl = &g.a_i - &g.b_i * &g.k_op;
-            out["lqg"] = json!({
-                "K_op": rows(&g.k_op),
-                "K_est": rows(&g.k_est),
-                "care_residual_control": g.residual_k,
-                "care_residual_filter": g.residual_e,
-                "closed_loop_modes": modes_of(&cl),
-                "estimator_modes": modes_of(&(&m.a - &g.k_est * &m.c)),
-                "discrete_loop_spectral_radius":
-                    controller_proc::linalg::spectral_radius(&l.closed_loop()),
-            });
-        }
-        Mode::Mpc => {
-            let mpc = Mpc::new(
-                &m,
-                &c.mpc,
-                &c.kalman,
-                period,
-                c.u_max_deg,
-                s.controller_init().input_shape,
-            )?;
-            out["mpc"] = json!({
-                "prediction_input_shape": mpc.input_shape,
-                "L_est": rows(&mpc.l_est),
-                "Theta": rows(&mpc.theta),
-                "hessian": rows(&mpc.h),
-            });
-        }
-        Mode::Pi => {
-            let l = pi_loop(s);
-            out["pi_loop"] = json!({
-                "kp": c.pi.kp,
-                "ki": c.pi.ki,
-                "actuator": l.actuator,
-                "delay_s": l.delay_s,
-                "margins": l.margins(c.pi.kp, c.pi.ki),
-                "note": "linear loop; the drive's rate limit (speed_limit_fraction) is not in it",
-            });
-        }
-        Mode::Passive => {}
+    if let Some((key, gains)) = controller_gains(s, &m)? {
+        out[key] = gains;
     }
     if let Some(t) = design {
         let l = pi_loop(s);

@@ -256,22 +256,10 @@ impl Link {
         }
     }
 
-    /// Carries value `v` sent at tick `k` (simulated time `t`); returns what the receiver
-    /// gets, and logs what the link did.
-    pub fn carry(&mut self, k: u64, t: f64, v: f64, ev: &mut EventLog) -> f64 {
-        let fx = self.fx.clone();
-        if fx.is_identity() {
-            return v;
-        }
-        let in_drop_window = fx.drop_window.is_some_and(|w| w.contains(t));
-        let freeze = fx.freeze_window.is_some_and(|w| w.contains(t));
-        let nan = fx.nan_window.is_some_and(|w| w.contains(t));
-        let over = fx
-            .value_window
-            .filter(|o| t >= o.start_s && t < o.end_s)
-            .map(|o| o.value);
-        // The draws happen every tick whatever the windows say, so a window does not shift
-        // the random stream of what follows it.
+    /// This tick's random draws: the drop variate, the jitter (ticks) and the noise. They
+    /// happen every tick whatever the windows say, so a window does not shift the random
+    /// stream of what follows it.
+    fn draws(&mut self, fx: &LinkEffects) -> (f64, u64, f64) {
         let u_drop: f64 = self.rng.random();
         let extra = match fx.jitter {
             Jitter::None => 0,
@@ -290,6 +278,43 @@ impl Link {
         } else {
             0.0
         };
+        (u_drop, extra, noise)
+    }
+
+    /// What the receiver holds at tick `k`: the newest sample (by send tick) among those that
+    /// have arrived; until the first arrives, the sender's first value `v`.
+    fn deliver(&mut self, k: u64, v: f64) -> f64 {
+        let mut newest = self.delivered;
+        self.queue.retain(|&(arrive, sent, val)| {
+            if arrive <= k {
+                if newest.is_none_or(|(s, _)| sent > s) {
+                    newest = Some((sent, val));
+                }
+                false
+            } else {
+                true
+            }
+        });
+        self.delivered = newest;
+        let first = *self.first.get_or_insert(v);
+        self.delivered.map_or(first, |(_, val)| val)
+    }
+
+    /// Carries value `v` sent at tick `k` (simulated time `t`); returns what the receiver
+    /// gets, and logs what the link did.
+    pub fn carry(&mut self, k: u64, t: f64, v: f64, ev: &mut EventLog) -> f64 {
+        let fx = self.fx.clone();
+        if fx.is_identity() {
+            return v;
+        }
+        let in_drop_window = fx.drop_window.is_some_and(|w| w.contains(t));
+        let freeze = fx.freeze_window.is_some_and(|w| w.contains(t));
+        let nan = fx.nan_window.is_some_and(|w| w.contains(t));
+        let over = fx
+            .value_window
+            .filter(|o| t >= o.start_s && t < o.end_s)
+            .map(|o| o.value);
+        let (u_drop, extra, noise) = self.draws(&fx);
         let dropped = in_drop_window || u_drop < fx.drop_probability;
         let name = self.name;
         self.window_edge(0, in_drop_window, k, EventKind::DropWindow, ev);
@@ -313,22 +338,7 @@ impl Link {
             }
             self.queue.push_back((k + d, k, v));
         }
-        // Deliver: the newest sample (by send tick) among those that have arrived.
-        let mut newest = self.delivered;
-        self.queue.retain(|&(arrive, sent, val)| {
-            if arrive <= k {
-                if newest.is_none_or(|(s, _)| sent > s) {
-                    newest = Some((sent, val));
-                }
-                false
-            } else {
-                true
-            }
-        });
-        self.delivered = newest;
-        // Until the first sample arrives the receiver holds the sender's first value.
-        let first = *self.first.get_or_insert(v);
-        let mut out = self.delivered.map_or(first, |(_, val)| val);
+        let mut out = self.deliver(k, v);
         if freeze {
             out = *self.frozen.get_or_insert(out);
         } else {
