@@ -87,7 +87,10 @@ fn a_sharded_monte_carlo_sweep_merges_into_the_whole_sweep_byte_for_byte() {
 
     // Every factor inside ±22 %; every sample completed; the table's median is the median.
     let csv = std::fs::read_to_string(whole.join("samples.csv")).unwrap();
-    for f in &csv_table(&csv)[1..] {
+    let samples = csv_table(&csv);
+    // The last column names the validity flags each sample raised.
+    assert_eq!(samples[0].last().map(String::as_str), Some("flags"));
+    for f in &samples[1..] {
         for x in &f[1..16] {
             let x: f64 = x.parse().unwrap();
             assert!((0.78..=1.22).contains(&x), "factor {x}");

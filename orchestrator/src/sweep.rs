@@ -269,6 +269,8 @@ pub struct Row {
     pub status: SampleStatus,
     /// Metrics in [`METRICS`] order (NaN when the run failed).
     pub metrics: Vec<f64>,
+    /// The validity flags the run raised (`crate::validity::Flags::raised`).
+    pub flags: Vec<String>,
     /// Lateral acceleration every [`SERIES_DT`] (m/s²), as far as recorded.
     pub series: Vec<f64>,
 }
@@ -328,6 +330,7 @@ fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
         params,
         status: SampleStatus::Failed(why),
         metrics: vec![f64::NAN; METRICS.len()],
+        flags: Vec::new(),
         series,
     };
     let (s, params) = match sample(base, plan, j) {
@@ -364,6 +367,7 @@ fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
             params,
             status: SampleStatus::Completed,
             metrics: values(&sum.comfort).to_vec(),
+            flags: sum.flags.raised().iter().map(|f| f.to_string()).collect(),
             series,
         },
         Ok(sum) => failed(params, sum.error.unwrap_or_default(), series),
@@ -469,6 +473,7 @@ fn samples_csv(plan: &Plan, rows: &[Row]) -> String {
         .chain(cols.iter().map(|c| c.to_string()))
         .chain(std::iter::once("status".to_string()))
         .chain(METRICS.iter().map(|m| m.key.to_string()))
+        .chain(std::iter::once("flags".to_string()))
         .collect();
     let body = rows.iter().map(|r| {
         let params = (0..cols.len()).map(|k| r.params.get(k).copied().unwrap_or(f64::NAN));
@@ -476,6 +481,7 @@ fn samples_csv(plan: &Plan, rows: &[Row]) -> String {
             .chain(params.map(|v| v.to_string()))
             .chain(std::iter::once(r.status.to_string()))
             .chain(numbers(&r.metrics))
+            .chain(std::iter::once(r.flags.join("; ")))
             .collect()
     });
     csv_text(std::iter::once(head).chain(body))
@@ -538,6 +544,31 @@ fn monte_carlo_tables(base: &Scenario, spread: f64, seed: u64, rows: &[Row]) -> 
         let mut rec = vec![metric.key.to_string(), v.len().to_string()];
         rec.extend(numbers(&q));
         records.push(rec);
+    }
+    let flagged = rows.iter().filter(|r| !r.flags.is_empty()).count();
+    if flagged > 0 {
+        let mut kinds: Vec<&str> = rows
+            .iter()
+            .flat_map(|r| r.flags.iter().map(String::as_str))
+            .collect();
+        kinds.sort_unstable();
+        kinds.dedup();
+        let counts: Vec<String> = kinds
+            .iter()
+            .map(|k| {
+                let n = rows
+                    .iter()
+                    .filter(|r| r.flags.iter().any(|f| f == k))
+                    .count();
+                format!("{k} {n}")
+            })
+            .collect();
+        let _ = writeln!(
+            md,
+            "\n{flagged} of {} samples raised a validity flag ({}; samples.csv names them).\n",
+            rows.len(),
+            counts.join(", ")
+        );
     }
     (md, csv_text(records))
 }
@@ -782,7 +813,7 @@ fn records(dir: &Path, name: &str) -> Result<Vec<(String, csv::StringRecord)>, S
 
 /// One record of `samples.csv`.
 fn sample_row(at: &str, f: &csv::StringRecord, ncol: usize) -> Result<Row, String> {
-    let want = 2 + ncol + METRICS.len();
+    let want = 3 + ncol + METRICS.len();
     if f.len() != want {
         return Err(format!("{at}: {} fields, expected {want}", f.len()));
     }
@@ -794,7 +825,12 @@ fn sample_row(at: &str, f: &csv::StringRecord, ncol: usize) -> Result<Row, Strin
         params: parse_f64s(f.iter().skip(1).take(ncol), at)?,
         status: SampleStatus::parse(status)
             .ok_or_else(|| format!("{at}: status `{status}` is neither completed nor failed"))?,
-        metrics: parse_f64s(f.iter().skip(2 + ncol), at)?,
+        metrics: parse_f64s(f.iter().skip(2 + ncol).take(METRICS.len()), at)?,
+        flags: f[want - 1]
+            .split("; ")
+            .filter(|x| !x.is_empty())
+            .map(str::to_string)
+            .collect(),
         series: Vec::new(),
     })
 }
