@@ -118,12 +118,12 @@ impl PiLoop {
     pub fn plant(&self, w: f64) -> Complex<f64> {
         let s = Complex::new(0.0, w);
         let n = 9;
-        let mut m: DMatrix<Complex<f64>> = DMatrix::from_fn(n, n, |i, j| {
+        let m: DMatrix<Complex<f64>> = DMatrix::from_fn(n, n, |i, j| {
             let d = if i == j { s } else { Complex::new(0.0, 0.0) };
             d - Complex::new(self.model.a[(i, j)], 0.0)
         });
         let b: DMatrix<Complex<f64>> = self.model.b.map(|x| Complex::new(x, 0.0));
-        let x = std::mem::replace(&mut m, DMatrix::zeros(1, 1))
+        let x = m
             .lu()
             .solve(&b)
             .unwrap_or_else(|| DMatrix::from_element(n, 1, Complex::new(f64::NAN, 0.0)));
