@@ -128,4 +128,17 @@ fn ctrl_c_ends_the_run_cleanly() {
         assert_eq!(p["exit"]["status"], "exit code 0", "{p}");
     }
     assert!(rows < 3_600_000);
+    assert_eq!(s["error"], "interrupted by Ctrl-C (SIGINT)");
+}
+
+#[test]
+fn sigterm_ends_the_run_cleanly_and_is_named() {
+    let (child, kids, dir, pfx) = start_long_run("sigterm", &[]);
+    unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+    let (code, _, err) = wait_with_limit(child, Duration::from_secs(10));
+    assert_eq!(code, 130, "stderr: {err}");
+    assert_clean_end(&dir, &pfx, &kids, "interrupted");
+    assert_eq!(summary(&dir)["error"], "interrupted by SIGTERM");
+    // Log lines reach a pipe without colour codes.
+    assert!(!err.contains('\u{1b}'), "{err}");
 }

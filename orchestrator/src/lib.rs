@@ -16,6 +16,7 @@ pub mod plot;
 pub mod record;
 pub mod roles;
 pub mod scenario;
+pub mod signals;
 pub mod sweep;
 pub mod validity;
 

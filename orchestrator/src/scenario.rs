@@ -183,6 +183,65 @@ impl Scenario {
         }
     }
 
+    /// The name becomes the default output directory `out/<name>`: one path component, no
+    /// way out of `out/` (`--out` is the only way to choose where results go).
+    fn validate_name(&self) -> Checker {
+        let mut c = Checker::new("");
+        let n = &self.name;
+        let ok = n.chars().count() <= 100
+            && n != "."
+            && n != ".."
+            && !n.contains(['/', '\\', '\0'])
+            && !n.chars().any(char::is_control);
+        let shown: String = n.chars().take(100).collect();
+        c.require(
+            ok,
+            "name",
+            format!("{shown:?}"),
+            "at most 100 characters, not `.` or `..`, without `/`, `\\` or control characters",
+        );
+        c
+    }
+
+    /// What can never take effect: a run shorter than one step, faults scheduled after the
+    /// end of the run, a stall length on a fault that is not a stall, two faults of the same
+    /// participant at the same tick.
+    fn validate_timeline(&self) -> Checker {
+        let mut c = Checker::new("");
+        let (dt, end) = (self.run.dt_s, self.duration());
+        c.require(
+            dt.is_nan() || dt <= 0.0 || self.steps() >= 1,
+            "run.duration_s",
+            end,
+            &format!("at least one step of run.dt_s = {dt} s"),
+        );
+        let mut seen = Vec::new();
+        for (i, f) in self.faults.schedule.iter().enumerate() {
+            let field = format!("faults.schedule[{i}]");
+            c.require(
+                f.at_s < end,
+                &format!("{field}.at_s"),
+                f.at_s,
+                &format!("a time before the end of the run, {end} s"),
+            );
+            c.require(
+                f.action == crate::faults::FaultAction::Stall || f.stall_s == 0.0,
+                &format!("{field}.stall_s"),
+                f.stall_s,
+                "only with action = \"stall\"",
+            );
+            let tick = (f.at_s / dt).round() as i64;
+            c.require(
+                !seen.contains(&(f.participant, tick)),
+                &format!("{field}.at_s"),
+                f.at_s,
+                "a tick with no other fault of the same participant",
+            );
+            seen.push((f.participant, tick));
+        }
+        c
+    }
+
     /// Every rule, with the field's dotted path.
     pub fn validate(&self) -> Vec<FieldError> {
         let mut c = Checker::new("run");
@@ -204,6 +263,8 @@ impl Scenario {
             "an integer in [100, 120000] ms",
         );
         let mut all = c;
+        all.merge(self.validate_name());
+        all.merge(self.validate_timeline());
         all.merge(self.vehicle.validate("vehicle"));
         all.merge(self.track.validate("track"));
         all.merge(self.sensor.validate("sensor"));
@@ -292,6 +353,58 @@ mod tests {
         let s = parse("").unwrap();
         assert!((s.duration() - 16.8).abs() < 1e-9);
         assert_eq!(s.steps(), 16_800);
+    }
+
+    #[test]
+    fn a_name_that_would_leave_the_output_directory_is_rejected() {
+        for bad in ["../../x", "/tmp/x", "a/b", "..", "a\\b", "tab\there"] {
+            let text = format!("name = {bad:?}\n");
+            let e = parse(&text).unwrap_err().to_string();
+            assert!(
+                e.contains("field `name`") && e.contains("without `/`"),
+                "{bad}: {e}"
+            );
+        }
+        let long = format!("name = \"{}\"\n", "x".repeat(101));
+        assert!(parse(&long)
+            .unwrap_err()
+            .to_string()
+            .contains("at most 100"));
+        assert!(parse("name = \"paper-lqg rho 0.3\"\n").is_ok());
+    }
+
+    #[test]
+    fn inputs_that_can_never_take_effect_are_rejected_with_their_field() {
+        let e = parse("[run]\nduration_s = 0.0004\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("run.duration_s") && e.contains("at least one step"),
+            "{e}"
+        );
+        let fault = |body: &str| format!("[run]\nduration_s = 2.0\n{body}");
+        let e = parse(&fault(
+            "[[faults.schedule]]\nparticipant = \"controller\"\naction = \"kill\"\nat_s = 5.0\n",
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("faults.schedule[0].at_s") && e.contains("before the end"),
+            "{e}"
+        );
+        let e = parse(&fault(
+            "[[faults.schedule]]\nparticipant = \"actuator\"\naction = \"kill\"\nat_s = 1.0\nstall_s = 0.5\n",
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("faults.schedule[0].stall_s"), "{e}");
+        let two = "[[faults.schedule]]\nparticipant = \"plant\"\naction = \"kill\"\nat_s = 1.0\n\
+                   [[faults.schedule]]\nparticipant = \"plant\"\naction = \"kill\"\nat_s = 1.0\n";
+        let e = parse(&fault(two)).unwrap_err().to_string();
+        assert!(
+            e.contains("faults.schedule[1].at_s") && e.contains("no other fault"),
+            "{e}"
+        );
     }
 
     #[test]

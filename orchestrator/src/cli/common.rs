@@ -2,7 +2,7 @@
 //! the participants' executable, writing JSON.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use clap::ValueEnum;
@@ -74,11 +74,10 @@ pub fn load(path: &Path) -> Result<Scenario, CliError> {
     Scenario::load(path).map_err(|e| CliError::Invalid(e.to_string()))
 }
 
-/// The Ctrl-C flag (handler installed) and the executable that serves participants.
+/// The interrupt flag (set by SIGINT, SIGTERM or SIGHUP) and the executable that serves
+/// participants.
 pub fn interrupt_and_exe() -> Result<(Arc<AtomicBool>, PathBuf), CliError> {
-    let interrupt = Arc::new(AtomicBool::new(false));
-    let flag = interrupt.clone();
-    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    let interrupt = crate::signals::install();
     let exe = std::env::current_exe().map_err(|e| {
         CliError::Failed(format!(
             "cannot find the tiltsim executable to start participants: {e}"

@@ -2,7 +2,7 @@
 //! the exit code in one place ([`main`]).
 //!
 //! Exit codes: 0 success; 1 the run failed (a participant died, stalled or sent bad data);
-//! 2 invalid input (command line or scenario file); 130 interrupted by Ctrl-C.
+//! 2 invalid input (command line or scenario file); 130 interrupted (Ctrl-C, SIGTERM, SIGHUP).
 
 mod bench;
 mod common;
@@ -74,6 +74,8 @@ fn init_logging(verbose: u8) {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| level.into()),
         )
         .with_writer(std::io::stderr)
+        // Colours only where a person reads them.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .try_init();
 }
 

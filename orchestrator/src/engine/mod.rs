@@ -255,7 +255,7 @@ fn report(
     let (status, error) = match &e.outcome {
         Ok(_) if opts.interrupt.load(Ordering::Relaxed) => (
             Status::Interrupted,
-            Some("interrupted by Ctrl-C".to_string()),
+            Some(format!("interrupted by {}", crate::signals::describe())),
         ),
         Ok(_) if e.degraded => (
             Status::Degraded,
