@@ -142,3 +142,79 @@ fn sigterm_ends_the_run_cleanly_and_is_named() {
     // Log lines reach a pipe without colour codes.
     assert!(!err.contains('\u{1b}'), "{err}");
 }
+
+#[test]
+fn a_killed_orchestrator_leaves_a_readable_series_and_its_files_are_removed_by_the_next_run() {
+    let dir = temp_dir("orchestrator-killed");
+    let sc = scenario("paper-passive.toml");
+    let child = spawn(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--transport",
+        "ipc",
+        "--duration",
+        "3600",
+        "-q",
+    ]);
+    let pid = child.id();
+    // The run's default prefix carries its owner's pid.
+    let pfx = format!("tiltsim_{pid}_");
+    let kids = wait_for(Duration::from_secs(10), || {
+        let k = children_of(pid);
+        (k.len() == 3).then_some(k)
+    })
+    .expect("three participant processes");
+    let csv = dir.join("timeseries.csv");
+    wait_for(Duration::from_secs(10), || {
+        (std::fs::metadata(&csv).ok()?.len() > 1_000_000).then_some(())
+    })
+    .expect("rows being recorded");
+    unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+    let (code, _, _) = wait_with_limit(child, Duration::from_secs(10));
+    assert_ne!(code, 0);
+    // Its participants follow it (parent-death signal).
+    for (p, comm) in &kids {
+        let gone = wait_for(Duration::from_secs(5), || {
+            (!std::path::Path::new(&format!("/proc/{p}")).exists()).then_some(())
+        });
+        assert!(gone.is_some(), "{comm} ({p}) outlived its orchestrator");
+    }
+    // Its files are left behind (no one cleaned up); the next IPC run to start on this machine
+    // (possibly another test's) removes them.
+    // The series on disk: the header, then complete rows; only the very last line may be cut
+    // (the kernel stops a write at a page boundary when the writer is killed), and tiltsim's
+    // readers drop it.
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let t = tiltsim_suite::csv_table(&text);
+    let width = t[0].len();
+    assert_eq!(t[0][0], "step");
+    assert!(t.len() > 1000);
+    assert!(t[1..t.len() - 1].iter().all(|r| r.len() == width));
+    let (code, _, err) = tiltsim_suite::run(&["plot", dir.to_str().unwrap()]);
+    assert_eq!(code, 0, "the killed run's series reads back: {err}");
+    // The next IPC run removes the dead run's files, and only those.
+    let other = temp_dir("after-kill");
+    let live = prefix("after-kill");
+    let (code, _, err) = tiltsim_suite::run(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        other.to_str().unwrap(),
+        "--transport",
+        "ipc",
+        "--ipc-prefix",
+        &live,
+        "--duration",
+        "0.2",
+        "-q",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(leftovers(&pfx).is_empty(), "{:?}", leftovers(&pfx));
+    assert!(leftovers(&live).is_empty());
+    // `tiltsim clean` finds nothing left.
+    let (code, out, _) = tiltsim_suite::run(&["clean"]);
+    assert_eq!(code, 0);
+    assert!(!out.contains(&pfx), "{out}");
+}

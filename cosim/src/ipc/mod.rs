@@ -21,7 +21,7 @@ mod serve;
 mod supervise;
 
 pub use affinity::{allowed_cpus, cpu_plan, pin_to_cpu, set_cpus};
-pub use cleanup::{leftover_files, remove_run_files};
+pub use cleanup::{leftover_files, remove_dead_runs, remove_run_files};
 pub use hub::{IpcEndpoint, IpcHub, Launch};
 pub use serve::{
     participant_main, participant_main_with, serve, serve_with, ParticipantArgs, ServeError,

@@ -5,6 +5,7 @@
 //! 2 invalid input (command line or scenario file); 130 interrupted (Ctrl-C, SIGTERM, SIGHUP).
 
 mod bench;
+mod clean;
 mod common;
 mod compare;
 mod error;
@@ -58,6 +59,9 @@ enum Command {
     /// Print the linear design model (matrices, eigenvalues, damping, frequencies) and the
     /// scenario controller's gains as JSON.
     Linearize(linearize::LinearizeArgs),
+    /// Remove the shared-memory files of runs whose orchestrator was killed (never a live
+    /// run's; every IPC run does this when it starts).
+    Clean(clean::CleanArgs),
     /// Serve one participant over iceoryx2 (how the orchestrator starts its processes).
     #[command(hide = true)]
     Participant(participant::ParticipantArgs),
@@ -98,6 +102,7 @@ pub fn main() -> i32 {
         Command::SweepMerge(a) => sweep_merge::exec(a),
         Command::Bench(a) => bench::exec(a),
         Command::Linearize(a) => linearize::exec(a),
+        Command::Clean(a) => clean::exec(a),
         Command::Participant(a) => participant::exec(a),
     };
     match result {

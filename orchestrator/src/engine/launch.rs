@@ -117,6 +117,10 @@ pub(crate) fn start(
             })
         }
         Transport::Ipc => {
+            // Files of runs whose orchestrator was killed before it could clean up.
+            for p in cosim::ipc::remove_dead_runs() {
+                tracing::info!("removed the files of dead run {p}");
+            }
             let plan = if s.run.pin_cpus {
                 cosim::ipc::cpu_plan()
             } else {
