@@ -10,6 +10,7 @@ pub mod degraded;
 pub mod engine;
 pub mod events;
 pub mod faults;
+pub mod files;
 pub mod linearize;
 pub mod links;
 pub mod plot;

@@ -149,6 +149,17 @@ pub enum ScenarioError {
     },
 }
 
+/// A parser message cut to 600 characters: a hostile file cannot flood the terminal with
+/// its own text (the message's first lines name the line and key).
+fn cut(msg: &str) -> String {
+    if msg.chars().count() <= 600 {
+        msg.to_string()
+    } else {
+        let head: String = msg.chars().take(600).collect();
+        format!("{head} … (message cut)")
+    }
+}
+
 impl Scenario {
     /// Reads, parses and validates a scenario file.
     pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
@@ -170,7 +181,7 @@ impl Scenario {
     pub fn parse(text: &str, file: &Path) -> Result<Scenario, ScenarioError> {
         let s: Scenario = toml::from_str(text).map_err(|e| ScenarioError::Parse {
             file: file.into(),
-            message: e.to_string().trim_end().to_string(),
+            message: cut(e.to_string().trim_end()),
         })?;
         let errors = s.validate();
         if errors.is_empty() {
@@ -371,6 +382,10 @@ mod tests {
             .to_string()
             .contains("at most 100"));
         assert!(parse("name = \"paper-lqg rho 0.3\"\n").is_ok());
+        // A hostile file's text is not echoed whole.
+        let deep = format!("[vehicle]\nm_v = {}\n", "[".repeat(20_000));
+        let e = parse(&deep).unwrap_err().to_string();
+        assert!(e.len() < 1_000 && e.contains("x.toml"), "{} bytes", e.len());
     }
 
     #[test]

@@ -353,8 +353,8 @@ fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
         .collect();
     if ex.keep_runs {
         if let Ok(sum) = &summary {
-            let _ = std::fs::write(
-                dir.join("summary.json"),
+            let _ = crate::files::write_atomic(
+                &dir.join("summary.json"),
                 serde_json::to_string_pretty(sum).unwrap_or_default() + "\n",
             );
         }
@@ -619,7 +619,7 @@ pub fn write_outputs(
     let mut files = Vec::new();
     let mut put = |name: &str, text: String| -> std::io::Result<()> {
         let p = out.join(name);
-        std::fs::write(&p, text)?;
+        crate::files::write_atomic(&p, text)?;
         files.push(p);
         Ok(())
     };

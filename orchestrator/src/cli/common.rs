@@ -89,5 +89,5 @@ pub fn interrupt_and_exe() -> Result<(Arc<AtomicBool>, PathBuf), CliError> {
 /// Writes `v` as pretty JSON to `path`.
 pub fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), CliError> {
     let text = serde_json::to_string_pretty(v).unwrap_or_default() + "\n";
-    std::fs::write(path, text).map_err(|e| CliError::Failed(format!("{}: {e}", path.display())))
+    crate::files::write_atomic(path, text).map_err(|e| CliError::Failed(e.to_string()))
 }

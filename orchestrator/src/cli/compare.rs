@@ -68,7 +68,7 @@ pub fn exec(a: CompareArgs) -> CliResult {
     let (md, csv) = crate::compare::tables(&entries);
     for (name, text) in [("table.md", &md), ("table.csv", &csv)] {
         let p = a.out.join(name);
-        std::fs::write(&p, text).map_err(|e| CliError::Failed(format!("{}: {e}", p.display())))?;
+        crate::files::write_atomic(&p, text).map_err(|e| CliError::Failed(e.to_string()))?;
     }
     let runs: Vec<_> = entries
         .iter()

@@ -55,7 +55,7 @@ pub fn exec(a: LinearizeArgs) -> CliResult {
     let text = serde_json::to_string_pretty(&report).unwrap_or_default() + "\n";
     match a.out {
         Some(p) => {
-            std::fs::write(&p, text).map_err(|e| CliError::Failed(format!("{}: {e}", p.display())))
+            crate::files::write_atomic(&p, text).map_err(|e| CliError::Failed(e.to_string()))
         }
         None => {
             print!("{text}");

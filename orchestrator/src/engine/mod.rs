@@ -138,7 +138,7 @@ fn create_outputs(s: &Scenario, opts: &RunOptions) -> Result<Recorder, RunError>
     let csv = dir.join("timeseries.csv");
     let rec = Recorder::create(&csv).map_err(RunError::io(csv))?;
     let resolved = dir.join("scenario.toml");
-    std::fs::write(&resolved, toml::to_string(s).unwrap_or_default())
+    crate::files::write_atomic(&resolved, toml::to_string(s).unwrap_or_default())
         .map_err(RunError::io(resolved))?;
     Ok(rec)
 }
