@@ -46,6 +46,7 @@ fn endpoint(t: &Transport) -> (Ep, Option<IpcHub>) {
                 prefix: pfx.clone(),
                 wait: WaitStrategy::Adaptive,
                 deadline: DEADLINE,
+                ceiling: Duration::from_secs(60),
                 participant_cpu: None,
             })
             .expect("hub");

@@ -72,8 +72,12 @@ pub struct RunSettings {
     pub transport: Transport,
     /// How waiting processes spend their time between polls.
     pub wait: WaitStrategy,
-    /// A participant that does not answer a step within this time is declared stalled (ms).
+    /// A participant that does not answer a step within this time, and has made no progress
+    /// (stopped, or sleeping without using CPU), is declared stalled (ms).
     pub deadline_ms: u64,
+    /// A participant still running but not answering (starved of CPU by other load, or
+    /// spinning) is waited for up to this long, then declared stalled (ms).
+    pub hang_ceiling_ms: u64,
     /// Time allowed for a participant process to start and connect (ms).
     pub startup_ms: u64,
     /// Pin the orchestrator to one CPU and the participants to another (ipc transport).
@@ -90,6 +94,7 @@ impl Default for RunSettings {
             transport: Transport::Ipc,
             wait: WaitStrategy::Adaptive,
             deadline_ms: 500,
+            hang_ceiling_ms: 60_000,
             startup_ms: 5000,
             pin_cpus: true,
         }
@@ -266,6 +271,15 @@ impl Scenario {
             "deadline_ms",
             r.deadline_ms,
             "an integer in [1, 60000] ms",
+        );
+        c.require(
+            r.hang_ceiling_ms >= r.deadline_ms && r.hang_ceiling_ms <= 3_600_000,
+            "hang_ceiling_ms",
+            r.hang_ceiling_ms,
+            &format!(
+                "an integer in [run.deadline_ms = {}, 3600000] ms",
+                r.deadline_ms
+            ),
         );
         c.require(
             (100..=120_000).contains(&r.startup_ms),

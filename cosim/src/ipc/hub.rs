@@ -115,6 +115,8 @@ impl IpcHub {
             rep,
             wait: self.settings.wait,
             deadline: self.settings.deadline,
+            ceiling: self.settings.ceiling,
+            starved_waits: 0,
         };
         ep.await_connection(startup)?;
         Ok(ep)
@@ -156,6 +158,44 @@ pub struct IpcEndpoint<I: Message, O: Message> {
     rep: PubSubFactory<ipc::Service, O, ()>,
     wait: WaitStrategy,
     deadline: Duration,
+    ceiling: Duration,
+    /// Times a reply was late but the participant was running (starved, not hung).
+    pub starved_waits: u64,
+}
+
+/// Whether a participant that has not answered by the deadline is hung or only slow.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Liveness {
+    /// Stopped, or sleeping without using CPU: it will not answer.
+    Hung,
+    /// Runnable or using CPU: starved by other load (or busy); wait on.
+    Running,
+}
+
+/// State and CPU ticks (user + system) of process `pid`, from `/proc/<pid>/stat`.
+fn proc_stat(pid: u32) -> Option<(char, u64)> {
+    let s = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // Fields after the command name, which is in parentheses and may hold spaces.
+    let rest = s.get(s.rfind(')')? + 2..)?;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let state = f.first()?.chars().next()?;
+    let cpu = f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?;
+    Some((state, cpu))
+}
+
+/// The verdict on `pid` given the CPU ticks seen at the previous check (`None` at the first).
+fn liveness(pid: u32, previous_cpu: Option<u64>) -> (Liveness, Option<u64>) {
+    match proc_stat(pid) {
+        None => (Liveness::Hung, None),
+        Some(('T' | 't', cpu)) => (Liveness::Hung, Some(cpu)),
+        Some(('R', cpu)) => (Liveness::Running, Some(cpu)),
+        Some((_, cpu)) => match previous_cpu {
+            Some(prev) if cpu > prev => (Liveness::Running, Some(cpu)),
+            // First look: a short second look decides.
+            None => (Liveness::Running, Some(cpu)),
+            Some(_) => (Liveness::Hung, Some(cpu)),
+        },
+    }
 }
 
 impl<I: Message, O: Message> IpcEndpoint<I, O> {
@@ -221,6 +261,8 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
     fn receive(&mut self, step: u64, kind: Kind) -> Result<O, LinkError> {
         let mut backoff = Backoff::new(self.wait);
         let mut found = None;
+        let mut look_at = self.deadline;
+        let mut last_cpu: Option<u64> = None;
         if let Some(r) = &self.exit {
             // Already known to be gone (a kill fault reaps at once).
             return Err(LinkError::Exited {
@@ -236,8 +278,10 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
                 check_reply::<I, O>(self.role, &reply, step, kind)?;
                 return Ok(reply);
             }
-            // A dead process is noticed within ~1k polls; a stalled one at the deadline.
-            if backoff.polls() % 1024 == 1023 || backoff.elapsed() > self.deadline {
+            // A dead process is noticed within ~1k polls. At the deadline a stopped or idle
+            // process is declared stalled; one that runs (starved by other load) is waited
+            // for, looking again every 100 ms, up to the ceiling.
+            if backoff.polls() % 1024 == 1023 || backoff.elapsed() > look_at {
                 if let Some(status) = self.exited() {
                     return Err(LinkError::Exited {
                         role: self.role,
@@ -246,13 +290,27 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
                         status,
                     });
                 }
-                if backoff.elapsed() > self.deadline {
-                    return Err(LinkError::Timeout {
-                        role: self.role,
-                        pid: self.pid,
-                        step,
-                        deadline_ms: self.deadline.as_millis() as u64,
-                    });
+                let elapsed = backoff.elapsed();
+                if elapsed > look_at {
+                    let (verdict, cpu) = liveness(self.pid, last_cpu);
+                    last_cpu = cpu;
+                    let limit = if verdict == Liveness::Hung {
+                        Some(self.deadline)
+                    } else if elapsed > self.ceiling {
+                        Some(self.ceiling)
+                    } else {
+                        None
+                    };
+                    if let Some(limit) = limit {
+                        return Err(LinkError::Timeout {
+                            role: self.role,
+                            pid: self.pid,
+                            step,
+                            deadline_ms: limit.as_millis() as u64,
+                        });
+                    }
+                    self.starved_waits += 1;
+                    look_at = elapsed + Duration::from_millis(100);
                 }
             }
             backoff.pause();

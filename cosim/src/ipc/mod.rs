@@ -46,8 +46,10 @@ pub struct IpcSettings {
     pub prefix: String,
     /// How waiters spend time between polls.
     pub wait: WaitStrategy,
-    /// How long to wait for a reply before declaring the participant stalled.
+    /// How long to wait for a reply before checking whether the participant makes progress.
     pub deadline: Duration,
+    /// How long to wait for a participant that runs but does not answer.
+    pub ceiling: Duration,
     /// CPU the participants are pinned to, if any.
     pub participant_cpu: Option<usize>,
 }

@@ -130,6 +130,7 @@ pub(crate) fn start(
                 prefix: prefix.to_string(),
                 wait: s.run.wait,
                 deadline: Duration::from_millis(s.run.deadline_ms),
+                ceiling: Duration::from_millis(s.run.hang_ceiling_ms),
                 participant_cpu: plan.map(|p| p.1),
             })?;
             if let Some((own, _)) = plan {
