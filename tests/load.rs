@@ -49,5 +49,10 @@ fn eight_concurrent_ipc_runs_all_complete_identically() {
         assert_eq!(code, 0, "{}: {err}", out.display());
         assert_eq!(std::fs::read(out.join("timeseries.csv")).unwrap(), want);
         assert!(leftovers(&pfx).is_empty());
+        // The waits for starved participants are counted, per participant.
+        let s = tiltsim_suite::summary(&out);
+        for p in s["participants"].as_array().unwrap() {
+            assert!(p["starved_waits"].is_u64(), "{p}");
+        }
     }
 }

@@ -198,6 +198,11 @@ pub trait Endpoint<I: Message, O: Message> {
     fn inject(&mut self, fault: ProcessFault);
     /// Asks the participant to end, waits for it (bounded), reports how it ended.
     fn shutdown(&mut self) -> ExitReport;
+    /// Times a reply came after the deadline from a participant that was running (starved by
+    /// other load, not hung) and was waited for.
+    fn starved_waits(&self) -> u64 {
+        0
+    }
 }
 
 /// In-process transport: the model runs inside the orchestrator's process, on `send`.

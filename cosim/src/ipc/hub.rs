@@ -160,7 +160,7 @@ pub struct IpcEndpoint<I: Message, O: Message> {
     deadline: Duration,
     ceiling: Duration,
     /// Times a reply was late but the participant was running (starved, not hung).
-    pub starved_waits: u64,
+    starved_waits: u64,
 }
 
 /// Whether a participant that has not answered by the deadline is hung or only slow.
@@ -315,6 +315,9 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
             }
             backoff.pause();
         }
+    }
+    fn starved_waits(&self) -> u64 {
+        self.starved_waits
     }
     fn inject(&mut self, fault: ProcessFault) {
         let pid = self.pid as libc::pid_t;

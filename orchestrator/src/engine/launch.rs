@@ -73,6 +73,15 @@ impl Participants {
         RoleMap::new([self.plant.pid(), self.actuator.pid(), self.controller.pid()])
     }
 
+    /// Late replies waited for because the participant was running, per role.
+    pub fn starved_waits(&self) -> RoleMap<u64> {
+        RoleMap::new([
+            self.plant.starved_waits(),
+            self.actuator.starved_waits(),
+            self.controller.starved_waits(),
+        ])
+    }
+
     /// Stops every participant still in place (a dead or hung one is killed and reaped);
     /// `lost` holds the exit reports of those already replaced by degraded-mode stand-ins.
     pub fn shut_down(&mut self, lost: RoleMap<Option<ExitReport>>) -> RoleMap<ExitReport> {

@@ -150,6 +150,7 @@ struct Ended {
     cpu_orchestrator: f64,
     exits: RoleMap<cosim::endpoint::ExitReport>,
     pids: RoleMap<u32>,
+    starved: RoleMap<u64>,
     leftover: Vec<String>,
     degraded: bool,
 }
@@ -165,6 +166,7 @@ fn shut_down(
     cpu0: f64,
 ) -> Ended {
     let pids = team.ps.pids();
+    let starved = team.ps.starved_waits();
     let lost = team.take_lost();
     let exits = team.ps.shut_down(lost);
     let degraded = team.degraded();
@@ -188,6 +190,7 @@ fn shut_down(
         cpu_orchestrator: launch::cpu_self() - cpu0,
         exits,
         pids,
+        starved,
         leftover,
         degraded,
     }
@@ -275,6 +278,7 @@ fn report(
             period_s: periods[role],
             exit: e.exits[role].clone(),
             compute_us: compute[role],
+            starved_waits: e.starved[role],
         })
         .collect();
     let simulated = rows as f64 * s.run.dt_s;

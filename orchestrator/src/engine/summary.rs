@@ -26,6 +26,9 @@ pub struct ParticipantReport {
     pub exit: ExitReport,
     /// Wall time spent inside its model's step per call (µs), as it reports.
     pub compute_us: Percentiles,
+    /// Replies that came after `run.deadline_ms` from a participant that was running (starved
+    /// of CPU by other load, not hung) and were waited for.
+    pub starved_waits: u64,
 }
 
 /// Timing of the run.
