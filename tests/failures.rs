@@ -19,8 +19,20 @@ fn start_long_run(
     std::path::PathBuf,
     String,
 ) {
-    let dir = temp_dir(name);
     let pfx = prefix(name);
+    let mut args = vec!["--ipc-prefix", &pfx];
+    args.extend(extra);
+    let (child, kids, dir) = start_long_ipc_run(name, &args);
+    (child, kids, dir, pfx)
+}
+
+/// Starts a long IPC run with `extra` arguments and waits until its three participants run and
+/// rows are being written; returns the child, its participants and the output directory.
+fn start_long_ipc_run(
+    name: &str,
+    extra: &[&str],
+) -> (std::process::Child, Vec<(u32, String)>, std::path::PathBuf) {
+    let dir = temp_dir(name);
     let sc = scenario("paper-passive.toml");
     let mut args = vec![
         "run",
@@ -29,8 +41,6 @@ fn start_long_run(
         dir.to_str().unwrap(),
         "--transport",
         "ipc",
-        "--ipc-prefix",
-        &pfx,
         "--duration",
         "3600",
         "-q",
@@ -48,7 +58,7 @@ fn start_long_run(
         (std::fs::metadata(&csv).ok()?.len() > 1_000_000).then_some(())
     })
     .expect("rows being recorded");
-    (child, kids, dir, pfx)
+    (child, kids, dir)
 }
 
 fn pid_of(kids: &[(u32, String)], comm: &str) -> u32 {
@@ -145,32 +155,12 @@ fn sigterm_ends_the_run_cleanly_and_is_named() {
 
 #[test]
 fn a_killed_orchestrator_leaves_a_readable_series_and_its_files_are_removed_by_the_next_run() {
-    let dir = temp_dir("orchestrator-killed");
-    let sc = scenario("paper-passive.toml");
-    let child = spawn(&[
-        "run",
-        sc.to_str().unwrap(),
-        "--out",
-        dir.to_str().unwrap(),
-        "--transport",
-        "ipc",
-        "--duration",
-        "3600",
-        "-q",
-    ]);
-    let pid = child.id();
     // The run's default prefix carries its owner's pid.
+    let (child, kids, dir) = start_long_ipc_run("orchestrator-killed", &[]);
+    let pid = child.id();
     let pfx = format!("tiltsim_{pid}_");
-    let kids = wait_for(Duration::from_secs(10), || {
-        let k = children_of(pid);
-        (k.len() == 3).then_some(k)
-    })
-    .expect("three participant processes");
     let csv = dir.join("timeseries.csv");
-    wait_for(Duration::from_secs(10), || {
-        (std::fs::metadata(&csv).ok()?.len() > 1_000_000).then_some(())
-    })
-    .expect("rows being recorded");
+    let sc = scenario("paper-passive.toml");
     unsafe { libc::kill(pid as i32, libc::SIGKILL) };
     let (code, _, _) = wait_with_limit(child, Duration::from_secs(10));
     assert_ne!(code, 0);
