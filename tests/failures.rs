@@ -46,19 +46,25 @@ fn start_long_ipc_run(
         "-q",
     ];
     args.extend(extra);
-    let child = spawn(&args);
+    let mut child = spawn(&args);
     let pid = child.id();
-    let kids = wait_for(Duration::from_secs(10), || {
+    let kids = wait_for(Duration::from_secs(30), || {
         let k = children_of(pid);
         (k.len() == 3).then_some(k)
-    })
-    .expect("three participant processes");
+    });
     let csv = dir.join("timeseries.csv");
-    wait_for(Duration::from_secs(10), || {
+    let rows = wait_for(Duration::from_secs(30), || {
         (std::fs::metadata(&csv).ok()?.len() > 1_000_000).then_some(())
-    })
-    .expect("rows being recorded");
-    (child, kids, dir)
+    });
+    match (kids, rows) {
+        (Some(kids), Some(())) => (child, kids, dir),
+        (kids, _) => {
+            // Never leave an hour-long run behind a failed test.
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{name}: participants {kids:?}; rows not recorded within 30 s");
+        }
+    }
 }
 
 fn pid_of(kids: &[(u32, String)], comm: &str) -> u32 {
