@@ -1,5 +1,7 @@
-//! Percentiles for timing reports.
+//! Percentiles for timing reports, and [`Timings`], which gathers them over a run of any
+//! length in constant memory.
 
+use hdrhistogram::Histogram;
 use serde::Serialize;
 
 /// p50 / p99 / max of a set of durations, in microseconds.
@@ -34,9 +36,117 @@ pub fn percentiles(values_us: &mut [f64]) -> Percentiles {
     }
 }
 
+/// A distribution of non-negative values (µs, or counts) gathered one at a time in constant
+/// memory: an HDR histogram with three significant digits (percentiles within 0.1 % of the
+/// exact nearest rank, at a resolution of 0.001), with the count, sum and maximum kept exactly.
+/// Over an hour-long run at 1 ms this holds a few kilobytes where a vector of every value
+/// held tens of megabytes per series.
+#[derive(Clone)]
+pub struct Timings {
+    h: Histogram<u64>,
+    n: usize,
+    sum: f64,
+    max: f64,
+}
+
+impl Default for Timings {
+    fn default() -> Self {
+        Timings {
+            h: Histogram::new(3).expect("three significant digits are valid"),
+            n: 0,
+            sum: 0.0,
+            max: 0.0,
+        }
+    }
+}
+
+impl Timings {
+    /// Adds one value (negative values and NaN count as 0).
+    pub fn record(&mut self, v: f64) {
+        let v = if v.is_finite() && v > 0.0 { v } else { 0.0 };
+        // An auto-resizing histogram takes any u64; `saturating_record` never fails.
+        self.h.saturating_record((v * 1e3).round() as u64);
+        self.n += 1;
+        self.sum += v;
+        self.max = self.max.max(v);
+    }
+
+    /// Values recorded.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    /// Whether nothing was recorded.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// The value at quantile `q` in 0..=1 (nearest rank, to the histogram's resolution).
+    pub fn quantile(&self, q: f64) -> f64 {
+        if self.n == 0 {
+            return 0.0;
+        }
+        (self.h.value_at_quantile(q) as f64 * 1e-3).min(self.max)
+    }
+
+    /// How many values lie in `[lo, hi)`.
+    pub fn count_between(&self, lo: f64, hi: f64) -> u64 {
+        let (lo, hi) = ((lo.max(0.0) * 1e3).ceil() as u64, (hi.max(0.0) * 1e3).ceil() as u64);
+        if hi <= lo {
+            return 0;
+        }
+        self.h
+            .iter_recorded()
+            .filter(|v| (lo..hi).contains(&v.value_iterated_to()))
+            .map(|v| v.count_since_last_iteration())
+            .sum()
+    }
+
+    /// p50, p99, maximum and mean.
+    pub fn percentiles(&self) -> Percentiles {
+        if self.n == 0 {
+            return Percentiles::default();
+        }
+        Percentiles {
+            n: self.n,
+            p50: self.quantile(0.50),
+            p99: self.quantile(0.99),
+            max: self.max,
+            mean: self.sum / self.n as f64,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn timings_agree_with_the_exact_nearest_rank_within_a_thousandth() {
+        // A skewed distribution, as request latencies are: most near 2 µs, a long tail.
+        let mut exact: Vec<f64> = (0..100_000u64)
+            .map(|i| {
+                let u = ((i * 7919) % 100_000) as f64 / 100_000.0;
+                2.0 + 0.5 * u + if i % 97 == 0 { 300.0 * u } else { 0.0 }
+            })
+            .collect();
+        let mut t = Timings::default();
+        for v in &exact {
+            t.record(*v);
+        }
+        let (a, b) = (t.percentiles(), percentiles(&mut exact));
+        assert_eq!(a.n, b.n);
+        assert_eq!(a.max, b.max);
+        assert!((a.mean - b.mean).abs() <= 1e-9 * b.mean);
+        for (x, y) in [(a.p50, b.p50), (a.p99, b.p99)] {
+            assert!((x - y).abs() <= 1e-3 * y + 1e-3, "{x} vs {y}");
+        }
+        assert_eq!(t.count_between(0.0, 1e9), 100_000);
+        let below_3 = exact.iter().filter(|v| **v < 3.0).count() as u64;
+        let got = t.count_between(0.0, 3.0);
+        assert!(got.abs_diff(below_3) <= 100, "{got} vs {below_3}");
+        assert_eq!(Timings::default().percentiles().n, 0);
+    }
 
     #[test]
     fn nearest_rank_on_1_to_100() {

@@ -7,8 +7,6 @@ use std::path::{Path, PathBuf};
 use cosim::Role;
 
 use crate::engine::{QuickLook, RunError, RunOptions, Summary};
-use crate::record::read_rows;
-use crate::roles::RoleMap;
 use crate::scenario::Scenario;
 
 /// Runs `s` with the engine, then completes its summary with the analysis of what it recorded
@@ -25,26 +23,53 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
 }
 
 /// Fills `results`, `comfort` and `flags` of `summary` from the series recorded in `dir`
-/// (works on partial runs too).
+/// (works on partial runs too), in one pass over the file with one row in memory at a time,
+/// so the analysis of an hour-long run needs no more memory than that of a short one.
 pub fn analyse(s: &Scenario, dir: &Path, summary: &mut Summary) {
-    summary.results = quick_look(s, dir);
-    summary.comfort = comfort_of(s, dir);
-    summary.flags = flags_of(s, dir, &summary.comfort);
+    let mut look = QuickLooker::new(s);
+    let mut comfort = crate::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort);
+    let mut flags = crate::validity::Flagger::new(s.run.dt_s, s.comfort.bump_stop_m);
+    let scanned = scan(s, dir, |r, x| {
+        look.push(r);
+        comfort.push(x);
+        flags.push(&crate::validity::FlagSample {
+            roll_error: r.theta_v - r.theta_ref,
+            reference: r.theta_ref,
+            deflection: x.deflection,
+            limits: r.actuator_limits,
+            phase_current_peak: r.phase_current_peak,
+            torque: r.motor_torque,
+            dc_power: r.dc_power,
+            chopper_power: r.chopper_power,
+            v_dc: r.v_dc,
+        });
+    });
+    if scanned.is_err() {
+        return;
+    }
+    summary.results = look.q;
+    summary.comfort = comfort.finish();
+    summary.flags = flags.finish(&summary.comfort);
+}
+
+/// The comfort of the ideal tilt on the track of a recorded run: the body follows eq 18
+/// exactly (see [`crate::comfort::Sample::ideal`]).
+pub fn ideal_tilt(s: &Scenario, dir: &Path) -> crate::comfort::Comfort {
+    let mut a = crate::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort);
+    let _ = scan(s, dir, |_, x| a.push(&x.ideal()));
+    a.finish()
 }
 
 /// The histogram of every participant's request latency, `plots/latency_histogram.{svg,png}`
-/// (0.5 µs bins up to the 99.9th percentile of all of them).
-pub fn latency_histogram(dir: &Path, requests: &RoleMap<Vec<f64>>) -> std::io::Result<()> {
-    let mut all: Vec<f64> = requests
+/// (80 bins up to the largest 99.9th percentile of them).
+pub(crate) fn latency_histogram(
+    dir: &Path,
+    lat: &crate::engine::observer::Latency,
+) -> std::io::Result<()> {
+    let top = Role::ALL
         .iter()
-        .flat_map(|(_, r)| r.iter().copied())
-        .collect();
-    all.sort_by(|a, b| a.total_cmp(b));
-    let top = all
-        .get(((all.len() as f64) * 0.999) as usize)
-        .copied()
-        .unwrap_or(1.0)
-        .max(1.0);
+        .map(|r| lat.requests(*r).quantile(0.999))
+        .fold(1.0, f64::max);
     let bin = (top / 80.0).max(0.05);
     let nb = (top / bin).ceil() as usize + 1;
     let x: Vec<f64> = (0..nb).map(|i| (i as f64 + 0.5) * bin).collect();
@@ -52,11 +77,12 @@ pub fn latency_histogram(dir: &Path, requests: &RoleMap<Vec<f64>>) -> std::io::R
         .iter()
         .enumerate()
         .map(|(k, role)| {
-            let mut h = vec![0.0; nb];
-            for v in &requests[*role] {
-                let i = ((v / bin) as usize).min(nb - 1);
-                h[i] += 1.0;
-            }
+            let t = lat.requests(*role);
+            let mut h: Vec<f64> = (0..nb)
+                .map(|i| t.count_between(i as f64 * bin, (i + 1) as f64 * bin) as f64)
+                .collect();
+            // The last bin holds everything above it.
+            h[nb - 1] += t.count_between(nb as f64 * bin, f64::MAX / 2e3) as f64;
             crate::plot::Line {
                 label: role.name(),
                 y: h,
@@ -89,53 +115,80 @@ fn section_times(tp: &vehicle_model::TrackParams) -> [f64; 4] {
     [t1, t2, t3, t3 + tp.transition_m / v]
 }
 
-/// Reads a run's recorded series (`dir/timeseries.csv`) back into the signals the comfort
-/// assessment needs.
-pub fn signals_from_run(s: &Scenario, dir: &std::path::Path) -> crate::comfort::Signals {
-    use crate::comfort::Signals;
-    let Ok(rows) = read_rows(dir) else {
-        return Signals::default();
-    };
-    // The reference of eq 18 at each row's own position, continuous: the recorded θ_ref is
-    // the controller's, held over its period (50 ms for the MPC), whose steps would read as
-    // roll-speed spikes of the reference.
-    let reference: Vec<f64> = match controller_proc::Controller::new(&s.controller_init()) {
-        Ok(c) => rows.iter().map(|r| c.reference_at(r.s)).collect(),
-        Err(_) => rows.iter().map(|r| r.theta_ref).collect(),
-    };
-    let veh = vehicle_model::Vehicle::new(s.vehicle.clone(), s.track.speed());
-    let n = rows.len();
-    let dt = s.run.dt_s;
-    // Central difference of a per-row quantity (one-sided at the ends).
-    let deriv = |k: usize, f: &dyn Fn(usize) -> f64| {
-        if n < 2 {
-            return 0.0;
-        }
-        let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
-        (f(b) - f(a)) / ((b - a) as f64 * dt)
-    };
-    let (h1, h2) = (s.vehicle.h1, s.vehicle.h2);
+/// The curve transitions of the scenario's track as (start, end) times (s).
+fn transitions(s: &Scenario) -> [(f64, f64); 2] {
     let [t1, t2, t3, t4] = section_times(&s.track);
-    Signals {
-        t: rows.iter().map(|r| r.t).collect(),
-        lat_acc: rows.iter().map(|r| r.lat_acc).collect(),
-        lat_acc_ref: rows
-            .iter()
-            .zip(&reference)
-            .map(|(r, th)| veh.lateral_acceleration(*th, r.curvature, r.cant))
-            .collect(),
-        roll_speed: (0..n)
-            .map(|k| rows[k].dtheta_v + deriv(k, &|i| rows[i].cant))
-            .collect(),
-        roll_speed_ref: (0..n)
-            .map(|k| deriv(k, &|i| rows[i].cant + reference[i]))
-            .collect(),
-        deflection: rows
-            .iter()
-            .map(|r| r.y_v - h1 * r.theta_v - r.y_b - h2 * r.theta_b)
-            .collect(),
-        transitions: vec![(t1, t2), (t3, t4)],
+    [(t1, t2), (t3, t4)]
+}
+
+/// One recorded row with its quantities derived for comfort, as [`scan`] hands them over.
+struct Derived {
+    row: crate::record::Row,
+    /// θ_v^d at the row's position, continuous (rad).
+    reference: f64,
+}
+
+/// Reads a run's recorded series (`dir/timeseries.csv`) and hands each row, in order, to
+/// `visit` with its comfort sample. The reference of eq 18 is taken at each row's own
+/// position, continuous: the recorded θ_ref is the controller's, held over its period (50 ms
+/// for the MPC), whose steps would read as roll-speed spikes of the reference. Roll speeds
+/// use a central difference of the cant (one-sided at the ends), so a row is handed over when
+/// the next one has been read: three rows are in memory at most.
+pub fn scan(
+    s: &Scenario,
+    dir: &Path,
+    mut visit: impl FnMut(&crate::record::Row, &crate::comfort::Sample),
+) -> std::io::Result<u64> {
+    let controller = controller_proc::Controller::new(&s.controller_init()).ok();
+    let veh = vehicle_model::Vehicle::new(s.vehicle.clone(), s.track.speed());
+    let dt = s.run.dt_s;
+    let (h1, h2) = (s.vehicle.h1, s.vehicle.h2);
+    let sample = |x: &Derived, before: &Derived, after: &Derived, steps: f64| {
+        let r = &x.row;
+        let deriv = |f: &dyn Fn(&Derived) -> f64| {
+            if steps == 0.0 {
+                0.0
+            } else {
+                (f(after) - f(before)) / (steps * dt)
+            }
+        };
+        crate::comfort::Sample {
+            t: r.t,
+            lat_acc: r.lat_acc,
+            lat_acc_ref: veh.lateral_acceleration(x.reference, r.curvature, r.cant),
+            roll_speed: r.dtheta_v + deriv(&|d| d.row.cant),
+            roll_speed_ref: deriv(&|d| d.row.cant + d.reference),
+            deflection: r.y_v - h1 * r.theta_v - r.y_b - h2 * r.theta_b,
+        }
+    };
+    // rows k−1 and k, waiting for k+1.
+    let mut prev: Option<Derived> = None;
+    let mut cur: Option<Derived> = None;
+    let n = crate::record::each_row(dir, |r| {
+        let next = Derived {
+            row: *r,
+            reference: controller
+                .as_ref()
+                .map_or(r.theta_ref, |c| c.reference_at(r.s)),
+        };
+        if let Some(c) = &cur {
+            let (before, steps) = match &prev {
+                Some(p) => (p, 2.0),
+                None => (c, 1.0),
+            };
+            visit(&c.row, &sample(c, before, &next, steps));
+        }
+        prev = cur.take();
+        cur = Some(next);
+    })?;
+    if let Some(c) = &cur {
+        let (before, steps) = match &prev {
+            Some(p) => (p, 1.0),
+            None => (c, 0.0),
+        };
+        visit(&c.row, &sample(c, before, c, steps));
     }
+    Ok(n)
 }
 
 pub(crate) fn bands(s: &Scenario) -> Vec<(f64, f64, bool)> {
@@ -143,9 +196,13 @@ pub(crate) fn bands(s: &Scenario) -> Vec<(f64, f64, bool)> {
     vec![(t1, t2, false), (t2, t3, true), (t3, t4, false)]
 }
 
+/// Most points per line of a figure: a paper run's 20,000 rows are drawn whole, an hour-long
+/// run as a min/max envelope.
+const PLOT_POINTS: usize = 40_000;
+
 /// Writes `dir/plots/*.svg` and `*.png` from `dir/timeseries.csv`.
 pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<PathBuf>> {
-    let rows = read_rows(dir)?;
+    let rows = crate::record::rows_to_plot(dir, PLOT_POINTS)?;
     crate::plot::write_run_plots(dir, &rows, &bands(s), s.controller.u_max_deg)
 }
 
@@ -160,7 +217,7 @@ pub fn write_compare_plots(
     use crate::record::Row;
     let mut data = Vec::new();
     for (label, _, dir) in runs {
-        data.push((label.as_str(), read_rows(dir)?));
+        data.push((label.as_str(), crate::record::rows_to_plot(dir, PLOT_POINTS)?));
     }
     let n = data.iter().map(|(_, r)| r.len()).min().unwrap_or(0);
     let t: Vec<f64> = data
@@ -225,53 +282,31 @@ pub fn write_compare_plots(
     Ok(files)
 }
 
-/// The validity flags of a finished run, from its recorded series.
-pub fn flags_of(
-    s: &Scenario,
-    dir: &std::path::Path,
-    comfort: &crate::comfort::Comfort,
-) -> crate::validity::Flags {
-    let Ok(rows) = read_rows(dir) else {
-        return crate::validity::Flags::default();
-    };
-    let get = |f: fn(&crate::record::Row) -> f64| -> Vec<f64> { rows.iter().map(f).collect() };
-    let inputs = crate::validity::FlagInputs {
-        dt: s.run.dt_s,
-        roll_error: get(|r| r.theta_v - r.theta_ref),
-        reference: get(|r| r.theta_ref),
-        deflection: signals_from_run(s, dir).deflection,
-        clearance: s.comfort.bump_stop_m,
-        limits: rows.iter().map(|r| r.actuator_limits).collect(),
-        phase_current_peak: get(|r| r.phase_current_peak),
-        torque: get(|r| r.motor_torque),
-        dc_power: get(|r| r.dc_power),
-        chopper_power: get(|r| r.chopper_power),
-        v_dc: get(|r| r.v_dc),
-    };
-    crate::validity::assess(&inputs, comfort)
+/// The headline numbers, row by row.
+struct QuickLooker {
+    t_mid: f64,
+    best: f64,
+    q: QuickLook,
 }
 
-pub fn comfort_of(s: &Scenario, dir: &std::path::Path) -> crate::comfort::Comfort {
-    crate::comfort::assess(&signals_from_run(s, dir), &s.comfort)
-}
+impl QuickLooker {
+    fn new(s: &Scenario) -> Self {
+        let tp = &s.track;
+        QuickLooker {
+            t_mid: (tp.straight_before_m + tp.transition_m + tp.curve_m / 2.0) / tp.speed(),
+            best: f64::INFINITY,
+            q: QuickLook::default(),
+        }
+    }
 
-/// Reads back the recorded series for the headline numbers (works on partial runs too).
-pub fn quick_look(s: &Scenario, dir: &std::path::Path) -> QuickLook {
-    let Ok(rows) = read_rows(dir) else {
-        return QuickLook::default();
-    };
-    let tp = &s.track;
-    let t_mid = (tp.straight_before_m + tp.transition_m + tp.curve_m / 2.0) / tp.speed();
-    let mut q = QuickLook::default();
-    let mut best = f64::INFINITY;
-    for r in &rows {
+    fn push(&mut self, r: &crate::record::Row) {
+        let q = &mut self.q;
         q.lat_acc_peak = q.lat_acc_peak.max(r.lat_acc.abs());
         q.delta_a_peak = q.delta_a_peak.max(r.delta_a.abs());
-        if (r.t - t_mid).abs() < best {
-            best = (r.t - t_mid).abs();
+        if (r.t - self.t_mid).abs() < self.best {
+            self.best = (r.t - self.t_mid).abs();
             q.lat_acc_mid_curve = r.lat_acc;
             q.theta_v_mid_curve = r.theta_v;
         }
     }
-    q
 }

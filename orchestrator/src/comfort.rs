@@ -256,129 +256,264 @@ pub fn values(c: &Comfort) -> [f64; 10] {
     METRICS.map(|m| (m.get)(c))
 }
 
-fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    let (mut s, mut n) = (0.0, 0usize);
-    for x in v {
-        s += x * x;
-        n += 1;
-    }
-    if n == 0 {
-        0.0
-    } else {
-        (s / n as f64).sqrt()
-    }
+
+
+/// Largest |x[i+k] − x[i]| over a stream of values, k = round(w/dt): the slope of `x` over the
+/// window `w`, as [`slope_peak`] computes it on a slice, with a ring of the last k values.
+struct SlopePeak {
+    k: usize,
+    ring: std::collections::VecDeque<f64>,
+    best: f64,
 }
 
-fn peak(v: &[f64]) -> f64 {
-    v.iter().fold(0.0f64, |m, x| m.max(x.abs()))
-}
-
-/// Largest |x(t + w) − x(t)| / w over the series (step `dt`).
-pub fn slope_peak(x: &[f64], dt: f64, w: f64) -> f64 {
-    let k = ((w / dt).round() as usize).max(1);
-    if x.len() <= k {
-        return 0.0;
-    }
-    (0..x.len() - k)
-        .map(|i| (x[i + k] - x[i]).abs())
-        .fold(0.0, f64::max)
-        / (k as f64 * dt)
-}
-
-/// Second-order Butterworth low-pass (bilinear transform), applied causally from rest at the
-/// first sample's value.
-pub fn low_pass(x: &[f64], dt: f64, fc: f64) -> Vec<f64> {
-    if x.is_empty() {
-        return Vec::new();
-    }
-    let k = (std::f64::consts::PI * fc * dt).tan();
-    let q = std::f64::consts::SQRT_2;
-    let norm = 1.0 / (1.0 + q * k + k * k);
-    let b0 = k * k * norm;
-    let (b1, b2) = (2.0 * b0, b0);
-    let a1 = 2.0 * (k * k - 1.0) * norm;
-    let a2 = (1.0 - q * k + k * k) * norm;
-    let (mut x1, mut x2, mut y1, mut y2) = (x[0], x[0], x[0], x[0]);
-    x.iter()
-        .map(|&x0| {
-            let y0 = b0 * x0 + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2;
-            x2 = x1;
-            x1 = x0;
-            y2 = y1;
-            y1 = y0;
-            y0
-        })
-        .collect()
-}
-
-/// Assesses a run.
-pub fn assess(s: &Signals, c: &ComfortSettings) -> Comfort {
-    let n = s.t.len();
-    if n < 3 {
-        return Comfort {
-            method: "whole-run-peaks",
-            ..Default::default()
-        };
-    }
-    let dt = (s.t[n - 1] - s.t[0]) / (n - 1) as f64;
-    let acc_peak = peak(&s.lat_acc);
-    let jerk = slope_peak(&s.lat_acc, dt, c.jerk_window_s);
-    let roll_peak = peak(&s.roll_speed);
-    let p_ct = Pct::from_peaks(acc_peak, jerk, roll_peak.to_degrees());
-    // Per transition on filtered signals.
-    let fa = low_pass(&s.lat_acc, dt, c.filter_hz);
-    let fr = low_pass(&s.roll_speed, dt, c.filter_hz);
-    let mut worst = Pct::default();
-    for &(t0, t1) in &s.transitions {
-        let idx: Vec<usize> = (0..n)
-            .filter(|&i| s.t[i] >= t0 - c.margin_s && s.t[i] <= t1 + c.margin_s)
-            .collect();
-        let (Some(&a), Some(&b)) = (idx.first(), idx.last()) else {
-            continue;
-        };
-        let p = Pct::from_peaks(
-            peak(&fa[a..=b]),
-            slope_peak(&fa[a..=b], dt, c.jerk_window_s),
-            peak(&fr[a..=b]).to_degrees(),
-        );
-        if p.standing >= worst.standing {
-            worst = p;
+impl SlopePeak {
+    fn new(dt: f64, w: f64) -> Self {
+        let k = ((w / dt).round() as usize).max(1);
+        SlopePeak {
+            k,
+            ring: std::collections::VecDeque::with_capacity(k + 1),
+            best: 0.0,
         }
     }
-    let defl = peak(&s.deflection);
-    Comfort {
-        method: "whole-run-peaks",
-        lat_acc_rms_dev_pct_g: 100.0 / G
-            * rms(s.lat_acc.iter().zip(&s.lat_acc_ref).map(|(a, b)| a - b)),
-        lat_acc_peak_pct_g: 100.0 * acc_peak / G,
-        roll_speed_rms_dev_rad_s: rms(s
-            .roll_speed
-            .iter()
-            .zip(&s.roll_speed_ref)
-            .map(|(a, b)| a - b)),
-        roll_speed_peak_rad_s: roll_peak,
-        jerk_peak_pct_g_s: 100.0 * jerk / G,
-        p_ct,
-        p_ct_en12299: worst,
-        deflection_peak_mm: defl * 1e3,
-        deflection_of_bump_stop_pct: 100.0 * defl / c.bump_stop_m,
+    fn push(&mut self, x: f64) {
+        if self.ring.len() == self.k {
+            if let Some(old) = self.ring.pop_front() {
+                self.best = self.best.max((x - old).abs());
+            }
+        }
+        self.ring.push_back(x);
+    }
+    /// The slope (per second) at step `dt`.
+    fn value(&self, dt: f64) -> f64 {
+        self.best / (self.k as f64 * dt)
     }
 }
 
-/// The comfort of the ideal tilt on the same track: the body follows the tilt command of eq 18
-/// exactly (θ_v = θ_v^d), so the passenger feels ÿ_ref and rolls at φ̇_ref. The deflection is
-/// not simulated (reported as 0).
-pub fn ideal_tilt(s: &Signals, c: &ComfortSettings) -> Comfort {
-    let ideal = Signals {
-        t: s.t.clone(),
-        lat_acc: s.lat_acc_ref.clone(),
-        lat_acc_ref: s.lat_acc_ref.clone(),
-        roll_speed: s.roll_speed_ref.clone(),
-        roll_speed_ref: s.roll_speed_ref.clone(),
-        deflection: vec![0.0; s.t.len()],
-        transitions: s.transitions.clone(),
+/// Largest slope of `x` over a window `w` (step `dt`): max |x[i+k] − x[i]| / (k·dt),
+/// k = round(w/dt); 0 when the series is not longer than the window.
+pub fn slope_peak(x: &[f64], dt: f64, w: f64) -> f64 {
+    let mut sp = SlopePeak::new(dt, w);
+    x.iter().for_each(|v| sp.push(*v));
+    sp.value(dt)
+}
+
+/// Second-order Butterworth low-pass (bilinear transform), one sample at a time, from rest at
+/// the first sample's value.
+#[derive(Debug, Clone)]
+pub struct LowPass {
+    b: [f64; 3],
+    a: [f64; 2],
+    /// x[k−1], x[k−2], y[k−1], y[k−2]; `None` before the first sample.
+    state: Option<[f64; 4]>,
+}
+
+impl LowPass {
+    /// A filter with cut-off `fc` (Hz) at step `dt` (s).
+    pub fn new(dt: f64, fc: f64) -> Self {
+        let k = (std::f64::consts::PI * fc * dt).tan();
+        let q = std::f64::consts::SQRT_2;
+        let norm = 1.0 / (1.0 + q * k + k * k);
+        let b0 = k * k * norm;
+        LowPass {
+            b: [b0, 2.0 * b0, b0],
+            a: [2.0 * (k * k - 1.0) * norm, (1.0 - q * k + k * k) * norm],
+            state: None,
+        }
+    }
+
+    /// Filters the next sample.
+    pub fn step(&mut self, x0: f64) -> f64 {
+        let [x1, x2, y1, y2] = self.state.unwrap_or([x0; 4]);
+        let y0 = self.b[0] * x0 + self.b[1] * x1 + self.b[2] * x2 - self.a[0] * y1 - self.a[1] * y2;
+        self.state = Some([x0, x1, y0, y1]);
+        y0
+    }
+}
+
+/// [`LowPass`] over a whole series.
+pub fn low_pass(x: &[f64], dt: f64, fc: f64) -> Vec<f64> {
+    let mut f = LowPass::new(dt, fc);
+    x.iter().map(|v| f.step(*v)).collect()
+}
+
+/// The comfort signals at one instant (the fields of [`Signals`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Sample {
+    /// Time (s).
+    pub t: f64,
+    /// ÿ (m/s²).
+    pub lat_acc: f64,
+    /// ÿ reference (m/s²).
+    pub lat_acc_ref: f64,
+    /// φ̇ (rad/s).
+    pub roll_speed: f64,
+    /// φ̇ reference (rad/s).
+    pub roll_speed_ref: f64,
+    /// Δs (m).
+    pub deflection: f64,
+}
+
+/// One curve transition's EN 12299 evaluation as the samples pass: the filtered peaks inside
+/// the transition extended by the margin.
+struct TransitionWindow {
+    from: f64,
+    to: f64,
+    seen: bool,
+    acc: f64,
+    roll: f64,
+    jerk: SlopePeak,
+}
+
+/// The comfort assessment of a run, one sample at a time in constant memory: what [`assess`]
+/// computes on whole series, for runs of any length read straight from `timeseries.csv`.
+pub struct Assessor {
+    c: ComfortSettings,
+    dt: f64,
+    n: usize,
+    acc_peak: f64,
+    roll_peak: f64,
+    defl_peak: f64,
+    jerk: SlopePeak,
+    acc_dev: (f64, usize),
+    roll_dev: (f64, usize),
+    fa: LowPass,
+    fr: LowPass,
+    windows: Vec<TransitionWindow>,
+}
+
+impl Assessor {
+    /// An assessment at step `dt` (s) with the curve `transitions` as (start, end) times.
+    pub fn new(dt: f64, transitions: &[(f64, f64)], c: &ComfortSettings) -> Self {
+        Assessor {
+            c: c.clone(),
+            dt,
+            n: 0,
+            acc_peak: 0.0,
+            roll_peak: 0.0,
+            defl_peak: 0.0,
+            jerk: SlopePeak::new(dt, c.jerk_window_s),
+            acc_dev: (0.0, 0),
+            roll_dev: (0.0, 0),
+            fa: LowPass::new(dt, c.filter_hz),
+            fr: LowPass::new(dt, c.filter_hz),
+            windows: transitions
+                .iter()
+                .map(|&(t0, t1)| TransitionWindow {
+                    from: t0 - c.margin_s,
+                    to: t1 + c.margin_s,
+                    seen: false,
+                    acc: 0.0,
+                    roll: 0.0,
+                    jerk: SlopePeak::new(dt, c.jerk_window_s),
+                })
+                .collect(),
+        }
+    }
+
+    /// Takes the next sample.
+    pub fn push(&mut self, x: &Sample) {
+        self.n += 1;
+        self.acc_peak = self.acc_peak.max(x.lat_acc.abs());
+        self.roll_peak = self.roll_peak.max(x.roll_speed.abs());
+        self.defl_peak = self.defl_peak.max(x.deflection.abs());
+        self.jerk.push(x.lat_acc);
+        let d = x.lat_acc - x.lat_acc_ref;
+        self.acc_dev.0 += d * d;
+        self.acc_dev.1 += 1;
+        let d = x.roll_speed - x.roll_speed_ref;
+        self.roll_dev.0 += d * d;
+        self.roll_dev.1 += 1;
+        let fa = self.fa.step(x.lat_acc);
+        let fr = self.fr.step(x.roll_speed);
+        for w in &mut self.windows {
+            if x.t >= w.from && x.t <= w.to {
+                w.seen = true;
+                w.acc = w.acc.max(fa.abs());
+                w.roll = w.roll.max(fr.abs());
+                w.jerk.push(fa);
+            }
+        }
+    }
+
+    /// The assessment of every sample taken.
+    pub fn finish(&self) -> Comfort {
+        if self.n < 3 {
+            return Comfort {
+                method: "whole-run-peaks",
+                ..Default::default()
+            };
+        }
+        let dt = self.dt;
+        let p_ct = Pct::from_peaks(
+            self.acc_peak,
+            self.jerk.value(dt),
+            self.roll_peak.to_degrees(),
+        );
+        let mut worst = Pct::default();
+        for w in self.windows.iter().filter(|w| w.seen) {
+            let p = Pct::from_peaks(w.acc, w.jerk.value(dt), w.roll.to_degrees());
+            if p.standing >= worst.standing {
+                worst = p;
+            }
+        }
+        let rms = |(s, n): (f64, usize)| if n == 0 { 0.0 } else { (s / n as f64).sqrt() };
+        let defl = self.defl_peak;
+        Comfort {
+            method: "whole-run-peaks",
+            lat_acc_rms_dev_pct_g: 100.0 / G * rms(self.acc_dev),
+            lat_acc_peak_pct_g: 100.0 * self.acc_peak / G,
+            roll_speed_rms_dev_rad_s: rms(self.roll_dev),
+            roll_speed_peak_rad_s: self.roll_peak,
+            jerk_peak_pct_g_s: 100.0 * self.jerk.value(dt) / G,
+            p_ct,
+            p_ct_en12299: worst,
+            deflection_peak_mm: defl * 1e3,
+            deflection_of_bump_stop_pct: 100.0 * defl / self.c.bump_stop_m,
+        }
+    }
+}
+
+impl Sample {
+    /// The same instant under the ideal tilt: the body follows the tilt command of eq 18
+    /// exactly (θ_v = θ_v^d), so the passenger feels ÿ_ref and rolls at φ̇_ref. The deflection
+    /// is not simulated (0).
+    pub fn ideal(&self) -> Sample {
+        Sample {
+            t: self.t,
+            lat_acc: self.lat_acc_ref,
+            lat_acc_ref: self.lat_acc_ref,
+            roll_speed: self.roll_speed_ref,
+            roll_speed_ref: self.roll_speed_ref,
+            deflection: 0.0,
+        }
+    }
+}
+
+impl Signals {
+    /// Sample `k`.
+    pub fn sample(&self, k: usize) -> Sample {
+        Sample {
+            t: self.t[k],
+            lat_acc: self.lat_acc[k],
+            lat_acc_ref: self.lat_acc_ref[k],
+            roll_speed: self.roll_speed[k],
+            roll_speed_ref: self.roll_speed_ref[k],
+            deflection: self.deflection[k],
+        }
+    }
+}
+
+/// Assesses a run held in memory (step from its time axis).
+pub fn assess(s: &Signals, c: &ComfortSettings) -> Comfort {
+    let n = s.t.len();
+    let dt = if n >= 2 {
+        (s.t[n - 1] - s.t[0]) / (n - 1) as f64
+    } else {
+        1.0
     };
-    assess(&ideal, c)
+    let mut a = Assessor::new(dt, &s.transitions, c);
+    (0..n).for_each(|k| a.push(&s.sample(k)));
+    a.finish()
 }
 
 #[cfg(test)]

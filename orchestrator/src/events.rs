@@ -105,16 +105,16 @@ impl EventLog {
         });
     }
 
-    /// Writes `events.csv`.
+    /// Writes `events.csv`, whole or not at all.
     pub fn write(&self, path: &Path) -> std::io::Result<()> {
-        let mut w = csv::Writer::from_path(path).map_err(std::io::Error::other)?;
+        let mut w = csv::Writer::from_writer(Vec::new());
         w.write_record(EVENT_COLUMNS)
             .map_err(std::io::Error::other)?;
         for e in &self.events {
             let value = if e.value.is_nan() {
                 String::new()
             } else {
-                e.value.to_string()
+                crate::record::fmt_f64(e.value)
             };
             let kind = serde_json::to_value(e.kind)
                 .ok()
@@ -122,7 +122,7 @@ impl EventLog {
                 .unwrap_or_default();
             w.write_record([
                 e.step.to_string(),
-                e.t.to_string(),
+                crate::record::fmt_f64(e.t),
                 e.source.clone(),
                 kind,
                 value,
@@ -130,7 +130,8 @@ impl EventLog {
             ])
             .map_err(std::io::Error::other)?;
         }
-        w.flush()
+        let bytes = w.into_inner().map_err(|e| std::io::Error::other(e.to_string()))?;
+        crate::files::write_atomic(path, bytes)
     }
 }
 

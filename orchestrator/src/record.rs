@@ -4,25 +4,53 @@
 //! [`read_rows`] reads the file back into the same type for plots, comfort, flags, `compare`
 //! and sweeps.
 //!
-//! Floats are written in Rust's shortest round-trip form (`Display`), so identical values give
+//! Floats are written in shortest round-trip form ([`put_f64`]), so identical values give
 //! identical bytes and every value reads back exactly.
 
 use std::fs::File;
-use std::io::BufWriter;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
 use cosim::msg::{FromActuator, FromController, FromPlant};
 
 /// A value of a row as it is written.
-trait Cell {
+trait Cell: Copy {
     fn put(&self, out: &mut String);
+    fn lo(self, other: Self) -> Self;
+    fn hi(self, other: Self) -> Self;
 }
 impl Cell for f64 {
     fn put(&self, out: &mut String) {
-        use std::fmt::Write as _;
-        let _ = write!(out, "{self}");
+        put_f64(*self, out);
+    }
+    fn lo(self, other: Self) -> Self {
+        self.min(other)
+    }
+    fn hi(self, other: Self) -> Self {
+        self.max(other)
+    }
+}
+
+/// `x` as [`put_f64`] writes it.
+pub fn fmt_f64(x: f64) -> String {
+    let mut s = String::new();
+    put_f64(x, &mut s);
+    s
+}
+
+/// Writes `x` in shortest round-trip form: positional (`0.0123`) where that is as short as the
+/// exponent form, and with an exponent (`1.5e-7`, `2e22`) below 1e-4 and from 1e16 in
+/// magnitude, where the positional form would grow with the exponent (a decayed transient of
+/// 1e-300 would take 300 characters). Every value is at most 24 characters, so a row's width
+/// stays within a constant of its start over any run length.
+pub fn put_f64(x: f64, out: &mut String) {
+    use std::fmt::Write as _;
+    let a = x.abs();
+    if a != 0.0 && a.is_finite() && !(1e-4..1e16).contains(&a) {
+        let _ = write!(out, "{x:e}");
+    } else {
+        let _ = write!(out, "{x}");
     }
 }
 impl Cell for u64 {
@@ -30,11 +58,23 @@ impl Cell for u64 {
         use std::fmt::Write as _;
         let _ = write!(out, "{self}");
     }
+    fn lo(self, other: Self) -> Self {
+        self.min(other)
+    }
+    fn hi(self, other: Self) -> Self {
+        self.max(other)
+    }
 }
 impl Cell for u32 {
     fn put(&self, out: &mut String) {
         use std::fmt::Write as _;
         let _ = write!(out, "{self}");
+    }
+    fn lo(self, other: Self) -> Self {
+        self.min(other)
+    }
+    fn hi(self, other: Self) -> Self {
+        self.max(other)
     }
 }
 
@@ -55,6 +95,13 @@ macro_rules! row {
                     buf.clear();
                     Cell::put(&self.$f, buf);
                     record.push_field(buf.as_bytes());
+                )*
+            }
+            /// Widens the field-wise envelope `lo`..`hi` to take in this row.
+            pub fn widen(&self, lo: &mut Self, hi: &mut Self) {
+                $(
+                    lo.$f = Cell::lo(lo.$f, self.$f);
+                    hi.$f = Cell::hi(hi.$f, self.$f);
                 )*
             }
         }
@@ -183,68 +230,215 @@ impl Row {
     }
 }
 
-/// Streams rows to `timeseries.csv`.
+/// The file under the csv writer: counts the bytes the system accepted and, after its first
+/// error, refuses every later write (so nothing lands after the recorder has cut the file
+/// back to its last complete row, not even from the csv writer's flush on drop).
+struct Sink {
+    file: File,
+    written: u64,
+    broken: bool,
+}
+
+impl std::io::Write for Sink {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        if self.broken {
+            return Err(std::io::Error::other("closed after an earlier error"));
+        }
+        match self.file.write(b) {
+            Ok(n) => {
+                self.written += n as u64;
+                Ok(n)
+            }
+            Err(e) => {
+                self.broken = true;
+                Err(e)
+            }
+        }
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// Streams rows to `timeseries.csv`: the header at once, then rows in batches of 1000 (and at
+/// [`Recorder::finish`]). The file only ever holds the header and complete rows, and
+/// [`Recorder::rows_on_disk`] counts exactly those: a write that fails (a full disk, a file-size
+/// limit) cuts the file back to the end of the last batch that was written whole, and every
+/// error names the file and what the system said.
 pub struct Recorder {
-    out: csv::Writer<BufWriter<File>>,
+    out: csv::Writer<Sink>,
+    path: PathBuf,
     rows: u64,
+    on_disk_rows: u64,
+    on_disk_bytes: u64,
+    failed: Option<(std::io::ErrorKind, String)>,
     record: csv::ByteRecord,
     buf: String,
 }
 
 impl Recorder {
-    /// Creates `path` and writes the header.
+    /// Creates `path` and writes the header (flushed at once: a run killed at any point
+    /// leaves a valid header).
     pub fn create(path: &Path) -> std::io::Result<Self> {
-        let file = BufWriter::with_capacity(1 << 16, File::create(path)?);
-        let mut out = csv::WriterBuilder::new()
+        let named = |e: std::io::Error| std::io::Error::new(e.kind(), format!("{}: {e}", path.display()));
+        let file = File::create(path).map_err(named)?;
+        let out = csv::WriterBuilder::new()
             .has_headers(false)
-            .from_writer(file);
-        out.write_record(COLUMNS).map_err(std::io::Error::other)?;
-        Ok(Recorder {
+            .buffer_capacity(1 << 16)
+            .from_writer(Sink {
+                file,
+                written: 0,
+                broken: false,
+            });
+        let mut r = Recorder {
             out,
+            path: path.to_path_buf(),
             rows: 0,
+            on_disk_rows: 0,
+            on_disk_bytes: 0,
+            failed: None,
             record: csv::ByteRecord::new(),
             buf: String::with_capacity(32),
-        })
+        };
+        let header = r.out.write_record(COLUMNS).map_err(std::io::Error::other);
+        header.and_then(|_| r.commit()).map_err(|e| r.fail(e))?;
+        Ok(r)
     }
 
     /// Appends one row.
     pub fn write(&mut self, row: &Row) -> std::io::Result<()> {
+        if let Some((kind, msg)) = &self.failed {
+            return Err(std::io::Error::new(*kind, msg.clone()));
+        }
         row.write_into(&mut self.record, &mut self.buf);
-        self.out
-            .write_byte_record(&self.record)
-            .map_err(std::io::Error::other)?;
+        if let Err(e) = self.out.write_byte_record(&self.record) {
+            return Err(self.fail(csv_io(e)));
+        }
         self.rows += 1;
         if self.rows.is_multiple_of(1000) {
-            self.out.flush()?;
+            self.commit().map_err(|e| self.fail(e))?;
         }
         Ok(())
     }
 
-    /// Rows written.
+    /// Writes what is buffered; the file then ends with the last row.
+    fn commit(&mut self) -> std::io::Result<()> {
+        self.out.flush()?;
+        self.on_disk_rows = self.rows;
+        self.on_disk_bytes = self.out.get_ref().written;
+        Ok(())
+    }
+
+    /// After a failed write: cuts the file back to its last complete row, refuses every later
+    /// write and returns the error, naming the file.
+    fn fail(&mut self, e: std::io::Error) -> std::io::Error {
+        if self.failed.is_none() {
+            // Swap in a writer whose sink refuses everything; the old writer's flush on drop
+            // may still land, so the file is cut afterwards.
+            if let Ok(file) = self.out.get_ref().file.try_clone() {
+                self.out = csv::WriterBuilder::new()
+                    .has_headers(false)
+                    .from_writer(Sink {
+                        file,
+                        written: self.on_disk_bytes,
+                        broken: true,
+                    });
+            }
+            let _ = self.out.get_ref().file.set_len(self.on_disk_bytes);
+            self.failed = Some((e.kind(), format!("{}: {e}", self.path.display())));
+        }
+        let (kind, msg) = self.failed.clone().unwrap_or((e.kind(), e.to_string()));
+        std::io::Error::new(kind, msg)
+    }
+
+    /// Rows handed to the recorder.
     pub fn rows(&self) -> u64 {
         self.rows
     }
 
-    /// Flushes to disk.
-    pub fn flush(&mut self) -> std::io::Result<()> {
-        self.out.flush()
+    /// Complete rows in the file (all of them after a successful [`Recorder::finish`]).
+    pub fn rows_on_disk(&self) -> u64 {
+        self.on_disk_rows
+    }
+
+    /// Writes the rows still buffered. On error the file keeps its header and every complete
+    /// row of the batches written before, and the error names the file.
+    pub fn finish(&mut self) -> std::io::Result<()> {
+        if let Some((kind, msg)) = &self.failed {
+            return Err(std::io::Error::new(*kind, msg.clone()));
+        }
+        self.commit().map_err(|e| self.fail(e))
     }
 }
 
-/// Reads `dir/timeseries.csv` back into rows. A run that was cut short may end in a partial
+/// The I/O error inside a csv error (the csv writer's errors on writing are I/O errors).
+fn csv_io(e: csv::Error) -> std::io::Error {
+    match e.into_kind() {
+        csv::ErrorKind::Io(e) => e,
+        other => std::io::Error::other(format!("{other:?}")),
+    }
+}
+
+/// Reads `dir/timeseries.csv` back, handing each row to `visit` in order, one row in memory
+/// at a time; returns the number of rows. A run that was cut short may end in a partial
 /// line: reading stops at the first row that is not complete.
-pub fn read_rows(dir: &Path) -> std::io::Result<Vec<Row>> {
+pub fn each_row(dir: &Path, mut visit: impl FnMut(&Row)) -> std::io::Result<u64> {
     let path = dir.join("timeseries.csv");
-    let mut rd = csv::Reader::from_path(&path).map_err(std::io::Error::other)?;
-    let header = rd.headers().map_err(std::io::Error::other)?.clone();
-    if header.iter().ne(COLUMNS.iter().copied()) {
+    let named = |e: csv::Error| std::io::Error::other(format!("{}: {e}", path.display()));
+    let mut rd = csv::Reader::from_path(&path).map_err(named)?;
+    let header = rd.byte_headers().map_err(named)?;
+    if header.iter().ne(COLUMNS.iter().map(|c| c.as_bytes())) {
         return Err(std::io::Error::other(format!(
             "{}: the header is not that of this tiltsim version (columns {})",
             path.display(),
             COLUMNS.join(",")
         )));
     }
-    Ok(rd.deserialize::<Row>().map_while(Result::ok).collect())
+    let mut record = csv::ByteRecord::new();
+    let mut n = 0;
+    while rd.read_byte_record(&mut record).unwrap_or(false) {
+        let Ok(row) = record.deserialize::<Row>(None) else {
+            break;
+        };
+        visit(&row);
+        n += 1;
+    }
+    Ok(n)
+}
+
+/// The rows of `dir/timeseries.csv` to draw, at most about `points` of them: every row when
+/// there are few enough, otherwise the field-wise minimum and maximum of each of `points / 2`
+/// consecutive blocks (a min/max envelope, so a peak is never lost to the decimation). Memory
+/// stays bounded for runs of any length.
+pub fn rows_to_plot(dir: &Path, points: usize) -> std::io::Result<Vec<Row>> {
+    let n = each_row(dir, |_| {})? as usize;
+    if n <= points {
+        return read_rows(dir);
+    }
+    let block = n.div_ceil((points / 2).max(1));
+    let mut out = Vec::with_capacity(2 * n.div_ceil(block));
+    let mut k = 0usize;
+    let (mut lo, mut hi) = (Row::default(), Row::default());
+    each_row(dir, |r| {
+        if k % block == 0 {
+            (lo, hi) = (*r, *r);
+        }
+        r.widen(&mut lo, &mut hi);
+        k += 1;
+        if k % block == 0 || k == n {
+            // Each pair keeps its block's time span in order.
+            out.push(lo);
+            out.push(hi);
+        }
+    })?;
+    Ok(out)
+}
+
+/// Reads `dir/timeseries.csv` back into rows (for short runs; [`each_row`] for any length).
+pub fn read_rows(dir: &Path) -> std::io::Result<Vec<Row>> {
+    let mut rows = Vec::new();
+    each_row(dir, |r| rows.push(*r))?;
+    Ok(rows)
 }
 
 #[cfg(test)]
@@ -287,12 +481,16 @@ mod tests {
         for r in &rows {
             rec.write(r).unwrap();
         }
-        rec.flush().unwrap();
+        rec.finish().unwrap();
+        assert_eq!(rec.rows_on_disk(), 3);
         drop(rec);
         let text = std::fs::read_to_string(dir.join("timeseries.csv")).unwrap();
         assert_eq!(text.lines().next().unwrap(), COLUMNS.join(","));
-        // Display form, as before the csv crate: no exponent, shortest round trip.
-        assert!(text.contains(",0.00000000000000000001,"), "{text}");
+        // Shortest round trip, with an exponent where the positional form would be long.
+        assert!(text.contains(",1e-20,"), "{text}");
+        assert!(text.contains(",2.5e-7,"), "{text}");
+        assert!(text.contains(",7e300,"), "{text}");
+        assert!(text.contains(",849.95,"), "{text}");
         let back = read_rows(&dir).unwrap();
         assert_eq!(back.len(), 3);
         for (a, b) in back.iter().zip(&rows) {
@@ -303,6 +501,24 @@ mod tests {
         std::fs::write(dir.join("timeseries.csv"), cut).unwrap();
         assert_eq!(read_rows(&dir).unwrap().len(), 2);
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn every_float_is_short_and_reads_back_exactly() {
+        // Powers of ten and awkward mantissas over the whole exponent range, subnormals too.
+        let mut x = f64::MIN_POSITIVE / 1e10;
+        let mut longest = 0;
+        while x < f64::MAX / 10.0 {
+            for v in [x, -x, x * 1.2345678901234567, x * 9.999999999999998] {
+                let mut s = String::new();
+                put_f64(v, &mut s);
+                assert_eq!(s.parse::<f64>().unwrap().to_bits(), v.to_bits(), "{s}");
+                longest = longest.max(s.len());
+            }
+            x *= 10.0;
+        }
+        // Sign, 17 significant digits, point, `e-` and three exponent digits.
+        assert!(longest <= 24, "longest {longest}");
     }
 
     impl Row {

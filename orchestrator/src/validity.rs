@@ -29,7 +29,7 @@ use serde::Serialize;
 
 use actuator_proc::bldc::limit;
 
-use crate::comfort::{low_pass, Comfort};
+use crate::comfort::Comfort;
 
 /// Amplitude above which a 2 s window of θ_v − θ_v^d counts as oscillating (deg).
 pub const OSCILLATION_THRESHOLD_DEG: f64 = 0.1;
@@ -143,31 +143,157 @@ pub struct Flags {
     pub p_ct_range: PctRange,
 }
 
-/// What a run's flags are computed from, one value per recorded row.
-#[derive(Debug, Clone, Default)]
-pub struct FlagInputs {
-    /// Row period (s).
-    pub dt: f64,
+/// One row's inputs to the flags.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FlagSample {
     /// θ_v − θ_v^d (rad).
-    pub roll_error: Vec<f64>,
+    pub roll_error: f64,
     /// θ_v^d (rad), to find where the reference is steady.
-    pub reference: Vec<f64>,
+    pub reference: f64,
     /// Secondary lateral deflection (m).
-    pub deflection: Vec<f64>,
-    /// Bump-stop clearance (m).
-    pub clearance: f64,
+    pub deflection: f64,
     /// `actuator_limits` bits.
-    pub limits: Vec<u32>,
-    /// Largest phase current per row (A).
-    pub phase_current_peak: Vec<f64>,
-    /// Mean electromagnetic torque per row (N·m).
-    pub torque: Vec<f64>,
-    /// Power drawn from the DC link per row (W).
-    pub dc_power: Vec<f64>,
-    /// Chopper power per row (W).
-    pub chopper_power: Vec<f64>,
-    /// DC-link voltage per row (V).
-    pub v_dc: Vec<f64>,
+    pub limits: u32,
+    /// Largest phase current of the row (A).
+    pub phase_current_peak: f64,
+    /// Mean electromagnetic torque (N·m).
+    pub torque: f64,
+    /// Power drawn from the DC link (W).
+    pub dc_power: f64,
+    /// Chopper power (W).
+    pub chopper_power: f64,
+    /// DC-link voltage (V).
+    pub v_dc: f64,
+}
+
+/// Any limit of the drive (the chopper is not one: it is the link doing its job).
+const ANY_LIMIT: u32 = limit::TORQUE
+    | limit::CURRENT
+    | limit::SPEED
+    | limit::STROKE_COMMAND
+    | limit::END_STOP
+    | limit::OVERCURRENT_TRIP
+    | limit::OVERVOLTAGE;
+
+/// The drive bits whose time is reported, in the order of [`DriveLimit`]'s fields, then the
+/// chopper.
+const TIMED_BITS: [u32; 9] = [
+    ANY_LIMIT,
+    limit::TORQUE,
+    limit::CURRENT,
+    limit::SPEED,
+    limit::STROKE_COMMAND,
+    limit::END_STOP,
+    limit::OVERCURRENT_TRIP,
+    limit::OVERVOLTAGE,
+    limit::CHOPPER,
+];
+
+/// The validity flags of a run, one row at a time in constant memory (a 2 s window of the
+/// roll error is the most it holds).
+pub struct Flagger {
+    dt: f64,
+    clearance: f64,
+    rows_at: [u64; 9],
+    phase_current_peak: f64,
+    torque_peak: f64,
+    motoring: f64,
+    braking: f64,
+    chopper_sum: f64,
+    v_dc_max: f64,
+    deflection_peak: f64,
+    contact_rows: u64,
+    oscillation: Oscillator,
+}
+
+impl Flagger {
+    /// Flags at row period `dt` (s) with bump-stop `clearance` (m).
+    pub fn new(dt: f64, clearance: f64) -> Self {
+        Flagger {
+            dt,
+            clearance,
+            rows_at: [0; 9],
+            phase_current_peak: 0.0,
+            torque_peak: 0.0,
+            motoring: 0.0,
+            braking: 0.0,
+            chopper_sum: 0.0,
+            v_dc_max: 0.0,
+            deflection_peak: 0.0,
+            contact_rows: 0,
+            oscillation: Oscillator::new(dt),
+        }
+    }
+
+    /// Takes the next row.
+    pub fn push(&mut self, x: &FlagSample) {
+        for (n, bits) in self.rows_at.iter_mut().zip(TIMED_BITS) {
+            *n += u64::from(x.limits & bits != 0);
+        }
+        self.phase_current_peak = self.phase_current_peak.max(x.phase_current_peak);
+        self.torque_peak = self.torque_peak.max(x.torque.abs());
+        self.motoring = self.motoring.max(x.dc_power);
+        self.braking = self.braking.max(-x.dc_power);
+        self.chopper_sum += x.chopper_power;
+        self.v_dc_max = self.v_dc_max.max(x.v_dc);
+        self.deflection_peak = self.deflection_peak.max(x.deflection.abs());
+        self.contact_rows += u64::from(x.deflection.abs() >= self.clearance);
+        self.oscillation.push(x.roll_error, x.reference);
+    }
+
+    /// Every flag of the rows taken, with the run's comfort for the P_CT range.
+    pub fn finish(&self, comfort: &Comfort) -> Flags {
+        let dt = self.dt;
+        let time = |i: usize| self.rows_at[i] as f64 * dt;
+        let drive = DriveLimit {
+            raised: self.rows_at[0] > 0,
+            time_at_any_limit_s: time(0),
+            torque_s: time(1),
+            current_s: time(2),
+            speed_s: time(3),
+            stroke_command_s: time(4),
+            end_stop_s: time(5),
+            overcurrent_trip_s: time(6),
+            overvoltage_s: time(7),
+            phase_current_peak_a: self.phase_current_peak,
+            torque_peak_nm: self.torque_peak,
+            motoring_power_peak_w: self.motoring,
+            braking_power_peak_w: self.braking,
+        };
+        let energy = self.chopper_sum * dt;
+        let chopper = Chopper {
+            raised: energy > CHOPPER_THRESHOLD_J,
+            energy_j: energy,
+            threshold_j: CHOPPER_THRESHOLD_J,
+            time_on_s: time(8),
+            v_dc_max: self.v_dc_max,
+        };
+        let peak = self.deflection_peak;
+        let bump = BumpStop {
+            raised: peak >= self.clearance,
+            deflection_peak_mm: peak * 1e3,
+            clearance_mm: self.clearance * 1e3,
+            time_in_contact_s: self.contact_rows as f64 * dt,
+        };
+        let largest = [
+            comfort.p_ct.standing,
+            comfort.p_ct.seated,
+            comfort.p_ct_en12299.standing,
+            comfort.p_ct_en12299.seated,
+        ]
+        .into_iter()
+        .fold(0.0, f64::max);
+        Flags {
+            oscillation: self.oscillation.finish(),
+            bump_stop: bump,
+            drive_limit: drive,
+            chopper,
+            p_ct_range: PctRange {
+                raised: largest > 100.0,
+                largest_pct: largest,
+            },
+        }
+    }
 }
 
 impl Flags {
@@ -235,84 +361,119 @@ impl Flags {
     }
 }
 
-/// Amplitude of the sinusoid at `f` Hz in `x` (step `dt`), by correlation.
+/// Amplitude of the sinusoid at `f` Hz in `x` (step `dt`): 2·|Σ x_k e^(−iωk)|/n, by the
+/// Goertzel recurrence (one multiplication per sample instead of a sine and a cosine; the
+/// spectral peak of an hour-long run's windows takes seconds instead of minutes).
 fn amplitude_at(x: &[f64], dt: f64, f: f64) -> f64 {
     let w = std::f64::consts::TAU * f * dt;
-    let (mut c, mut s) = (0.0, 0.0);
-    for (k, v) in x.iter().enumerate() {
-        let a = w * k as f64;
-        c += v * a.cos();
-        s += v * a.sin();
+    let coeff = 2.0 * w.cos();
+    let (mut s1, mut s2) = (0.0, 0.0);
+    for v in x {
+        let s0 = v + coeff * s1 - s2;
+        s2 = s1;
+        s1 = s0;
     }
-    2.0 * (c * c + s * s).sqrt() / x.len() as f64
+    let power = (s1 * s1 + s2 * s2 - coeff * s1 * s2).max(0.0);
+    2.0 * power.sqrt() / x.len() as f64
 }
 
-/// Start indices of the 2 s windows (`n` samples) that lie where `reference` has not moved
-/// for at least `settle` samples.
-fn steady_windows(reference: &[f64], n: usize, settle: usize) -> Vec<usize> {
-    let mut out = Vec::new();
-    let mut still = 0usize; // samples since the reference last moved
-    let mut start: Option<usize> = None;
-    for k in 0..reference.len() {
-        let moved = k > 0 && reference[k] != reference[k - 1];
-        still = if moved { 0 } else { still + 1 };
-        // A window may begin once the reference has been still for `settle` samples, or at
-        // the start of the run (the vehicle starts at rest on a steady reference).
-        let steady = !moved && (still > settle || still == k + 1);
-        match (steady, start) {
-            (true, None) => start = Some(k),
-            (false, Some(_)) => start = None,
-            _ => {}
-        }
-        if let Some(s0) = start {
-            if k + 1 - s0 == n {
-                out.push(s0);
-                start = Some(k + 1);
-            }
+/// The oscillation flag, one sample at a time: the roll error is high-passed (the error less
+/// its 0.3 Hz low-pass, which removes a transition's quasi-static error) and cut into 2 s
+/// windows that lie where the reference has not moved for `SETTLE_S` (or since the start of
+/// the run, where the vehicle starts at rest on a steady reference). Each window gives an
+/// amplitude (√2·RMS) and a spectral peak; the flag is raised when most windows exceed the
+/// threshold with consistent amplitude and frequency.
+struct Oscillator {
+    dt: f64,
+    n: usize,
+    settle: usize,
+    k: usize,
+    previous: Option<f64>,
+    still: usize,
+    lp: crate::comfort::LowPass,
+    window: Vec<f64>,
+    windows: usize,
+    oscillating: usize,
+    per: Vec<(f64, f64)>,
+}
+
+impl Oscillator {
+    fn new(dt: f64) -> Self {
+        let n = (WINDOW_S / dt).round() as usize;
+        Oscillator {
+            dt,
+            n,
+            settle: (SETTLE_S / dt).round() as usize,
+            k: 0,
+            previous: None,
+            still: 0,
+            lp: crate::comfort::LowPass::new(dt, 0.3),
+            window: Vec::with_capacity(n.min(1 << 20)),
+            windows: 0,
+            oscillating: 0,
+            per: Vec::new(),
         }
     }
-    out
+
+    fn push(&mut self, e: f64, reference: f64) {
+        let k = self.k;
+        self.k += 1;
+        let hp = e - self.lp.step(e);
+        let moved = self.previous.is_some_and(|p| p != reference);
+        self.previous = Some(reference);
+        self.still = if moved { 0 } else { self.still + 1 };
+        // A window may begin once the reference has been still for `settle` samples, or at
+        // the start of the run.
+        let steady = !moved && (self.still > self.settle || self.still == k + 1);
+        if !steady {
+            self.window.clear();
+            return;
+        }
+        self.window.push(hp);
+        if self.n >= 2 && self.window.len() == self.n {
+            let n = self.n as f64;
+            let rms = (self.window.iter().map(|x| x * x).sum::<f64>() / n).sqrt();
+            let amp = (std::f64::consts::SQRT_2 * rms).to_degrees();
+            self.windows += 1;
+            if amp > OSCILLATION_THRESHOLD_DEG {
+                self.oscillating += 1;
+            }
+            self.per.push((amp, spectral_peak(&self.window, self.dt)));
+            self.window.clear();
+        }
+    }
+
+    fn finish(&self) -> Oscillation {
+        let mut o = Oscillation {
+            threshold_deg: OSCILLATION_THRESHOLD_DEG,
+            windows: self.windows,
+            windows_oscillating: self.oscillating,
+            ..Default::default()
+        };
+        let per = &self.per;
+        let Some(&(amp, f)) = per.iter().max_by(|a, b| a.0.total_cmp(&b.0)) else {
+            return o;
+        };
+        o.amplitude_deg = amp;
+        o.frequency_hz = f;
+        let a_min = per.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
+        let (f_min, f_max) = per.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), p| {
+            (lo.min(p.1), hi.max(p.1))
+        });
+        o.amplitude_ratio = if amp > 0.0 { a_min / amp } else { 0.0 };
+        o.frequency_spread_hz = f_max - f_min;
+        o.raised = 2 * o.windows_oscillating > o.windows
+            && o.amplitude_ratio >= 0.7
+            && o.frequency_spread_hz <= 0.3;
+        o
+    }
 }
 
 /// The oscillation flag of a roll-error series `e` against its `reference` (step `dt`).
 pub fn oscillation(e: &[f64], reference: &[f64], dt: f64) -> Oscillation {
-    let mut o = Oscillation {
-        threshold_deg: OSCILLATION_THRESHOLD_DEG,
-        ..Default::default()
-    };
-    let n = (WINDOW_S / dt).round() as usize;
-    if n < 2 || e.len() < n || reference.len() != e.len() {
-        return o;
-    }
-    let lp = low_pass(e, dt, 0.3);
-    let hp: Vec<f64> = e.iter().zip(&lp).map(|(a, b)| a - b).collect();
-    // (amplitude, spectral peak) per window.
-    let mut per: Vec<(f64, f64)> = Vec::new();
-    for s0 in steady_windows(reference, n, (SETTLE_S / dt).round() as usize) {
-        let chunk = &hp[s0..s0 + n];
-        let rms = (chunk.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
-        let amp = (std::f64::consts::SQRT_2 * rms).to_degrees();
-        o.windows += 1;
-        if amp > OSCILLATION_THRESHOLD_DEG {
-            o.windows_oscillating += 1;
-        }
-        per.push((amp, spectral_peak(chunk, dt)));
-    }
-    let Some(&(amp, f)) = per.iter().max_by(|a, b| a.0.total_cmp(&b.0)) else {
-        return o;
-    };
-    o.amplitude_deg = amp;
-    o.frequency_hz = f;
-    let a_min = per.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
-    let (f_min, f_max) = per.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), p| {
-        (lo.min(p.1), hi.max(p.1))
-    });
-    o.amplitude_ratio = if amp > 0.0 { a_min / amp } else { 0.0 };
-    o.frequency_spread_hz = f_max - f_min;
-    o.raised = 2 * o.windows_oscillating > o.windows
-        && o.amplitude_ratio >= 0.7
-        && o.frequency_spread_hz <= 0.3;
-    o
+    let mut o = Oscillator::new(dt);
+    e.iter().zip(reference).for_each(|(e, r)| o.push(*e, *r));
+    o.finish()
 }
 
 /// Frequency of the largest spectral amplitude of `x` in 0.2-20 Hz, in steps of 0.02 Hz (a
@@ -329,76 +490,24 @@ fn spectral_peak(x: &[f64], dt: f64) -> f64 {
     peak.1
 }
 
-/// Every flag of a run.
-pub fn assess(inp: &FlagInputs, comfort: &Comfort) -> Flags {
-    let dt = inp.dt;
-    let time = |bits: u32| inp.limits.iter().filter(|&&l| l & bits != 0).count() as f64 * dt;
-    let any = limit::TORQUE
-        | limit::CURRENT
-        | limit::SPEED
-        | limit::STROKE_COMMAND
-        | limit::END_STOP
-        | limit::OVERCURRENT_TRIP
-        | limit::OVERVOLTAGE;
-    let drive = DriveLimit {
-        raised: time(any) > 0.0,
-        time_at_any_limit_s: time(any),
-        torque_s: time(limit::TORQUE),
-        current_s: time(limit::CURRENT),
-        speed_s: time(limit::SPEED),
-        stroke_command_s: time(limit::STROKE_COMMAND),
-        end_stop_s: time(limit::END_STOP),
-        overcurrent_trip_s: time(limit::OVERCURRENT_TRIP),
-        overvoltage_s: time(limit::OVERVOLTAGE),
-        phase_current_peak_a: inp.phase_current_peak.iter().fold(0.0, |m, v| m.max(*v)),
-        torque_peak_nm: inp.torque.iter().fold(0.0, |m, v| m.max(v.abs())),
-        motoring_power_peak_w: inp.dc_power.iter().fold(0.0, |m, v| m.max(*v)),
-        braking_power_peak_w: inp.dc_power.iter().fold(0.0, |m, v| m.max(-*v)),
-    };
-    let energy: f64 = inp.chopper_power.iter().sum::<f64>() * dt;
-    let chopper = Chopper {
-        raised: energy > CHOPPER_THRESHOLD_J,
-        energy_j: energy,
-        threshold_j: CHOPPER_THRESHOLD_J,
-        time_on_s: time(limit::CHOPPER),
-        v_dc_max: inp.v_dc.iter().fold(0.0, |m, v| m.max(*v)),
-    };
-    let peak = inp.deflection.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let contact = inp
-        .deflection
-        .iter()
-        .filter(|v| v.abs() >= inp.clearance)
-        .count() as f64
-        * dt;
-    let bump = BumpStop {
-        raised: peak >= inp.clearance,
-        deflection_peak_mm: peak * 1e3,
-        clearance_mm: inp.clearance * 1e3,
-        time_in_contact_s: contact,
-    };
-    let largest = [
-        comfort.p_ct.standing,
-        comfort.p_ct.seated,
-        comfort.p_ct_en12299.standing,
-        comfort.p_ct_en12299.seated,
-    ]
-    .into_iter()
-    .fold(0.0, f64::max);
-    Flags {
-        oscillation: oscillation(&inp.roll_error, &inp.reference, dt),
-        bump_stop: bump,
-        drive_limit: drive,
-        chopper,
-        p_ct_range: PctRange {
-            raised: largest > 100.0,
-            largest_pct: largest,
-        },
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_goertzel_amplitude_is_that_of_a_whole_number_of_cycles() {
+        // 0.7·cos(2π·2t + 0.3) over 2 s: four whole cycles, so the correlation at 2 Hz is
+        // exactly the amplitude and at 3 Hz (orthogonal over the window) exactly zero.
+        let dt = 1e-3;
+        let x: Vec<f64> = (0..2000)
+            .map(|k| 0.7 * (std::f64::consts::TAU * 2.0 * k as f64 * dt + 0.3).cos())
+            .collect();
+        assert!((amplitude_at(&x, dt, 2.0) - 0.7).abs() < 1e-9);
+        assert!(amplitude_at(&x, dt, 3.0) < 1e-9);
+        // On the 0.02 Hz grid the image at −2 Hz tilts the main lobe: the peak is found
+        // within a tenth of a hertz (the window resolves 0.5 Hz).
+        assert!((spectral_peak(&x, dt) - 2.0).abs() <= 0.1);
+    }
 
     #[test]
     fn a_sinusoid_is_found_with_its_amplitude_and_frequency() {

@@ -43,8 +43,7 @@ fn one(file: &Path, s: Scenario, out: &Path, base: &RunOptions) -> Result<Entry,
             return Err(CliError::Failed(format!("{}: {why}", s.name)));
         }
     }
-    let signals = crate::analysis::signals_from_run(&s, &dir);
-    let ideal = crate::comfort::ideal_tilt(&signals, &s.comfort);
+    let ideal = crate::analysis::ideal_tilt(&s, &dir);
     Ok(crate::compare::entry(s, summary, ideal))
 }
 

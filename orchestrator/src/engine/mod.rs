@@ -52,14 +52,14 @@ struct Observers {
 }
 
 impl Observers {
-    fn new(s: &Scenario, opts: &RunOptions, recorder: Recorder) -> Self {
+    fn new(s: &Scenario, opts: &RunOptions, recorder: Recorder, trace: Option<Trace>) -> Self {
         Observers {
             recorder: RowRecorder(recorder),
             timing: TickTiming::default(),
             compute: ComputeStats::default(),
             latency: Latency::default(),
             drive: DriveEvents::default(),
-            trace: opts.trace.then(|| Trace::new(now_ns())),
+            trace,
             pacing: opts.pace.map(|f| Pacing::new(f, s.run.dt_s)),
         }
     }
@@ -88,8 +88,19 @@ impl Observers {
     }
 }
 
+/// Why the lock-step stopped before its last tick.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum Stop {
+    /// A participant or its link failed.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// An output could not be written; the message names the file and the system's error.
+    #[error("cannot write {0}")]
+    Write(std::io::Error),
+}
+
 /// Steps every tick; returns the error that stopped the run, if any.
-fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Result<(), LinkError> {
+fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Result<(), Stop> {
     let s = team.scenario();
     // The Init exchanges stay in `team.exchanges`: the observers see them with tick 0's.
     team.initialise()?;
@@ -121,31 +132,34 @@ fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Res
             exchanges: &team.exchanges,
         };
         obs.after_tick(&record, &mut team.events)
-            .map_err(|e| LinkError::Transport {
-                role: Role::Plant,
-                what: format!("cannot record: {e}"),
-            })?;
+            .map_err(Stop::Write)?;
         team.exchanges.clear();
     }
     Ok(())
 }
 
-/// The files a run writes as it goes: the output directory, `timeseries.csv` (header first)
-/// and `scenario.toml` (the scenario as run).
-fn create_outputs(s: &Scenario, opts: &RunOptions) -> Result<Recorder, RunError> {
+/// The files a run writes as it goes: the output directory, `timeseries.csv` (header first),
+/// `trace.csv` with `--trace` (header first) and `scenario.toml` (the scenario as run).
+fn create_outputs(s: &Scenario, opts: &RunOptions) -> Result<(Recorder, Option<Trace>), RunError> {
     let dir = &opts.out_dir;
     std::fs::create_dir_all(dir).map_err(RunError::io(dir.clone()))?;
     let csv = dir.join("timeseries.csv");
     let rec = Recorder::create(&csv).map_err(RunError::io(csv))?;
+    let trace = if opts.trace {
+        let path = dir.join("trace.csv");
+        Some(Trace::create(&path, now_ns(), s.run.dt_s).map_err(RunError::io(path))?)
+    } else {
+        None
+    };
     let resolved = dir.join("scenario.toml");
     crate::files::write_atomic(&resolved, toml::to_string(s).unwrap_or_default())
         .map_err(RunError::io(resolved))?;
-    Ok(rec)
+    Ok((rec, trace))
 }
 
 /// What a finished loop leaves for the report.
 struct Ended {
-    outcome: Result<(), LinkError>,
+    outcome: Result<(), Stop>,
     wall: f64,
     cpu_orchestrator: f64,
     exits: RoleMap<cosim::endpoint::ExitReport>,
@@ -161,7 +175,7 @@ fn shut_down(
     mut team: Team,
     prefix: &str,
     cpus: &[usize],
-    outcome: Result<(), LinkError>,
+    outcome: Result<(), Stop>,
     wall: f64,
     cpu0: f64,
 ) -> Ended {
@@ -196,12 +210,28 @@ fn shut_down(
     }
 }
 
+/// Removes a run's shared-memory files when dropped: on every way out of [`run`], a failed
+/// start, an error, a panic, as well as the normal end (where [`shut_down`] has already
+/// removed them and reported any it could not).
+struct RunFilesGuard(String);
+
+impl Drop for RunFilesGuard {
+    fn drop(&mut self) {
+        if !self.0.is_empty() {
+            cosim::ipc::remove_run_files(&self.0);
+        }
+    }
+}
+
 /// Runs a validated scenario: launch, loop, shut down, report. Always writes what it has to
 /// `out_dir` (`timeseries.csv`, `events.csv`, `scenario.toml`, `trace.csv` with `--trace`);
-/// the returned summary says whether the run completed. `results`, `comfort` and `flags` are
-/// left for the caller's analysis (`crate::analysis::analyse`).
+/// the returned summary says whether the run completed. The participants are shut down and
+/// the shared-memory files removed before any output after the loop is written, so a write
+/// that fails (a full disk) is reported in the summary and never skips the clean-up.
+/// `results`, `comfort` and `flags` are left for the caller's analysis
+/// (`crate::analysis::analyse`).
 pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summary, RunError> {
-    let recorder = create_outputs(s, opts)?;
+    let (recorder, trace) = create_outputs(s, opts)?;
     let prefix = match s.run.transport {
         Transport::Ipc => opts
             .ipc_prefix
@@ -209,40 +239,52 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
             .unwrap_or_else(cosim::ipc::unique_prefix),
         Transport::InProcess => String::new(),
     };
+    let _files = RunFilesGuard(prefix.clone());
     let cpu0 = launch::cpu_self();
     // `start` may pin this process to one CPU for the run; the set is restored afterwards so
     // a process that runs several scenarios (sweeps, benchmarks) starts each one alike.
     let cpus = cosim::ipc::allowed_cpus();
-    let ps = launch::start(s, opts, &prefix).inspect_err(|_| {
-        if !prefix.is_empty() {
-            cosim::ipc::remove_run_files(&prefix);
-        }
-    })?;
+    let ps = launch::start(s, opts, &prefix)?;
     let mut team = Team::new(s, ps);
-    let mut obs = Observers::new(s, opts, recorder);
+    let mut obs = Observers::new(s, opts, recorder, trace);
     let loop_started = Instant::now();
-    let outcome = lockstep(&mut team, &mut obs, &opts.interrupt);
+    let mut outcome = lockstep(&mut team, &mut obs, &opts.interrupt);
     let wall = loop_started.elapsed().as_secs_f64();
-    let rows = obs.recorder.0.rows();
-    let _ = obs.recorder.0.flush();
-    if let Err(e) = &outcome {
+    let finished = obs.recorder.0.finish();
+    if let (Ok(()), Err(e)) = (&outcome, finished) {
+        outcome = Err(Stop::Write(e));
+    }
+    let rows = obs.recorder.0.rows_on_disk();
+    if let Err(Stop::Link(e)) = &outcome {
         team.log_failure(rows, e);
     }
-    let events = opts.out_dir.join("events.csv");
-    team.events.write(&events).map_err(RunError::io(events))?;
-    if let Some(tr) = &obs.trace {
-        write_trace(opts, s, tr, &obs.latency)?;
-    }
+    let mut events = EventLog::default();
+    std::mem::swap(&mut events, &mut team.events);
     let ended = shut_down(team, &prefix, &cpus, outcome, wall, cpu0);
-    Ok(report(s, scenario_file, opts, &prefix, obs, ended, rows))
+    // Outputs after the loop: each failure is kept for the summary, none skips another.
+    let mut write_errors = Vec::new();
+    if let Err(e) = events.write(&opts.out_dir.join("events.csv")) {
+        write_errors.push(e);
+    }
+    if let Some(tr) = &mut obs.trace {
+        if let Err(e) = finish_trace(opts, tr, &obs.latency) {
+            write_errors.push(e);
+        }
+    }
+    let mut summary = report(s, scenario_file, opts, &prefix, obs, ended, rows);
+    if let Some(e) = write_errors.first() {
+        if summary.error.is_none() {
+            summary.status = Status::Failed;
+            summary.error = Some(format!("cannot write {e}"));
+        }
+    }
+    Ok(summary)
 }
 
-/// `trace.csv` and the latency histogram.
-fn write_trace(opts: &RunOptions, s: &Scenario, tr: &Trace, lat: &Latency) -> Result<(), RunError> {
-    let path = opts.out_dir.join("trace.csv");
-    tr.write(&path, s.run.dt_s)
-        .map_err(RunError::io(path.clone()))?;
-    crate::analysis::latency_histogram(&opts.out_dir, &lat.requests()).map_err(RunError::io(path))
+/// Closes `trace.csv` and draws the latency histogram.
+fn finish_trace(opts: &RunOptions, tr: &mut Trace, lat: &Latency) -> std::io::Result<()> {
+    tr.finish()?;
+    crate::analysis::latency_histogram(&opts.out_dir, lat)
 }
 
 /// The run's own part of `summary.json`.
@@ -282,7 +324,7 @@ fn report(
         })
         .collect();
     let simulated = rows as f64 * s.run.dt_s;
-    let o = cosim::stats::percentiles(&mut obs.timing.overhead);
+    let o = obs.timing.overhead.percentiles();
     Summary {
         tiltsim_version: env!("CARGO_PKG_VERSION"),
         scenario: s.name.clone(),
@@ -309,7 +351,7 @@ fn report(
             p99: o.p99,
             max: o.max,
             mean: o.mean,
-            tick_us: cosim::stats::percentiles(&mut obs.timing.ticks),
+            tick_us: obs.timing.ticks.percentiles(),
             cpu_s: CpuTime {
                 orchestrator: e.cpu_orchestrator,
                 participants: e.exits.iter().filter_map(|(_, x)| x.cpu_s).sum(),

@@ -3,11 +3,11 @@
 //! per-tick timing, the participants' compute times and the QP solver, the link latency, the
 //! trace, the real-time pacing and the drive's protection events.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use actuator_proc::bldc::limit;
-use cosim::stats::{percentiles, Percentiles};
+use cosim::stats::{Percentiles, Timings};
 use cosim::Role;
 
 use super::summary::{LinkLatency, PacingReport, SolverReport};
@@ -55,19 +55,20 @@ impl Observer for RowRecorder {
 }
 
 /// Tick wall time and coordination overhead (tick wall time minus the critical compute).
+/// Every distribution an observer keeps is a [`Timings`]: constant memory over any run length.
 #[derive(Default)]
 pub(crate) struct TickTiming {
     /// Overhead per tick (µs).
-    pub overhead: Vec<f64>,
+    pub overhead: Timings,
     /// Wall time per tick (µs).
-    pub ticks: Vec<f64>,
+    pub ticks: Timings,
 }
 
 impl Observer for TickTiming {
     fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
         let tick_us = t.started.elapsed().as_secs_f64() * 1e6;
-        self.ticks.push(tick_us);
-        self.overhead.push((tick_us - t.critical_us).max(0.0));
+        self.ticks.record(tick_us);
+        self.overhead.record((tick_us - t.critical_us).max(0.0));
         Ok(())
     }
 }
@@ -76,26 +77,26 @@ impl Observer for TickTiming {
 #[derive(Default)]
 pub(crate) struct ComputeStats {
     /// Per role (µs per call).
-    pub per_role: RoleMap<Vec<f64>>,
-    solver_iterations: Vec<f64>,
+    pub per_role: RoleMap<Timings>,
+    solver_iterations: Timings,
     solver_failures: u64,
 }
 
 impl Observer for ComputeStats {
     fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
         for role in [Role::Plant, Role::Actuator] {
-            self.per_role[role].push(t.compute_ns[role] as f64 * 1e-3);
+            self.per_role[role].record(t.compute_ns[role] as f64 * 1e-3);
         }
         if t.controller_due {
             let c = &t.held.c;
-            self.per_role[Role::Controller].push(t.compute_ns[Role::Controller] as f64 * 1e-3);
+            self.per_role[Role::Controller].record(t.compute_ns[Role::Controller] as f64 * 1e-3);
             match controller_proc::SolverStatus::from_raw(c.solver_status) {
                 controller_proc::SolverStatus::NoQp => {}
                 controller_proc::SolverStatus::Solved => {
-                    self.solver_iterations.push(c.solver_iterations as f64)
+                    self.solver_iterations.record(c.solver_iterations as f64)
                 }
                 controller_proc::SolverStatus::Failed => {
-                    self.solver_iterations.push(c.solver_iterations as f64);
+                    self.solver_iterations.record(c.solver_iterations as f64);
                     self.solver_failures += 1;
                 }
             }
@@ -110,22 +111,22 @@ impl ComputeStats {
         (!self.solver_iterations.is_empty()).then(|| SolverReport {
             solves: self.solver_iterations.len() as u64,
             failures: self.solver_failures,
-            iterations: percentiles(&mut self.solver_iterations),
+            iterations: self.solver_iterations.percentiles(),
         })
     }
 
     /// Compute per call, per role.
     pub fn percentiles(&mut self) -> RoleMap<Percentiles> {
-        RoleMap::new(Role::ALL.map(|r| percentiles(&mut self.per_role[r])))
+        RoleMap::new(Role::ALL.map(|r| self.per_role[r].percentiles()))
     }
 }
 
 /// Wall-clock timing of the exchanges with one participant (µs).
 #[derive(Default)]
 struct LinkClock {
-    request: Vec<f64>,
-    reply: Vec<f64>,
-    round_trip: Vec<f64>,
+    request: Timings,
+    reply: Timings,
+    round_trip: Timings,
 }
 
 /// Request, reply and round-trip latency of every exchange.
@@ -142,18 +143,18 @@ impl Observer for Latency {
     fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
         for x in t.exchanges {
             let c = &mut self.clocks[x.role];
-            c.request.push(us(x.sent_ns, x.reply.recv_ns));
-            c.reply.push(us(x.reply.sent_ns, x.received_ns));
-            c.round_trip.push(us(x.sent_ns, x.received_ns));
+            c.request.record(us(x.sent_ns, x.reply.recv_ns));
+            c.reply.record(us(x.reply.sent_ns, x.received_ns));
+            c.round_trip.record(us(x.sent_ns, x.received_ns));
         }
         Ok(())
     }
 }
 
 impl Latency {
-    /// Request latencies of every participant (µs), for the histogram.
-    pub fn requests(&self) -> RoleMap<Vec<f64>> {
-        RoleMap::new(Role::ALL.map(|r| self.clocks[r].request.clone()))
+    /// Request latency of one participant (µs), for the histogram.
+    pub fn requests(&self, role: Role) -> &Timings {
+        &self.clocks[role].request
     }
 
     /// The per-participant report.
@@ -164,34 +165,30 @@ impl Latency {
                 let c = &mut self.clocks[r];
                 LinkLatency {
                     participant: r,
-                    request_us: percentiles(&mut c.request),
-                    reply_us: percentiles(&mut c.reply),
-                    round_trip_us: percentiles(&mut c.round_trip),
+                    request_us: c.request.percentiles(),
+                    reply_us: c.reply.percentiles(),
+                    round_trip_us: c.round_trip.percentiles(),
                 }
             })
             .collect()
     }
 }
 
-/// Every exchange's timestamps for `trace.csv` (ns from the start of the loop).
+/// Every exchange's timestamps, streamed to `trace.csv` (ns from the start of the loop) as the
+/// run goes, like the time series.
 pub(crate) struct Trace {
     origin_ns: u64,
-    rows: Vec<Exchange>,
+    dt: f64,
+    path: PathBuf,
+    out: csv::Writer<std::io::BufWriter<std::fs::File>>,
 }
 
 impl Trace {
-    /// A trace whose times count from `origin_ns`.
-    pub fn new(origin_ns: u64) -> Self {
-        Trace {
-            origin_ns,
-            rows: Vec::new(),
-        }
-    }
-
-    /// Writes `trace.csv` with the `csv` crate.
-    pub fn write(&self, path: &Path, dt: f64) -> std::io::Result<()> {
-        let mut w = csv::Writer::from_path(path).map_err(std::io::Error::other)?;
-        w.write_record([
+    /// Creates `path` with its header; times count from `origin_ns`, tick `k` is at `k·dt`.
+    pub fn create(path: &Path, origin_ns: u64, dt: f64) -> std::io::Result<Self> {
+        let file = std::io::BufWriter::with_capacity(1 << 16, std::fs::File::create(path)?);
+        let mut out = csv::Writer::from_writer(file);
+        out.write_record([
             "step",
             "t",
             "participant",
@@ -203,29 +200,45 @@ impl Trace {
             "reply_received_ns",
         ])
         .map_err(std::io::Error::other)?;
-        let rel = |t: u64| t.saturating_sub(self.origin_ns).to_string();
-        for x in &self.rows {
+        out.flush()?;
+        Ok(Trace {
+            origin_ns,
+            dt,
+            path: path.to_path_buf(),
+            out,
+        })
+    }
+
+    fn named(&self, e: impl std::fmt::Display) -> std::io::Error {
+        std::io::Error::other(format!("{}: {e}", self.path.display()))
+    }
+
+    /// Writes what is buffered.
+    pub fn finish(&mut self) -> std::io::Result<()> {
+        self.out.flush().map_err(|e| self.named(e))
+    }
+}
+
+impl Observer for Trace {
+    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
+        let rel = |t: u64| t.saturating_sub(self.origin_ns);
+        for x in t.exchanges {
             let h = &x.reply;
-            w.write_record([
-                x.step.to_string(),
-                (x.step as f64 * dt).to_string(),
-                x.role.name().to_string(),
+            let r = self.out.serialize((
+                x.step,
+                crate::record::fmt_f64(x.step as f64 * self.dt),
+                x.role.name(),
                 rel(x.sent_ns),
                 rel(h.recv_ns),
                 rel(h.recv_ns),
                 rel(h.recv_ns + h.compute_ns),
                 rel(h.sent_ns),
                 rel(x.received_ns),
-            ])
-            .map_err(std::io::Error::other)?;
+            ));
+            if let Err(e) = r {
+                return Err(self.named(e));
+            }
         }
-        w.flush()
-    }
-}
-
-impl Observer for Trace {
-    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
-        self.rows.extend_from_slice(t.exchanges);
         Ok(())
     }
 }
@@ -236,7 +249,7 @@ pub(crate) struct Pacing {
     dt: f64,
     start: Instant,
     overruns: u64,
-    late_us: Vec<f64>,
+    late_us: Timings,
 }
 
 impl Pacing {
@@ -247,7 +260,7 @@ impl Pacing {
             dt,
             start: Instant::now(),
             overruns: 0,
-            late_us: Vec::new(),
+            late_us: Timings::default(),
         }
     }
 
@@ -261,7 +274,7 @@ impl Pacing {
             factor: self.factor,
             overruns: self.overruns,
             ticks,
-            lateness_us: percentiles(&mut self.late_us),
+            lateness_us: self.late_us.percentiles(),
             achieved_realtime_factor: if wall > 0.0 {
                 ticks as f64 * self.dt / wall
             } else {
@@ -299,7 +312,7 @@ impl Observer for Pacing {
         let now = Instant::now();
         if now > deadline {
             self.overruns += 1;
-            self.late_us.push((now - deadline).as_secs_f64() * 1e6);
+            self.late_us.record((now - deadline).as_secs_f64() * 1e6);
         }
         Ok(())
     }
