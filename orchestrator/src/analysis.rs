@@ -13,7 +13,23 @@ use crate::scenario::Scenario;
 /// and, when `opts.plots`, draws its figures.
 pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summary, RunError> {
     let mut summary = crate::engine::run(s, scenario_file, opts)?;
+    // An interrupted run ends at once: an hour's series takes tens of seconds to analyse.
+    // `tiltsim plot DIR` draws it later; the summary says the analysis was skipped.
+    if opts.interrupt.load(std::sync::atomic::Ordering::Relaxed) {
+        summary.analysis_skipped = Some(format!(
+            "interrupted by {}: comfort, flags and figures not computed",
+            crate::signals::describe()
+        ));
+        return Ok(summary);
+    }
     analyse(s, &opts.out_dir, &mut summary);
+    if crate::signals::received() {
+        summary.analysis_skipped = Some(format!(
+            "interrupted by {} during the analysis: comfort and flags incomplete, figures not drawn",
+            crate::signals::describe()
+        ));
+        return Ok(summary);
+    }
     if opts.plots {
         if let Err(e) = write_plots(s, &opts.out_dir) {
             tracing::warn!("plots not written: {e}");
@@ -165,6 +181,9 @@ pub fn scan(
     let mut prev: Option<Derived> = None;
     let mut cur: Option<Derived> = None;
     let n = crate::record::each_row(dir, |r| {
+        if r.step % 4096 == 0 && crate::signals::received() {
+            return false;
+        }
         let next = Derived {
             row: *r,
             reference: controller
@@ -180,6 +199,7 @@ pub fn scan(
         }
         prev = cur.take();
         cur = Some(next);
+        true
     })?;
     if let Some(c) = &cur {
         let (before, steps) = match &prev {

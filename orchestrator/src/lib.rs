@@ -5,6 +5,7 @@ pub mod analysis;
 pub mod bench;
 pub mod cli;
 pub mod comfort;
+pub mod budget;
 pub mod compare;
 pub mod degraded;
 pub mod engine;

@@ -380,9 +380,9 @@ fn csv_io(e: csv::Error) -> std::io::Error {
 }
 
 /// Reads `dir/timeseries.csv` back, handing each row to `visit` in order, one row in memory
-/// at a time; returns the number of rows. A run that was cut short may end in a partial
-/// line: reading stops at the first row that is not complete.
-pub fn each_row(dir: &Path, mut visit: impl FnMut(&Row)) -> std::io::Result<u64> {
+/// at a time, until `visit` returns false; returns the number of rows read. A run that was
+/// cut short may end in a partial line: reading stops at the first row that is not complete.
+pub fn each_row(dir: &Path, mut visit: impl FnMut(&Row) -> bool) -> std::io::Result<u64> {
     let path = dir.join("timeseries.csv");
     let named = |e: csv::Error| std::io::Error::other(format!("{}: {e}", path.display()));
     let mut rd = csv::Reader::from_path(&path).map_err(named)?;
@@ -400,8 +400,10 @@ pub fn each_row(dir: &Path, mut visit: impl FnMut(&Row)) -> std::io::Result<u64>
         let Ok(row) = record.deserialize::<Row>(None) else {
             break;
         };
-        visit(&row);
         n += 1;
+        if !visit(&row) {
+            break;
+        }
     }
     Ok(n)
 }
@@ -411,7 +413,7 @@ pub fn each_row(dir: &Path, mut visit: impl FnMut(&Row)) -> std::io::Result<u64>
 /// consecutive blocks (a min/max envelope, so a peak is never lost to the decimation). Memory
 /// stays bounded for runs of any length.
 pub fn rows_to_plot(dir: &Path, points: usize) -> std::io::Result<Vec<Row>> {
-    let n = each_row(dir, |_| {})? as usize;
+    let n = each_row(dir, |_| !crate::signals::received())? as usize;
     if n <= points {
         return read_rows(dir);
     }
@@ -430,6 +432,7 @@ pub fn rows_to_plot(dir: &Path, points: usize) -> std::io::Result<Vec<Row>> {
             out.push(lo);
             out.push(hi);
         }
+        !crate::signals::received()
     })?;
     Ok(out)
 }
@@ -437,7 +440,10 @@ pub fn rows_to_plot(dir: &Path, points: usize) -> std::io::Result<Vec<Row>> {
 /// Reads `dir/timeseries.csv` back into rows (for short runs; [`each_row`] for any length).
 pub fn read_rows(dir: &Path) -> std::io::Result<Vec<Row>> {
     let mut rows = Vec::new();
-    each_row(dir, |r| rows.push(*r))?;
+    each_row(dir, |r| {
+        rows.push(*r);
+        true
+    })?;
     Ok(rows)
 }
 

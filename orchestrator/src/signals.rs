@@ -34,6 +34,11 @@ pub fn install() -> Arc<AtomicBool> {
     flag
 }
 
+/// Whether an interrupting signal has arrived since the handlers were installed.
+pub fn received() -> bool {
+    SIGNAL.load(Ordering::Relaxed) != 0
+}
+
 /// What interrupted the run, for messages: "Ctrl-C (SIGINT)", "SIGTERM", "SIGHUP", or
 /// "an interrupt" when no signal was received (the flag was set by the program).
 pub fn describe() -> &'static str {

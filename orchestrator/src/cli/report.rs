@@ -30,6 +30,16 @@ pub fn print(s: &Summary, out: &Path) {
         "  coordination overhead per tick: p50 {:.2} us, p99 {:.2} us, max {:.1} us; CPU: orchestrator {:.2} s, participants {:.2} s",
         s.timing.p50, s.timing.p99, s.timing.max, s.timing.cpu_s.orchestrator, s.timing.cpu_s.participants
     );
+    if let Some(why) = &s.analysis_skipped {
+        println!("  analysis skipped: {why}");
+        print_timing(s);
+        println!(
+            "  wrote {}/timeseries.csv, summary.json, events.csv, scenario.toml (`tiltsim plot {}` draws the figures)",
+            out.display(),
+            out.display()
+        );
+        return;
+    }
     println!(
         "  lateral acceleration: peak {:.3} m/s², mid-curve {:.3} m/s²; body roll mid-curve {:.3} deg; peak delta_a {:.3} deg",
         s.results.lat_acc_peak,

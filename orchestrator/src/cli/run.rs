@@ -114,6 +114,13 @@ pub fn exec(a: RunArgs) -> CliResult {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("out").join(&s.name));
+    match crate::budget::check(&s, &out, a.trace) {
+        crate::budget::Verdict::Fits => {}
+        crate::budget::Verdict::Warn(m) => eprintln!("warning: {}: {m}", a.scenario.display()),
+        crate::budget::Verdict::Refuse(m) => {
+            return Err(CliError::Invalid(format!("{}: {m}", a.scenario.display())))
+        }
+    }
     let (interrupt, exe) = interrupt_and_exe()?;
     let opts = RunOptions {
         out_dir: out.clone(),

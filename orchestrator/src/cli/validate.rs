@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use super::common::load;
-use super::error::CliResult;
+use super::error::{CliError, CliResult};
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -25,5 +25,23 @@ pub fn exec(a: ValidateArgs) -> CliResult {
         s.controller.mode,
         s.actuator.model
     );
-    Ok(())
+    let out = std::path::Path::new("out").join(&s.name);
+    let e = crate::budget::estimate(&s, false);
+    println!(
+        "outputs: about {} ({} rows); default directory {}",
+        crate::budget::human(e.bytes),
+        e.rows,
+        out.display()
+    );
+    match crate::budget::check(&s, &out, false) {
+        crate::budget::Verdict::Fits => Ok(()),
+        crate::budget::Verdict::Warn(m) => {
+            eprintln!("warning: {}: {m}", a.scenario.display());
+            Ok(())
+        }
+        crate::budget::Verdict::Refuse(m) => Err(CliError::Invalid(format!(
+            "{}: {m}",
+            a.scenario.display()
+        ))),
+    }
 }

@@ -363,6 +363,7 @@ fn report(
         controller_solver: obs.compute.solver(),
         comfort: Default::default(),
         flags: Default::default(),
+        analysis_skipped: None,
         ipc_prefix: prefix.to_string(),
         leftover_ipc_files: e.leftover,
     }

@@ -107,6 +107,10 @@ pub struct Summary {
     pub comfort: crate::comfort::Comfort,
     /// Whether the numbers are valid: oscillation, bump stop, drive limits, chopper, P_CT range.
     pub flags: crate::validity::Flags,
+    /// Why `results`, `comfort` and `flags` were not computed (an interrupted run ends at once;
+    /// `tiltsim plot DIR` draws its figures later). Absent when they were.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub analysis_skipped: Option<String>,
     /// iceoryx2 prefix of the run ("" in-process).
     pub ipc_prefix: String,
     /// Files of the run still present after clean-up (must be empty).
