@@ -91,7 +91,10 @@ impl Timings {
 
     /// How many values lie in `[lo, hi)`.
     pub fn count_between(&self, lo: f64, hi: f64) -> u64 {
-        let (lo, hi) = ((lo.max(0.0) * 1e3).ceil() as u64, (hi.max(0.0) * 1e3).ceil() as u64);
+        let (lo, hi) = (
+            (lo.max(0.0) * 1e3).ceil() as u64,
+            (hi.max(0.0) * 1e3).ceil() as u64,
+        );
         if hi <= lo {
             return 0;
         }

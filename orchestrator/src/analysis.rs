@@ -10,8 +10,20 @@ use crate::engine::{QuickLook, RunError, RunOptions, Summary};
 use crate::scenario::Scenario;
 
 /// Runs `s` with the engine, then completes its summary with the analysis of what it recorded
-/// and, when `opts.plots`, draws its figures.
+/// and, when `opts.plots`, draws its figures (see [`run_then`]).
 pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summary, RunError> {
+    run_then(s, scenario_file, opts, |_| {})
+}
+
+/// [`run`], calling `keep` with the analysed summary before the figures are drawn: the
+/// caller writes `summary.json` there, so that on a nearly full disk the summary takes the
+/// space before the figures do.
+pub fn run_then(
+    s: &Scenario,
+    scenario_file: &str,
+    opts: &RunOptions,
+    keep: impl FnOnce(&Summary),
+) -> Result<Summary, RunError> {
     let mut summary = crate::engine::run(s, scenario_file, opts)?;
     // An interrupted run ends at once: an hour's series takes tens of seconds to analyse.
     // `tiltsim plot DIR` draws it later; the summary says the analysis was skipped.
@@ -20,6 +32,7 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
             "interrupted by {}: comfort, flags and figures not computed",
             crate::signals::describe()
         ));
+        keep(&summary);
         return Ok(summary);
     }
     analyse(s, &opts.out_dir, &mut summary);
@@ -28,8 +41,10 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
             "interrupted by {} during the analysis: comfort and flags incomplete, figures not drawn",
             crate::signals::describe()
         ));
+        keep(&summary);
         return Ok(summary);
     }
+    keep(&summary);
     if opts.plots {
         if let Err(e) = write_plots(s, &opts.out_dir) {
             tracing::warn!("plots not written: {e}");
@@ -237,7 +252,10 @@ pub fn write_compare_plots(
     use crate::record::Row;
     let mut data = Vec::new();
     for (label, _, dir) in runs {
-        data.push((label.as_str(), crate::record::rows_to_plot(dir, PLOT_POINTS)?));
+        data.push((
+            label.as_str(),
+            crate::record::rows_to_plot(dir, PLOT_POINTS)?,
+        ));
     }
     let n = data.iter().map(|(_, r)| r.len()).min().unwrap_or(0);
     let t: Vec<f64> = data

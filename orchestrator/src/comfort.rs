@@ -256,8 +256,6 @@ pub fn values(c: &Comfort) -> [f64; 10] {
     METRICS.map(|m| (m.get)(c))
 }
 
-
-
 /// Largest |x[i+k] − x[i]| over a stream of values, k = round(w/dt): the slope of `x` over the
 /// window `w`, as [`slope_peak`] computes it on a slice, with a ring of the last k values.
 struct SlopePeak {

@@ -130,7 +130,9 @@ impl EventLog {
             ])
             .map_err(std::io::Error::other)?;
         }
-        let bytes = w.into_inner().map_err(|e| std::io::Error::other(e.to_string()))?;
+        let bytes = w
+            .into_inner()
+            .map_err(|e| std::io::Error::other(e.to_string()))?;
         crate::files::write_atomic(path, bytes)
     }
 }

@@ -3,9 +3,9 @@
 
 pub mod analysis;
 pub mod bench;
+pub mod budget;
 pub mod cli;
 pub mod comfort;
-pub mod budget;
 pub mod compare;
 pub mod degraded;
 pub mod engine;

@@ -497,16 +497,21 @@ pub fn rasterise(sc: &Scene) -> std::io::Result<(u32, u32, Vec<u8>)> {
     Ok((w, h, rgb))
 }
 
-/// Writes the scene as a PNG file.
+/// Writes the scene as a PNG file, whole or not at all.
 pub fn write_png(sc: &Scene, path: &Path) -> std::io::Result<()> {
     let (w, h, px) = rasterise(sc)?;
-    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
-    let mut enc = png::Encoder::new(file, w, h);
+    let mut bytes = Vec::new();
+    encode_png(w, h, &px, &mut bytes)?;
+    crate::files::write_atomic(path, bytes)
+}
+
+fn encode_png(w: u32, h: u32, px: &[u8], out: &mut Vec<u8>) -> std::io::Result<()> {
+    let mut enc = png::Encoder::new(out, w, h);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
     enc.set_compression(png::Compression::Fast);
     let mut wr = enc.write_header().map_err(std::io::Error::other)?;
-    wr.write_image_data(&px).map_err(std::io::Error::other)?;
+    wr.write_image_data(px).map_err(std::io::Error::other)?;
     wr.finish().map_err(std::io::Error::other)
 }
 
@@ -519,7 +524,7 @@ pub fn write_chart(
 ) -> std::io::Result<[PathBuf; 2]> {
     let sc = layout(chart, x);
     let svg = dir.join(format!("{name}.svg"));
-    std::fs::write(&svg, to_svg(&sc))?;
+    crate::files::write_atomic(&svg, to_svg(&sc))?;
     let png = dir.join(format!("{name}.png"));
     write_png(&sc, &png)?;
     Ok([svg, png])

@@ -280,7 +280,8 @@ impl Recorder {
     /// Creates `path` and writes the header (flushed at once: a run killed at any point
     /// leaves a valid header).
     pub fn create(path: &Path) -> std::io::Result<Self> {
-        let named = |e: std::io::Error| std::io::Error::new(e.kind(), format!("{}: {e}", path.display()));
+        let named =
+            |e: std::io::Error| std::io::Error::new(e.kind(), format!("{}: {e}", path.display()));
         let file = File::create(path).map_err(named)?;
         let out = csv::WriterBuilder::new()
             .has_headers(false)
@@ -422,12 +423,12 @@ pub fn rows_to_plot(dir: &Path, points: usize) -> std::io::Result<Vec<Row>> {
     let mut k = 0usize;
     let (mut lo, mut hi) = (Row::default(), Row::default());
     each_row(dir, |r| {
-        if k % block == 0 {
+        if k.is_multiple_of(block) {
             (lo, hi) = (*r, *r);
         }
         r.widen(&mut lo, &mut hi);
         k += 1;
-        if k % block == 0 || k == n {
+        if k.is_multiple_of(block) || k == n {
             // Each pair keeps its block's time span in order.
             out.push(lo);
             out.push(hi);

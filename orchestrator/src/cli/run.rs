@@ -132,9 +132,18 @@ pub fn exec(a: RunArgs) -> CliResult {
         trace: a.trace,
         pace: a.pace,
     };
-    let summary = crate::analysis::run(&s, &a.scenario.display().to_string(), &opts)
-        .map_err(|e| CliError::Failed(e.to_string()))?;
-    write_json(&out.join("summary.json"), &summary)?;
+    let mut kept = Ok(());
+    let summary = crate::analysis::run_then(&s, &a.scenario.display().to_string(), &opts, |sm| {
+        kept = write_json(&out.join("summary.json"), sm);
+    })
+    .map_err(|e| CliError::Failed(e.to_string()))?;
+    if let Err(e) = kept {
+        // The run's own outcome is the more important message; the summary's loss is told too.
+        eprintln!("error: summary not written: {e}");
+        if summary.status == Status::Completed {
+            return Err(e);
+        }
+    }
     if !a.quiet {
         super::report::print(&summary, &out);
     }

@@ -39,9 +39,8 @@ pub fn exec(a: ValidateArgs) -> CliResult {
             eprintln!("warning: {}: {m}", a.scenario.display());
             Ok(())
         }
-        crate::budget::Verdict::Refuse(m) => Err(CliError::Invalid(format!(
-            "{}: {m}",
-            a.scenario.display()
-        ))),
+        crate::budget::Verdict::Refuse(m) => {
+            Err(CliError::Invalid(format!("{}: {m}", a.scenario.display())))
+        }
     }
 }
