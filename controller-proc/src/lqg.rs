@@ -79,6 +79,17 @@ impl LqgSettings {
         for (i, q) in self.q_diag.iter().enumerate() {
             c.range(&format!("lqg.q_diag[{i}]"), *q, 0.0, 1e9, "");
         }
+        // The integrator x_I is a pole at the origin that no other state sees: without a
+        // weight of its own (Q not detectable through it) the Riccati equation of eq 24 has
+        // no stabilising solution.
+        if let Some(q) = self.q_diag.get(9) {
+            c.require(
+                *q > 0.0,
+                "lqg.q_diag[9]",
+                *q,
+                "a weight > 0 on the integrator x_I (10th entry): without it the LQI design of eq 24 has no stabilising solution",
+            );
+        }
         c.positive("lqg.r_w", self.r_w, 1e9, "");
     }
 }

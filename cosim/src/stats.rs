@@ -64,8 +64,12 @@ impl Timings {
     /// Adds one value (negative values and NaN count as 0).
     pub fn record(&mut self, v: f64) {
         let v = if v.is_finite() && v > 0.0 { v } else { 0.0 };
-        // An auto-resizing histogram takes any u64; `saturating_record` never fails.
-        self.h.saturating_record((v * 1e3).round() as u64);
+        // The histogram resizes to take any value; should that ever fail, the value is
+        // clamped to the largest it can hold (the exact maximum is kept apart).
+        let raw = (v * 1e3).round() as u64;
+        if self.h.record(raw).is_err() {
+            self.h.saturating_record(raw);
+        }
         self.n += 1;
         self.sum += v;
         self.max = self.max.max(v);

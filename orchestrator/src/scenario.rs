@@ -165,6 +165,61 @@ fn cut(msg: &str) -> String {
     }
 }
 
+/// Deserializes scenario text, naming the field a type error is in and what it allows.
+fn typed(text: &str) -> Result<Scenario, String> {
+    let de = toml::Deserializer::parse(text).map_err(|e| e.to_string())?;
+    let e = match serde_path_to_error::deserialize::<_, Scenario>(de) {
+        Ok(s) => return Ok(s),
+        Err(e) => e,
+    };
+    let path = e.path().to_string();
+    let inner = e.inner().to_string();
+    if path.is_empty() || path == "?" {
+        return Err(inner);
+    }
+    let hint = hint(text, &path, &inner)
+        .map(|h| format!("\n{h}"))
+        .unwrap_or_default();
+    Err(format!("field `{path}`: {}{hint}", inner.trim_end()))
+}
+
+/// What to write instead, for the type errors whose own message misleads: a table written as
+/// an array of tables (`[[links.measurement]]`), and a choice given as something else than one
+/// of its names (`mode = 3`), whose allowed names are found by asking the parser itself.
+fn hint(text: &str, path: &str, inner: &str) -> Option<String> {
+    if let Some((table, _)) = path.rsplit_once('[') {
+        if inner.contains("invalid type: map") {
+            return Some(format!(
+                "`{table}` is one table: write `[{table}]`, not `[[{table}]]` (which makes a list of tables)"
+            ));
+        }
+    }
+    if !inner.contains("string or table") && !inner.contains("invalid type") {
+        return None;
+    }
+    // Replace the value at `path` by a name no choice has; the parser's complaint about
+    // that name lists the allowed ones.
+    let mut doc: toml::Table = toml::from_str(text).ok()?;
+    let keys: Vec<&str> = path.split('.').collect();
+    let (last, parents) = keys.split_last()?;
+    let mut t = &mut doc;
+    for k in parents {
+        t = t.get_mut(*k)?.as_table_mut()?;
+    }
+    t.insert((*last).to_string(), toml::Value::String("\u{1}".into()));
+    let probe = toml::to_string(&doc).ok()?;
+    let de = toml::Deserializer::parse(&probe).ok()?;
+    let e = serde_path_to_error::deserialize::<_, Scenario>(de).err()?;
+    let msg = e.inner().to_string();
+    // serde's own wording: "expected one of `a`, `b`, `c`" or "expected `a` or `b`".
+    let (_, allowed) = msg
+        .split_once("unknown variant")?
+        .1
+        .split_once("expected ")?;
+    let allowed = allowed.lines().next()?.trim();
+    (e.path().to_string() == path).then(|| format!("allowed: {allowed}"))
+}
+
 impl Scenario {
     /// Reads, parses and validates a scenario file.
     pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
@@ -184,9 +239,9 @@ impl Scenario {
 
     /// Parses and validates scenario text; `file` is used in messages.
     pub fn parse(text: &str, file: &Path) -> Result<Scenario, ScenarioError> {
-        let s: Scenario = toml::from_str(text).map_err(|e| ScenarioError::Parse {
+        let s = typed(text).map_err(|message| ScenarioError::Parse {
             file: file.into(),
-            message: cut(e.to_string().trim_end()),
+            message: cut(message.trim_end()),
         })?;
         let errors = s.validate();
         if errors.is_empty() {
@@ -315,11 +370,18 @@ impl Scenario {
             // for which they have no solution is a scenario error, reported before any start.
             let init = self.controller_init();
             if let Err(e) = controller_proc::Controller::new(&init) {
+                // The design's own settings are what to change: the LQG's and MPC's weights
+                // and Kalman values, the PI's gains.
                 let mut c = Checker::new("controller");
+                let section = match self.controller.mode {
+                    controller_proc::Mode::Lqg => "lqg, controller.kalman",
+                    controller_proc::Mode::Mpc => "mpc, controller.kalman",
+                    _ => "mode",
+                };
                 c.require(
                     false,
-                    "mode",
-                    format!("{:?} ({e})", self.controller.mode),
+                    section,
+                    format!("{:?} design failed: {e}", self.controller.mode),
                     "settings for which the controller design exists",
                 );
                 all.merge(c);
@@ -432,6 +494,38 @@ mod tests {
         let e = parse(&fault(two)).unwrap_err().to_string();
         assert!(
             e.contains("faults.schedule[1].at_s") && e.contains("no other fault"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn misleading_type_errors_name_the_field_and_what_to_write() {
+        // A link written as an array of tables.
+        let e = parse("[[links.measurement]]\ndelay_ticks = 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("field `links.measurement[0]`") && e.contains("write `[links.measurement]`"),
+            "{e}"
+        );
+        // A choice given as a number: the allowed names, as the parser knows them.
+        let e = parse("[controller]\nmode = 3\n").unwrap_err().to_string();
+        assert!(
+            e.contains("field `controller.mode`")
+                && e.contains("allowed: one of `passive`, `pi`, `lqg`, `mpc`"),
+            "{e}"
+        );
+        let e = parse("[run]\nmaster = 1.5\n").unwrap_err().to_string();
+        assert!(
+            e.contains("field `run.master`") && e.contains("`gauss-seidel`"),
+            "{e}"
+        );
+        // LQI weights without the integrator's: the weight is named, not the mode.
+        let e = parse("[controller]\nmode = \"lqg\"\n[controller.lqg]\nq_diag = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("controller.lqg.q_diag[9]") && !e.contains("controller.mode"),
             "{e}"
         );
     }

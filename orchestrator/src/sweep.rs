@@ -175,13 +175,22 @@ fn set_key(base: &Scenario, key: &str, v: f64) -> Result<Scenario, String> {
     }
     let parts: Vec<&str> = key.split('.').collect();
     set(&mut doc, &parts, key, v)?;
-    let text = toml::to_string(&doc).map_err(|e| e.to_string())?;
-    Scenario::parse(&text, Path::new(&format!("sweep key `{key}` = {v}")))
-        .map(|mut s| {
-            s.name = base.name.clone();
-            s
-        })
-        .map_err(|e| e.to_string())
+    // Typed straight from the document (no text, so no line of an internal document in the
+    // message): the error names the key as the user gave it.
+    let mut s = serde_path_to_error::deserialize::<_, Scenario>(doc).map_err(|e| {
+        format!(
+            "--grid key `{key}`: {} (at `{}`); keys are the scenario's settings as dotted paths, e.g. `vehicle.m_v`, `controller.rho`",
+            e.inner().to_string().trim_end(),
+            e.path()
+        )
+    })?;
+    let errors = s.validate();
+    if !errors.is_empty() {
+        let lines: Vec<String> = errors.iter().map(|e| e.to_string()).collect();
+        return Err(format!("--grid key `{key}` = {v}: {}", lines.join("; ")));
+    }
+    s.name = base.name.clone();
+    Ok(s)
 }
 
 /// The scenario of sample `j` and its parameter values (factors or the grid value).
@@ -994,6 +1003,14 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("m_vv"), "{e}");
+        // An unknown section is named as the user wrote it, with no line of an internal
+        // document.
+        let e = with_key(&base, "foo.bar", 1.0).unwrap_err().to_string();
+        assert!(
+            e.contains("--grid key `foo.bar`") && e.contains("unknown field `foo`"),
+            "{e}"
+        );
+        assert!(!e.contains("line "), "{e}");
         let e = with_key(&base, "vehicle.m_v", -1.0).unwrap_err();
         assert!(matches!(e, SweepError::Argument(_)));
         assert!(e.to_string().contains("vehicle.m_v"), "{e}");
