@@ -290,11 +290,20 @@ fn bad_samples_from_a_process_are_caught_where_they_arrive_and_named() {
                 "-q",
             ])
             .env("TILTSIM_FAULT", format!("{mode}@1500"))
+            .env("RUST_BACKTRACE", "1")
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&output.stderr);
         assert_eq!(output.status.code(), Some(1), "{mode}: {err}");
         assert!(err.contains(expect), "{mode}: {err}");
+        if mode == "panic" {
+            // One line from the participant, then tiltsim's own error; no backtrace.
+            assert!(!err.contains("stack backtrace"), "{err}");
+            let panicked = err
+                .find("plant-proc: panicked at")
+                .expect("the panic's line");
+            assert!(panicked < err.find(expect).unwrap(), "{err}");
+        }
         let rows = Series::read(&out_dir.join("timeseries.csv")).rows.len();
         assert_eq!(rows, 1500, "{mode}: rows before the bad sample kept");
         assert!(leftovers(&pfx).is_empty(), "{mode}: {:?}", leftovers(&pfx));
@@ -331,9 +340,59 @@ fn trace_and_pace_report_every_exchange_and_every_tick() {
     // Paced at 4x, the loop cannot take less than 999 ticks × 0.25 ms.
     let achieved = p["achieved_realtime_factor"].as_f64().unwrap();
     assert!(achieved <= 4.0 * 1000.0 / 999.0 + 1e-9, "{achieved}");
-    assert!(p["overruns"].as_u64().unwrap() <= 1000);
+    let overruns = p["overruns"].as_u64().unwrap();
+    assert!(overruns <= 1000);
+    // Every late tick has exactly one cause.
+    let c = &p["causes"];
+    let by_cause: u64 = ["carried_over", "orchestrator", "compute", "coordination"]
+        .iter()
+        .map(|k| c[k].as_u64().unwrap())
+        .sum();
+    assert_eq!(by_cause, overruns, "{c}");
+    assert_eq!(c["start_delay_us"]["n"].as_u64().unwrap(), overruns);
+    // Paced runs nap between ticks instead of polling.
+    assert_eq!(sum["wait_strategy"], "paced");
+    assert_eq!(p["realtime"], false);
     let lat = &sum["link_latency"][0];
     assert_eq!(lat["participant"], "plant");
     assert_eq!(lat["request_us"]["n"], 1001);
     assert!(dir.join("plots/latency_histogram.png").exists());
+}
+
+#[test]
+fn realtime_is_refused_unpaced_and_either_granted_or_refused_by_name() {
+    let sc = scenario("paper-passive.toml");
+    let dir = temp_dir("realtime");
+    let (code, _, err) = tiltsim_suite::run(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--realtime",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--realtime: allowed only with --pace"),
+        "{err}"
+    );
+    let pfx = prefix("realtime");
+    let (code, err) = go(
+        &sc,
+        &dir,
+        "ipc",
+        &pfx,
+        &["--duration", "0.5", "--pace", "2", "--realtime"],
+    );
+    if code == 0 {
+        // Granted (root, CAP_SYS_NICE or rtprio limits): reported in the summary.
+        assert_eq!(summary(&dir)["pacing"]["realtime"], true);
+    } else {
+        // Refused by the system: said so, naming the policy and what would allow it.
+        assert_eq!(code, 2, "{err}");
+        assert!(
+            err.contains("SCHED_FIFO") || err.contains("mlockall"),
+            "{err}"
+        );
+    }
+    assert!(leftovers(&pfx).is_empty());
 }

@@ -17,6 +17,7 @@ pub mod endpoint;
 pub mod ipc;
 pub mod msg;
 pub mod participant;
+pub mod realtime;
 pub mod settings;
 pub mod stats;
 pub mod wait;

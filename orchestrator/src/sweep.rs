@@ -384,9 +384,19 @@ fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
     }
 }
 
-/// Runs the samples of `shard` (all when `None`) in parallel and returns their rows in
-/// sample order; `None` when interrupted.
-pub fn run(base: &Scenario, plan: &Plan, shard: Option<Shard>, ex: &Exec) -> Option<Vec<Row>> {
+/// The samples a sweep finished.
+#[derive(Debug, Clone)]
+pub struct Swept {
+    /// Rows of the finished samples, in sample order.
+    pub rows: Vec<Row>,
+    /// Whether the sweep was interrupted: `rows` then holds only the samples that had ended
+    /// before the interrupt (the ones in flight are dropped, being cut short).
+    pub interrupted: bool,
+}
+
+/// Runs the samples of `shard` (all when `None`) in parallel and returns the rows of those
+/// that finished, in sample order.
+pub fn run(base: &Scenario, plan: &Plan, shard: Option<Shard>, ex: &Exec) -> Swept {
     let todo = shard
         .unwrap_or(Shard { index: 0, count: 1 })
         .samples(plan.len());
@@ -415,6 +425,10 @@ pub fn run(base: &Scenario, plan: &Plan, shard: Option<Shard>, ex: &Exec) -> Opt
                     break;
                 }
                 let row = run_one(&base, plan, todo[i], ex);
+                if ex.interrupt.load(Ordering::Relaxed) {
+                    // This sample may have been cut short by the interrupt: not kept.
+                    break;
+                }
                 if !row.status.completed() {
                     bar.set_message(format!("(sample {} failed)", row.sample));
                 }
@@ -427,13 +441,15 @@ pub fn run(base: &Scenario, plan: &Plan, shard: Option<Shard>, ex: &Exec) -> Opt
     });
     bar.finish_and_clear();
     let _ = std::fs::remove_dir(ex.out.join("runs"));
-    if ex.interrupt.load(Ordering::Relaxed) {
-        return None;
+    Swept {
+        rows: rows
+            .into_inner()
+            .unwrap_or_default()
+            .into_iter()
+            .flatten()
+            .collect(),
+        interrupted: ex.interrupt.load(Ordering::Relaxed),
     }
-    rows.into_inner()
-        .ok()?
-        .into_iter()
-        .collect::<Option<Vec<Row>>>()
 }
 
 /// What `sweep.json` holds.
@@ -447,6 +463,9 @@ pub struct SweepFile {
     pub shard: Option<String>,
     /// Samples in this output.
     pub samples: Vec<usize>,
+    /// The sweep was interrupted: `samples` are those that had finished (present only then).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub interrupted: bool,
 }
 
 /// Linear-interpolation percentile (type 7) of sorted values.
@@ -623,6 +642,7 @@ pub fn write_outputs(
     plan: &Plan,
     shard: Option<Shard>,
     rows: &[Row],
+    interrupted: bool,
 ) -> std::io::Result<Vec<PathBuf>> {
     std::fs::create_dir_all(out)?;
     let mut files = Vec::new();
@@ -637,6 +657,7 @@ pub fn write_outputs(
         plan: plan.clone(),
         shard: shard.map(|s| format!("{}/{}", s.index, s.count)),
         samples: rows.iter().map(|r| r.sample).collect(),
+        interrupted,
     };
     put(
         "sweep.json",

@@ -124,6 +124,8 @@ pub struct ParticipantArgs {
     pub wait: WaitStrategy,
     /// CPU to pin to.
     pub cpu: Option<usize>,
+    /// Run under `SCHED_FIFO` at this priority with memory locked (`--realtime`).
+    pub realtime: Option<i32>,
 }
 
 impl ParticipantArgs {
@@ -133,6 +135,7 @@ impl ParticipantArgs {
         let mut prefix = None;
         let mut wait = WaitStrategy::default();
         let mut cpu = None;
+        let mut realtime = None;
         let mut it = args.iter();
         while let Some(a) = it.next() {
             let mut value = |name: &str| {
@@ -146,7 +149,16 @@ impl ParticipantArgs {
                 "--wait" => {
                     let w = value("--wait")?;
                     wait = WaitStrategy::parse(&w)
-                        .ok_or_else(|| format!("--wait {w}: allowed spin, adaptive, sleep"))?;
+                        .ok_or_else(|| format!("--wait {w}: allowed spin, adaptive, sleep, paced"))?;
+                }
+                "--realtime" => {
+                    let p = value("--realtime")?;
+                    realtime = Some(
+                        p.parse()
+                            .ok()
+                            .filter(|p| (1..=99).contains(p))
+                            .ok_or_else(|| format!("--realtime {p}: expected a priority 1-99"))?,
+                    );
                 }
                 "--cpu" => {
                     let c = value("--cpu")?;
@@ -157,7 +169,7 @@ impl ParticipantArgs {
                 }
                 other => {
                     return Err(format!(
-                        "unknown argument `{other}`; expected --params, --prefix, --wait, --cpu"
+                        "unknown argument `{other}`; expected --params, --prefix, --wait, --cpu, --realtime"
                     ))
                 }
             }
@@ -167,6 +179,7 @@ impl ParticipantArgs {
             prefix: prefix.ok_or("missing --prefix NAME")?,
             wait,
             cpu,
+            realtime,
         })
     }
 }
@@ -224,6 +237,28 @@ where
     participant_main_with(args, make, |_| {})
 }
 
+/// A panic in a participant prints one line naming the process, where and why, and no
+/// backtrace (set `TILTSIM_BACKTRACE=1` to have one): the orchestrator's own message, naming
+/// the participant and the step, follows and ends the run.
+fn quiet_panics(process: &'static str) {
+    if std::env::var_os("TILTSIM_BACKTRACE").is_some_and(|v| v == "1") {
+        return;
+    }
+    std::panic::set_hook(Box::new(move |info| {
+        let why = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "a panic".into());
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        eprintln!("{process}: panicked{at}: {why}");
+    }));
+}
+
 /// [`participant_main`] with a reply hook (see [`serve_with`]); for test participants.
 pub fn participant_main_with<S, P>(
     args: &[String],
@@ -235,12 +270,19 @@ where
     P: Participant,
 {
     let process = P::ROLE.process_name();
+    quiet_panics(process);
     let a = ParticipantArgs::parse(args).map_err(|what| ServeError::Arguments { process, what })?;
     let settings: S = serde_json::from_str(&a.params).map_err(|e| ServeError::Params {
         process,
         what: e.to_string(),
     })?;
     let model = make(settings).map_err(|what| ServeError::Model { process, what })?;
+    if a.wait == WaitStrategy::Paced {
+        crate::wait::tight_timer_slack();
+    }
+    if let Some(priority) = a.realtime {
+        crate::realtime::enter(priority).map_err(|what| ServeError::Arguments { process, what })?;
+    }
     if let Some(cpu) = a.cpu {
         pin_to_cpu(cpu);
     }

@@ -57,6 +57,8 @@ pub enum WaitArg {
     Adaptive,
     /// Nap between polls.
     Sleep,
+    /// Spin, yield for 100 µs, nap (the default with --pace).
+    Paced,
 }
 
 impl From<WaitArg> for WaitStrategy {
@@ -65,6 +67,7 @@ impl From<WaitArg> for WaitStrategy {
             WaitArg::Spin => WaitStrategy::Spin,
             WaitArg::Adaptive => WaitStrategy::Adaptive,
             WaitArg::Sleep => WaitStrategy::Sleep,
+            WaitArg::Paced => WaitStrategy::Paced,
         }
     }
 }

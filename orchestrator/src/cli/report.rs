@@ -97,6 +97,20 @@ fn print_timing(s: &Summary) {
             "  paced at {}x real time: achieved {:.3}x; {} of {} ticks overran (late by p50 {:.1} us, max {:.1} us)",
             p.factor, p.achieved_realtime_factor, p.overruns, p.ticks, p.lateness_us.p50, p.lateness_us.max
         );
+        let c = &p.causes;
+        if p.overruns > 0 {
+            println!(
+                "  late ticks by cause: {} carried over, {} orchestrator started late (p50 {:.1} us), {} participant compute (p50 {:.1} us), {} coordination (p50 {:.1} us){}",
+                c.carried_over,
+                c.orchestrator,
+                c.start_delay_us.p50,
+                c.compute,
+                c.compute_us.p50,
+                c.coordination,
+                c.coordination_us.p50,
+                if p.realtime { "; SCHED_FIFO" } else { "" }
+            );
+        }
     }
     if let Some(q) = &s.controller_solver {
         println!(

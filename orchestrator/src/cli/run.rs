@@ -44,6 +44,11 @@ pub struct RunArgs {
     /// tick that finished late.
     #[arg(long, value_name = "FACTOR")]
     pace: Option<f64>,
+    /// With --pace: run the orchestrator and every participant under the SCHED_FIFO
+    /// real-time policy with memory locked (root, CAP_SYS_NICE and CAP_IPC_LOCK, or the
+    /// matching ulimits).
+    #[arg(long)]
+    realtime: bool,
     /// Serve ROLE from another executable (ROLE=PATH; for test participants).
     #[arg(long, hide = true, value_name = "ROLE=PATH")]
     participant_exe: Vec<String>,
@@ -87,6 +92,16 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
                 "command line: --pace {p}: allowed a factor in (0, 1000]"
             )));
         }
+        // Between paced ticks the participants nap instead of keeping the cores busy.
+        if a.wait.is_none() && s.run.wait == cosim::wait::WaitStrategy::Adaptive {
+            s.run.wait = cosim::wait::WaitStrategy::Paced;
+        }
+    }
+    if a.realtime && a.pace.is_none() {
+        // Unpaced, real-time processes that poll would take both cores from everything else.
+        return Err(CliError::Invalid(
+            "command line: --realtime: allowed only with --pace".into(),
+        ));
     }
     Ok(s)
 }
@@ -122,6 +137,13 @@ pub fn exec(a: RunArgs) -> CliResult {
         }
     }
     let (interrupt, exe) = interrupt_and_exe()?;
+    let realtime = if a.realtime {
+        cosim::realtime::enter(cosim::realtime::PRIORITY)
+            .map_err(|e| CliError::Invalid(format!("command line: --realtime: {e}")))?;
+        Some(cosim::realtime::PRIORITY)
+    } else {
+        None
+    };
     let opts = RunOptions {
         out_dir: out.clone(),
         participant_exe: exe,
@@ -131,6 +153,7 @@ pub fn exec(a: RunArgs) -> CliResult {
         plots: true,
         trace: a.trace,
         pace: a.pace,
+        realtime,
     };
     let mut kept = Ok(());
     let summary = crate::analysis::run_then(&s, &a.scenario.display().to_string(), &opts, |sm| {

@@ -111,11 +111,20 @@ pub fn exec(a: SweepArgs) -> CliResult {
         progress: !a.quiet,
     };
     let started = std::time::Instant::now();
-    let rows = crate::sweep::run(&s, &plan, shard, &ex)
-        .ok_or_else(|| CliError::Interrupted("interrupted; nothing written".into()))?;
+    let swept = crate::sweep::run(&s, &plan, shard, &ex);
+    let rows = swept.rows;
     let wall = started.elapsed().as_secs_f64();
-    crate::sweep::write_outputs(&out, &s, &plan, shard, &rows)
+    crate::sweep::write_outputs(&out, &s, &plan, shard, &rows, swept.interrupted)
         .map_err(|e| CliError::Failed(format!("{}: {e}", out.display())))?;
+    if swept.interrupted {
+        // What finished stays on disk, marked as such in sweep.json.
+        return Err(CliError::Interrupted(format!(
+            "interrupted by {}: the {} samples that had finished are written to {} (sweep.json: \"interrupted\": true)",
+            crate::signals::describe(),
+            rows.len(),
+            out.display()
+        )));
+    }
     if !a.quiet {
         if let Ok(t) = std::fs::read_to_string(out.join("table.md")) {
             println!("{t}");

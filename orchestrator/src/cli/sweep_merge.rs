@@ -19,7 +19,7 @@ pub struct SweepMergeArgs {
 pub fn exec(a: SweepMergeArgs) -> CliResult {
     let (base, plan, rows) =
         crate::sweep::merge(&a.shards).map_err(|e| CliError::Invalid(e.to_string()))?;
-    crate::sweep::write_outputs(&a.out, &base, &plan, None, &rows)
+    crate::sweep::write_outputs(&a.out, &base, &plan, None, &rows, false)
         .map_err(|e| CliError::Failed(format!("{}: {e}", a.out.display())))?;
     println!(
         "merged {} samples from {} shards into {}",

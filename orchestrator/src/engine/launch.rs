@@ -152,12 +152,19 @@ pub(crate) fn start(
                     .iter()
                     .find(|(r, _)| *r == role)
                     .map_or_else(|| opts.participant_exe.clone(), |(_, p)| p.clone()),
-                args: vec![
+                args: [
                     "participant".into(),
                     role.name().into(),
                     "--params".into(),
                     params.into(),
-                ],
+                ]
+                .into_iter()
+                .chain(
+                    opts.realtime
+                        .into_iter()
+                        .flat_map(|p| ["--realtime".into(), p.to_string().into()]),
+                )
+                .collect(),
             };
             let plant = hub.spawn::<ToPlant, FromPlant>(
                 Role::Plant,

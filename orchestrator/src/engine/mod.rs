@@ -60,7 +60,9 @@ impl Observers {
             latency: Latency::default(),
             drive: DriveEvents::default(),
             trace,
-            pacing: opts.pace.map(|f| Pacing::new(f, s.run.dt_s)),
+            pacing: opts
+                .pace
+                .map(|f| Pacing::new(f, s.run.dt_s, opts.realtime.is_some())),
         }
     }
 

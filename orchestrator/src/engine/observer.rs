@@ -250,17 +250,31 @@ pub(crate) struct Pacing {
     start: Instant,
     overruns: u64,
     late_us: Timings,
+    previous_late: bool,
+    causes: [u64; 4],
+    start_delay: Timings,
+    compute: Timings,
+    coordination: Timings,
+    realtime: bool,
 }
 
 impl Pacing {
-    /// `factor` simulated seconds per wall second at base tick `dt` (s).
-    pub fn new(factor: f64, dt: f64) -> Self {
+    /// `factor` simulated seconds per wall second at base tick `dt` (s); `realtime`: the
+    /// processes run under SCHED_FIFO (reported).
+    pub fn new(factor: f64, dt: f64, realtime: bool) -> Self {
+        cosim::wait::tight_timer_slack();
         Pacing {
             factor,
             dt,
             start: Instant::now(),
             overruns: 0,
             late_us: Timings::default(),
+            previous_late: false,
+            causes: [0; 4],
+            start_delay: Timings::default(),
+            compute: Timings::default(),
+            coordination: Timings::default(),
+            realtime,
         }
     }
 
@@ -280,11 +294,22 @@ impl Pacing {
             } else {
                 0.0
             },
+            causes: super::summary::OverrunCauses {
+                carried_over: self.causes[0],
+                orchestrator: self.causes[1],
+                compute: self.causes[2],
+                coordination: self.causes[3],
+                start_delay_us: self.start_delay.percentiles(),
+                compute_us: self.compute.percentiles(),
+                coordination_us: self.coordination.percentiles(),
+            },
+            realtime: self.realtime,
         }
     }
 }
 
-/// Sleeps until the monotonic instant `target`, spinning the last 100 µs.
+/// Sleeps until the monotonic instant `target`, spinning the last 100 µs (the sleep's own
+/// wake-up latency; under SCHED_FIFO it is a few µs, otherwise up to the scheduler's slack).
 fn wait_until(target: Instant) {
     loop {
         let now = Instant::now();
@@ -310,10 +335,27 @@ impl Observer for Pacing {
     fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
         let deadline = self.deadline(t.k + 1);
         let now = Instant::now();
-        if now > deadline {
+        let late = now > deadline;
+        if late {
             self.overruns += 1;
             self.late_us.record((now - deadline).as_secs_f64() * 1e6);
+            let us = |d: Duration| d.as_secs_f64() * 1e6;
+            let start_delay = us(t.started.saturating_duration_since(self.deadline(t.k)));
+            let compute = t.critical_us;
+            let coordination = (us(now - t.started) - compute).max(0.0);
+            self.start_delay.record(start_delay);
+            self.compute.record(compute);
+            self.coordination.record(coordination);
+            let cause = if start_delay >= compute.max(coordination) {
+                usize::from(!self.previous_late)
+            } else if compute >= coordination {
+                2
+            } else {
+                3
+            };
+            self.causes[cause] += 1;
         }
+        self.previous_late = late;
         Ok(())
     }
 }

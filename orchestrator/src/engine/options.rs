@@ -26,6 +26,8 @@ pub struct RunOptions {
     pub trace: bool,
     /// Run the lock-step at this many simulated seconds per wall second.
     pub pace: Option<f64>,
+    /// Run every process under `SCHED_FIFO` at this priority with memory locked (paced runs).
+    pub realtime: Option<i32>,
 }
 
 impl RunOptions {
@@ -41,6 +43,7 @@ impl RunOptions {
             plots: true,
             trace: false,
             pace: None,
+            realtime: None,
         }
     }
 }

@@ -154,6 +154,33 @@ pub struct PacingReport {
     pub lateness_us: Percentiles,
     /// Simulated time over wall time of the whole loop.
     pub achieved_realtime_factor: f64,
+    /// Why the late ticks were late.
+    pub causes: OverrunCauses,
+    /// Whether the processes ran under SCHED_FIFO with memory locked (`--realtime`).
+    pub realtime: bool,
+}
+
+/// The late ticks of a paced run by cause. A tick's wall time from its scheduled start is its
+/// start delay (the orchestrator woke late, or the previous tick ran over) plus the
+/// participants' compute on the critical path plus the coordination (the exchanges'
+/// latency); each late tick is counted under the largest of them.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct OverrunCauses {
+    /// Late because the previous tick ended late.
+    pub carried_over: u64,
+    /// Late because the orchestrator started the tick late (woke late from its pacing sleep,
+    /// or spent long between ticks).
+    pub orchestrator: u64,
+    /// Late because the participants computed long.
+    pub compute: u64,
+    /// Late because the exchanges took long (a participant woke late, or was not scheduled).
+    pub coordination: u64,
+    /// Of the late ticks: start delay (µs).
+    pub start_delay_us: Percentiles,
+    /// Of the late ticks: critical-path compute (µs).
+    pub compute_us: Percentiles,
+    /// Of the late ticks: coordination (µs).
+    pub coordination_us: Percentiles,
 }
 
 /// Per-link wall-clock latency (µs) of one participant's exchanges.
