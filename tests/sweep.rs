@@ -173,3 +173,173 @@ fn a_grid_sweep_gives_each_value_the_metrics_of_a_plain_run_with_that_value() {
     assert_eq!(code, 2);
     assert!(err.contains("--shard"), "{err}");
 }
+
+/// Files of a sweep's output that must repeat byte for byte.
+const RESULT_FILES: [&str; 5] = [
+    "samples.csv",
+    "series.csv",
+    "table.md",
+    "table.csv",
+    "sweep.json",
+];
+
+#[test]
+fn a_killed_shard_started_again_skips_what_it_finished_and_merges_byte_identically() {
+    let sc = scenario_with(
+        "paper-lqg.toml",
+        "model = \"bldc\"",
+        "model = \"ideal\"",
+        "sweep-resume",
+    );
+    let sc = sc.to_str().unwrap().to_string();
+    let dir = temp_dir("sweep-resume");
+    let args = |out: &std::path::Path, shard: &str| -> Vec<String> {
+        [
+            "sweep",
+            &sc,
+            "--samples",
+            "24",
+            "--seed",
+            "5",
+            "--shard",
+            shard,
+            "--jobs",
+            "1",
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+    };
+    let call = |a: &[String]| {
+        let refs: Vec<&str> = a.iter().map(String::as_str).collect();
+        let (code, out, err) = run(&refs);
+        assert_eq!(code, 0, "{err}");
+        (out, err)
+    };
+    // The reference: both shards uninterrupted.
+    let clean = [dir.join("clean0"), dir.join("clean1")];
+    call(&args(&clean[0], "0/2"));
+    call(&args(&clean[1], "1/2"));
+    // Shard 0 is killed (SIGKILL, as a preempting scheduler does) once some samples are done.
+    let killed = dir.join("killed0");
+    let a = args(&killed, "0/2");
+    let refs: Vec<&str> = a.iter().map(String::as_str).collect();
+    let mut child = tiltsim_suite::spawn(&refs);
+    let done_dir = killed.join("done");
+    let count = || {
+        std::fs::read_dir(&done_dir)
+            .map(|d| {
+                d.flatten()
+                    .filter(|e| e.file_name().to_string_lossy().starts_with("sample-"))
+                    .count()
+            })
+            .unwrap_or(0)
+    };
+    let some = tiltsim_suite::wait_for(std::time::Duration::from_secs(120), || {
+        (count() >= 3).then_some(())
+    });
+    let _ = child.kill();
+    let _ = child.wait();
+    assert!(some.is_some(), "no sample finished within 120 s");
+    let before = count();
+    assert!(
+        before < 12,
+        "the shard finished before it could be killed ({before})"
+    );
+    // Started again with the same arguments: it says what it resumes and runs the rest.
+    let (_, err) = call(&a);
+    assert!(
+        err.contains(&format!("resuming: {before} of 12 samples")),
+        "{err}"
+    );
+    for f in RESULT_FILES {
+        assert!(
+            read(&clean[0].join(f)) == read(&killed.join(f)),
+            "{f} differs"
+        );
+    }
+    // Merged with the other shard: the same files as the uninterrupted shards give.
+    let merge = |a: &std::path::Path, out: &std::path::Path| {
+        let (code, _, err) = run(&[
+            "sweep-merge",
+            a.to_str().unwrap(),
+            clean[1].to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{err}");
+    };
+    merge(&clean[0], &dir.join("m-clean"));
+    merge(&killed, &dir.join("m-killed"));
+    for f in RESULT_FILES {
+        assert!(
+            read(&dir.join("m-clean").join(f)) == read(&dir.join("m-killed").join(f)),
+            "merged {f} differs"
+        );
+    }
+}
+
+#[test]
+fn a_planned_sample_run_alone_with_its_settings_repeats_the_sweeps_run() {
+    let sc = scenario_with(
+        "paper-lqg.toml",
+        "model = \"bldc\"",
+        "model = \"ideal\"",
+        "sweep-plan",
+    );
+    let sc = sc.to_str().unwrap();
+    let dir = temp_dir("sweep-plan");
+    let (code, out, err) = run(&["sweep", sc, "--samples", "3", "--seed", "9", "--plan-only"]);
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 3);
+    assert_eq!(lines[2]["sample"], 2);
+    // The sweep's own run of sample 2, kept.
+    let swept = dir.join("swept");
+    let (code, _, err) = run(&[
+        "sweep",
+        sc,
+        "--samples",
+        "3",
+        "--seed",
+        "9",
+        "--keep-runs",
+        "--quiet",
+        "--out",
+        swept.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    // `tiltsim run` with the plan's settings for sample 2.
+    let set = lines[2]["set"].as_object().unwrap();
+    // 15 scaled parameters and the nominal design vehicle.
+    assert!(
+        set.keys().any(|k| k == "vehicle.m_v")
+            && set.keys().any(|k| k.starts_with("design_vehicle."))
+    );
+    let mut args = vec![
+        "run".to_string(),
+        sc.to_string(),
+        "--transport".into(),
+        "in-process".into(),
+        "--out".into(),
+        dir.join("alone").display().to_string(),
+        "-q".into(),
+    ];
+    for (k, v) in set {
+        args.extend(["--set".into(), format!("{k}={v}")]);
+    }
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let (code, _, err) = run(&refs);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        read(&swept.join("runs/sample-0002/timeseries.csv"))
+            == read(&dir.join("alone/timeseries.csv")),
+        "the sample run alone differs from the sweep's"
+    );
+}

@@ -20,6 +20,8 @@
 //! by one function from the rows alone, and numbers are written in Rust's shortest
 //! round-trip form, so reading a shard back loses nothing.
 
+mod resume;
+
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -179,7 +181,7 @@ fn set_key(base: &Scenario, key: &str, v: f64) -> Result<Scenario, String> {
     // message): the error names the key as the user gave it.
     let mut s = serde_path_to_error::deserialize::<_, Scenario>(doc).map_err(|e| {
         format!(
-            "--grid key `{key}`: {} (at `{}`); keys are the scenario's settings as dotted paths, e.g. `vehicle.m_v`, `controller.rho`",
+            "key `{key}`: {} (at `{}`); keys are the scenario's settings as dotted paths, e.g. `vehicle.m_v`, `controller.rho`",
             e.inner().to_string().trim_end(),
             e.path()
         )
@@ -187,7 +189,7 @@ fn set_key(base: &Scenario, key: &str, v: f64) -> Result<Scenario, String> {
     let errors = s.validate();
     if !errors.is_empty() {
         let lines: Vec<String> = errors.iter().map(|e| e.to_string()).collect();
-        return Err(format!("--grid key `{key}` = {v}: {}", lines.join("; ")));
+        return Err(format!("key `{key}` = {v}: {}", lines.join("; ")));
     }
     s.name = base.name.clone();
     Ok(s)
@@ -230,6 +232,45 @@ pub fn sample(base: &Scenario, plan: &Plan, j: usize) -> Result<(Scenario, Vec<f
         }
         Plan::Grid { key, values } => Ok((with_key(base, key, values[j])?, vec![values[j]])),
     }
+}
+
+/// The settings sample `j` changes, as dotted keys and values: every leaf of its scenario
+/// that differs from `base` (for a Monte Carlo sample the 15 scaled parameters and the
+/// nominal design vehicle). `tiltsim run SCENARIO --set KEY=VALUE ...` with them runs exactly
+/// that sample.
+pub fn overrides(
+    base: &Scenario,
+    plan: &Plan,
+    j: usize,
+) -> Result<Vec<(String, toml::Value)>, SweepError> {
+    let (s, _) = sample(base, plan, j)?;
+    let to_value =
+        |s: &Scenario| toml::Value::try_from(s).map_err(|e| SweepError::Argument(e.to_string()));
+    let (a, b) = (to_value(base)?, to_value(&s)?);
+    fn diff(
+        path: &str,
+        a: Option<&toml::Value>,
+        b: &toml::Value,
+        out: &mut Vec<(String, toml::Value)>,
+    ) {
+        match b {
+            toml::Value::Table(t) => {
+                for (k, v) in t {
+                    let p = if path.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{path}.{k}")
+                    };
+                    diff(&p, a.and_then(|a| a.get(k)), v, out);
+                }
+            }
+            _ if a != Some(b) => out.push((path.to_string(), b.clone())),
+            _ => {}
+        }
+    }
+    let mut out = Vec::new();
+    diff("", Some(&a), &b, &mut out);
+    Ok(out)
 }
 
 /// How one sample ended (written `completed` or `failed: cause`).
@@ -311,6 +352,65 @@ impl Shard {
         }
         Ok(Shard { index, count })
     }
+    /// The shard a batch scheduler's array task is, from its environment (`var` reads a
+    /// variable): Slurm (`SLURM_ARRAY_TASK_ID` less `SLURM_ARRAY_TASK_MIN`, of
+    /// `SLURM_ARRAY_TASK_COUNT`), AWS Batch (`AWS_BATCH_JOB_ARRAY_INDEX` of
+    /// `AWS_BATCH_JOB_ARRAY_SIZE`), or a Kubernetes indexed job (`JOB_COMPLETION_INDEX`, of
+    /// `shards`, which the job does not publish).
+    pub fn auto(
+        shards: Option<usize>,
+        var: impl Fn(&str) -> Option<String>,
+    ) -> Result<Shard, SweepError> {
+        let num = |name: &str| -> Result<Option<usize>, SweepError> {
+            var(name)
+                .map(|v| {
+                    v.trim().parse::<usize>().map_err(|_| {
+                        SweepError::Argument(format!(
+                            "--shard auto: {name}={v:?} is not a whole number"
+                        ))
+                    })
+                })
+                .transpose()
+        };
+        let check = |index: usize, count: usize, from: &str| {
+            if count == 0 || index >= count {
+                Err(SweepError::Argument(format!(
+                    "--shard auto: {from} gives index {index} of {count}; need 0 <= index < count"
+                )))
+            } else {
+                Ok(Shard { index, count })
+            }
+        };
+        if let (Some(id), Some(count)) =
+            (num("SLURM_ARRAY_TASK_ID")?, num("SLURM_ARRAY_TASK_COUNT")?)
+        {
+            let min = num("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
+            let index = id.checked_sub(min).ok_or_else(|| {
+                SweepError::Argument(format!(
+                    "--shard auto: SLURM_ARRAY_TASK_ID {id} is below SLURM_ARRAY_TASK_MIN {min}"
+                ))
+            })?;
+            return check(index, count, "Slurm");
+        }
+        if let (Some(index), Some(count)) = (
+            num("AWS_BATCH_JOB_ARRAY_INDEX")?,
+            num("AWS_BATCH_JOB_ARRAY_SIZE")?,
+        ) {
+            return check(index, count, "AWS Batch");
+        }
+        if let Some(index) = num("JOB_COMPLETION_INDEX")? {
+            let count = shards.ok_or_else(|| {
+                SweepError::Argument(
+                    "--shard auto: a Kubernetes indexed job (JOB_COMPLETION_INDEX) needs --shards N, its completions".into(),
+                )
+            })?;
+            return check(index, count, "Kubernetes (JOB_COMPLETION_INDEX, --shards)");
+        }
+        Err(SweepError::Argument(
+            "--shard auto: no array-task index found; set by Slurm (SLURM_ARRAY_TASK_ID and SLURM_ARRAY_TASK_COUNT), AWS Batch (AWS_BATCH_JOB_ARRAY_INDEX and AWS_BATCH_JOB_ARRAY_SIZE) or a Kubernetes indexed job (JOB_COMPLETION_INDEX, with --shards N); or give --shard I/N".into(),
+        ))
+    }
+
     /// Samples of this shard out of `n`.
     pub fn samples(self, n: usize) -> Vec<usize> {
         (self.index..n).step_by(self.count).collect()
@@ -397,9 +497,26 @@ pub struct Swept {
 /// Runs the samples of `shard` (all when `None`) in parallel and returns the rows of those
 /// that finished, in sample order.
 pub fn run(base: &Scenario, plan: &Plan, shard: Option<Shard>, ex: &Exec) -> Swept {
-    let todo = shard
+    let mine = shard
         .unwrap_or(Shard { index: 0, count: 1 })
         .samples(plan.len());
+    // Samples finished by an earlier, interrupted invocation with the same arguments.
+    let done = resume::Done::open(&ex.out, base, plan)
+        .inspect_err(|e| tracing::warn!("{}: not resumable: {e}", ex.out.display()))
+        .ok();
+    let kept: Vec<Row> = mine.iter().filter_map(|j| done.as_ref()?.get(*j)).collect();
+    if !kept.is_empty() {
+        eprintln!(
+            "resuming: {} of {} samples already finished in {}",
+            kept.len(),
+            mine.len(),
+            ex.out.join("done").display()
+        );
+    }
+    let todo: Vec<usize> = mine
+        .into_iter()
+        .filter(|j| !kept.iter().any(|r| r.sample == *j))
+        .collect();
     let mut base = base.clone();
     // Parallel process runs must not all pin themselves to the same two CPUs.
     base.run.pin_cpus = false;
@@ -432,6 +549,11 @@ pub fn run(base: &Scenario, plan: &Plan, shard: Option<Shard>, ex: &Exec) -> Swe
                 if !row.status.completed() {
                     bar.set_message(format!("(sample {} failed)", row.sample));
                 }
+                if let Some(d) = &done {
+                    if let Err(e) = d.put(&row) {
+                        tracing::warn!("sample {} not kept for resuming: {e}", row.sample);
+                    }
+                }
                 if let Ok(mut r) = rows.lock() {
                     r[i] = Some(row);
                 }
@@ -441,13 +563,16 @@ pub fn run(base: &Scenario, plan: &Plan, shard: Option<Shard>, ex: &Exec) -> Swe
     });
     bar.finish_and_clear();
     let _ = std::fs::remove_dir(ex.out.join("runs"));
+    let mut all: Vec<Row> = rows
+        .into_inner()
+        .unwrap_or_default()
+        .into_iter()
+        .flatten()
+        .chain(kept)
+        .collect();
+    all.sort_by_key(|r| r.sample);
     Swept {
-        rows: rows
-            .into_inner()
-            .unwrap_or_default()
-            .into_iter()
-            .flatten()
-            .collect(),
+        rows: all,
         interrupted: ex.interrupt.load(Ordering::Relaxed),
     }
 }
@@ -982,6 +1107,51 @@ mod tests {
     }
 
     #[test]
+    fn the_shard_of_an_array_task_is_read_from_its_scheduler() {
+        let env = |vars: &'static [(&'static str, &'static str)]| {
+            move |k: &str| {
+                vars.iter()
+                    .find(|(n, _)| *n == k)
+                    .map(|(_, v)| v.to_string())
+            }
+        };
+        let slurm = env(&[
+            ("SLURM_ARRAY_TASK_ID", "5"),
+            ("SLURM_ARRAY_TASK_MIN", "1"),
+            ("SLURM_ARRAY_TASK_COUNT", "8"),
+        ]);
+        assert_eq!(
+            Shard::auto(None, slurm).unwrap(),
+            Shard { index: 4, count: 8 }
+        );
+        let aws = env(&[
+            ("AWS_BATCH_JOB_ARRAY_INDEX", "2"),
+            ("AWS_BATCH_JOB_ARRAY_SIZE", "3"),
+        ]);
+        assert_eq!(
+            Shard::auto(None, aws).unwrap(),
+            Shard { index: 2, count: 3 }
+        );
+        let k8s = env(&[("JOB_COMPLETION_INDEX", "1")]);
+        assert_eq!(
+            Shard::auto(Some(4), k8s).unwrap(),
+            Shard { index: 1, count: 4 }
+        );
+        let e = Shard::auto(None, k8s).unwrap_err().to_string();
+        assert!(e.contains("--shards N"), "{e}");
+        let e = Shard::auto(None, env(&[])).unwrap_err().to_string();
+        assert!(
+            e.contains("SLURM_ARRAY_TASK_ID") && e.contains("JOB_COMPLETION_INDEX"),
+            "{e}"
+        );
+        let bad = env(&[
+            ("AWS_BATCH_JOB_ARRAY_INDEX", "3"),
+            ("AWS_BATCH_JOB_ARRAY_SIZE", "3"),
+        ]);
+        assert!(Shard::auto(None, bad).is_err());
+    }
+
+    #[test]
     fn monte_carlo_factors_are_within_the_spread_and_fixed_per_sample() {
         let base = Scenario::default();
         let plan = Plan::MonteCarlo {
@@ -1028,7 +1198,7 @@ mod tests {
         // document.
         let e = with_key(&base, "foo.bar", 1.0).unwrap_err().to_string();
         assert!(
-            e.contains("--grid key `foo.bar`") && e.contains("unknown field `foo`"),
+            e.contains("key `foo.bar`") && e.contains("unknown field `foo`"),
             "{e}"
         );
         assert!(!e.contains("line "), "{e}");

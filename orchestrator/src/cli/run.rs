@@ -33,6 +33,10 @@ pub struct RunArgs {
     /// Simulated duration in s, overriding run.duration_s.
     #[arg(long)]
     duration: Option<f64>,
+    /// Set a numeric setting, KEY=VALUE with KEY a dotted path (`vehicle.m_v=21000`);
+    /// repeatable. The lines of `tiltsim sweep --plan-only` give a sample's settings.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
     /// iceoryx2 file prefix for this run (default: unique per run).
     #[arg(long, hide = true)]
     ipc_prefix: Option<String>,
@@ -77,6 +81,13 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
     }
     if let Some(d) = a.duration {
         s.run.duration_s = Some(d);
+    }
+    for kv in &a.set {
+        let bad = || CliError::Invalid(format!("command line: --set {kv}: expected KEY=NUMBER"));
+        let (k, v) = kv.split_once('=').ok_or_else(bad)?;
+        let v: f64 = v.trim().parse().map_err(|_| bad())?;
+        s = crate::sweep::with_key(&s, k.trim(), v)
+            .map_err(|e| CliError::Invalid(format!("command line: --set {kv}: {e}")))?;
     }
     let errors = s.validate();
     if !errors.is_empty() {

@@ -27,8 +27,17 @@ pub struct SweepArgs {
     #[arg(long)]
     grid: Option<String>,
     /// Run only samples j with j mod N = I, for a batch scheduler; merge with sweep-merge.
-    #[arg(long, value_name = "I/N")]
+    /// `auto`: I and N from the array task's environment (Slurm, AWS Batch, or a Kubernetes
+    /// indexed job with --shards N).
+    #[arg(long, value_name = "I/N|auto")]
     shard: Option<String>,
+    /// With --shard auto in a Kubernetes indexed job: the number of completions.
+    #[arg(long, value_name = "N")]
+    shards: Option<usize>,
+    /// Print the plan as JSON lines (sample, seed, the settings it changes) and run nothing;
+    /// `tiltsim run SCENARIO --set KEY=VALUE ...` with a line's settings runs that sample.
+    #[arg(long)]
+    plan_only: bool,
     /// Parallel runs [default: the number of CPUs].
     #[arg(long)]
     jobs: Option<usize>,
@@ -79,6 +88,30 @@ fn plan(a: &SweepArgs, s: &Scenario) -> Result<Plan, CliError> {
     Ok(plan)
 }
 
+/// `--plan-only`: one JSON line per sample of the shard.
+fn print_plan(s: &Scenario, plan: &Plan, shard: Option<Shard>) -> CliResult {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    for j in shard
+        .unwrap_or(Shard { index: 0, count: 1 })
+        .samples(plan.len())
+    {
+        let set: serde_json::Map<String, serde_json::Value> = crate::sweep::overrides(s, plan, j)
+            .map_err(|e| CliError::Invalid(e.to_string()))?
+            .into_iter()
+            .map(|(k, v)| (k, serde_json::to_value(v).unwrap_or_default()))
+            .collect();
+        let line = serde_json::json!({ "sample": j, "seed": s.run.seed, "set": set });
+        match writeln!(out, "{line}") {
+            Ok(()) => {}
+            // The reader has what it wanted (`| head`).
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
+            Err(e) => return Err(CliError::Failed(format!("standard output: {e}"))),
+        }
+    }
+    Ok(())
+}
+
 /// Runs the command.
 pub fn exec(a: SweepArgs) -> CliResult {
     let mut s = load(&a.scenario)?;
@@ -86,12 +119,16 @@ pub fn exec(a: SweepArgs) -> CliResult {
     // same bytes either way.
     s.run.transport = a.transport.map_or(Transport::InProcess, Into::into);
     let plan = plan(&a, &s)?;
-    let shard = a
-        .shard
-        .as_deref()
-        .map(Shard::parse)
-        .transpose()
-        .map_err(|e| CliError::Invalid(e.to_string()))?;
+    let shard = match a.shard.as_deref() {
+        None => None,
+        Some("auto") => Some(Shard::auto(a.shards, |v| std::env::var(v).ok())),
+        Some(s) => Some(Shard::parse(s)),
+    }
+    .transpose()
+    .map_err(|e| CliError::Invalid(e.to_string()))?;
+    if a.plan_only {
+        return print_plan(&s, &plan, shard);
+    }
     let (interrupt, exe) = interrupt_and_exe()?;
     let out = a
         .out
