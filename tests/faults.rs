@@ -396,3 +396,69 @@ fn realtime_is_refused_unpaced_and_either_granted_or_refused_by_name() {
     }
     assert!(leftovers(&pfx).is_empty());
 }
+
+/// `summary.json` without the fields it declares as measured on the wall clock.
+fn deterministic_part(dir: &Path) -> serde_json::Value {
+    let mut s = summary(dir);
+    let fields: Vec<String> = s["wall_clock_fields"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap().to_string())
+        .collect();
+    for f in &fields {
+        let parts: Vec<&str> = f.split('.').collect();
+        match parts.as_slice() {
+            ["participants", rest @ ..] => {
+                for p in s["participants"].as_array_mut().unwrap() {
+                    let (last, parents) = rest.split_last().unwrap();
+                    let mut node = &mut *p;
+                    for k in parents {
+                        node = &mut node[*k];
+                    }
+                    node.as_object_mut().unwrap().remove(*last);
+                }
+            }
+            [key] => {
+                s.as_object_mut().unwrap().remove(*key);
+            }
+            _ => panic!("unexpected field path {f}"),
+        }
+    }
+    s
+}
+
+#[test]
+fn the_summary_repeats_but_for_its_declared_wall_clock_fields_which_perf_json_holds() {
+    let sc = scenario("paper-lqg.toml");
+    let dirs = [temp_dir("perf-a"), temp_dir("perf-b")];
+    for (i, d) in dirs.iter().enumerate() {
+        let pfx = prefix(&format!("perf-{i}"));
+        let (code, err) = go(
+            &sc,
+            d,
+            "ipc",
+            &pfx,
+            &["--duration", "1", "--progress", "machine"],
+        );
+        assert_eq!(code, 0, "{err}");
+        // One JSON line per percent, in order, the last at the last step.
+        let lines: Vec<serde_json::Value> = err
+            .lines()
+            .filter(|l| l.starts_with("{\"progress\""))
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        let percents: Vec<u64> = lines
+            .iter()
+            .map(|l| l["progress"].as_u64().unwrap())
+            .collect();
+        assert_eq!(percents, (1..=100).collect::<Vec<_>>());
+        assert_eq!(lines[99]["step"], 1000);
+        assert_eq!(lines[99]["t_s"], 1.0);
+        let perf: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join("perf.json")).unwrap()).unwrap();
+        assert_eq!(perf["wall_time_s"], summary(d)["wall_time_s"]);
+        assert_eq!(perf["participants"]["actuator"]["compute_us"]["n"], 1000);
+    }
+    assert_eq!(deterministic_part(&dirs[0]), deterministic_part(&dirs[1]));
+}

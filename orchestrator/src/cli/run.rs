@@ -56,9 +56,20 @@ pub struct RunArgs {
     /// Serve ROLE from another executable (ROLE=PATH; for test participants).
     #[arg(long, hide = true, value_name = "ROLE=PATH")]
     participant_exe: Vec<String>,
+    /// `machine`: a JSON line on standard error at every percent of the run (progress, step,
+    /// steps, simulated and wall seconds), for wrappers and notebooks.
+    #[arg(long, value_enum, value_name = "machine")]
+    progress: Option<ProgressArg>,
     /// Print nothing but errors.
     #[arg(short, long)]
     quiet: bool,
+}
+
+/// `--progress`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+enum ProgressArg {
+    /// JSON lines on standard error.
+    Machine,
 }
 
 /// The scenario with the command line's overrides, validated again.
@@ -165,10 +176,12 @@ pub fn exec(a: RunArgs) -> CliResult {
         trace: a.trace,
         pace: a.pace,
         realtime,
+        machine_progress: a.progress.is_some(),
     };
     let mut kept = Ok(());
     let summary = crate::analysis::run_then(&s, &a.scenario.display().to_string(), &opts, |sm| {
-        kept = write_json(&out.join("summary.json"), sm);
+        kept = write_json(&out.join("summary.json"), sm)
+            .and_then(|_| write_json(&out.join("perf.json"), &sm.perf()));
     })
     .map_err(|e| CliError::Failed(e.to_string()))?;
     if let Err(e) = kept {

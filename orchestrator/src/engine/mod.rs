@@ -49,6 +49,7 @@ struct Observers {
     drive: DriveEvents,
     trace: Option<Trace>,
     pacing: Option<Pacing>,
+    progress: Option<observer::Progress>,
 }
 
 impl Observers {
@@ -60,6 +61,9 @@ impl Observers {
             latency: Latency::default(),
             drive: DriveEvents::default(),
             trace,
+            progress: opts
+                .machine_progress
+                .then(|| observer::Progress::new(s.steps(), s.run.dt_s)),
             pacing: opts
                 .pace
                 .map(|f| Pacing::new(f, s.run.dt_s, opts.realtime.is_some())),
@@ -85,6 +89,9 @@ impl Observers {
         self.drive.after_tick(t, ev)?;
         if let Some(tr) = &mut self.trace {
             tr.after_tick(t, ev)?;
+        }
+        if let Some(p) = &mut self.progress {
+            p.after_tick(t, ev)?;
         }
         self.recorder.after_tick(t, ev)
     }
@@ -368,5 +375,6 @@ fn report(
         analysis_skipped: None,
         ipc_prefix: prefix.to_string(),
         leftover_ipc_files: e.leftover,
+        wall_clock_fields: summary::WALL_CLOCK_FIELDS,
     }
 }

@@ -360,6 +360,46 @@ impl Observer for Pacing {
     }
 }
 
+/// `--progress machine`: one JSON line on standard error at every whole percent of the run's
+/// ticks: `{"progress":P,"step":K,"steps":N,"t_s":T,"wall_s":W}` (wall seconds since the
+/// loop began). For wrappers and notebooks; never in a result file.
+pub(crate) struct Progress {
+    steps: u64,
+    dt: f64,
+    next: u64,
+    started: Instant,
+}
+
+impl Progress {
+    /// Progress over `steps` ticks of `dt` (s).
+    pub fn new(steps: u64, dt: f64) -> Self {
+        Progress {
+            steps,
+            dt,
+            next: 1,
+            started: Instant::now(),
+        }
+    }
+}
+
+impl Observer for Progress {
+    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
+        let done = t.k + 1;
+        // The percent reached with this tick (each percent once, 100 at the last tick).
+        let percent = done * 100 / self.steps.max(1);
+        if percent >= self.next {
+            self.next = percent + 1;
+            eprintln!(
+                "{{\"progress\":{percent},\"step\":{done},\"steps\":{},\"t_s\":{},\"wall_s\":{:.3}}}",
+                self.steps,
+                crate::record::fmt_f64(done as f64 * self.dt),
+                self.started.elapsed().as_secs_f64()
+            );
+        }
+        Ok(())
+    }
+}
+
 /// Logs the drive's protections as they begin: an over-current or over-voltage trip and the
 /// braking chopper switching on (value: the phase-current peak, A, or the link voltage, V).
 #[derive(Default)]

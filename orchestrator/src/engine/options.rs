@@ -28,6 +28,8 @@ pub struct RunOptions {
     pub pace: Option<f64>,
     /// Run every process under `SCHED_FIFO` at this priority with memory locked (paced runs).
     pub realtime: Option<i32>,
+    /// Print a JSON line to standard error at every percent of the run (`--progress machine`).
+    pub machine_progress: bool,
 }
 
 impl RunOptions {
@@ -44,6 +46,7 @@ impl RunOptions {
             trace: false,
             pace: None,
             realtime: None,
+            machine_progress: false,
         }
     }
 }

@@ -115,6 +115,61 @@ pub struct Summary {
     pub ipc_prefix: String,
     /// Files of the run still present after clean-up (must be empty).
     pub leftover_ipc_files: Vec<String>,
+    /// The fields above measured on the wall clock, which differ between repeats of the same
+    /// run; everything else repeats exactly. The same values are in `perf.json`.
+    pub wall_clock_fields: &'static [&'static str],
+}
+
+/// The fields of `summary.json` that are measured on the wall clock (or name a process or a
+/// run's files), as dotted paths; `participants.*` applies to every participant.
+pub const WALL_CLOCK_FIELDS: &[&str] = &[
+    "participants.pid",
+    "participants.exit.cpu_s",
+    "participants.compute_us",
+    "participants.starved_waits",
+    "wall_time_s",
+    "realtime_factor",
+    "timing",
+    "link_latency",
+    "pacing",
+    "ipc_prefix",
+];
+
+impl Summary {
+    /// The wall-clock part of the summary, for `perf.json`: the fields of
+    /// [`WALL_CLOCK_FIELDS`], participants by role.
+    pub fn perf(&self) -> serde_json::Value {
+        let participants: serde_json::Map<String, serde_json::Value> = self
+            .participants
+            .iter()
+            .map(|p| {
+                (
+                    p.role.name().to_string(),
+                    serde_json::json!({
+                        "process": p.process,
+                        "pid": p.pid,
+                        "cpu_s": p.exit.cpu_s,
+                        "compute_us": p.compute_us,
+                        "starved_waits": p.starved_waits,
+                    }),
+                )
+            })
+            .collect();
+        serde_json::json!({
+            "scenario": self.scenario,
+            "transport": self.transport,
+            "master_algorithm": self.master_algorithm,
+            "wait_strategy": self.wait_strategy,
+            "steps_completed": self.steps_completed,
+            "wall_time_s": self.wall_time_s,
+            "realtime_factor": self.realtime_factor,
+            "timing": self.timing,
+            "link_latency": self.link_latency,
+            "pacing": self.pacing,
+            "participants": participants,
+            "ipc_prefix": self.ipc_prefix,
+        })
+    }
 }
 
 /// The controller's QP solves over the run.
