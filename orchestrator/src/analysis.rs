@@ -24,7 +24,17 @@ pub fn run_then(
     opts: &RunOptions,
     keep: impl FnOnce(&Summary),
 ) -> Result<Summary, RunError> {
-    let mut summary = crate::engine::run(s, scenario_file, opts)?;
+    let (mut summary, recording) = crate::engine::run_recorded(s, scenario_file, opts)?;
+    // The recording closes with the summary as the caller keeps it (analysed or not).
+    let keep = |sm: &Summary| {
+        keep(sm);
+        if let Some(r) = recording {
+            match r.finish(sm) {
+                Ok(p) => tracing::info!("recorded {}", p.display()),
+                Err(e) => tracing::warn!("recording not completed: {e}"),
+            }
+        }
+    };
     // An interrupted run ends at once: an hour's series takes tens of seconds to analyse.
     // `tiltsim plot DIR` draws it later; the summary says the analysis was skipped.
     if opts.interrupt.load(std::sync::atomic::Ordering::Relaxed) {

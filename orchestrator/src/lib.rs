@@ -16,6 +16,7 @@ pub mod linearize;
 pub mod links;
 pub mod plot;
 pub mod record;
+pub mod replay;
 pub mod roles;
 pub mod scenario;
 pub mod signals;

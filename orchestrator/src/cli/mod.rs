@@ -12,6 +12,7 @@ mod error;
 mod linearize;
 mod participant;
 mod plot;
+mod replay;
 mod report;
 mod run;
 mod sweep;
@@ -62,6 +63,9 @@ enum Command {
     /// Remove the shared-memory files of runs whose orchestrator was killed (never a live
     /// run's; every IPC run does this when it starts).
     Clean(clean::CleanArgs),
+    /// Run one participant of a run recorded with `run --record` alone against the inputs it
+    /// received, and report where its outputs differ from the recording.
+    Replay(replay::ReplayArgs),
     /// Serve one participant over iceoryx2 (how the orchestrator starts its processes).
     #[command(hide = true)]
     Participant(participant::ParticipantArgs),
@@ -103,6 +107,7 @@ pub fn main() -> i32 {
         Command::Bench(a) => bench::exec(a),
         Command::Linearize(a) => linearize::exec(a),
         Command::Clean(a) => clean::exec(a),
+        Command::Replay(a) => replay::exec(a),
         Command::Participant(a) => participant::exec(a),
     };
     match result {

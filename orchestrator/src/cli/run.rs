@@ -60,6 +60,10 @@ pub struct RunArgs {
     /// steps, simulated and wall seconds), for wrappers and notebooks.
     #[arg(long, value_enum, value_name = "machine")]
     progress: Option<ProgressArg>,
+    /// Record the run as DIR/run.mcap (every participant's inputs and outputs, every link as
+    /// sent and received, the events and the summary; opens in Foxglove, Rerun, `mcap`).
+    #[arg(long)]
+    record: bool,
     /// Print nothing but errors.
     #[arg(short, long)]
     quiet: bool,
@@ -177,6 +181,7 @@ pub fn exec(a: RunArgs) -> CliResult {
         pace: a.pace,
         realtime,
         machine_progress: a.progress.is_some(),
+        record: a.record,
     };
     let mut kept = Ok(());
     let summary = crate::analysis::run_then(&s, &a.scenario.display().to_string(), &opts, |sm| {

@@ -18,6 +18,10 @@ use crate::scenario::Master;
 pub(crate) struct TickIo {
     /// What each receiver got, in [`LinkId`] order.
     pub rx: [f64; 4],
+    /// What each sender sent, in [`LinkId`] order.
+    pub tx: [f64; 4],
+    /// The controller's request (sent when it was due).
+    pub to_controller: ToController,
 }
 
 /// A master algorithm.
@@ -42,6 +46,8 @@ pub(crate) fn of(m: Master) -> &'static dyn Algorithm {
 fn plant_outputs(team: &mut Team, k: u64, io: &mut TickIo) -> ToController {
     let p = team.held.p;
     let meas = team.carry(LinkId::Measurement, k, p.theta_v_meas);
+    io.tx[LinkId::Measurement as usize] = p.theta_v_meas;
+    io.tx[LinkId::BarTwist as usize] = p.psi;
     io.rx[LinkId::Measurement as usize] = meas;
     io.rx[LinkId::BarTwist as usize] = team.carry(LinkId::BarTwist, k, p.psi);
     ToController {
@@ -60,9 +66,11 @@ impl Algorithm for GaussSeidel {
         let mut io = TickIo::default();
         let step = Header::new(k, Kind::Step);
         let to_c = plant_outputs(team, k, &mut io);
+        io.to_controller = to_c;
         if controller_due {
             team.held.c = team.ask(controller, to_c)?;
         }
+        io.tx[LinkId::ActuatorCommand as usize] = team.held.c.delta_a_cmd;
         let cmd = team.carry(LinkId::ActuatorCommand, k, team.held.c.delta_a_cmd);
         io.rx[LinkId::ActuatorCommand as usize] = cmd;
         let to_a = ToActuator {
@@ -71,6 +79,7 @@ impl Algorithm for GaussSeidel {
             psi: io.rx[LinkId::BarTwist as usize],
         };
         team.held.a = team.ask(actuator, to_a)?;
+        io.tx[LinkId::BarAngle as usize] = team.held.a.delta_a;
         let bar = team.carry(LinkId::BarAngle, k, team.held.a.delta_a);
         io.rx[LinkId::BarAngle as usize] = bar;
         team.held.p = team.ask(
@@ -96,6 +105,9 @@ impl Algorithm for Jacobi {
         let mut io = TickIo::default();
         let step = Header::new(k, Kind::Step);
         let to_c = plant_outputs(team, k, &mut io);
+        io.to_controller = to_c;
+        io.tx[LinkId::ActuatorCommand as usize] = team.held.c.delta_a_cmd;
+        io.tx[LinkId::BarAngle as usize] = team.held.a.delta_a;
         let cmd = team.carry(LinkId::ActuatorCommand, k, team.held.c.delta_a_cmd);
         let bar = team.carry(LinkId::BarAngle, k, team.held.a.delta_a);
         io.rx[LinkId::ActuatorCommand as usize] = cmd;

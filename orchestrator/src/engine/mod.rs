@@ -15,6 +15,7 @@
 pub(crate) mod algorithm;
 pub(crate) mod launch;
 pub(crate) mod manipulator;
+pub mod mcap;
 pub(crate) mod observer;
 mod options;
 pub mod summary;
@@ -50,10 +51,16 @@ struct Observers {
     trace: Option<Trace>,
     pacing: Option<Pacing>,
     progress: Option<observer::Progress>,
+    mcap: Option<mcap::McapRecorder>,
 }
 
 impl Observers {
-    fn new(s: &Scenario, opts: &RunOptions, recorder: Recorder, trace: Option<Trace>) -> Self {
+    fn new(s: &Scenario, opts: &RunOptions, out: Outputs) -> Self {
+        let Outputs {
+            recorder,
+            trace,
+            mcap,
+        } = out;
         Observers {
             recorder: RowRecorder(recorder),
             timing: TickTiming::default(),
@@ -61,6 +68,7 @@ impl Observers {
             latency: Latency::default(),
             drive: DriveEvents::default(),
             trace,
+            mcap,
             progress: opts
                 .machine_progress
                 .then(|| observer::Progress::new(s.steps(), s.run.dt_s)),
@@ -92,6 +100,9 @@ impl Observers {
         }
         if let Some(p) = &mut self.progress {
             p.after_tick(t, ev)?;
+        }
+        if let Some(m) = &mut self.mcap {
+            m.after_tick(t, ev)?;
         }
         self.recorder.after_tick(t, ev)
     }
@@ -134,6 +145,8 @@ fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Res
             k,
             held: &h,
             rx: &io.rx,
+            tx: &io.tx,
+            to_controller: &io.to_controller,
             controller_due: due,
             critical_us: algorithm.critical_path(compute.clone().into_array()) as f64 * 1e-3,
             compute_ns: compute,
@@ -147,9 +160,30 @@ fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Res
     Ok(())
 }
 
+/// The files a run writes as it goes.
+struct Outputs {
+    recorder: Recorder,
+    trace: Option<Trace>,
+    mcap: Option<mcap::McapRecorder>,
+}
+
+/// A run's `run.mcap`, still open for the events and the analysed summary.
+pub struct Recording {
+    rec: mcap::McapRecorder,
+    events: EventLog,
+}
+
+impl Recording {
+    /// Writes the events and `summary`, and closes the file; returns its path.
+    pub fn finish(self, summary: &Summary) -> std::io::Result<std::path::PathBuf> {
+        self.rec.finish(&self.events, summary)
+    }
+}
+
 /// The files a run writes as it goes: the output directory, `timeseries.csv` (header first),
-/// `trace.csv` with `--trace` (header first) and `scenario.toml` (the scenario as run).
-fn create_outputs(s: &Scenario, opts: &RunOptions) -> Result<(Recorder, Option<Trace>), RunError> {
+/// `trace.csv` with `--trace` (header first), `run.mcap` with `--record`, and
+/// `scenario.toml` (the scenario as run).
+fn create_outputs(s: &Scenario, opts: &RunOptions) -> Result<Outputs, RunError> {
     let dir = &opts.out_dir;
     std::fs::create_dir_all(dir).map_err(RunError::io(dir.clone()))?;
     let csv = dir.join("timeseries.csv");
@@ -160,10 +194,20 @@ fn create_outputs(s: &Scenario, opts: &RunOptions) -> Result<(Recorder, Option<T
     } else {
         None
     };
+    let mcap = if opts.record {
+        let path = dir.join("run.mcap");
+        Some(mcap::McapRecorder::create(&path, s.run.dt_s).map_err(RunError::io(path))?)
+    } else {
+        None
+    };
     let resolved = dir.join("scenario.toml");
     crate::files::write_atomic(&resolved, toml::to_string(s).unwrap_or_default())
         .map_err(RunError::io(resolved))?;
-    Ok((rec, trace))
+    Ok(Outputs {
+        recorder: rec,
+        trace,
+        mcap,
+    })
 }
 
 /// What a finished loop leaves for the report.
@@ -240,7 +284,23 @@ impl Drop for RunFilesGuard {
 /// `results`, `comfort` and `flags` are left for the caller's analysis
 /// (`crate::analysis::analyse`).
 pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summary, RunError> {
-    let (recorder, trace) = create_outputs(s, opts)?;
+    let (summary, recording) = run_recorded(s, scenario_file, opts)?;
+    if let Some(r) = recording {
+        if let Err(e) = r.finish(&summary) {
+            tracing::warn!("recording not completed: {e}");
+        }
+    }
+    Ok(summary)
+}
+
+/// [`run`], leaving `run.mcap` (with `--record`) open for the caller to finish with the
+/// analysed summary.
+pub fn run_recorded(
+    s: &Scenario,
+    scenario_file: &str,
+    opts: &RunOptions,
+) -> Result<(Summary, Option<Recording>), RunError> {
+    let outputs = create_outputs(s, opts)?;
     let prefix = match s.run.transport {
         Transport::Ipc => opts
             .ipc_prefix
@@ -255,7 +315,7 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
     let cpus = cosim::ipc::allowed_cpus();
     let ps = launch::start(s, opts, &prefix)?;
     let mut team = Team::new(s, ps);
-    let mut obs = Observers::new(s, opts, recorder, trace);
+    let mut obs = Observers::new(s, opts, outputs);
     let loop_started = Instant::now();
     let mut outcome = lockstep(&mut team, &mut obs, &opts.interrupt);
     let wall = loop_started.elapsed().as_secs_f64();
@@ -280,6 +340,7 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
             write_errors.push(e);
         }
     }
+    let mcap = obs.mcap.take();
     let mut summary = report(s, scenario_file, opts, &prefix, obs, ended, rows);
     if let Some(e) = write_errors.first() {
         if summary.error.is_none() {
@@ -287,7 +348,7 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
             summary.error = Some(format!("cannot write {e}"));
         }
     }
-    Ok(summary)
+    Ok((summary, mcap.map(|rec| Recording { rec, events })))
 }
 
 /// Closes `trace.csv` and draws the latency histogram.

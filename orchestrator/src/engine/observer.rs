@@ -24,6 +24,10 @@ pub(crate) struct TickRecord<'a> {
     pub held: &'a Held,
     /// What each receiver got, in `LinkId` order.
     pub rx: &'a [f64; 4],
+    /// What each sender sent, in `LinkId` order.
+    pub tx: &'a [f64; 4],
+    /// The controller's request (when `controller_due`).
+    pub to_controller: &'a cosim::msg::ToController,
     /// Whether the controller was stepped.
     pub controller_due: bool,
     /// Compute time per role this tick (ns; 0 for a participant not stepped).

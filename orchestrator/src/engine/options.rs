@@ -30,6 +30,8 @@ pub struct RunOptions {
     pub realtime: Option<i32>,
     /// Print a JSON line to standard error at every percent of the run (`--progress machine`).
     pub machine_progress: bool,
+    /// Record the run as `run.mcap` (`--record`).
+    pub record: bool,
 }
 
 impl RunOptions {
@@ -47,6 +49,7 @@ impl RunOptions {
             pace: None,
             realtime: None,
             machine_progress: false,
+            record: false,
         }
     }
 }

@@ -1,0 +1,84 @@
+//! `tiltsim replay RUN_DIR --participant ROLE`: one participant alone against the inputs a
+//! recorded run gave it; where its outputs differ from the recording.
+
+use std::path::PathBuf;
+
+use super::common::load;
+use super::error::{CliError, CliResult};
+
+/// Arguments.
+#[derive(clap::Args, Debug)]
+pub struct ReplayArgs {
+    /// Directory of a run recorded with `tiltsim run SCENARIO --record`.
+    run_dir: PathBuf,
+    /// plant, actuator or controller.
+    #[arg(long)]
+    participant: String,
+    /// Scenario to build the participant from [default: RUN_DIR/scenario.toml, as recorded];
+    /// give a changed one to see where the outputs move.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Output directory [default: RUN_DIR/replay-ROLE].
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// Runs the command.
+pub fn exec(a: ReplayArgs) -> CliResult {
+    let role = cosim::Role::parse(&a.participant).ok_or_else(|| {
+        CliError::Invalid(format!(
+            "--participant {}: allowed plant, actuator, controller",
+            a.participant
+        ))
+    })?;
+    let file = a
+        .scenario
+        .clone()
+        .unwrap_or_else(|| a.run_dir.join("scenario.toml"));
+    let s = load(&file)?;
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| a.run_dir.join(format!("replay-{}", role.name())));
+    let r = crate::replay::replay(&a.run_dir, role, &s, &out).map_err(|e| match e {
+        crate::replay::ReplayError::Recording { .. } => CliError::Invalid(e.to_string()),
+        _ => CliError::Failed(e.to_string()),
+    })?;
+    let lost = r
+        .lost_at_step
+        .map(|k| format!(" (lost at step {k} in the recording; replayed up to it)"))
+        .unwrap_or_default();
+    if r.identical {
+        println!(
+            "{}: {} steps replayed, every output identical to the recording{lost}",
+            role.name(),
+            r.steps
+        );
+    } else {
+        println!(
+            "{}: {} steps replayed, {} differ{lost}",
+            role.name(),
+            r.steps,
+            r.differing_steps
+        );
+        if let Some(d) = &r.first_difference {
+            let f = |v: Option<f64>| v.map_or("NaN".into(), |v| v.to_string());
+            println!(
+                "  first difference at step {}: {} recorded {}, replayed {}",
+                d.step,
+                d.field,
+                f(d.recorded),
+                f(d.replayed)
+            );
+        }
+        for (field, d) in &r.max_abs_difference {
+            println!("  largest |difference| of {field}: {d}");
+        }
+    }
+    println!(
+        "wrote {}/{}-out.jsonl, replay.json",
+        out.display(),
+        role.name()
+    );
+    Ok(())
+}

@@ -1,0 +1,382 @@
+//! `--record`: the run as an MCAP file (`DIR/run.mcap`) that Foxglove, Rerun or the `mcap`
+//! CLI open. Written live by an observer, one JSON message per exchange:
+//!
+//! * `/<role>/in`, `/<role>/out`: what each participant received (after link effects) and
+//!   what it answered, for every step it ran (the controller every `period_s`);
+//! * `/links/<name>`: each link's value as sent and as received, every tick;
+//! * `/events`: the run's events; `/summary`: the summary's deterministic part (written
+//!   after the analysis); `/perf`: its wall-clock part.
+//!
+//! Log time is simulated time (tick k at k·dt, in ns); publish time is the wall clock of the
+//! two-clock trace (`CLOCK_MONOTONIC` ns: request sent for `in`, reply received for `out`;
+//! the log time on the wall-clock-free channels). Every channel declares a JSON schema. The
+//! messages of a run repeat exactly when the run does; only publish times and `/perf` differ.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use cosim::msg::{FromActuator, FromController, FromPlant, ToActuator, ToController, ToPlant};
+use cosim::Role;
+
+use super::observer::{Observer, TickRecord};
+use crate::events::EventLog;
+use crate::links::LinkId;
+
+/// One channel: its id and its fields (the schema's properties, in message order).
+struct Channel {
+    id: u16,
+    seq: u32,
+}
+
+/// Channel names and the fields of their messages (every field a number but `step`).
+const CHANNELS: &[(&str, &[&str])] = &[
+    ("/plant/in", &["delta_a"]),
+    (
+        "/plant/out",
+        &[
+            "t",
+            "s",
+            "curvature",
+            "cant",
+            "y_v",
+            "theta_v",
+            "y_b",
+            "theta_b",
+            "dy_v",
+            "dtheta_v",
+            "dy_b",
+            "dtheta_b",
+            "theta_r",
+            "psi",
+            "lat_acc",
+            "theta_v_meas",
+        ],
+    ),
+    ("/actuator/in", &["delta_a_cmd", "psi"]),
+    (
+        "/actuator/out",
+        &[
+            "delta_a",
+            "delta_a_ref",
+            "motor_torque",
+            "motor_speed",
+            "motor_current",
+            "dc_power",
+            "phase_current_peak",
+            "v_dc",
+            "chopper_power",
+            "limits",
+        ],
+    ),
+    ("/controller/in", &["t", "s", "theta_v_meas"]),
+    (
+        "/controller/out",
+        &["delta_a_cmd", "theta_ref", "theta_v_hat", "solver_status"],
+    ),
+    ("/links/actuator_command", &["sent", "received"]),
+    ("/links/bar_angle", &["sent", "received"]),
+    ("/links/measurement", &["sent", "received"]),
+    ("/links/bar_twist", &["sent", "received"]),
+];
+
+/// The fields of channel `topic`.
+pub fn fields(topic: &str) -> &'static [&'static str] {
+    CHANNELS
+        .iter()
+        .find(|(t, _)| *t == topic)
+        .map_or(&[], |(_, f)| f)
+}
+
+/// The values of a plant's output, in the order of `/plant/out`.
+pub fn plant_out(p: &FromPlant) -> Vec<f64> {
+    let mut v = vec![p.t, p.s, p.curvature, p.cant];
+    v.extend_from_slice(&p.x);
+    v.extend_from_slice(&[p.psi, p.lat_acc, p.theta_v_meas]);
+    v
+}
+
+/// The values of an actuator's output, in the order of `/actuator/out`.
+pub fn actuator_out(a: &FromActuator) -> Vec<f64> {
+    vec![
+        a.delta_a,
+        a.delta_a_ref,
+        a.motor_torque,
+        a.motor_speed,
+        a.motor_current,
+        a.dc_power,
+        a.phase_current_peak,
+        a.v_dc,
+        a.chopper_power,
+        f64::from(a.limits),
+    ]
+}
+
+/// The values of a controller's output, in the order of `/controller/out`.
+pub fn controller_out(c: &FromController) -> Vec<f64> {
+    vec![
+        c.delta_a_cmd,
+        c.theta_ref,
+        c.theta_v_hat,
+        f64::from(c.solver_status),
+    ]
+}
+
+/// A plant's request from the values of `/plant/in`.
+pub fn plant_in(v: &[f64]) -> ToPlant {
+    ToPlant {
+        delta_a: v[0],
+        ..Default::default()
+    }
+}
+
+/// An actuator's request from the values of `/actuator/in`.
+pub fn actuator_in(v: &[f64]) -> ToActuator {
+    ToActuator {
+        delta_a_cmd: v[0],
+        psi: v[1],
+        ..Default::default()
+    }
+}
+
+/// A controller's request from the values of `/controller/in`.
+pub fn controller_in(v: &[f64]) -> ToController {
+    ToController {
+        t: v[0],
+        s: v[1],
+        theta_v_meas: v[2],
+        ..Default::default()
+    }
+}
+
+/// A JSON schema for a message of `step` and `fields`.
+fn schema(title: &str, fields: &[&str]) -> String {
+    let mut props = vec![r#""step":{"type":"integer","description":"tick"}"#.to_string()];
+    props.extend(
+        fields
+            .iter()
+            .map(|f| format!(r#""{f}":{{"type":["number","null"]}}"#)),
+    );
+    format!(
+        r#"{{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"{title}","type":"object","properties":{{{}}}}}"#,
+        props.join(",")
+    )
+}
+
+/// A JSON message: `step` and the values (shortest round trip; NaN and infinities as null).
+pub fn message(step: u64, fields: &[&str], values: &[f64]) -> String {
+    let mut s = format!("{{\"step\":{step}");
+    for (f, v) in fields.iter().zip(values) {
+        s.push_str(",\"");
+        s.push_str(f);
+        s.push_str("\":");
+        if v.is_finite() {
+            crate::record::put_f64(*v, &mut s);
+        } else {
+            s.push_str("null");
+        }
+    }
+    s.push('}');
+    s
+}
+
+/// Writes `run.mcap` as the run goes.
+pub(crate) struct McapRecorder {
+    out: mcap::Writer<BufWriter<File>>,
+    path: PathBuf,
+    dt_ns: u64,
+    channels: Vec<Channel>,
+    events: u16,
+    summary: u16,
+    perf: u16,
+}
+
+fn named(path: &Path, e: impl std::fmt::Display) -> std::io::Error {
+    std::io::Error::other(format!("{}: {e}", path.display()))
+}
+
+impl McapRecorder {
+    /// Creates `path` with every channel and schema; ticks are `dt` s apart.
+    pub fn create(path: &Path, dt: f64) -> std::io::Result<Self> {
+        let file = BufWriter::new(File::create(path).map_err(|e| named(path, e))?);
+        let opts = mcap::WriteOptions::new()
+            .library(concat!("tiltsim ", env!("CARGO_PKG_VERSION")))
+            .profile("")
+            .compression(None);
+        let mut out = opts.create(file).map_err(|e| named(path, e))?;
+        let mut add = |topic: &str, fields: &[&str], extra: Option<&str>| {
+            let text = match extra {
+                Some(s) => s.to_string(),
+                None => schema(topic, fields),
+            };
+            let sid = out
+                .add_schema(topic, "jsonschema", text.as_bytes())
+                .map_err(|e| named(path, e))?;
+            out.add_channel(sid, topic, "json", &BTreeMap::new())
+                .map_err(|e| named(path, e))
+        };
+        let mut channels = Vec::new();
+        for (topic, fields) in CHANNELS {
+            channels.push(Channel {
+                id: add(topic, fields, None)?,
+                seq: 0,
+            });
+        }
+        let object = |title: &str| {
+            format!(
+                r#"{{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"{title}","type":"object"}}"#
+            )
+        };
+        let events = add("/events", &[], Some(&object("/events")))?;
+        let summary = add("/summary", &[], Some(&object("/summary")))?;
+        let perf = add("/perf", &[], Some(&object("/perf")))?;
+        Ok(McapRecorder {
+            out,
+            path: path.to_path_buf(),
+            dt_ns: (dt * 1e9).round() as u64,
+            channels,
+            events,
+            summary,
+            perf,
+        })
+    }
+
+    fn put(&mut self, channel: usize, log: u64, publish: u64, data: &str) -> std::io::Result<()> {
+        let c = &mut self.channels[channel];
+        c.seq += 1;
+        let header = mcap::records::MessageHeader {
+            channel_id: c.id,
+            sequence: c.seq,
+            log_time: log,
+            publish_time: publish,
+        };
+        self.out
+            .write_to_known_channel(&header, data.as_bytes())
+            .map_err(|e| named(&self.path, e))
+    }
+
+    fn put_on(&mut self, id: u16, seq: u32, log: u64, data: &str) -> std::io::Result<()> {
+        let header = mcap::records::MessageHeader {
+            channel_id: id,
+            sequence: seq,
+            log_time: log,
+            publish_time: log,
+        };
+        self.out
+            .write_to_known_channel(&header, data.as_bytes())
+            .map_err(|e| named(&self.path, e))
+    }
+
+    /// Writes the events, the summary's deterministic part and its wall-clock part, and
+    /// closes the file.
+    pub fn finish(
+        mut self,
+        events: &EventLog,
+        summary: &super::Summary,
+    ) -> std::io::Result<PathBuf> {
+        for (i, e) in events.events.iter().enumerate() {
+            let log = (e.t * 1e9).round().max(0.0) as u64;
+            let value = if e.value.is_finite() {
+                crate::record::fmt_f64(e.value)
+            } else {
+                "null".into()
+            };
+            let kind = serde_json::to_value(e.kind).unwrap_or_default();
+            let text = format!(
+                "{{\"step\":{},\"t\":{},\"source\":{},\"kind\":{kind},\"value\":{value},\"detail\":{}}}",
+                e.step,
+                crate::record::fmt_f64(e.t),
+                serde_json::Value::from(e.source.as_str()),
+                serde_json::Value::from(e.detail.as_str()),
+            );
+            self.put_on(self.events, i as u32 + 1, log, &text)?;
+        }
+        let end = summary.steps_completed * self.dt_ns;
+        let mut det = serde_json::to_value(summary).unwrap_or_default();
+        for f in super::summary::WALL_CLOCK_FIELDS {
+            match f.split_once('.') {
+                Some(("participants", rest)) => {
+                    if let Some(ps) = det["participants"].as_array_mut() {
+                        for p in ps {
+                            let (parents, last) = rest.rsplit_once('.').unwrap_or(("", rest));
+                            let mut node = &mut *p;
+                            for k in parents.split('.').filter(|k| !k.is_empty()) {
+                                node = &mut node[k];
+                            }
+                            if let Some(o) = node.as_object_mut() {
+                                o.remove(last);
+                            }
+                        }
+                    }
+                }
+                _ => {
+                    if let Some(o) = det.as_object_mut() {
+                        o.remove(*f);
+                    }
+                }
+            }
+        }
+        self.put_on(self.summary, 1, end, &det.to_string())?;
+        self.put_on(self.perf, 1, end, &summary.perf().to_string())?;
+        self.out.finish().map_err(|e| named(&self.path, e))?;
+        Ok(self.path)
+    }
+}
+
+/// Channel index of a role's `in` (the `out` is the next one).
+fn inbox(role: Role) -> usize {
+    2 * role as usize
+}
+
+impl Observer for McapRecorder {
+    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
+        let log = t.k * self.dt_ns;
+        let k = t.k;
+        // Wall-clock times of this tick's step exchanges (the Init ones have step 0 too).
+        let when = |role: Role| {
+            t.exchanges
+                .iter()
+                .rev()
+                .find(|x| x.role == role && x.step == k)
+                .map_or((log, log), |x| (x.sent_ns, x.received_ns))
+        };
+        let h = t.held;
+        let rx = t.rx;
+        let ch = |i: usize| CHANNELS[i].1;
+        if t.controller_due {
+            let (sent, got) = when(Role::Controller);
+            let c = t.to_controller;
+            let i = inbox(Role::Controller);
+            let m = message(k, ch(i), &[c.t, c.s, c.theta_v_meas]);
+            self.put(i, log, sent, &m)?;
+            let m = message(k, ch(i + 1), &controller_out(&h.c));
+            self.put(i + 1, log, got, &m)?;
+        }
+        let (sent, got) = when(Role::Actuator);
+        let i = inbox(Role::Actuator);
+        let m = message(
+            k,
+            ch(i),
+            &[
+                rx[LinkId::ActuatorCommand as usize],
+                rx[LinkId::BarTwist as usize],
+            ],
+        );
+        self.put(i, log, sent, &m)?;
+        let m = message(k, ch(i + 1), &actuator_out(&h.a));
+        self.put(i + 1, log, got, &m)?;
+        let (sent, got) = when(Role::Plant);
+        let i = inbox(Role::Plant);
+        let m = message(k, ch(i), &[rx[LinkId::BarAngle as usize]]);
+        self.put(i, log, sent, &m)?;
+        let m = message(k, ch(i + 1), &plant_out(&h.p));
+        self.put(i + 1, log, got, &m)?;
+        for link in LinkId::ALL {
+            let j = 6 + link as usize;
+            let m = message(k, ch(j), &[t.tx[link as usize], rx[link as usize]]);
+            self.put(j, log, log, &m)?;
+        }
+        Ok(())
+    }
+}

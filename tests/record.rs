@@ -1,0 +1,172 @@
+//! MCAP recordings and replay of one participant (issue 15): a recorded fault run replays
+//! byte for byte for every participant, a changed setting is found where it first acts, and
+//! the recording's messages repeat across transports.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use tiltsim_suite::{csv_table, prefix, run, scenario, temp_dir};
+
+/// Every message of a recording: topic → (sequence, log time, data), publish time left out.
+fn messages(path: &Path) -> BTreeMap<String, Vec<(u32, u64, String)>> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut out: BTreeMap<String, Vec<(u32, u64, String)>> = BTreeMap::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        out.entry(m.channel.topic.clone()).or_default().push((
+            m.sequence,
+            m.log_time,
+            String::from_utf8(m.data.to_vec()).unwrap(),
+        ));
+    }
+    out
+}
+
+fn record(file: &str, dir: &Path, transport: &str) {
+    let sc = scenario(file);
+    let pfx = prefix(&format!(
+        "rec-{transport}-{}",
+        file.trim_end_matches(".toml")
+    ));
+    let (code, _, err) = run(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--transport",
+        transport,
+        "--ipc-prefix",
+        &pfx,
+        "--record",
+        "-q",
+    ]);
+    assert_eq!(code, 0, "{file}: {err}");
+}
+
+#[test]
+fn a_recorded_fault_run_replays_byte_for_byte_and_a_changed_gain_is_found() {
+    let dir = temp_dir("record-nan").join("run");
+    record("fault-measurement-nan.toml", &dir, "ipc");
+    let m = messages(&dir.join("run.mcap"));
+    // Every tick of every participant (the PI runs every tick), every link, the summary.
+    for topic in ["/plant/in", "/plant/out", "/actuator/in", "/controller/out"] {
+        assert_eq!(m[topic].len(), 16_800, "{topic}");
+    }
+    assert_eq!(m["/summary"].len(), 1);
+    // The link channel says what was sent and what arrived: NaN (null) inside the window,
+    // and the received values are the timeseries' rx column.
+    let csv = std::fs::read_to_string(dir.join("timeseries.csv")).unwrap();
+    let rows = csv_table(&csv);
+    let col = rows[0].iter().position(|c| c == "rx_measurement").unwrap();
+    for (k, (_, log, data)) in m["/links/measurement"].iter().enumerate() {
+        assert_eq!(*log, k as u64 * 1_000_000);
+        let v: serde_json::Value = serde_json::from_str(data).unwrap();
+        let rx = &rows[k + 1][col];
+        if rx == "NaN" {
+            assert!(v["received"].is_null() && v["sent"].is_number(), "{data}");
+        } else {
+            assert_eq!(v["received"].as_f64().unwrap(), rx.parse::<f64>().unwrap());
+        }
+    }
+    assert!(
+        m["/links/measurement"]
+            .iter()
+            .filter(|x| x.2.contains("\"received\":null"))
+            .count()
+            == 200
+    );
+    // Each participant alone, against what it received: identical outputs.
+    for role in ["plant", "actuator", "controller"] {
+        let out = dir.join(format!("replay-{role}"));
+        let (code, stdout, err) = run(&[
+            "replay",
+            dir.to_str().unwrap(),
+            "--participant",
+            role,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{err}");
+        assert!(
+            stdout.contains("every output identical"),
+            "{role}: {stdout}"
+        );
+        // The replayed outputs are the recorded messages, byte for byte.
+        let replayed = std::fs::read_to_string(out.join(format!("{role}-out.jsonl"))).unwrap();
+        let recorded: String = m[&format!("/{role}/out")]
+            .iter()
+            .map(|x| format!("{}\n", x.2))
+            .collect();
+        assert!(replayed == recorded, "{role}");
+    }
+    // A changed PI gain: the controller's first command already differs. At step 0 the
+    // command is (K_p + K_i·dt)·e (the integral has taken its first step), so the ratio of
+    // the two commands is (0.6 + 2.2831e-3) / (0.5708 + 2.2831e-3).
+    let text = std::fs::read_to_string(dir.join("scenario.toml")).unwrap();
+    assert!(text.contains("kp = 0.5708"));
+    let changed = dir.join("changed.toml");
+    std::fs::write(&changed, text.replace("kp = 0.5708", "kp = 0.6")).unwrap();
+    let out = dir.join("replay-changed");
+    let (code, stdout, err) = run(&[
+        "replay",
+        dir.to_str().unwrap(),
+        "--participant",
+        "controller",
+        "--scenario",
+        changed.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("replay.json")).unwrap()).unwrap();
+    assert_eq!(r["identical"], false, "{stdout}");
+    let d = &r["first_difference"];
+    assert_eq!(d["step"], 0);
+    assert_eq!(d["field"], "delta_a_cmd");
+    let ratio = d["replayed"].as_f64().unwrap() / d["recorded"].as_f64().unwrap();
+    let expected = (0.6 + 2.2831e-3) / (0.5708 + 2.2831e-3);
+    assert!((ratio - expected).abs() < 1e-12, "{ratio} vs {expected}");
+}
+
+#[test]
+fn a_killed_controller_replays_up_to_its_loss_and_recordings_repeat_across_transports() {
+    let base = temp_dir("record-kill");
+    let (ipc, inproc) = (base.join("ipc"), base.join("in-process"));
+    record("fault-controller-killed.toml", &ipc, "ipc");
+    record("fault-controller-killed.toml", &inproc, "in-process");
+    let (a, b) = (
+        messages(&ipc.join("run.mcap")),
+        messages(&inproc.join("run.mcap")),
+    );
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    for topic in a.keys() {
+        // `/perf` is the wall clock; `/summary` names the transport.
+        if topic == "/perf" || topic == "/summary" {
+            continue;
+        }
+        assert!(a[topic] == b[topic], "{topic} differs between transports");
+    }
+    assert!(a["/events"]
+        .iter()
+        .any(|e| e.2.contains("\"kind\":\"fault-injected\"")));
+    let (code, stdout, err) = run(&[
+        "replay",
+        ipc.to_str().unwrap(),
+        "--participant",
+        "controller",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        stdout.contains("8000 steps replayed, every output identical")
+            && stdout.contains("lost at step 8000"),
+        "{stdout}"
+    );
+    // A run without a recording: a clear error.
+    let (code, _, err) = run(&["replay", base.to_str().unwrap(), "--participant", "plant"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("run.mcap") || err.contains("scenario.toml"),
+        "{err}"
+    );
+}
