@@ -23,6 +23,10 @@ fn messages(path: &Path) -> BTreeMap<String, Vec<(u32, u64, String)>> {
 }
 
 fn record(file: &str, dir: &Path, transport: &str) {
+    record_with(file, dir, transport, &[]);
+}
+
+fn record_with(file: &str, dir: &Path, transport: &str, extra: &[&str]) {
     let sc = scenario(file);
     let pfx = prefix(&format!(
         "rec-{transport}-{}",
@@ -169,4 +173,24 @@ fn a_killed_controller_replays_up_to_its_loss_and_recordings_repeat_across_trans
         err.contains("run.mcap") || err.contains("scenario.toml"),
         "{err}"
     );
+}
+
+#[test]
+fn a_finished_run_exported_holds_the_messages_recorded_live_under_both_masters() {
+    for (master, file) in [
+        ("gauss-seidel", "fault-controller-killed.toml"),
+        ("jacobi", "latency-command-jitter.toml"),
+    ] {
+        let dir = temp_dir(&format!("export-{master}")).join("run");
+        record_with(file, &dir, "in-process", &["--master", master]);
+        let live = dir.join("live.mcap");
+        std::fs::rename(dir.join("run.mcap"), &live).unwrap();
+        let (code, _, err) = run(&["export-mcap", dir.to_str().unwrap()]);
+        assert_eq!(code, 0, "{err}");
+        let (a, b) = (messages(&live), messages(&dir.join("run.mcap")));
+        assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+        for topic in a.keys() {
+            assert!(a[topic] == b[topic], "{master}: {topic} differs");
+        }
+    }
 }

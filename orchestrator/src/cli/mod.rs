@@ -9,6 +9,7 @@ mod clean;
 mod common;
 mod compare;
 mod error;
+mod export_mcap;
 mod linearize;
 mod participant;
 mod plot;
@@ -66,6 +67,8 @@ enum Command {
     /// Run one participant of a run recorded with `run --record` alone against the inputs it
     /// received, and report where its outputs differ from the recording.
     Replay(replay::ReplayArgs),
+    /// Write a finished run's files as RUN_DIR/run.mcap (the channels of `run --record`).
+    ExportMcap(export_mcap::ExportMcapArgs),
     /// Serve one participant over iceoryx2 (how the orchestrator starts its processes).
     #[command(hide = true)]
     Participant(participant::ParticipantArgs),
@@ -108,6 +111,7 @@ pub fn main() -> i32 {
         Command::Linearize(a) => linearize::exec(a),
         Command::Clean(a) => clean::exec(a),
         Command::Replay(a) => replay::exec(a),
+        Command::ExportMcap(a) => export_mcap::exec(a),
         Command::Participant(a) => participant::exec(a),
     };
     match result {

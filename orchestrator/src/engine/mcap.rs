@@ -270,58 +270,102 @@ impl McapRecorder {
 
     /// Writes the events, the summary's deterministic part and its wall-clock part, and
     /// closes the file.
-    pub fn finish(
-        mut self,
-        events: &EventLog,
-        summary: &super::Summary,
-    ) -> std::io::Result<PathBuf> {
-        for (i, e) in events.events.iter().enumerate() {
-            let log = (e.t * 1e9).round().max(0.0) as u64;
-            let value = if e.value.is_finite() {
-                crate::record::fmt_f64(e.value)
-            } else {
-                "null".into()
-            };
-            let kind = serde_json::to_value(e.kind).unwrap_or_default();
-            let text = format!(
-                "{{\"step\":{},\"t\":{},\"source\":{},\"kind\":{kind},\"value\":{value},\"detail\":{}}}",
-                e.step,
-                crate::record::fmt_f64(e.t),
-                serde_json::Value::from(e.source.as_str()),
-                serde_json::Value::from(e.detail.as_str()),
-            );
-            self.put_on(self.events, i as u32 + 1, log, &text)?;
-        }
+    pub fn finish(self, events: &EventLog, summary: &super::Summary) -> std::io::Result<PathBuf> {
+        let events: Vec<EventMessage> = events
+            .events
+            .iter()
+            .map(|e| EventMessage {
+                step: e.step,
+                t: e.t,
+                source: e.source.clone(),
+                kind: serde_json::to_value(e.kind)
+                    .ok()
+                    .and_then(|v| v.as_str().map(str::to_string))
+                    .unwrap_or_default(),
+                value: e.value,
+                detail: e.detail.clone(),
+            })
+            .collect();
+        let det = deterministic(serde_json::to_value(summary).unwrap_or_default());
         let end = summary.steps_completed * self.dt_ns;
-        let mut det = serde_json::to_value(summary).unwrap_or_default();
-        for f in super::summary::WALL_CLOCK_FIELDS {
-            match f.split_once('.') {
-                Some(("participants", rest)) => {
-                    if let Some(ps) = det["participants"].as_array_mut() {
-                        for p in ps {
-                            let (parents, last) = rest.rsplit_once('.').unwrap_or(("", rest));
-                            let mut node = &mut *p;
-                            for k in parents.split('.').filter(|k| !k.is_empty()) {
-                                node = &mut node[k];
-                            }
-                            if let Some(o) = node.as_object_mut() {
-                                o.remove(last);
-                            }
-                        }
-                    }
-                }
-                _ => {
-                    if let Some(o) = det.as_object_mut() {
-                        o.remove(*f);
-                    }
-                }
-            }
+        self.close(&events, &det, &summary.perf(), end)
+    }
+
+    /// Writes `events`, the summary's deterministic part `det` and its wall-clock part `perf`
+    /// (at log time `end`), and closes the file.
+    pub(crate) fn close(
+        mut self,
+        events: &[EventMessage],
+        det: &serde_json::Value,
+        perf: &serde_json::Value,
+        end: u64,
+    ) -> std::io::Result<PathBuf> {
+        for (i, e) in events.iter().enumerate() {
+            let log = (e.t * 1e9).round().max(0.0) as u64;
+            self.put_on(self.events, i as u32 + 1, log, &e.json())?;
         }
         self.put_on(self.summary, 1, end, &det.to_string())?;
-        self.put_on(self.perf, 1, end, &summary.perf().to_string())?;
+        self.put_on(self.perf, 1, end, &perf.to_string())?;
         self.out.finish().map_err(|e| named(&self.path, e))?;
         Ok(self.path)
     }
+}
+
+/// One event as recorded.
+pub(crate) struct EventMessage {
+    pub step: u64,
+    pub t: f64,
+    pub source: String,
+    pub kind: String,
+    pub value: f64,
+    pub detail: String,
+}
+
+impl EventMessage {
+    fn json(&self) -> String {
+        let value = if self.value.is_finite() {
+            crate::record::fmt_f64(self.value)
+        } else {
+            "null".into()
+        };
+        format!(
+            "{{\"step\":{},\"t\":{},\"source\":{},\"kind\":{},\"value\":{value},\"detail\":{}}}",
+            self.step,
+            crate::record::fmt_f64(self.t),
+            serde_json::Value::from(self.source.as_str()),
+            serde_json::Value::from(self.kind.as_str()),
+            serde_json::Value::from(self.detail.as_str()),
+        )
+    }
+}
+
+/// A summary's JSON without its wall-clock fields
+/// ([`super::summary::WALL_CLOCK_FIELDS`]).
+pub(crate) fn deterministic(mut det: serde_json::Value) -> serde_json::Value {
+    for f in super::summary::WALL_CLOCK_FIELDS {
+        match f.split_once('.') {
+            Some(("participants", rest)) => {
+                if let Some(ps) = det["participants"].as_array_mut() {
+                    for p in ps {
+                        let (parents, last) = rest.rsplit_once('.').unwrap_or(("", rest));
+                        let mut node = &mut *p;
+                        for k in parents.split('.').filter(|k| !k.is_empty()) {
+                            node = &mut node[k];
+                        }
+                        if let Some(o) = node.as_object_mut() {
+                            o.remove(last);
+                        }
+                    }
+                }
+            }
+            _ => {
+                if let Some(o) = det.as_object_mut() {
+                    o.remove(*f);
+                }
+            }
+        }
+    }
+    det
 }
 
 /// Channel index of a role's `in` (the `out` is the next one).
@@ -329,28 +373,44 @@ fn inbox(role: Role) -> usize {
     2 * role as usize
 }
 
-impl Observer for McapRecorder {
-    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
-        let log = t.k * self.dt_ns;
-        let k = t.k;
-        // Wall-clock times of this tick's step exchanges (the Init ones have step 0 too).
-        let when = |role: Role| {
-            t.exchanges
-                .iter()
-                .rev()
-                .find(|x| x.role == role && x.step == k)
-                .map_or((log, log), |x| (x.sent_ns, x.received_ns))
-        };
-        let h = t.held;
-        let rx = t.rx;
+/// One tick as the recording holds it.
+pub(crate) struct TickData<'a> {
+    /// Tick.
+    pub k: u64,
+    /// Whether the controller was stepped.
+    pub due: bool,
+    /// The controller's request.
+    pub to_controller: &'a ToController,
+    /// Outputs after the tick.
+    pub p: &'a FromPlant,
+    /// Outputs after the tick.
+    pub a: &'a FromActuator,
+    /// Outputs after the tick.
+    pub c: &'a FromController,
+    /// What each receiver got, in `LinkId` order.
+    pub rx: &'a [f64; 4],
+    /// What each sender sent, in `LinkId` order.
+    pub tx: &'a [f64; 4],
+    /// Wall clock (ns) of each role's request sent and reply received, in `Role` order;
+    /// `None` where not measured (then the log time is used).
+    pub wall: [Option<(u64, u64)>; 3],
+}
+
+impl McapRecorder {
+    /// Writes one tick's messages.
+    pub(crate) fn write_tick(&mut self, d: &TickData) -> std::io::Result<()> {
+        let log = d.k * self.dt_ns;
+        let k = d.k;
+        let when = |role: Role| d.wall[role as usize].unwrap_or((log, log));
+        let rx = d.rx;
         let ch = |i: usize| CHANNELS[i].1;
-        if t.controller_due {
+        if d.due {
             let (sent, got) = when(Role::Controller);
-            let c = t.to_controller;
+            let c = d.to_controller;
             let i = inbox(Role::Controller);
             let m = message(k, ch(i), &[c.t, c.s, c.theta_v_meas]);
             self.put(i, log, sent, &m)?;
-            let m = message(k, ch(i + 1), &controller_out(&h.c));
+            let m = message(k, ch(i + 1), &controller_out(d.c));
             self.put(i + 1, log, got, &m)?;
         }
         let (sent, got) = when(Role::Actuator);
@@ -364,19 +424,44 @@ impl Observer for McapRecorder {
             ],
         );
         self.put(i, log, sent, &m)?;
-        let m = message(k, ch(i + 1), &actuator_out(&h.a));
+        let m = message(k, ch(i + 1), &actuator_out(d.a));
         self.put(i + 1, log, got, &m)?;
         let (sent, got) = when(Role::Plant);
         let i = inbox(Role::Plant);
         let m = message(k, ch(i), &[rx[LinkId::BarAngle as usize]]);
         self.put(i, log, sent, &m)?;
-        let m = message(k, ch(i + 1), &plant_out(&h.p));
+        let m = message(k, ch(i + 1), &plant_out(d.p));
         self.put(i + 1, log, got, &m)?;
         for link in LinkId::ALL {
             let j = 6 + link as usize;
-            let m = message(k, ch(j), &[t.tx[link as usize], rx[link as usize]]);
+            let m = message(k, ch(j), &[d.tx[link as usize], rx[link as usize]]);
             self.put(j, log, log, &m)?;
         }
         Ok(())
+    }
+}
+
+impl Observer for McapRecorder {
+    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
+        let k = t.k;
+        // Wall-clock times of this tick's step exchanges (the Init ones have step 0 too).
+        let when = |role: Role| {
+            t.exchanges
+                .iter()
+                .rev()
+                .find(|x| x.role == role && x.step == k)
+                .map(|x| (x.sent_ns, x.received_ns))
+        };
+        self.write_tick(&TickData {
+            k,
+            due: t.controller_due,
+            to_controller: t.to_controller,
+            p: &t.held.p,
+            a: &t.held.a,
+            c: &t.held.c,
+            rx: t.rx,
+            tx: t.tx,
+            wall: Role::ALL.map(when),
+        })
     }
 }

@@ -1,0 +1,208 @@
+//! `tiltsim export-mcap RUN_DIR`: the `run.mcap` of a finished run, made from its files
+//! (`timeseries.csv`, `events.csv`, `summary.json`, `scenario.toml`, and `trace.csv` and
+//! `perf.json` when present), with the same channels and messages as `tiltsim run --record`
+//! writes live (`tests/record.rs` compares the two). What the files do not hold is rebuilt
+//! exactly: the participants' outputs at t₀ (each model built from `scenario.toml`), and
+//! what each link's sender sent, which is the sender's held output in the row the master
+//! algorithm reads it from. Publish times come from `trace.csv` (ns from the loop's start)
+//! when the run was traced, otherwise they equal the log times.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use cosim::msg::{FromActuator, FromController, FromPlant, ToController};
+use cosim::participant::Participant;
+use cosim::Role;
+
+use crate::engine::mcap::{deterministic, EventMessage, McapRecorder, TickData};
+use crate::engine::Inits;
+use crate::links::LinkId;
+use crate::record::Row;
+use crate::scenario::{Master, Scenario};
+
+/// Why a run could not be exported.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {what}")]
+pub struct ExportError {
+    /// The file.
+    pub path: PathBuf,
+    /// What is wrong.
+    pub what: String,
+}
+
+fn err(path: &Path, what: impl std::fmt::Display) -> ExportError {
+    ExportError {
+        path: path.to_path_buf(),
+        what: what.to_string(),
+    }
+}
+
+/// The outputs a row holds.
+fn outputs(r: &Row) -> (FromPlant, FromActuator, FromController) {
+    let p = FromPlant {
+        t: r.t,
+        s: r.s,
+        curvature: r.curvature,
+        cant: r.cant,
+        x: [
+            r.y_v, r.theta_v, r.y_b, r.theta_b, r.dy_v, r.dtheta_v, r.dy_b, r.dtheta_b, r.theta_r,
+        ],
+        psi: r.psi,
+        lat_acc: r.lat_acc,
+        theta_v_meas: r.theta_v_meas,
+        ..Default::default()
+    };
+    let a = FromActuator {
+        delta_a: r.delta_a,
+        delta_a_ref: r.delta_a_ref,
+        motor_torque: r.motor_torque,
+        motor_speed: r.motor_speed,
+        motor_current: r.motor_current,
+        dc_power: r.dc_power,
+        phase_current_peak: r.phase_current_peak,
+        v_dc: r.v_dc,
+        chopper_power: r.chopper_power,
+        limits: r.actuator_limits,
+        ..Default::default()
+    };
+    let c = FromController {
+        delta_a_cmd: r.delta_a_cmd,
+        theta_ref: r.theta_ref,
+        theta_v_hat: r.theta_v_hat,
+        solver_status: r.solver_status,
+        ..Default::default()
+    };
+    (p, a, c)
+}
+
+/// Wall-clock (request sent, reply received) per (step, role) from `trace.csv`.
+fn trace(dir: &Path) -> Result<HashMap<(u64, Role), (u64, u64)>, ExportError> {
+    let path = dir.join("trace.csv");
+    let mut out = HashMap::new();
+    let Ok(mut rd) = csv::Reader::from_path(&path) else {
+        return Ok(out);
+    };
+    for rec in rd.records() {
+        let rec = rec.map_err(|e| err(&path, e))?;
+        let num = |i: usize| rec.get(i).and_then(|v| v.parse::<u64>().ok());
+        let (Some(step), Some(role), Some(sent), Some(got)) =
+            (num(0), rec.get(2).and_then(Role::parse), num(3), num(8))
+        else {
+            return Err(err(
+                &path,
+                "a row that is not step,t,participant,… of tiltsim",
+            ));
+        };
+        // The last exchange of a (step, role) is the step's (tick 0 also has the Init one).
+        out.insert((step, role), (sent, got));
+    }
+    Ok(out)
+}
+
+/// The events of `events.csv`.
+fn events(dir: &Path) -> Result<Vec<EventMessage>, ExportError> {
+    let path = dir.join("events.csv");
+    let mut rd = csv::Reader::from_path(&path).map_err(|e| err(&path, e))?;
+    let mut out = Vec::new();
+    for rec in rd.records() {
+        let rec = rec.map_err(|e| err(&path, e))?;
+        let f = |i: usize| rec.get(i).unwrap_or("").to_string();
+        out.push(EventMessage {
+            step: f(0)
+                .parse()
+                .map_err(|_| err(&path, "a step that is not a number"))?,
+            t: f(1)
+                .parse()
+                .map_err(|_| err(&path, "a time that is not a number"))?,
+            source: f(2),
+            kind: f(3),
+            value: f(4).parse().unwrap_or(f64::NAN),
+            detail: f(5),
+        });
+    }
+    Ok(out)
+}
+
+/// Writes `dir/run.mcap` from the run's files; returns its path.
+pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
+    let sc = dir.join("scenario.toml");
+    let s = Scenario::load(&sc).map_err(|e| err(&sc, e))?;
+    let sp = dir.join("summary.json");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&sp).map_err(|e| err(&sp, e))?)
+            .map_err(|e| err(&sp, e))?;
+    let pp = dir.join("perf.json");
+    let perf: serde_json::Value = match std::fs::read_to_string(&pp) {
+        Ok(t) => serde_json::from_str(&t).map_err(|e| err(&pp, e))?,
+        Err(_) => serde_json::Value::Null,
+    };
+    let events = events(dir)?;
+    let wall = trace(dir)?;
+    // The outputs at t₀, as each participant gives them before its first step.
+    let inits = Inits::from(&s);
+    let p0 = plant_proc::Plant::new(&inits.plant).initial_output();
+    let a0 = actuator_proc::Actuator::new(&inits.actuator).initial_output();
+    let c0 = controller_proc::Controller::new(&inits.controller)
+        .map_err(|e| err(&sc, e))?
+        .initial_output();
+    let path = dir.join("run.mcap");
+    let mut rec = McapRecorder::create(&path, s.run.dt_s).map_err(|e| err(&path, e))?;
+    let period = s.controller_period_ticks();
+    let gauss_seidel = s.run.master == Master::GaussSeidel;
+    let mut held = (p0, a0, c0);
+    let mut failed: Option<std::io::Error> = None;
+    let rows = crate::record::each_row(dir, |r| {
+        let (p, a, c) = outputs(r);
+        let k = r.step;
+        let (hp, ha, hc) = &held;
+        let rx = [
+            r.rx_actuator_command,
+            r.rx_bar_angle,
+            r.rx_measurement,
+            r.rx_bar_twist,
+        ];
+        let mut tx = [0.0; 4];
+        tx[LinkId::Measurement as usize] = hp.theta_v_meas;
+        tx[LinkId::BarTwist as usize] = hp.psi;
+        // Gauss-Seidel sends the command and the bar angle of this tick; Jacobi the last.
+        tx[LinkId::ActuatorCommand as usize] = if gauss_seidel {
+            c.delta_a_cmd
+        } else {
+            hc.delta_a_cmd
+        };
+        tx[LinkId::BarAngle as usize] = if gauss_seidel { a.delta_a } else { ha.delta_a };
+        let to_c = ToController {
+            t: hp.t,
+            s: hp.s,
+            theta_v_meas: r.rx_measurement,
+            ..Default::default()
+        };
+        let when = |role: Role| wall.get(&(k, role)).copied();
+        let written = rec.write_tick(&TickData {
+            k,
+            due: k % period == 0,
+            to_controller: &to_c,
+            p: &p,
+            a: &a,
+            c: &c,
+            rx: &rx,
+            tx: &tx,
+            wall: Role::ALL.map(when),
+        });
+        held = (p, a, c);
+        match written {
+            Ok(()) => true,
+            Err(e) => {
+                failed = Some(e);
+                false
+            }
+        }
+    })
+    .map_err(|e| err(&dir.join("timeseries.csv"), e))?;
+    if let Some(e) = failed {
+        return Err(err(&path, e));
+    }
+    let dt_ns = (s.run.dt_s * 1e9).round() as u64;
+    rec.close(&events, &deterministic(summary), &perf, rows * dt_ns)
+        .map_err(|e| err(&path, e))
+}
