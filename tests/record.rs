@@ -79,14 +79,22 @@ fn a_recorded_fault_run_replays_byte_for_byte_and_a_changed_gain_is_found() {
             .count()
             == 200
     );
-    // Each participant alone, against what it received: identical outputs.
-    for role in ["plant", "actuator", "controller"] {
-        let out = dir.join(format!("replay-{role}"));
+    // Each participant alone, against what it received: identical outputs, in this process
+    // and as its own process over iceoryx2.
+    for (role, transport) in [
+        ("plant", "in-process"),
+        ("actuator", "ipc"),
+        ("controller", "in-process"),
+        ("controller", "ipc"),
+    ] {
+        let out = dir.join(format!("replay-{role}-{transport}"));
         let (code, stdout, err) = run(&[
             "replay",
             dir.to_str().unwrap(),
             "--participant",
             role,
+            "--transport",
+            transport,
             "--out",
             out.to_str().unwrap(),
         ]);

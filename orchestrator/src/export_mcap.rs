@@ -75,8 +75,11 @@ fn outputs(r: &Row) -> (FromPlant, FromActuator, FromController) {
     (p, a, c)
 }
 
-/// Wall-clock (request sent, reply received) per (step, role) from `trace.csv`.
-fn trace(dir: &Path) -> Result<HashMap<(u64, Role), (u64, u64)>, ExportError> {
+/// Wall-clock (request sent, reply received) ns per (step, role).
+type WallTimes = HashMap<(u64, Role), (u64, u64)>;
+
+/// The wall-clock times of `trace.csv` (empty when the run was not traced).
+fn trace(dir: &Path) -> Result<WallTimes, ExportError> {
     let path = dir.join("trace.csv");
     let mut out = HashMap::new();
     let Ok(mut rd) = csv::Reader::from_path(&path) else {

@@ -11,9 +11,11 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use cosim::msg::{Header, Kind, Message, FLAG_HOLD_BAD_INPUT};
-use cosim::participant::{Participant, Served};
-use cosim::Role;
+use cosim::msg::{
+    FromActuator, FromController, FromPlant, Header, Kind, Message, ToActuator, ToController,
+    ToPlant, FLAG_HOLD_BAD_INPUT, FLAG_REJECTED,
+};
+use cosim::{Endpoint, InProcess, Role};
 use serde::Serialize;
 
 use crate::engine::mcap as rec;
@@ -135,7 +137,13 @@ fn lost_at(bytes: &[u8], role: Role, path: &Path) -> Result<Option<u64>, ReplayE
 /// Replays `role` of the recorded run in `run_dir` with scenario `s`; writes
 /// `out/<role>-out.jsonl` (the replayed outputs, one message per line, as recorded) and
 /// `out/replay.json`.
-pub fn replay(run_dir: &Path, role: Role, s: &Scenario, out: &Path) -> Result<Report, ReplayError> {
+pub fn replay(
+    run_dir: &Path,
+    role: Role,
+    s: &Scenario,
+    at: &Where,
+    out: &Path,
+) -> Result<Report, ReplayError> {
     let path = run_dir.join("run.mcap");
     let bytes = std::fs::read(&path).map_err(|e| ReplayError::Recording {
         path: path.clone(),
@@ -144,39 +152,9 @@ pub fn replay(run_dir: &Path, role: Role, s: &Scenario, out: &Path) -> Result<Re
     let inbox = channel(&bytes, &format!("/{}/in", role.name()), &path)?;
     let outbox = channel(&bytes, &format!("/{}/out", role.name()), &path)?;
     let lost = lost_at(&bytes, role, &path)?;
-    let hold = s.faults.on_bad_data == OnBadData::Hold;
-    let inits = Inits::from(s);
     let topic = format!("/{}/out", role.name());
     let fields = rec::fields(&topic);
-    let replayed = match role {
-        Role::Plant => run_model(
-            plant_proc::Plant::new(&inits.plant),
-            &inbox,
-            lost,
-            hold,
-            rec::plant_in,
-            rec::plant_out,
-            fields,
-        ),
-        Role::Actuator => run_model(
-            actuator_proc::Actuator::new(&inits.actuator),
-            &inbox,
-            lost,
-            hold,
-            rec::actuator_in,
-            rec::actuator_out,
-            fields,
-        ),
-        Role::Controller => run_model(
-            controller_proc::Controller::new(&inits.controller).map_err(ReplayError::Model)?,
-            &inbox,
-            lost,
-            hold,
-            rec::controller_in,
-            rec::controller_out,
-            fields,
-        ),
-    };
+    let replayed = run_role(role, s, at, &inbox, lost)?;
     std::fs::create_dir_all(out).map_err(|source| ReplayError::Io {
         path: out.to_path_buf(),
         source,
@@ -195,35 +173,176 @@ pub fn replay(run_dir: &Path, role: Role, s: &Scenario, out: &Path) -> Result<Re
     Ok(report)
 }
 
-/// Steps `model` through the recorded inputs, as its transport would serve them.
-fn run_model<P: Participant>(
-    model: P,
+/// Drives one participant through the recorded inputs over `ep` (its Init exchange first, as
+/// the engine does); stops where the recording says it was lost, or where it rejected an
+/// input (the recorded run ended there too).
+fn drive<I: Message, O: Message>(
+    ep: &mut dyn Endpoint<I, O>,
     inbox: &[Recorded],
     lost: Option<u64>,
     hold: bool,
-    input: fn(&[f64]) -> P::Input,
-    output: fn(&P::Output) -> Vec<f64>,
+    input: fn(&[f64]) -> I,
+    output: fn(&O) -> Vec<f64>,
     fields: &[&str],
-) -> Vec<Recorded> {
-    let mut served = Served::new(model);
-    let mut init = P::Input::default();
+) -> Result<Vec<Recorded>, ReplayError> {
+    let link = |e: cosim::LinkError| ReplayError::Model(format!("replayed participant: {e}"));
+    let mut init = I::default();
     *init.header_mut() = Header::new(0, Kind::Init);
-    served.answer(&init);
-    inbox
+    ep.send(&init).map_err(link)?;
+    ep.receive(0, Kind::Init).map_err(link)?;
+    let mut out = Vec::new();
+    for (k, v, _) in inbox
         .iter()
         .take_while(|(k, _, _)| lost.is_none_or(|l| *k < l))
-        .map(|(k, v, _)| {
-            let mut req = input(v);
-            let mut h = Header::new(*k, Kind::Step);
-            if hold {
-                h.flags |= FLAG_HOLD_BAD_INPUT;
+    {
+        let mut req = input(v);
+        let mut h = Header::new(*k, Kind::Step);
+        if hold {
+            h.flags |= FLAG_HOLD_BAD_INPUT;
+        }
+        *req.header_mut() = h;
+        ep.send(&req).map_err(link)?;
+        let reply = ep.receive(*k, Kind::Step).map_err(link)?;
+        if reply.header().flags & FLAG_REJECTED != 0 {
+            break;
+        }
+        let values = output(&reply);
+        let text = rec::message(*k, fields, &values);
+        out.push((*k, values, text));
+    }
+    Ok(out)
+}
+
+/// Where the replayed participant runs.
+#[derive(Debug, Clone)]
+pub enum Where {
+    /// In this process.
+    InProcess,
+    /// As its own process over iceoryx2, served by this executable.
+    Process(PathBuf),
+}
+
+/// The participant of `role` for scenario `s`, on `at`, driven through the recorded inputs.
+fn run_role(
+    role: Role,
+    s: &Scenario,
+    at: &Where,
+    inbox: &[Recorded],
+    lost: Option<u64>,
+) -> Result<Vec<Recorded>, ReplayError> {
+    let hold = s.faults.on_bad_data == OnBadData::Hold;
+    let inits = Inits::from(s);
+    let topic = format!("/{}/out", role.name());
+    let fields = rec::fields(&topic);
+    let prefix = cosim::ipc::unique_prefix();
+    // The files of the replay's own iceoryx2 run go on every way out.
+    struct Files<'a>(&'a str, bool);
+    impl Drop for Files<'_> {
+        fn drop(&mut self) {
+            if self.1 {
+                cosim::ipc::remove_run_files(self.0);
             }
-            *req.header_mut() = h;
-            let values = output(&served.answer(&req));
-            let text = rec::message(*k, fields, &values);
-            (*k, values, text)
-        })
-        .collect()
+        }
+    }
+    let _files = Files(&prefix, matches!(at, Where::Process(_)));
+    let hub = match at {
+        Where::InProcess => None,
+        Where::Process(_) => Some(
+            cosim::ipc::IpcHub::new(cosim::ipc::IpcSettings {
+                prefix: prefix.clone(),
+                wait: s.run.wait,
+                deadline: std::time::Duration::from_millis(s.run.deadline_ms),
+                ceiling: std::time::Duration::from_millis(s.run.hang_ceiling_ms),
+                participant_cpu: None,
+            })
+            .map_err(|e| ReplayError::Model(e.to_string()))?,
+        ),
+    };
+    let startup = std::time::Duration::from_millis(s.run.startup_ms);
+    macro_rules! endpoint {
+        ($model:expr, $params:expr, $i:ty, $o:ty) => {{
+            let ep: Box<dyn Endpoint<$i, $o>> = match (at, &hub) {
+                (Where::Process(exe), Some(hub)) => {
+                    let launch = cosim::ipc::Launch {
+                        program: exe.clone(),
+                        args: vec![
+                            "participant".into(),
+                            role.name().into(),
+                            "--params".into(),
+                            serde_json::to_string($params).unwrap_or_default().into(),
+                        ],
+                    };
+                    Box::new(
+                        hub.spawn::<$i, $o>(role, &launch, startup)
+                            .map_err(|e| ReplayError::Model(e.to_string()))?,
+                    )
+                }
+                _ => Box::new(InProcess::new($model?)),
+            };
+            ep
+        }};
+    }
+    let result = match role {
+        Role::Plant => {
+            let mut ep = endpoint!(
+                Ok::<_, ReplayError>(plant_proc::Plant::new(&inits.plant)),
+                &inits.plant,
+                ToPlant,
+                FromPlant
+            );
+            let r = drive(
+                ep.as_mut(),
+                inbox,
+                lost,
+                hold,
+                rec::plant_in,
+                rec::plant_out,
+                fields,
+            );
+            ep.shutdown();
+            r
+        }
+        Role::Actuator => {
+            let mut ep = endpoint!(
+                Ok::<_, ReplayError>(actuator_proc::Actuator::new(&inits.actuator)),
+                &inits.actuator,
+                ToActuator,
+                FromActuator
+            );
+            let r = drive(
+                ep.as_mut(),
+                inbox,
+                lost,
+                hold,
+                rec::actuator_in,
+                rec::actuator_out,
+                fields,
+            );
+            ep.shutdown();
+            r
+        }
+        Role::Controller => {
+            let mut ep = endpoint!(
+                controller_proc::Controller::new(&inits.controller).map_err(ReplayError::Model),
+                &inits.controller,
+                ToController,
+                FromController
+            );
+            let r = drive(
+                ep.as_mut(),
+                inbox,
+                lost,
+                hold,
+                rec::controller_in,
+                rec::controller_out,
+                fields,
+            );
+            ep.shutdown();
+            r
+        }
+    };
+    drop(hub);
+    result
 }
 
 /// Compares replayed with recorded outputs, message by message.

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use super::common::load;
+use super::common::{load, TransportArg};
 use super::error::{CliError, CliResult};
 
 /// Arguments.
@@ -21,6 +21,9 @@ pub struct ReplayArgs {
     /// Output directory [default: RUN_DIR/replay-ROLE].
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Run the participant in this process (default) or as its own process over iceoryx2.
+    #[arg(long, value_enum)]
+    transport: Option<TransportArg>,
 }
 
 /// Runs the command.
@@ -40,7 +43,15 @@ pub fn exec(a: ReplayArgs) -> CliResult {
         .out
         .clone()
         .unwrap_or_else(|| a.run_dir.join(format!("replay-{}", role.name())));
-    let r = crate::replay::replay(&a.run_dir, role, &s, &out).map_err(|e| match e {
+    let at = match a.transport.map(crate::scenario::Transport::from) {
+        Some(crate::scenario::Transport::Ipc) => {
+            crate::replay::Where::Process(std::env::current_exe().map_err(|e| {
+                CliError::Failed(format!("cannot find the tiltsim executable: {e}"))
+            })?)
+        }
+        _ => crate::replay::Where::InProcess,
+    };
+    let r = crate::replay::replay(&a.run_dir, role, &s, &at, &out).map_err(|e| match e {
         crate::replay::ReplayError::Recording { .. } => CliError::Invalid(e.to_string()),
         _ => CliError::Failed(e.to_string()),
     })?;
