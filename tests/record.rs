@@ -32,7 +32,7 @@ fn record_with(file: &str, dir: &Path, transport: &str, extra: &[&str]) {
         "rec-{transport}-{}",
         file.trim_end_matches(".toml")
     ));
-    let (code, _, err) = run(&[
+    let mut args = vec![
         "run",
         sc.to_str().unwrap(),
         "--out",
@@ -43,8 +43,16 @@ fn record_with(file: &str, dir: &Path, transport: &str, extra: &[&str]) {
         &pfx,
         "--record",
         "-q",
-    ]);
+    ];
+    args.extend(extra);
+    let (code, _, err) = run(&args);
     assert_eq!(code, 0, "{file}: {err}");
+    if let Some(i) = extra.iter().position(|a| *a == "--master") {
+        assert_eq!(
+            tiltsim_suite::summary(dir)["master_algorithm"],
+            extra[i + 1]
+        );
+    }
 }
 
 #[test]
