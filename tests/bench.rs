@@ -18,6 +18,19 @@ fn bench_measures_every_master_and_wait_strategy_and_both_transports() {
     assert!(stdout.contains("iceoryx2 round-trip floor"), "{stdout}");
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    // The machine, as Linux reports it: at least the CPUs this process may use, the kernel
+    // release, and the table says so.
+    let m = &r["machine"];
+    assert!(
+        m["logical_cpus"].as_u64().unwrap() as usize
+            >= std::thread::available_parallelism().unwrap().get()
+    );
+    let kernel = std::fs::read_to_string("/proc/sys/kernel/osrelease").unwrap();
+    assert_eq!(m["kernel"], kernel.trim());
+    assert!(
+        stdout.contains(&format!("Linux {}", kernel.trim())),
+        "{stdout}"
+    );
     let configs = r["configs"].as_array().unwrap();
     // In-process, then IPC × {gauss-seidel, jacobi} × {adaptive, spin, sleep}.
     assert_eq!(configs.len(), 7);

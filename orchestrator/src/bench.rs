@@ -51,6 +51,8 @@ pub struct Report {
     pub duration_s: f64,
     /// CPUs available.
     pub cpus: usize,
+    /// The machine measured on, so figures from different machines can be set side by side.
+    pub machine: Machine,
     /// iceoryx2 round-trip floor: the smallest plant round-trip p50 over the IPC
     /// configurations, minus the plant's compute (µs).
     pub ipc_round_trip_floor_us: f64,
@@ -175,6 +177,7 @@ pub fn run(
         scenario: base.name.clone(),
         duration_s: duration,
         cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        machine: Machine::this(),
         ipc_round_trip_floor_us: floor,
         configs,
         wall_in_process_s: wall_local,
@@ -187,14 +190,47 @@ pub fn run(
     })
 }
 
+/// CPU model, logical CPUs and kernel, as Linux reports them.
+#[derive(Debug, Clone, Serialize)]
+pub struct Machine {
+    /// `model name` of `/proc/cpuinfo`.
+    pub cpu_model: String,
+    /// Logical CPUs online (`/proc/cpuinfo` processors).
+    pub logical_cpus: usize,
+    /// `/proc/sys/kernel/osrelease`.
+    pub kernel: String,
+}
+
+impl Machine {
+    /// This machine ("unknown" where Linux's files are not readable).
+    pub fn this() -> Machine {
+        let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+        let model = info
+            .lines()
+            .find_map(|l| {
+                l.strip_prefix("model name")?
+                    .split_once(':')
+                    .map(|x| x.1.trim())
+            })
+            .unwrap_or("unknown");
+        Machine {
+            cpu_model: model.to_string(),
+            logical_cpus: info.lines().filter(|l| l.starts_with("processor")).count(),
+            kernel: std::fs::read_to_string("/proc/sys/kernel/osrelease")
+                .map_or_else(|_| "unknown".into(), |k| k.trim().to_string()),
+        }
+    }
+}
+
 /// The report as a Markdown table.
 pub fn table(r: &Report) -> String {
     use std::fmt::Write as _;
     let mut s = format!(
-        "tiltsim bench: {} for {} s simulated per configuration on {} CPUs\n\n\
+        "tiltsim bench: {} for {} s simulated per configuration on {} CPUs\n\
+         machine: {}, {} logical CPUs, Linux {}\n\n\
          | transport | master | wait | ticks | overhead p50 (µs) | p99 (µs) | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
          |---|---|---|---|---|---|---|---|---|---|\n",
-        r.scenario, r.duration_s, r.cpus
+        r.scenario, r.duration_s, r.cpus, r.machine.cpu_model, r.machine.logical_cpus, r.machine.kernel
     );
     for c in &r.configs {
         let _ = writeln!(
