@@ -17,6 +17,7 @@
 mod affinity;
 mod cleanup;
 mod hub;
+pub mod pingpong;
 mod serve;
 mod supervise;
 

@@ -17,10 +17,96 @@ pub struct BenchArgs {
     /// JSON report.
     #[arg(long, default_value = "out/bench.json")]
     out: PathBuf,
+    /// Measure only the transport's floor as iceoryx2's own benchmark does: two processes on
+    /// their own CPUs, busy-waiting, one-way latency for 64 B to 4 KB.
+    #[arg(long)]
+    ping_pong: bool,
+    /// Round trips per size with --ping-pong.
+    #[arg(long, default_value_t = 100_000)]
+    rounds: usize,
+}
+
+/// `tiltsim bench-echo` (hidden): the echo side of `bench --ping-pong`.
+#[derive(clap::Args, Debug)]
+pub struct EchoArgs {
+    /// The run's iceoryx2 prefix.
+    #[arg(long)]
+    prefix: String,
+    /// CPU to pin to.
+    #[arg(long)]
+    cpu: Option<usize>,
+}
+
+/// Runs the echo side.
+pub fn echo(a: EchoArgs) -> CliResult {
+    if let Some(c) = a.cpu {
+        cosim::ipc::pin_to_cpu(c);
+    }
+    cosim::ipc::pingpong::echo(&a.prefix).map_err(|e| CliError::Failed(format!("bench-echo: {e}")))
+}
+
+/// `--ping-pong`: the echo process on the last CPU, this one on the first.
+fn ping_pong(a: &BenchArgs, exe: &std::path::Path) -> CliResult {
+    if !(100..=10_000_000).contains(&a.rounds) {
+        return Err(CliError::Invalid(format!(
+            "command line: --rounds {}: allowed 100 to 10000000",
+            a.rounds
+        )));
+    }
+    let cpus = cosim::ipc::allowed_cpus();
+    let prefix = cosim::ipc::unique_prefix();
+    let mut cmd = std::process::Command::new(exe);
+    cmd.args(["bench-echo", "--prefix", &prefix]);
+    if let (Some(first), Some(last)) = (cpus.first(), cpus.last()) {
+        if first != last {
+            cmd.args(["--cpu", &last.to_string()]);
+            cosim::ipc::pin_to_cpu(*first);
+        }
+    }
+    let mut child = cmd
+        .spawn()
+        .map_err(|e| CliError::Failed(format!("bench: cannot start the echo process: {e}")))?;
+    let result = cosim::ipc::pingpong::measure(&prefix, a.rounds);
+    if result.is_err() {
+        let _ = child.kill();
+    }
+    let _ = child.wait();
+    cosim::ipc::set_cpus(&cpus);
+    cosim::ipc::remove_run_files(&prefix);
+    let lat = result.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
+    let machine = crate::bench::Machine::this();
+    println!(
+        "iceoryx2 ping-pong, two processes on their own CPUs, busy-waiting, {} round trips per size\nmachine: {}, {} logical CPUs, Linux {}\n\n| payload (B) | one-way p50 (ns) | p99 (ns) | max (ns) |\n|---|---|---|---|",
+        a.rounds, machine.cpu_model, machine.logical_cpus, machine.kernel
+    );
+    let mut sizes = Vec::new();
+    for (bytes, mut v) in cosim::ipc::pingpong::SIZES.into_iter().zip(lat) {
+        let p = cosim::stats::percentiles(&mut v);
+        println!("| {bytes} | {:.0} | {:.0} | {:.0} |", p.p50, p.p99, p.max);
+        sizes.push(serde_json::json!({
+            "payload_bytes": bytes,
+            "one_way_ns": p,
+        }));
+    }
+    if let Some(dir) = a.out.parent() {
+        let _ = std::fs::create_dir_all(dir);
+    }
+    write_json(
+        &a.out,
+        &serde_json::json!({ "ping_pong": sizes, "rounds": a.rounds, "machine": machine }),
+    )?;
+    println!("wrote {}", a.out.display());
+    Ok(())
 }
 
 /// Runs the command.
 pub fn exec(a: BenchArgs) -> CliResult {
+    let exe = std::env::current_exe().map_err(|_| {
+        CliError::Failed("cannot find the tiltsim executable to start participants".into())
+    })?;
+    if a.ping_pong {
+        return ping_pong(&a, &exe);
+    }
     let s = load(&a.scenario)?;
     let d = a.duration;
     if !(d.is_finite() && d > 0.0 && d <= 600.0) {
@@ -28,9 +114,6 @@ pub fn exec(a: BenchArgs) -> CliResult {
             "command line: --duration {d}: allowed (0, 600] s"
         )));
     }
-    let exe = std::env::current_exe().map_err(|_| {
-        CliError::Failed("cannot find the tiltsim executable to start participants".into())
-    })?;
     let scratch = crate::bench::scratch_dir(&a.out);
     let report = crate::bench::run(&s, d, &exe, &scratch, |name| {
         eprintln!("  measuring {name} ...");

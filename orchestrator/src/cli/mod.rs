@@ -69,6 +69,9 @@ enum Command {
     Replay(replay::ReplayArgs),
     /// Write a finished run's files as RUN_DIR/run.mcap (the channels of `run --record`).
     ExportMcap(export_mcap::ExportMcapArgs),
+    /// The echo side of `bench --ping-pong`.
+    #[command(hide = true)]
+    BenchEcho(bench::EchoArgs),
     /// Serve one participant over iceoryx2 (how the orchestrator starts its processes).
     #[command(hide = true)]
     Participant(participant::ParticipantArgs),
@@ -111,6 +114,7 @@ pub fn main() -> i32 {
         Command::Linearize(a) => linearize::exec(a),
         Command::Clean(a) => clean::exec(a),
         Command::Replay(a) => replay::exec(a),
+        Command::BenchEcho(a) => bench::echo(a),
         Command::ExportMcap(a) => export_mcap::exec(a),
         Command::Participant(a) => participant::exec(a),
     };

@@ -1,0 +1,188 @@
+//! The transport's own floor, measured the way iceoryx2's benchmark measures it: two processes,
+//! each pinned to its own CPU and busy-waiting, pass a sample back and forth; the one-way
+//! latency is half the round trip. Payloads of 64 B to 4 KB, each written whole into loaned
+//! memory and sent (`loan_uninit`, `write_payload`, `send`), read in place on the other side.
+//! `tiltsim bench --ping-pong` runs it, so a user can put their machine next to the published
+//! figures.
+
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+
+use super::{config, iox, node, IpcError};
+
+macro_rules! payload {
+    ($name:ident, $bytes:literal) => {
+        /// A ping-pong payload of this many bytes: a sequence number and filler.
+        #[repr(C)]
+        #[derive(Debug, Clone, Copy, ZeroCopySend)]
+        pub struct $name {
+            /// Sequence number.
+            pub seq: u64,
+            /// Filler up to the size.
+            pub data: [u8; $bytes - 8],
+        }
+        impl Sized_ for $name {
+            const BYTES: usize = $bytes;
+            fn new(seq: u64) -> Self {
+                $name {
+                    seq,
+                    data: [0; $bytes - 8],
+                }
+            }
+            fn seq(&self) -> u64 {
+                self.seq
+            }
+        }
+    };
+}
+
+/// A payload type of a fixed size.
+pub trait Sized_: ZeroCopySend + Copy + core::fmt::Debug + 'static {
+    /// Its size.
+    const BYTES: usize;
+    /// A payload carrying `seq`.
+    fn new(seq: u64) -> Self;
+    /// Its sequence number.
+    fn seq(&self) -> u64;
+}
+
+payload!(P64, 64);
+payload!(P256, 256);
+payload!(P1024, 1024);
+payload!(P4096, 4096);
+
+/// The payload sizes measured (bytes).
+pub const SIZES: [usize; 4] = [64, 256, 1024, 4096];
+
+/// The sequence number that tells the echo side to move to the next size.
+const DONE: u64 = u64::MAX;
+
+type Ports<T> = (
+    Publisher<ipc::Service, T, ()>,
+    Subscriber<ipc::Service, T, ()>,
+);
+
+fn ports<T: Sized_>(node: &Node<ipc::Service>, out: &str, inp: &str) -> Result<Ports<T>, IpcError> {
+    let open = |name: &str| -> Result<_, IpcError> {
+        let name: ServiceName = format!("tiltsim/pingpong/{}/{name}", T::BYTES)
+            .as_str()
+            .try_into()
+            .map_err(iox("service name"))?;
+        node.service_builder(&name)
+            .publish_subscribe::<T>()
+            .max_publishers(1)
+            .max_subscribers(1)
+            .history_size(0)
+            .subscriber_max_buffer_size(2)
+            .open_or_create()
+            .map_err(iox("open or create service"))
+    };
+    let p = open(out)?
+        .publisher_builder()
+        .create()
+        .map_err(iox("create publisher"))?;
+    let s = open(inp)?
+        .subscriber_builder()
+        .create()
+        .map_err(iox("create subscriber"))?;
+    Ok((p, s))
+}
+
+fn send<T: Sized_>(p: &Publisher<ipc::Service, T, ()>, seq: u64) -> Result<(), IpcError> {
+    let sample = p.loan_uninit().map_err(iox("loan"))?;
+    sample
+        .write_payload(T::new(seq))
+        .send()
+        .map_err(iox("send"))?;
+    Ok(())
+}
+
+/// Spins until a sample arrives; returns its sequence number.
+fn receive<T: Sized_>(s: &Subscriber<ipc::Service, T, ()>) -> Result<u64, IpcError> {
+    loop {
+        if let Some(sample) = s.receive().map_err(iox("receive"))? {
+            return Ok(sample.payload().seq());
+        }
+        core::hint::spin_loop();
+    }
+}
+
+fn echo_one<T: Sized_>(node: &Node<ipc::Service>) -> Result<(), IpcError> {
+    let (publisher, subscriber) = ports::<T>(node, "pong", "ping")?;
+    loop {
+        let seq = receive(&subscriber)?;
+        send(&publisher, seq)?;
+        if seq == DONE {
+            return Ok(());
+        }
+    }
+}
+
+/// The echo side (`tiltsim bench-echo`): answers every ping of every size with a pong.
+pub fn echo(prefix: &str) -> Result<(), IpcError> {
+    let cfg = config(prefix)?;
+    let node = node(&cfg, "pingpong-echo")?;
+    echo_one::<P64>(&node)?;
+    echo_one::<P256>(&node)?;
+    echo_one::<P1024>(&node)?;
+    echo_one::<P4096>(&node)
+}
+
+/// One-way latencies (ns) of `rounds` round trips of `T`, after a handshake and warm-up.
+fn measure_one<T: Sized_>(node: &Node<ipc::Service>, rounds: usize) -> Result<Vec<f64>, IpcError> {
+    let (publisher, subscriber) = ports::<T>(node, "ping", "pong")?;
+    // Handshake: samples sent before the echo subscribes are lost; ping until a pong comes.
+    let started = std::time::Instant::now();
+    'hand: loop {
+        send(&publisher, 0)?;
+        let t = std::time::Instant::now();
+        while t.elapsed() < std::time::Duration::from_millis(1) {
+            if let Some(s) = subscriber.receive().map_err(iox("receive"))? {
+                if s.payload().seq() == 0 {
+                    break 'hand;
+                }
+            }
+        }
+        if started.elapsed() > std::time::Duration::from_secs(10) {
+            return Err(IpcError::Iceoryx(
+                "ping-pong: the echo process does not answer".into(),
+            ));
+        }
+    }
+    // Drain late pongs of the handshake.
+    std::thread::sleep(std::time::Duration::from_millis(5));
+    while subscriber.receive().map_err(iox("receive"))?.is_some() {}
+    let mut out = Vec::with_capacity(rounds);
+    for i in 1..=(rounds + rounds / 10) as u64 {
+        let t0 = std::time::Instant::now();
+        send(&publisher, i)?;
+        let got = receive(&subscriber)?;
+        let rtt = t0.elapsed().as_nanos() as f64;
+        if got != i {
+            return Err(IpcError::Iceoryx(format!(
+                "ping-pong: pong {got} for ping {i}"
+            )));
+        }
+        // The first tenth warms caches and pages up.
+        if i as usize > rounds / 10 {
+            out.push(rtt / 2.0);
+        }
+    }
+    send(&publisher, DONE)?;
+    let _ = receive(&subscriber);
+    Ok(out)
+}
+
+/// The measuring side: one-way latencies (ns) per size in [`SIZES`], `rounds` each; the echo
+/// process must be running with the same `prefix`.
+pub fn measure(prefix: &str, rounds: usize) -> Result<Vec<Vec<f64>>, IpcError> {
+    let cfg = config(prefix)?;
+    let node = node(&cfg, "pingpong")?;
+    Ok(vec![
+        measure_one::<P64>(&node, rounds)?,
+        measure_one::<P256>(&node, rounds)?,
+        measure_one::<P1024>(&node, rounds)?,
+        measure_one::<P4096>(&node, rounds)?,
+    ])
+}
