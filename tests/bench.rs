@@ -51,6 +51,22 @@ fn bench_measures_every_master_and_wait_strategy_and_both_transports() {
         .map(|c| c["plant_round_trip_p50_us"].as_f64().unwrap())
         .fold(f64::INFINITY, f64::min);
     assert_eq!(r["ipc_round_trip_floor_us"].as_f64().unwrap(), floor);
+    // Each IPC configuration's floor per tick is that round trip times the round trips it
+    // waits for in turn (passive controller every tick: three under Gauss-Seidel, one under
+    // Jacobi), and the ratio is its overhead over it; in-process has neither.
+    for c in configs {
+        if c["transport"] == "ipc" {
+            let trips = if c["master"] == "jacobi" { 1.0 } else { 3.0 };
+            let f = c["floor_per_tick_us"].as_f64().unwrap();
+            assert!((f - trips * floor).abs() <= 1e-9 * f.max(1.0), "{c}");
+            let ratio = c["overhead_over_floor"].as_f64().unwrap();
+            assert!(
+                (ratio - c["overhead_p50_us"].as_f64().unwrap() / f).abs() < 1e-9 * ratio.max(1.0)
+            );
+        } else {
+            assert!(c["floor_per_tick_us"].is_null() && c["overhead_over_floor"].is_null());
+        }
+    }
     assert!(!dir.join("bench.runs").exists(), "scratch runs removed");
 }
 
