@@ -250,13 +250,10 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
     fn send(&mut self, req: &I) -> Result<(), LinkError> {
         let mut req = *req;
         req.stamp();
-        self.publisher
-            .send_copy(req)
-            .map(|_| ())
-            .map_err(|e| LinkError::Transport {
-                role: self.role,
-                what: format!("send: {e:?}"),
-            })
+        super::publish(&self.publisher, req).map_err(|what| LinkError::Transport {
+            role: self.role,
+            what,
+        })
     }
     fn receive(&mut self, step: u64, kind: Kind) -> Result<O, LinkError> {
         let mut backoff = Backoff::new(self.wait);
@@ -352,7 +349,7 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
             };
         };
         // Ask politely, then insist: a stopped or hung participant is killed.
-        let _ = self.publisher.send_copy({
+        let _ = super::publish(&self.publisher, {
             let mut m = I::default();
             *m.header_mut() = Header::new(u64::MAX, Kind::Stop);
             m

@@ -138,6 +138,20 @@ fn reply_service(role: Role) -> String {
     format!("tiltsim/{}/reply", role.name())
 }
 
+/// Publishes `v` zero-copy: the sample is written into memory loaned from the shared segment
+/// (`loan_uninit`, `write_payload`) and sent from there; the subscriber reads it in place.
+fn publish<T: Message>(
+    p: &iceoryx2::port::publisher::Publisher<ipc::Service, T, ()>,
+    v: T,
+) -> Result<(), String> {
+    let sample = p.loan_uninit().map_err(|e| format!("loan: {e:?}"))?;
+    sample
+        .write_payload(v)
+        .send()
+        .map(|_| ())
+        .map_err(|e| format!("send: {e:?}"))
+}
+
 /// Drains `sub` and returns the one sample for `step`, or an error for any other sample.
 fn drain<T: Message>(
     role: Role,

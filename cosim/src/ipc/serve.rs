@@ -99,7 +99,7 @@ pub fn serve_with<P: Participant>(
         }
         let mut reply = served.answer(&request);
         tamper(&mut reply);
-        publisher.send_copy(reply).map_err(iox("send"))?;
+        super::publish(&publisher, reply).map_err(IpcError::Iceoryx)?;
     }
 }
 
