@@ -32,8 +32,12 @@ pub fn enter(priority: i32) -> Result<(), String> {
     Ok(())
 }
 
-/// Whether the calling thread runs under `SCHED_FIFO`.
-pub fn active() -> bool {
-    // SAFETY: reads this thread's policy.
-    unsafe { libc::sched_getscheduler(0) == libc::SCHED_FIFO }
+/// Returns the calling thread to the ordinary policy (memory stays locked): for the work after
+/// a paced loop, which must not hold a core at real-time priority.
+pub fn leave() {
+    // SAFETY: a plain system call on this thread with a valid sched_param.
+    unsafe {
+        let p = libc::sched_param { sched_priority: 0 };
+        libc::sched_setscheduler(0, libc::SCHED_OTHER, &p);
+    }
 }

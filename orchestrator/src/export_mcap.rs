@@ -14,7 +14,8 @@ use cosim::msg::{FromActuator, FromController, FromPlant, ToController};
 use cosim::participant::Participant;
 use cosim::Role;
 
-use crate::engine::mcap::{deterministic, EventMessage, McapRecorder, TickData};
+use crate::engine::mcap::{EventMessage, McapRecorder, TickData};
+use crate::engine::summary::deterministic;
 use crate::engine::Inits;
 use crate::links::LinkId;
 use crate::record::Row;

@@ -352,11 +352,6 @@ impl Recorder {
         std::io::Error::new(kind, msg)
     }
 
-    /// Rows handed to the recorder.
-    pub fn rows(&self) -> u64 {
-        self.rows
-    }
-
     /// Complete rows in the file (all of them after a successful [`Recorder::finish`]).
     pub fn rows_on_disk(&self) -> u64 {
         self.on_disk_rows

@@ -73,7 +73,7 @@ pub fn print(s: &Summary, out: &Path) {
     }
     print_timing(s);
     println!(
-        "  wrote {}/timeseries.csv, summary.json, events.csv, scenario.toml, plots/*.svg|png",
+        "  wrote {}/timeseries.csv, summary.json, perf.json, events.csv, scenario.toml, plots/*.svg|png",
         out.display()
     );
 }

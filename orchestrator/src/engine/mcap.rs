@@ -286,7 +286,7 @@ impl McapRecorder {
                 detail: e.detail.clone(),
             })
             .collect();
-        let det = deterministic(serde_json::to_value(summary).unwrap_or_default());
+        let det = super::summary::deterministic(serde_json::to_value(summary).unwrap_or_default());
         let end = summary.steps_completed * self.dt_ns;
         self.close(&events, &det, &summary.perf(), end)
     }
@@ -337,35 +337,6 @@ impl EventMessage {
             serde_json::Value::from(self.detail.as_str()),
         )
     }
-}
-
-/// A summary's JSON without its wall-clock fields
-/// ([`super::summary::WALL_CLOCK_FIELDS`]).
-pub(crate) fn deterministic(mut det: serde_json::Value) -> serde_json::Value {
-    for f in super::summary::WALL_CLOCK_FIELDS {
-        match f.split_once('.') {
-            Some(("participants", rest)) => {
-                if let Some(ps) = det["participants"].as_array_mut() {
-                    for p in ps {
-                        let (parents, last) = rest.rsplit_once('.').unwrap_or(("", rest));
-                        let mut node = &mut *p;
-                        for k in parents.split('.').filter(|k| !k.is_empty()) {
-                            node = &mut node[k];
-                        }
-                        if let Some(o) = node.as_object_mut() {
-                            o.remove(last);
-                        }
-                    }
-                }
-            }
-            _ => {
-                if let Some(o) = det.as_object_mut() {
-                    o.remove(*f);
-                }
-            }
-        }
-    }
-    det
 }
 
 /// Channel index of a role's `in` (the `out` is the next one).

@@ -319,6 +319,10 @@ pub fn run_recorded(
     let loop_started = Instant::now();
     let mut outcome = lockstep(&mut team, &mut obs, &opts.interrupt);
     let wall = loop_started.elapsed().as_secs_f64();
+    // The analysis and the files after the loop run at ordinary priority.
+    if opts.realtime.is_some() {
+        cosim::realtime::leave();
+    }
     let finished = obs.recorder.0.finish();
     if let (Ok(()), Err(e)) = (&outcome, finished) {
         outcome = Err(Stop::Write(e));

@@ -135,6 +135,35 @@ pub const WALL_CLOCK_FIELDS: &[&str] = &[
     "ipc_prefix",
 ];
 
+/// A summary's JSON without its wall-clock fields
+/// ([`WALL_CLOCK_FIELDS`]).
+pub fn deterministic(mut det: serde_json::Value) -> serde_json::Value {
+    for f in WALL_CLOCK_FIELDS {
+        match f.split_once('.') {
+            Some(("participants", rest)) => {
+                if let Some(ps) = det["participants"].as_array_mut() {
+                    for p in ps {
+                        let (parents, last) = rest.rsplit_once('.').unwrap_or(("", rest));
+                        let mut node = &mut *p;
+                        for k in parents.split('.').filter(|k| !k.is_empty()) {
+                            node = &mut node[k];
+                        }
+                        if let Some(o) = node.as_object_mut() {
+                            o.remove(last);
+                        }
+                    }
+                }
+            }
+            _ => {
+                if let Some(o) = det.as_object_mut() {
+                    o.remove(*f);
+                }
+            }
+        }
+    }
+    det
+}
+
 impl Summary {
     /// The wall-clock part of the summary, for `perf.json`: the fields of
     /// [`WALL_CLOCK_FIELDS`], participants by role.
