@@ -123,14 +123,16 @@ pub trait Message: Copy + Default + core::fmt::Debug + ZeroCopySend + Send + 'st
 }
 
 macro_rules! message {
-    ($(#[$m:meta])* $name:ident, $label:literal { $($(#[$fm:meta])* $f:ident : $t:ty),* $(,)? }) => {
+    ($(#[$m:meta])* $name:ident, $label:literal {
+        $($(#[doc = $doc:literal])* $f:ident : $t:ty => [$($unit:literal),*]),* $(,)?
+    }) => {
         $(#[$m])*
         #[repr(C)]
         #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
         pub struct $name {
             /// Step index, kind and version.
             pub header: Header,
-            $($(#[$fm])* pub $f: $t,)*
+            $($(#[doc = $doc])* pub $f: $t,)*
         }
         impl Message for $name {
             const NAME: &'static str = $label;
@@ -142,7 +144,178 @@ macro_rules! message {
                 checks.iter().position(|ok| !ok)
             }
         }
+        impl Scalars for $name {
+            const FIELD_INFO: &'static [FieldInfo] = &[$(FieldInfo {
+                name: stringify!($f),
+                description: concat!($($doc),*),
+                units: &[$($unit),*],
+                ty: <$t as FieldValue>::TYPE,
+            }),*];
+            fn scalar(&self, mut i: usize) -> Option<ScalarValue> {
+                $(
+                    let n = FieldValue::len(&self.$f);
+                    if i < n {
+                        return Some(FieldValue::get(&self.$f, i));
+                    }
+                    i -= n;
+                )*
+                let _ = i;
+                None
+            }
+            fn set_scalar(&mut self, mut i: usize, v: ScalarValue) -> bool {
+                $(
+                    let n = FieldValue::len(&self.$f);
+                    if i < n {
+                        return FieldValue::set(&mut self.$f, i, v);
+                    }
+                    i -= n;
+                )*
+                let _ = (i, v);
+                false
+            }
+        }
     };
+}
+
+/// Type of one scalar of a sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScalarType {
+    /// IEEE double.
+    F64,
+    /// Unsigned 32-bit integer (counts, codes, bit sets).
+    U32,
+}
+
+/// The value of one scalar of a sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ScalarValue {
+    /// A double.
+    F64(f64),
+    /// An unsigned integer.
+    U32(u32),
+}
+
+/// A data field of a sample as declared: its name, its documentation, the unit of each element
+/// (one for a scalar field) and the element type.
+#[derive(Debug, Clone, Copy)]
+pub struct FieldInfo {
+    /// Field name, as in [`Message::FIELDS`].
+    pub name: &'static str,
+    /// The field's documentation comment.
+    pub description: &'static str,
+    /// Unit of each element (`""` where it has none), in the notation of FMI's unit names.
+    pub units: &'static [&'static str],
+    /// Element type.
+    pub ty: ScalarType,
+}
+
+/// One scalar of a sample: a scalar field or one element of an array field (`x[3]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScalarInfo {
+    /// `field` or `field[i]`.
+    pub name: String,
+    /// The field's documentation.
+    pub description: &'static str,
+    /// Unit (`""` where none).
+    pub unit: &'static str,
+    /// Type.
+    pub ty: ScalarType,
+}
+
+/// The data of a sample as a flat list of typed scalars, for bindings that exchange named
+/// scalars (FMI): the header is not part of it.
+pub trait Scalars: Message {
+    /// The declared fields.
+    const FIELD_INFO: &'static [FieldInfo];
+    /// Scalar `i` of the flat list, `None` past the end.
+    fn scalar(&self, i: usize) -> Option<ScalarValue>;
+    /// Sets scalar `i`; false past the end or for a value of the wrong type.
+    fn set_scalar(&mut self, i: usize, v: ScalarValue) -> bool;
+    /// The flat list: arrays element by element, named `field[i]`.
+    fn scalar_info() -> Vec<ScalarInfo> {
+        let mut out = Vec::new();
+        for f in Self::FIELD_INFO {
+            if f.units.len() == 1 {
+                out.push(ScalarInfo {
+                    name: f.name.to_string(),
+                    description: f.description.trim(),
+                    unit: f.units[0],
+                    ty: f.ty,
+                });
+            } else {
+                for (i, u) in f.units.iter().enumerate() {
+                    out.push(ScalarInfo {
+                        name: format!("{}[{i}]", f.name),
+                        description: f.description.trim(),
+                        unit: u,
+                        ty: f.ty,
+                    });
+                }
+            }
+        }
+        out
+    }
+}
+
+trait FieldValue {
+    const TYPE: ScalarType;
+    fn len(&self) -> usize;
+    fn get(&self, i: usize) -> ScalarValue;
+    fn set(&mut self, i: usize, v: ScalarValue) -> bool;
+}
+impl FieldValue for f64 {
+    const TYPE: ScalarType = ScalarType::F64;
+    fn len(&self) -> usize {
+        1
+    }
+    fn get(&self, _: usize) -> ScalarValue {
+        ScalarValue::F64(*self)
+    }
+    fn set(&mut self, _: usize, v: ScalarValue) -> bool {
+        match v {
+            ScalarValue::F64(x) => {
+                *self = x;
+                true
+            }
+            ScalarValue::U32(_) => false,
+        }
+    }
+}
+impl FieldValue for u32 {
+    const TYPE: ScalarType = ScalarType::U32;
+    fn len(&self) -> usize {
+        1
+    }
+    fn get(&self, _: usize) -> ScalarValue {
+        ScalarValue::U32(*self)
+    }
+    fn set(&mut self, _: usize, v: ScalarValue) -> bool {
+        match v {
+            ScalarValue::U32(x) => {
+                *self = x;
+                true
+            }
+            ScalarValue::F64(_) => false,
+        }
+    }
+}
+impl<const N: usize> FieldValue for [f64; N] {
+    const TYPE: ScalarType = ScalarType::F64;
+    fn len(&self) -> usize {
+        N
+    }
+    fn get(&self, i: usize) -> ScalarValue {
+        ScalarValue::F64(self[i])
+    }
+    fn set(&mut self, i: usize, v: ScalarValue) -> bool {
+        match v {
+            ScalarValue::F64(x) => {
+                self[i] = x;
+                true
+            }
+            ScalarValue::U32(_) => false,
+        }
+    }
 }
 
 trait FiniteCheck {
@@ -168,7 +341,7 @@ message!(
     /// Orchestrator → plant: the achieved anti-roll-bar angle held over the step.
     ToPlant, "to_plant" {
         /// Achieved bar angle δ_a (rad), held over `[t_k, t_{k+1})`.
-        delta_a: f64,
+        delta_a: f64 => ["rad"],
     }
 );
 
@@ -176,21 +349,21 @@ message!(
     /// Plant → orchestrator: vehicle state, track and sensor values at the sample time.
     FromPlant, "from_plant" {
         /// Simulated time (s).
-        t: f64,
+        t: f64 => ["s"],
         /// Distance along the track (m).
-        s: f64,
+        s: f64 => ["m"],
         /// Track curvature 1/R (1/m), deterministic design value.
-        curvature: f64,
+        curvature: f64 => ["1/m"],
         /// Total track cant θ_o including irregularity (rad).
-        cant: f64,
+        cant: f64 => ["rad"],
         /// State x = [y_v, θ_v, y_b, θ_b, ẏ_v, θ̇_v, ẏ_b, θ̇_b, θ_r] (m, rad, m/s, rad/s), eq 14.
-        x: [f64; 9],
+        x: [f64; 9] => ["m", "rad", "m", "rad", "m/s", "rad/s", "m/s", "rad/s", "rad"],
         /// Body-to-bogie roll ψ = θ_v − θ_b (rad), the twist the anti-roll bar sees.
-        psi: f64,
+        psi: f64 => ["rad"],
         /// Passenger lateral acceleration, eq 13 (m/s²).
-        lat_acc: f64,
+        lat_acc: f64 => ["m/s2"],
         /// Measured body roll θ_v with sensor noise (rad), eq 15.
-        theta_v_meas: f64,
+        theta_v_meas: f64 => ["rad"],
     }
 );
 
@@ -198,9 +371,9 @@ message!(
     /// Orchestrator → actuator: tilt command and the bar's twist.
     ToActuator, "to_actuator" {
         /// Commanded bar angle δ_a,cmd (rad).
-        delta_a_cmd: f64,
+        delta_a_cmd: f64 => ["rad"],
         /// Body-to-bogie roll ψ (rad) at `t_k`, for the bar's reaction torque.
-        psi: f64,
+        psi: f64 => ["rad"],
     }
 );
 
@@ -208,25 +381,25 @@ message!(
     /// Actuator → orchestrator: achieved bar angle and drive telemetry.
     FromActuator, "from_actuator" {
         /// Achieved bar angle δ_a (rad).
-        delta_a: f64,
+        delta_a: f64 => ["rad"],
         /// The set-point the drive's position loop follows after command shaping (rad).
-        delta_a_ref: f64,
+        delta_a_ref: f64 => ["rad"],
         /// Electromagnetic torque (N·m).
-        motor_torque: f64,
+        motor_torque: f64 => ["N.m"],
         /// Rotor speed (rad/s).
-        motor_speed: f64,
+        motor_speed: f64 => ["rad/s"],
         /// Motor current (A), see the actuator's docs for its definition.
-        motor_current: f64,
+        motor_current: f64 => ["A"],
         /// Power drawn from the DC link (W).
-        dc_power: f64,
+        dc_power: f64 => ["W"],
         /// Largest |phase current| in any electrical step of the interval (A).
-        phase_current_peak: f64,
+        phase_current_peak: f64 => ["A"],
         /// DC-link voltage (V).
-        v_dc: f64,
+        v_dc: f64 => ["V"],
         /// Power dumped in the braking chopper (W).
-        chopper_power: f64,
+        chopper_power: f64 => ["W"],
         /// Bit set of active limits (actuator-specific).
-        limits: u32,
+        limits: u32 => [""],
     }
 );
 
@@ -234,11 +407,11 @@ message!(
     /// Orchestrator → controller: measurement and the vehicle's position on the track.
     ToController, "to_controller" {
         /// Simulated time (s).
-        t: f64,
+        t: f64 => ["s"],
         /// Vehicle position along the track (m), as odometry would give it.
-        s: f64,
+        s: f64 => ["m"],
         /// Measured body roll θ_v (rad).
-        theta_v_meas: f64,
+        theta_v_meas: f64 => ["rad"],
     }
 );
 
@@ -246,15 +419,15 @@ message!(
     /// Controller → orchestrator: bar command, reference and estimate.
     FromController, "from_controller" {
         /// Commanded bar angle δ_a,cmd (rad).
-        delta_a_cmd: f64,
+        delta_a_cmd: f64 => ["rad"],
         /// Body roll reference θ_v^d of eq 18 (rad).
-        theta_ref: f64,
+        theta_ref: f64 => ["rad"],
         /// Estimated body roll θ̂_v (rad); the measurement where no estimator runs.
-        theta_v_hat: f64,
+        theta_v_hat: f64 => ["rad"],
         /// QP solver iterations of this update (0 where no QP runs).
-        solver_iterations: u32,
+        solver_iterations: u32 => [""],
         /// QP outcome of this update: 0 no QP, 1 solved, 2 failed (the fallback was applied).
-        solver_status: u32,
+        solver_status: u32 => [""],
     }
 );
 

@@ -10,6 +10,7 @@ pub mod compare;
 pub mod degraded;
 pub mod engine;
 pub mod events;
+pub mod export_fmu;
 pub mod export_mcap;
 pub mod faults;
 pub mod files;

@@ -7,6 +7,7 @@ use actuator_proc::ActuatorSettings;
 use controller_proc::ControllerSettings;
 use cosim::settings::{Checker, FieldError};
 use cosim::wait::WaitStrategy;
+use cosim::Role;
 use plant_proc::SensorParams;
 use serde::{Deserialize, Serialize};
 use vehicle_model::{TrackParams, VehicleParams};
@@ -132,6 +133,44 @@ pub struct Scenario {
     /// vehicle). Absent: the controller knows the vehicle exactly.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub design_vehicle: Option<VehicleParams>,
+    /// Participants replaced by FMUs (`[participants.<role>]`); absent: the native ones.
+    #[serde(skip_serializing_if = "FmuParticipants::is_empty")]
+    pub participants: FmuParticipants,
+}
+
+/// `[participants]`: an FMU for any role in place of tiltsim's own participant.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct FmuParticipants {
+    /// The plant.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub plant: Option<tiltsim_fmi::FmuSettings>,
+    /// The actuator.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub actuator: Option<tiltsim_fmi::FmuSettings>,
+    /// The controller.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub controller: Option<tiltsim_fmi::FmuSettings>,
+}
+
+impl FmuParticipants {
+    /// No FMU anywhere.
+    pub fn is_empty(&self) -> bool {
+        self.plant.is_none() && self.actuator.is_none() && self.controller.is_none()
+    }
+    /// The FMU settings of `role`, if an FMU plays it.
+    pub fn get(&self, role: Role) -> Option<&tiltsim_fmi::FmuSettings> {
+        match role {
+            Role::Plant => self.plant.as_ref(),
+            Role::Actuator => self.actuator.as_ref(),
+            Role::Controller => self.controller.as_ref(),
+        }
+    }
+    fn each_mut(&mut self) -> impl Iterator<Item = &mut tiltsim_fmi::FmuSettings> {
+        [&mut self.plant, &mut self.actuator, &mut self.controller]
+            .into_iter()
+            .flatten()
+    }
 }
 
 /// Why a scenario was rejected. Displayed messages name the file.
@@ -239,10 +278,18 @@ impl Scenario {
 
     /// Parses and validates scenario text; `file` is used in messages.
     pub fn parse(text: &str, file: &Path) -> Result<Scenario, ScenarioError> {
-        let s = typed(text).map_err(|message| ScenarioError::Parse {
+        let mut s = typed(text).map_err(|message| ScenarioError::Parse {
             file: file.into(),
             message: cut(message.trim_end()),
         })?;
+        // FMU paths are relative to the scenario file.
+        if let Some(dir) = file.parent() {
+            for f in s.participants.each_mut() {
+                if f.fmu.is_relative() {
+                    f.fmu = dir.join(&f.fmu);
+                }
+            }
+        }
         let errors = s.validate();
         if errors.is_empty() {
             Ok(s)
@@ -356,6 +403,7 @@ impl Scenario {
         if let Some(v) = &self.design_vehicle {
             all.merge(v.validate("design_vehicle"));
         }
+        all.errors.extend(self.validate_fmus());
         let mut c = Checker::new("controller");
         let ratio = self.controller.period_s / r.dt_s;
         c.require(
@@ -388,6 +436,45 @@ impl Scenario {
             }
         }
         all.errors
+    }
+
+    /// The communication period of `role` (s).
+    pub fn period_of(&self, role: Role) -> f64 {
+        match role {
+            Role::Plant | Role::Actuator => self.run.dt_s,
+            Role::Controller => self.controller.period_s,
+        }
+    }
+
+    /// What the process of an FMU playing `role` receives, if one does.
+    pub fn fmu_init(&self, role: Role) -> Option<tiltsim_fmi::FmuInit> {
+        self.participants
+            .get(role)
+            .map(|settings| tiltsim_fmi::FmuInit {
+                role,
+                settings: settings.clone(),
+                period_s: self.period_of(role),
+                dt_s: self.run.dt_s,
+            })
+    }
+
+    /// Every FMU checked against its description: the file, the library for this platform,
+    /// the mapping's names, causalities and types, the parameters and the step size.
+    fn validate_fmus(&self) -> Vec<FieldError> {
+        let mut errors = Vec::new();
+        for role in Role::ALL {
+            let Some(init) = self.fmu_init(role) else {
+                continue;
+            };
+            if let Err(e) = tiltsim_fmi::import::check(&init) {
+                errors.push(FieldError {
+                    field: format!("participants.{role}.{}", e.field),
+                    value: e.value,
+                    allowed: e.allowed,
+                });
+            }
+        }
+        errors
     }
 
     /// The vehicle the controller's design and reference use.

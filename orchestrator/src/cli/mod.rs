@@ -9,6 +9,7 @@ mod clean;
 mod common;
 mod compare;
 mod error;
+mod export_fmu;
 mod export_mcap;
 mod linearize;
 mod participant;
@@ -69,12 +70,18 @@ enum Command {
     Replay(replay::ReplayArgs),
     /// Write a finished run's files as RUN_DIR/run.mcap (the channels of `run --record`).
     ExportMcap(export_mcap::ExportMcapArgs),
+    /// Write one participant of a scenario as an FMI 3.0 co-simulation FMU (its inputs and
+    /// outputs are the participant's sample fields, its parameters the scenario's values).
+    ExportFmu(export_fmu::ExportFmuArgs),
     /// The echo side of `bench --ping-pong`.
     #[command(hide = true)]
     BenchEcho(bench::EchoArgs),
     /// Serve one participant over iceoryx2 (how the orchestrator starts its processes).
     #[command(hide = true)]
     Participant(participant::ParticipantArgs),
+    /// Serve an FMU as one participant over iceoryx2 (`[participants.<role>] fmu = ...`).
+    #[command(hide = true)]
+    FmuParticipant(participant::ParticipantArgs),
 }
 
 fn init_logging(verbose: u8) {
@@ -117,6 +124,8 @@ pub fn main() -> i32 {
         Command::BenchEcho(a) => bench::echo(a),
         Command::ExportMcap(a) => export_mcap::exec(a),
         Command::Participant(a) => participant::exec(a),
+        Command::FmuParticipant(a) => participant::exec_fmu(a),
+        Command::ExportFmu(a) => export_fmu::exec(a),
     };
     match result {
         Ok(()) => 0,

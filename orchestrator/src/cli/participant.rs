@@ -1,7 +1,8 @@
-//! `tiltsim participant ROLE ...` (hidden): how the orchestrator starts its participant
-//! processes from this same executable.
+//! `tiltsim participant ROLE ...` and `tiltsim fmu-participant ROLE ...` (hidden): how the
+//! orchestrator starts its participant processes from this same executable, native or FMU.
 
 use super::error::{CliError, CliResult};
+use tiltsim_fmi::{ActuatorIo, ControllerIo, FmuInit, FmuParticipant, PlantIo};
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -13,18 +14,34 @@ pub struct ParticipantArgs {
     rest: Vec<String>,
 }
 
-/// Runs the command.
-pub fn exec(a: ParticipantArgs) -> CliResult {
-    let role = cosim::Role::parse(&a.role).ok_or_else(|| {
+fn role_of(a: &ParticipantArgs) -> Result<cosim::Role, CliError> {
+    cosim::Role::parse(&a.role).ok_or_else(|| {
         CliError::Invalid(format!(
             "participant `{}`: allowed plant, actuator, controller",
             a.role
         ))
-    })?;
-    match role {
+    })
+}
+
+/// Runs the command.
+pub fn exec(a: ParticipantArgs) -> CliResult {
+    match role_of(&a)? {
         cosim::Role::Plant => plant_proc::serve(&a.rest),
         cosim::Role::Actuator => actuator_proc::serve(&a.rest),
         cosim::Role::Controller => controller_proc::serve(&a.rest),
+    }
+    .map_err(|e| CliError::Participant(e.to_string()))
+}
+
+/// Runs an FMU as the participant (`--params` holds its [`FmuInit`]).
+pub fn exec_fmu(a: ParticipantArgs) -> CliResult {
+    use cosim::ipc::participant_main;
+    match role_of(&a)? {
+        cosim::Role::Plant => participant_main(&a.rest, FmuParticipant::<PlantIo>::new),
+        cosim::Role::Actuator => participant_main(&a.rest, FmuParticipant::<ActuatorIo>::new),
+        cosim::Role::Controller => {
+            participant_main(&a.rest, |i: FmuInit| FmuParticipant::<ControllerIo>::new(i))
+        }
     }
     .map_err(|e| CliError::Participant(e.to_string()))
 }

@@ -11,6 +11,7 @@ use cosim::msg::{FromActuator, FromController, FromPlant, ToActuator, ToControll
 use cosim::{Endpoint, InProcess, Role};
 use plant_proc::{Plant, PlantSettings};
 use serde::Serialize;
+use tiltsim_fmi::{ActuatorIo, ControllerIo, PlantIo};
 
 use super::{RunError, RunOptions};
 use crate::roles::RoleMap;
@@ -115,13 +116,31 @@ pub(crate) fn start(
     match s.run.transport {
         Transport::InProcess => {
             let d = Duration::from_millis(s.run.deadline_ms);
-            Ok(Participants {
-                plant: Box::new(InProcess::new(Plant::new(&inits.plant)).with_deadline(d)),
-                actuator: Box::new(InProcess::new(Actuator::new(&inits.actuator)).with_deadline(d)),
-                controller: Box::new(
+            let plant: PlantEp = match s.fmu_init(Role::Plant) {
+                Some(init) => {
+                    Box::new(InProcess::new(fmu_model::<PlantIo>(init)?).with_deadline(d))
+                }
+                None => Box::new(InProcess::new(Plant::new(&inits.plant)).with_deadline(d)),
+            };
+            let actuator: ActuatorEp = match s.fmu_init(Role::Actuator) {
+                Some(init) => {
+                    Box::new(InProcess::new(fmu_model::<ActuatorIo>(init)?).with_deadline(d))
+                }
+                None => Box::new(InProcess::new(Actuator::new(&inits.actuator)).with_deadline(d)),
+            };
+            let controller: ControllerEp = match s.fmu_init(Role::Controller) {
+                Some(init) => {
+                    Box::new(InProcess::new(fmu_model::<ControllerIo>(init)?).with_deadline(d))
+                }
+                None => Box::new(
                     InProcess::new(Controller::new(&inits.controller).map_err(RunError::Design)?)
                         .with_deadline(d),
                 ),
+            };
+            Ok(Participants {
+                plant,
+                actuator,
+                controller,
                 hub: None,
             })
         }
@@ -146,14 +165,14 @@ pub(crate) fn start(
                 cosim::ipc::pin_to_cpu(own);
             }
             let startup = Duration::from_millis(s.run.startup_ms);
-            let launch = |role: Role, params: String| Launch {
+            let launch_of = |role: Role, command: &str, params: String| Launch {
                 program: opts
                     .participant_overrides
                     .iter()
                     .find(|(r, _)| *r == role)
                     .map_or_else(|| opts.participant_exe.clone(), |(_, p)| p.clone()),
                 args: [
-                    "participant".into(),
+                    command.into(),
                     role.name().into(),
                     "--params".into(),
                     params.into(),
@@ -165,6 +184,14 @@ pub(crate) fn start(
                         .flat_map(|p| ["--realtime".into(), p.to_string().into()]),
                 )
                 .collect(),
+            };
+            // An FMU's process is this executable's `fmu-participant`, given the FMU's settings.
+            let launch = |role: Role, params: String| {
+                let (command, params) = match s.fmu_init(role) {
+                    Some(init) => ("fmu-participant", json(&init)),
+                    None => ("participant", params),
+                };
+                launch_of(role, command, params)
             };
             let plant = hub.spawn::<ToPlant, FromPlant>(
                 Role::Plant,
@@ -189,6 +216,14 @@ pub(crate) fn start(
             })
         }
     }
+}
+
+/// An FMU participant loaded in this process.
+fn fmu_model<S: tiltsim_fmi::Samples>(
+    init: tiltsim_fmi::FmuInit,
+) -> Result<tiltsim_fmi::FmuParticipant<S>, RunError> {
+    let role = init.role;
+    tiltsim_fmi::FmuParticipant::<S>::new(init).map_err(|message| RunError::Fmu { role, message })
 }
 
 /// Settings as the JSON a participant process receives. Plain settings structs (no maps with

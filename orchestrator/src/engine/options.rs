@@ -85,6 +85,14 @@ pub enum RunError {
     /// The controller design failed.
     #[error("controller design: {0}")]
     Design(String),
+    /// An FMU participant could not be loaded or initialised.
+    #[error("{role}: {message}")]
+    Fmu {
+        /// The role it was to play.
+        role: cosim::Role,
+        /// What went wrong.
+        message: String,
+    },
 }
 
 impl RunError {

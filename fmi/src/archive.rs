@@ -1,0 +1,177 @@
+//! FMU archives: writing tiltsim's own, opening any (a zip with `modelDescription.xml` and a
+//! platform library) into a private directory that is removed when dropped.
+
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::description::{FmiVersion, ModelDescription};
+
+/// The platform directory of this machine's libraries in an FMU of `version`.
+pub fn platform_dir(version: FmiVersion) -> &'static str {
+    match version {
+        FmiVersion::V2 => "linux64",
+        FmiVersion::V3 => "x86_64-linux",
+    }
+}
+
+/// Writes an FMU: `modelDescription.xml`, the library as
+/// `binaries/x86_64-linux/<identifier>.so` and `resources/<name>` files. Written to a
+/// temporary name and renamed, so `out` is whole or absent.
+pub fn write_fmu(
+    out: &Path,
+    description: &str,
+    identifier: &str,
+    library: &[u8],
+    resources: &[(&str, &[u8])],
+) -> std::io::Result<()> {
+    let tmp = out.with_extension("fmu.part");
+    let result = (|| {
+        let f = std::fs::File::create(&tmp)?;
+        let mut z = zip::ZipWriter::new(f);
+        let opts = zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Deflated)
+            .last_modified_time(zip::DateTime::default())
+            .unix_permissions(0o644);
+        let mut put = |name: &str, bytes: &[u8]| -> std::io::Result<()> {
+            z.start_file(name, opts).map_err(std::io::Error::other)?;
+            z.write_all(bytes)
+        };
+        put("modelDescription.xml", description.as_bytes())?;
+        put(&format!("binaries/x86_64-linux/{identifier}.so"), library)?;
+        for (name, bytes) in resources {
+            put(&format!("resources/{name}"), bytes)?;
+        }
+        z.finish().map_err(std::io::Error::other)?.sync_all()
+    })();
+    match result {
+        Ok(()) => std::fs::rename(&tmp, out),
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            Err(e)
+        }
+    }
+}
+
+/// Reads only the model description of the FMU at `path`.
+pub fn read_description(path: &Path) -> Result<ModelDescription, String> {
+    let f = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
+    let mut z = zip::ZipArchive::new(f).map_err(|_| "not an FMU: not a zip archive".to_string())?;
+    let mut xml = String::new();
+    z.by_name("modelDescription.xml")
+        .map_err(|_| "not an FMU: no modelDescription.xml in the archive".to_string())?
+        .read_to_string(&mut xml)
+        .map_err(|e| format!("modelDescription.xml: {e}"))?;
+    ModelDescription::parse(&xml).map_err(|e| format!("modelDescription.xml: {e}"))
+}
+
+/// The archive entry of the co-simulation library for this platform; the error lists the
+/// libraries the FMU does have.
+pub fn library_entry(path: &Path, description: &ModelDescription) -> Result<String, String> {
+    let id = description
+        .cs_identifier
+        .as_deref()
+        .ok_or_else(|| "no <CoSimulation> element".to_string())?;
+    let f = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
+    let z = zip::ZipArchive::new(f).map_err(|_| "not an FMU: not a zip archive".to_string())?;
+    let want = format!("binaries/{}/{id}.so", platform_dir(description.version));
+    if z.index_for_name(&want).is_some() {
+        return Ok(want);
+    }
+    let have: Vec<String> = z
+        .file_names()
+        .filter_map(|n| n.ok().map(|n| n.to_string()))
+        .filter(|n| n.starts_with("binaries/") && !n.ends_with('/'))
+        .collect();
+    Err(format!(
+        "`{want}` is missing; the FMU has {}",
+        if have.is_empty() {
+            "no binaries".to_string()
+        } else {
+            have.join(", ")
+        }
+    ))
+}
+
+/// An FMU unpacked into a private directory (removed on drop).
+#[derive(Debug)]
+pub struct Unpacked {
+    /// The directory.
+    pub dir: PathBuf,
+    /// Its description.
+    pub description: ModelDescription,
+    /// The co-simulation library for this platform.
+    pub library: PathBuf,
+}
+
+static UNPACKED: AtomicU64 = AtomicU64::new(0);
+
+impl Unpacked {
+    /// Unpacks the FMU at `path`; the error says what is wrong with it (not a zip, no
+    /// description, model exchange only, no library for this platform).
+    pub fn open(path: &Path) -> Result<Unpacked, String> {
+        let description = read_description(path)?;
+        description.cs_identifier.as_ref().ok_or_else(|| {
+            if description.has_model_exchange {
+                "a model-exchange-only FMU: tiltsim steps co-simulation FMUs (no <CoSimulation> element)".to_string()
+            } else {
+                "no <CoSimulation> element: not a co-simulation FMU".to_string()
+            }
+        })?;
+        let want = library_entry(path, &description)?;
+        let f = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
+        let mut z =
+            zip::ZipArchive::new(f).map_err(|_| "not an FMU: not a zip archive".to_string())?;
+        let n = UNPACKED.fetch_add(1, Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!(
+            "tiltsim-fmu-{}-{n}-{}",
+            std::process::id(),
+            description
+                .model_name
+                .chars()
+                .filter(|c| c.is_ascii_alphanumeric())
+                .take(40)
+                .collect::<String>()
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir)
+            .map_err(|e| format!("cannot unpack into {}: {e}", dir.display()))?;
+        let unpacked = Unpacked {
+            library: dir.join(&want),
+            dir,
+            description,
+        };
+        for i in 0..z.len() {
+            let mut e = z.by_index(i).map_err(|e| format!("damaged archive: {e}"))?;
+            let Some(rel) = e.enclosed_name() else {
+                return Err(format!(
+                    "archive entry `{}` points outside the FMU",
+                    e.name().unwrap_or_default()
+                ));
+            };
+            let to = unpacked.dir.join(rel);
+            if e.is_dir() {
+                std::fs::create_dir_all(&to).map_err(|e| e.to_string())?;
+                continue;
+            }
+            if let Some(p) = to.parent() {
+                std::fs::create_dir_all(p).map_err(|e| e.to_string())?;
+            }
+            let mut out =
+                std::fs::File::create(&to).map_err(|e| format!("{}: {e}", to.display()))?;
+            std::io::copy(&mut e, &mut out).map_err(|e| format!("{}: {e}", to.display()))?;
+        }
+        Ok(unpacked)
+    }
+
+    /// The FMU's `resources` directory.
+    pub fn resources(&self) -> PathBuf {
+        self.dir.join("resources")
+    }
+}
+
+impl Drop for Unpacked {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}

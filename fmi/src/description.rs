@@ -1,0 +1,362 @@
+//! `modelDescription.xml`: written for tiltsim's own FMUs (FMI 3.0), read for any FMU (FMI 2.0
+//! and 3.0, co-simulation).
+
+use std::fmt::Write as _;
+
+use cosim::msg::ScalarType;
+
+use crate::layout::{fmi3_scalar_type, Layout, ParamValue};
+use crate::units::UNIT_DEFS;
+
+/// What the exporter says about the FMU besides its variables.
+#[derive(Debug, Clone)]
+pub struct ExportInfo {
+    /// `modelName`.
+    pub model_name: String,
+    /// `modelIdentifier`: the library's file name without `.so`.
+    pub model_identifier: String,
+    /// `instantiationToken`.
+    pub token: String,
+    /// What the model is (the scenario's description).
+    pub description: String,
+    /// The fixed communication step (s).
+    pub step_s: f64,
+    /// The scenario's duration (s), for `<DefaultExperiment>`.
+    pub stop_s: f64,
+}
+
+fn esc(s: &str) -> String {
+    let mut o = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => o.push_str("&amp;"),
+            '<' => o.push_str("&lt;"),
+            '>' => o.push_str("&gt;"),
+            '"' => o.push_str("&quot;"),
+            '\n' | '\r' | '\t' => o.push(' '),
+            c => o.push(c),
+        }
+    }
+    o
+}
+
+/// A real in the shortest form that reads back to the same bits.
+pub fn real(v: f64) -> String {
+    format!("{v:e}")
+}
+
+/// The FMI 3.0 co-simulation model description of `layout`.
+pub fn write_fmi3(layout: &Layout, info: &ExportInfo) -> String {
+    let mut x = String::new();
+    let _ = writeln!(x, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
+    let _ = writeln!(
+        x,
+        r#"<fmiModelDescription fmiVersion="3.0" modelName="{}" instantiationToken="{}" description="{}" generationTool="tiltsim {}" variableNamingConvention="flat">"#,
+        esc(&info.model_name),
+        esc(&info.token),
+        esc(&info.description),
+        env!("CARGO_PKG_VERSION"),
+    );
+    let _ = writeln!(
+        x,
+        r#"  <CoSimulation modelIdentifier="{}" canHandleVariableCommunicationStepSize="false" fixedInternalStepSize="{}" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="false" canSerializeFMUState="false" hasEventMode="false" providesIntermediateUpdate="false"/>"#,
+        esc(&info.model_identifier),
+        real(info.step_s)
+    );
+    let mut used: Vec<&str> = layout.inputs.iter().map(|s| s.unit).collect();
+    used.extend(layout.outputs.iter().map(|s| s.unit));
+    used.extend(layout.params.iter().map(|p| p.unit));
+    x.push_str("  <UnitDefinitions>\n");
+    for (name, (kg, m, s, a, rad, factor)) in UNIT_DEFS {
+        if !used.contains(name) {
+            continue;
+        }
+        let mut b = String::new();
+        for (k, e) in [("kg", kg), ("m", m), ("s", s), ("A", a), ("rad", rad)] {
+            if *e != 0 {
+                let _ = write!(b, r#" {k}="{e}""#);
+            }
+        }
+        if *factor != 1.0 {
+            let _ = write!(b, r#" factor="{}""#, real(*factor));
+        }
+        let _ = writeln!(x, r#"    <Unit name="{}"><BaseUnit{b}/></Unit>"#, esc(name));
+    }
+    x.push_str("  </UnitDefinitions>\n");
+    let _ = writeln!(
+        x,
+        r#"  <DefaultExperiment startTime="0" stopTime="{}" stepSize="{}"/>"#,
+        real(info.stop_s),
+        real(info.step_s)
+    );
+    x.push_str("  <ModelVariables>\n");
+    x.push_str(r#"    <Float64 name="time" valueReference="0" causality="independent" variability="continuous" unit="s" description="Simulated time"/>"#);
+    x.push('\n');
+    let unit = |u: &str| {
+        if u.is_empty() {
+            String::new()
+        } else {
+            format!(r#" unit="{}""#, esc(u))
+        }
+    };
+    for (i, s) in layout.inputs.iter().enumerate() {
+        let (var, start) = match s.ty {
+            ScalarType::F64 => ("continuous", "0"),
+            ScalarType::U32 => ("discrete", "0"),
+        };
+        let _ = writeln!(
+            x,
+            r#"    <{t} name="{n}" valueReference="{vr}" causality="input" variability="{var}" start="{start}"{u} description="{d}"/>"#,
+            t = fmi3_scalar_type(s.ty),
+            n = esc(&s.name),
+            vr = layout.input_vr(i),
+            u = if s.ty == ScalarType::F64 {
+                unit(s.unit)
+            } else {
+                String::new()
+            },
+            d = esc(s.description),
+        );
+    }
+    for (i, s) in layout.outputs.iter().enumerate() {
+        let var = match s.ty {
+            ScalarType::F64 => "continuous",
+            ScalarType::U32 => "discrete",
+        };
+        let _ = writeln!(
+            x,
+            r#"    <{t} name="{n}" valueReference="{vr}" causality="output" variability="{var}" initial="calculated"{u} description="{d}"/>"#,
+            t = fmi3_scalar_type(s.ty),
+            n = esc(&s.name),
+            vr = layout.output_vr(i),
+            u = if s.ty == ScalarType::F64 {
+                unit(s.unit)
+            } else {
+                String::new()
+            },
+            d = esc(s.description),
+        );
+    }
+    for (i, p) in layout.params.iter().enumerate() {
+        let vr = layout.param_vr(i);
+        let head = format!(
+            r#"    <{t} name="{n}" valueReference="{vr}" causality="parameter" variability="fixed""#,
+            t = p.value.fmi3_type(),
+            n = esc(&p.name),
+        );
+        let _ = match &p.value {
+            ParamValue::F64(v) => writeln!(x, r#"{head} start="{}"{}/>"#, real(*v), unit(p.unit)),
+            ParamValue::U64(v) => writeln!(x, r#"{head} start="{v}"/>"#),
+            ParamValue::I64(v) => writeln!(x, r#"{head} start="{v}"/>"#),
+            ParamValue::Bool(v) => writeln!(x, r#"{head} start="{v}"/>"#),
+            ParamValue::Str(v) => writeln!(
+                x,
+                "{head}>\n      <Start value=\"{}\"/>\n    </String>",
+                esc(v)
+            ),
+        };
+    }
+    x.push_str("  </ModelVariables>\n  <ModelStructure>\n");
+    for i in 0..layout.outputs.len() {
+        let _ = writeln!(
+            x,
+            r#"    <Output valueReference="{}"/>"#,
+            layout.output_vr(i)
+        );
+    }
+    for i in 0..layout.outputs.len() {
+        let _ = writeln!(
+            x,
+            r#"    <InitialUnknown valueReference="{}"/>"#,
+            layout.output_vr(i)
+        );
+    }
+    x.push_str("  </ModelStructure>\n</fmiModelDescription>\n");
+    x
+}
+
+/// FMI version of an FMU.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FmiVersion {
+    /// FMI 2.0.
+    V2,
+    /// FMI 3.0.
+    V3,
+}
+
+impl core::fmt::Display for FmiVersion {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            FmiVersion::V2 => "FMI 2.0",
+            FmiVersion::V3 => "FMI 3.0",
+        })
+    }
+}
+
+/// A variable's type as tiltsim can exchange it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VarKind {
+    /// FMI 2 `Real`, FMI 3 `Float64`.
+    Real,
+    /// FMI 2 `Integer`, FMI 3 `Int32`.
+    Int32,
+    /// FMI 3 `UInt32`.
+    UInt32,
+    /// FMI 3 `UInt64`.
+    UInt64,
+    /// FMI 3 `Int64`.
+    Int64,
+    /// `Boolean`.
+    Boolean,
+    /// `String`.
+    Str,
+    /// Anything else (FMI 3 `Float32`, `Int8`, `Binary`, `Clock`, …): listed, never exchanged.
+    Other,
+}
+
+/// A variable of an FMU as its description declares it.
+#[derive(Debug, Clone)]
+pub struct VarDesc {
+    /// Name.
+    pub name: String,
+    /// Value reference.
+    pub vr: u32,
+    /// `causality` (FMI's default `local` where absent).
+    pub causality: String,
+    /// Type.
+    pub kind: VarKind,
+    /// The type's element name as written (`Real`, `Float64`, …).
+    pub type_name: String,
+    /// Declared array dimensions (FMI 3 arrays are not supported).
+    pub is_array: bool,
+}
+
+/// What tiltsim needs from an FMU's `modelDescription.xml`.
+#[derive(Debug, Clone)]
+pub struct ModelDescription {
+    /// Version.
+    pub version: FmiVersion,
+    /// `modelName`.
+    pub model_name: String,
+    /// FMI 2 `guid`, FMI 3 `instantiationToken`.
+    pub token: String,
+    /// The co-simulation `modelIdentifier`; `None` for a model-exchange-only FMU.
+    pub cs_identifier: Option<String>,
+    /// Whether it has a model-exchange interface.
+    pub has_model_exchange: bool,
+    /// `canHandleVariableCommunicationStepSize`.
+    pub variable_step: bool,
+    /// FMI 3 `fixedInternalStepSize`.
+    pub fixed_step: Option<f64>,
+    /// `<DefaultExperiment stepSize>`.
+    pub default_step: Option<f64>,
+    /// The variables.
+    pub vars: Vec<VarDesc>,
+}
+
+impl ModelDescription {
+    /// Reads a description; the error says what is wrong.
+    pub fn parse(xml: &str) -> Result<ModelDescription, String> {
+        let doc = roxmltree::Document::parse(xml).map_err(|e| format!("not XML: {e}"))?;
+        let root = doc.root_element();
+        if root.tag_name().name() != "fmiModelDescription" {
+            return Err(format!(
+                "root element is <{}>, not <fmiModelDescription>",
+                root.tag_name().name()
+            ));
+        }
+        let v = root.attribute("fmiVersion").unwrap_or("");
+        let version = if v.starts_with("2.") {
+            FmiVersion::V2
+        } else if v.starts_with("3.") {
+            FmiVersion::V3
+        } else {
+            return Err(format!(
+                "fmiVersion `{v}`: tiltsim reads FMI 2.0 and FMI 3.0 FMUs"
+            ));
+        };
+        let token = match version {
+            FmiVersion::V2 => root.attribute("guid"),
+            FmiVersion::V3 => root.attribute("instantiationToken"),
+        }
+        .unwrap_or("")
+        .to_string();
+        let child = |n: &str| root.children().find(|c| c.has_tag_name(n));
+        let cs = child("CoSimulation");
+        let flag = |a: &str| cs.and_then(|c| c.attribute(a)) == Some("true");
+        let num = |n: Option<roxmltree::Node>, a: &str| {
+            n.and_then(|c| c.attribute(a))
+                .and_then(|s| s.trim().parse::<f64>().ok())
+        };
+        let mut vars = Vec::new();
+        if let Some(mv) = child("ModelVariables") {
+            for e in mv.children().filter(|c| c.is_element()) {
+                let (type_name, kind, is_array) = match version {
+                    FmiVersion::V2 => {
+                        let t = e
+                            .children()
+                            .find(|c| c.is_element())
+                            .map(|c| c.tag_name().name().to_string())
+                            .unwrap_or_default();
+                        let k = match t.as_str() {
+                            "Real" => VarKind::Real,
+                            "Integer" | "Enumeration" => VarKind::Int32,
+                            "Boolean" => VarKind::Boolean,
+                            "String" => VarKind::Str,
+                            _ => VarKind::Other,
+                        };
+                        (t, k, false)
+                    }
+                    FmiVersion::V3 => {
+                        let t = e.tag_name().name().to_string();
+                        let k = match t.as_str() {
+                            "Float64" => VarKind::Real,
+                            "Int32" | "Enumeration" => VarKind::Int32,
+                            "UInt32" => VarKind::UInt32,
+                            "Int64" => VarKind::Int64,
+                            "UInt64" => VarKind::UInt64,
+                            "Boolean" => VarKind::Boolean,
+                            "String" => VarKind::Str,
+                            _ => VarKind::Other,
+                        };
+                        let arr = e.children().any(|c| c.has_tag_name("Dimension"));
+                        (t, k, arr)
+                    }
+                };
+                let (Some(name), Some(vr)) = (
+                    e.attribute("name"),
+                    e.attribute("valueReference")
+                        .and_then(|s| s.trim().parse().ok()),
+                ) else {
+                    continue;
+                };
+                vars.push(VarDesc {
+                    name: name.to_string(),
+                    vr,
+                    causality: e.attribute("causality").unwrap_or("local").to_string(),
+                    kind,
+                    type_name,
+                    is_array,
+                });
+            }
+        }
+        Ok(ModelDescription {
+            version,
+            model_name: root.attribute("modelName").unwrap_or("").to_string(),
+            token,
+            cs_identifier: cs
+                .and_then(|c| c.attribute("modelIdentifier"))
+                .map(str::to_string),
+            has_model_exchange: child("ModelExchange").is_some(),
+            variable_step: flag("canHandleVariableCommunicationStepSize"),
+            fixed_step: num(cs, "fixedInternalStepSize"),
+            default_step: num(child("DefaultExperiment"), "stepSize"),
+            vars,
+        })
+    }
+
+    /// The variable called `name`.
+    pub fn var(&self, name: &str) -> Option<&VarDesc> {
+        self.vars.iter().find(|v| v.name == name)
+    }
+}

@@ -1,0 +1,19 @@
+//! FMI for tiltsim.
+//!
+//! * [`layout`]: the variables of a participant's FMU (inputs, outputs, parameters, value
+//!   references), shared by the exporter and the FMU's library.
+//! * [`description`]: `modelDescription.xml`, written (FMI 3.0) and read (FMI 2.0 and 3.0).
+//! * [`archive`]: FMU archives, written and unpacked.
+//! * [`binding`]: a small hand-written binding of the FMI C API over `libloading`.
+//! * [`import`]: any co-simulation FMU as a participant.
+//! * [`units`]: units of the variables.
+
+pub mod archive;
+pub mod binding;
+pub mod description;
+pub mod import;
+pub mod layout;
+pub mod units;
+
+pub use import::{FmuInit, FmuParticipant, FmuSettings};
+pub use layout::{ActuatorIo, ControllerIo, Layout, PlantIo, Samples};

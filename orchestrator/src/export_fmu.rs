@@ -1,0 +1,142 @@
+//! A participant of a scenario as an FMI 3.0 co-simulation FMU: the model description from
+//! [`tiltsim_fmi::Layout`], the FMU library `libtiltsim_fmu.so` (crate `tiltsim-fmu`, built
+//! by cargo beside `tiltsim`) and the participant's settings as `resources/tiltsim.json`.
+
+use std::path::{Path, PathBuf};
+
+use cosim::Role;
+use tiltsim_fmi::description::{write_fmi3, ExportInfo};
+use tiltsim_fmi::layout::{period_of, token, FmuConfig};
+use tiltsim_fmi::Layout;
+
+use crate::engine::Inits;
+use crate::scenario::Scenario;
+
+/// Why an FMU could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// The FMU library was not found.
+    #[error("the FMU library was not found (looked at {}); build it with `cargo build --release -p tiltsim-fmu` or name it with --library or TILTSIM_FMU_LIBRARY", .0.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "))]
+    NoLibrary(Vec<PathBuf>),
+    /// The role is an FMU in this scenario already.
+    #[error("the scenario's {0} is an FMU already ([participants.{0}]); export the native participant from a scenario without it")]
+    AlreadyFmu(Role),
+    /// A setting without a unit (the unit table is incomplete).
+    #[error("{0}")]
+    Layout(String),
+    /// Writing failed.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What the system said.
+        source: std::io::Error,
+    },
+}
+
+/// What was written.
+#[derive(Debug, Clone)]
+pub struct Exported {
+    /// Communication step (s).
+    pub step_s: f64,
+    /// Number of inputs.
+    pub inputs: usize,
+    /// Number of outputs.
+    pub outputs: usize,
+    /// Number of parameters.
+    pub parameters: usize,
+}
+
+/// Where the FMU library is looked for: `explicit`, `TILTSIM_FMU_LIBRARY`, then beside this
+/// executable (`target/<profile>/` and its `deps/`).
+pub fn library_candidates(explicit: Option<&Path>) -> Vec<PathBuf> {
+    if let Some(p) = explicit {
+        return vec![p.to_path_buf()];
+    }
+    if let Some(p) = std::env::var_os("TILTSIM_FMU_LIBRARY") {
+        return vec![PathBuf::from(p)];
+    }
+    let mut v = Vec::new();
+    if let Some(dir) = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(Path::to_path_buf))
+    {
+        v.push(dir.join("libtiltsim_fmu.so"));
+        v.push(dir.join("deps").join("libtiltsim_fmu.so"));
+        // Test binaries live in deps/ themselves.
+        if let Some(up) = dir.parent() {
+            v.push(up.join("libtiltsim_fmu.so"));
+        }
+    }
+    v
+}
+
+/// Writes `role` of scenario `s` as an FMU at `out`.
+pub fn export(
+    s: &Scenario,
+    role: Role,
+    out: &Path,
+    library: Option<&Path>,
+) -> Result<Exported, ExportError> {
+    if s.participants.get(role).is_some() {
+        return Err(ExportError::AlreadyFmu(role));
+    }
+    let candidates = library_candidates(library);
+    let lib_path = candidates
+        .iter()
+        .find(|p| p.is_file())
+        .ok_or_else(|| ExportError::NoLibrary(candidates.clone()))?;
+    let lib = std::fs::read(lib_path).map_err(|source| ExportError::Io {
+        path: lib_path.clone(),
+        source,
+    })?;
+    let inits = Inits::from(s);
+    let settings = match role {
+        Role::Plant => serde_json::to_value(&inits.plant),
+        Role::Actuator => serde_json::to_value(&inits.actuator),
+        Role::Controller => serde_json::to_value(&inits.controller),
+    }
+    .map_err(|e| ExportError::Layout(e.to_string()))?;
+    let config = FmuConfig {
+        role,
+        dt_s: s.run.dt_s,
+        settings,
+    };
+    let bytes =
+        serde_json::to_vec_pretty(&config).map_err(|e| ExportError::Layout(e.to_string()))?;
+    let layout =
+        Layout::new(role, &config.settings).map_err(|e| ExportError::Layout(e.to_string()))?;
+    let step_s = period_of(role, &config.settings).unwrap_or(s.run.dt_s);
+    let identifier = format!("tiltsim_{}", role.name());
+    let info = ExportInfo {
+        model_name: format!("tiltsim {} ({})", role.name(), s.name),
+        model_identifier: identifier.clone(),
+        token: token(&bytes),
+        description: format!(
+            "tiltsim's {} participant of scenario `{}`: {}",
+            role.name(),
+            s.name,
+            s.description
+        ),
+        step_s,
+        stop_s: s.duration(),
+    };
+    let xml = write_fmi3(&layout, &info);
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|source| ExportError::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+    }
+    tiltsim_fmi::archive::write_fmu(out, &xml, &identifier, &lib, &[("tiltsim.json", &bytes)])
+        .map_err(|source| ExportError::Io {
+            path: out.to_path_buf(),
+            source,
+        })?;
+    Ok(Exported {
+        step_s,
+        inputs: layout.inputs.len(),
+        outputs: layout.outputs.len(),
+        parameters: layout.params.len(),
+    })
+}
