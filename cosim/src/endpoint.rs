@@ -263,7 +263,11 @@ impl<P: Participant> Endpoint<P::Input, P::Output> for InProcess<P> {
         if let Some(d) = self.stall {
             std::thread::sleep(d.min(self.deadline + std::time::Duration::from_millis(1)));
         }
-        self.pending = Some(self.served.answer(&req));
+        let reply = self.served.answer(&req);
+        match self.served.model.failure() {
+            Some(why) => self.gone = Some(format!("failed: {why}")),
+            None => self.pending = Some(reply),
+        }
         Ok(())
     }
     fn receive(&mut self, step: u64, kind: Kind) -> Result<P::Output, LinkError> {

@@ -70,6 +70,13 @@ pub trait Participant: Send + 'static {
     /// Advances from `t_k` to `t_{k+1}` (`k` = `input.header.step`) with `input` held over the
     /// interval, and returns the outputs at `t_{k+1}`.
     fn step(&mut self, input: &Self::Input) -> Self::Output;
+
+    /// Why the last step failed, if it did (an FMU whose `doStep` returned an error). The
+    /// transport then ends the participant as if its process had exited: no reply is sent.
+    /// Native models never fail a step.
+    fn failure(&mut self) -> Option<String> {
+        None
+    }
 }
 
 /// A model as a transport serves it: checks every request where it arrives and answers it.

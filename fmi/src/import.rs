@@ -331,6 +331,7 @@ pub struct FmuParticipant<S: Samples> {
     reals_in: (Vec<u32>, Vec<f64>),
     reals_out: (Vec<u32>, Vec<f64>),
     name: String,
+    failed: Option<String>,
     _preloaded: Vec<libloading::os::unix::Library>,
     // Declared last: the library is unloaded before its files are removed.
     _unpacked: Unpacked,
@@ -388,6 +389,7 @@ impl<S: Samples> FmuParticipant<S> {
             init,
             initial: S::Out::default(),
             name,
+            failed: None,
             _preloaded: preloaded,
             _unpacked: unpacked,
             _s: PhantomData,
@@ -484,14 +486,21 @@ where
     fn step(&mut self, input: &S::In) -> S::Out {
         match self.step_fmu(input) {
             Ok(o) => o,
-            // The participant's process ends with this one line; the orchestrator names the
-            // participant and the step and ends the run with what was recorded.
-            Err(e) => panic!(
-                "FMU `{}` at t = {} s: {e}",
-                self.name,
-                input.header().step as f64 * self.init.dt_s
-            ),
+            Err(e) => {
+                // The transport ends the participant with this message; the orchestrator names
+                // the participant and the step and ends the run with what was recorded.
+                self.failed = Some(format!(
+                    "FMU `{}` at t = {} s: {e}",
+                    self.name,
+                    input.header().step as f64 * self.init.dt_s
+                ));
+                S::Out::default()
+            }
         }
+    }
+
+    fn failure(&mut self) -> Option<String> {
+        self.failed.take()
     }
 }
 

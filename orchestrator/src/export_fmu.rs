@@ -82,9 +82,13 @@ pub fn export(
         return Err(ExportError::AlreadyFmu(role));
     }
     let candidates = library_candidates(library);
+    // cargo leaves a copy in target/<profile>/ when the crate itself is built and one in
+    // deps/ when tiltsim's build builds it: the newer is the current one.
     let lib_path = candidates
         .iter()
-        .find(|p| p.is_file())
+        .filter_map(|p| Some((std::fs::metadata(p).ok()?.modified().ok()?, p)))
+        .max_by_key(|(t, _)| *t)
+        .map(|(_, p)| p)
         .ok_or_else(|| ExportError::NoLibrary(candidates.clone()))?;
     let lib = std::fs::read(lib_path).map_err(|source| ExportError::Io {
         path: lib_path.clone(),

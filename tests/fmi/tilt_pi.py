@@ -21,15 +21,19 @@ class TiltPi(Fmi2Slave):
         self.k_p = 10.0
         self.k_i = 5.0
         self.u_max = 0.0610865238198
+        # A step at or after this time fails (do_step returns False): the tests' failing FMU.
+        self.fail_at = -1.0
         self.register_variable(Real("theta_meas", causality=Fmi2Causality.input))
         self.register_variable(Real("u", causality=Fmi2Causality.output))
         self.register_variable(Real("integral", causality=Fmi2Causality.output))
-        for name in ("k_p", "k_i", "u_max"):
+        for name in ("k_p", "k_i", "u_max", "fail_at"):
             self.register_variable(
                 Real(name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable)
             )
 
     def do_step(self, current_time, step_size):
+        if 0.0 <= self.fail_at <= current_time:
+            return False
         e = -self.theta_meas
         self.integral = self.integral + e * step_size
         u = self.k_p * e + self.k_i * self.integral

@@ -71,6 +71,9 @@ pub enum IpcError {
     /// A participant did not connect in time.
     #[error(transparent)]
     Link(#[from] LinkError),
+    /// The model failed a step (an FMU's `doStep` returned an error): the process ends.
+    #[error("{0}")]
+    Model(String),
 }
 
 fn iox<E: core::fmt::Debug>(what: &str) -> impl FnOnce(E) -> IpcError + '_ {

@@ -98,6 +98,10 @@ pub fn serve_with<P: Participant>(
             std::process::abort();
         }
         let mut reply = served.answer(&request);
+        if let Some(why) = served.model.failure() {
+            // The step failed: no reply; the process ends and the orchestrator names it.
+            return Err(IpcError::Model(why));
+        }
         tamper(&mut reply);
         super::publish(&publisher, reply).map_err(IpcError::Iceoryx)?;
     }
