@@ -220,3 +220,51 @@ pub fn summary(dir: &Path) -> serde_json::Value {
 pub fn leftovers(prefix: &str) -> Vec<PathBuf> {
     cosim::ipc::leftover_files(prefix)
 }
+
+/// The Python of the FMI checks' environment (FMPy, pythonfmu, mcap from PyPI), made by
+/// `scripts/fmi-venv.sh` in `target/fmi-venv` the first time a test needs it. Concurrent
+/// tests wait for one another (a lock file); a failure to make it fails the test, never skips.
+pub fn fmi_python() -> PathBuf {
+    static MADE: std::sync::Mutex<Option<PathBuf>> = std::sync::Mutex::new(None);
+    let mut made = MADE.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(p) = made.as_ref() {
+        return p.clone();
+    }
+    let target = tiltsim()
+        .parent()
+        .and_then(Path::parent)
+        .expect("target/")
+        .to_path_buf();
+    let venv = target.join("fmi-venv");
+    let lock = std::fs::File::create(target.join("fmi-venv.lock")).expect("lock file");
+    // SAFETY: flock on an open file descriptor.
+    unsafe { libc::flock(std::os::fd::AsRawFd::as_raw_fd(&lock), libc::LOCK_EX) };
+    let out = Command::new("bash")
+        .arg(root().join("scripts/fmi-venv.sh"))
+        .arg(&venv)
+        .output()
+        .expect("run scripts/fmi-venv.sh");
+    assert!(
+        out.status.success(),
+        "scripts/fmi-venv.sh could not make the FMI check environment (FMPy, pythonfmu from PyPI):\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let py = venv.join("bin/python");
+    *made = Some(py.clone());
+    py
+}
+
+/// Runs a program of the FMI check environment (`python`, `pythonfmu`) with `args`:
+/// (exit code, stdout, stderr).
+pub fn fmi_tool(tool: &str, args: &[&str]) -> (i32, String, String) {
+    let bin = fmi_python().with_file_name(tool);
+    let out = Command::new(&bin)
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("{}: {e}", bin.display()));
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}

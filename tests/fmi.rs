@@ -1,0 +1,318 @@
+//! FMI, both directions, checked with clients tiltsim did not write.
+//!
+//! * Export: FMPy validates tiltsim's FMUs, and FMPy's own co-simulation of each, fed the
+//!   inputs a participant received in a recorded run, gives that run's outputs bit for bit
+//!   (the same model code runs the same IEEE arithmetic in the same order).
+//! * Import: an FMU built by pythonfmu (FMI 2.0, equations in Python) plays the controller;
+//!   every recorded command equals its equations applied to the recorded (delayed) inputs.
+//! * Round trip: tiltsim's own FMUs in place of all three participants give a byte-identical
+//!   `timeseries.csv`, over IPC and in-process.
+//! * Bad FMUs and bad mappings are refused with exit 2 and a message naming the field; an FMU
+//!   whose step fails or whose process is killed is a named participant failure.
+//!
+//! The FMI tools come from PyPI in `target/fmi-venv` (made by `scripts/fmi-venv.sh` on first
+//! use; a failure to make it fails these tests).
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use tiltsim_suite::{fmi_python, fmi_tool, leftovers, prefix, root, run, scenario, temp_dir};
+use tiltsim_suite::{summary, Series};
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// `tiltsim export-fmu ROLE SCENARIO --out DIR/NAME`.
+fn export(role: &str, scenario: &Path, out: &Path) -> PathBuf {
+    let (code, _, err) = run(&["export-fmu", role, s(scenario), "--out", s(out)]);
+    assert_eq!(code, 0, "export-fmu {role}: {err}");
+    out.to_path_buf()
+}
+
+/// A scenario: the text of shipped scenario `base` renamed `name`, with `extra` appended,
+/// written into `dir` (FMU paths in `extra` are relative to `dir`).
+fn scenario_in(dir: &Path, base: &str, name: &str, extra: &str) -> PathBuf {
+    let text = std::fs::read_to_string(scenario(base)).expect("scenario");
+    let mut out = String::new();
+    for line in text.lines() {
+        if line.starts_with("name = ") {
+            out.push_str(&format!("name = \"{name}\"\n"));
+        } else {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out.push('\n');
+    out.push_str(extra);
+    let p = dir.join(format!("{name}.toml"));
+    std::fs::write(&p, out).expect("write scenario");
+    p
+}
+
+/// Runs a scenario to completion; returns the run directory.
+fn run_ok(sc: &Path, out: &Path, transport: &str, extra: &[&str]) -> PathBuf {
+    let mut args = vec!["run", s(sc), "--out", s(out), "--transport", transport, "-q"];
+    args.extend_from_slice(extra);
+    let (code, _, err) = run(&args);
+    assert_eq!(code, 0, "{}: {err}", sc.display());
+    out.to_path_buf()
+}
+
+/// The pythonfmu FMU of `tests/fmi/tilt_pi.py`, built once per test process.
+fn tilt_pi_fmu() -> PathBuf {
+    static FMU: OnceLock<PathBuf> = OnceLock::new();
+    FMU.get_or_init(|| {
+        let dir = temp_dir("fmi-pythonfmu");
+        let src = root().join("tests/fmi/tilt_pi.py");
+        let (code, out, err) = fmi_tool("pythonfmu", &["build", "-f", s(&src), "-d", s(&dir)]);
+        assert_eq!(code, 0, "pythonfmu build: {out}{err}");
+        let fmu = dir.join("TiltPi.fmu");
+        assert!(fmu.is_file(), "pythonfmu wrote no {}", fmu.display());
+        fmu
+    })
+    .clone()
+}
+
+/// `[participants.controller]` with the pythonfmu FMU copied into `dir`.
+fn tilt_pi_table(dir: &Path, parameters: &str) -> String {
+    std::fs::copy(tilt_pi_fmu(), dir.join("TiltPi.fmu")).expect("copy FMU");
+    format!(
+        "[participants.controller]\n\
+         fmu = \"TiltPi.fmu\"\n\
+         inputs = {{ theta_v_meas = \"theta_meas\" }}\n\
+         outputs = {{ delta_a_cmd = \"u\" }}\n\
+         parameters = {{ {parameters} }}\n\
+         preload = [\"libpython3.11.so.1.0\"]\n"
+    )
+}
+
+#[test]
+fn fmpy_validates_the_exported_fmus_and_its_cosimulation_reproduces_a_recorded_run() {
+    let _ = fmi_python();
+    let dir = temp_dir("fmi-fmpy");
+    // paper-mpc: the controller's QP every 50 ms, the actuator's switched electrics at 1 µs.
+    let sc = scenario("paper-mpc.toml");
+    let rec = run_ok(
+        &sc,
+        &dir.join("run"),
+        "ipc",
+        &["--record", "--duration", "1"],
+    );
+    let check = root().join("tests/fmi/fmpy_check.py");
+    for (role, requests, fields) in [("controller", 20, 4), ("actuator", 1000, 10), ("plant", 1000, 16)] {
+        let fmu = export(role, &sc, &dir.join(format!("{role}.fmu")));
+        let mcap = rec.join("run.mcap");
+        let (code, out, err) = fmi_tool("python", &[s(&check), s(&fmu), s(&mcap), role]);
+        assert_eq!(code, 0, "fmpy_check {role}: {err}");
+        let r: serde_json::Value = serde_json::from_str(out.trim()).expect("JSON");
+        assert_eq!(r["problems"], serde_json::json!([]), "{role}: FMPy validation");
+        assert_eq!(r["requests"], requests, "{role}: recorded requests");
+        assert_eq!(r["steps"], requests, "{role}: FMPy's communication steps");
+        assert_eq!(r["compared"], requests * fields, "{role}: values compared");
+        assert_eq!(
+            r["mismatches"], 0,
+            "{role}: FMPy's outputs differ from the run's: first {}, largest {}",
+            r["first"], r["largest"]
+        );
+    }
+}
+
+#[test]
+fn a_pythonfmu_controller_plays_the_controller_and_its_commands_follow_its_equations() {
+    let dir = temp_dir("fmi-import");
+    // The measurement reaches the FMU 5 ticks late: its recorded inputs must be the plant's
+    // measurement delayed exactly so, and its commands its equations of those inputs.
+    let extra = format!(
+        "{}\n[links.measurement]\ndelay_ticks = 5\n",
+        tilt_pi_table(&dir, "k_p = 12.0")
+    );
+    let sc = scenario_in(&dir, "paper-pi.toml", "tilt-pi-fmu", &extra);
+    let ipc = run_ok(&sc, &dir.join("ipc"), "ipc", &["--duration", "2"]);
+    let inp = run_ok(&sc, &dir.join("inp"), "in-process", &["--duration", "2"]);
+    let a = std::fs::read(ipc.join("timeseries.csv")).expect("csv");
+    let b = std::fs::read(inp.join("timeseries.csv")).expect("csv");
+    assert!(a == b, "the FMU participant gives different rows over IPC and in-process");
+
+    let t = Series::read(&ipc.join("timeseries.csv"));
+    let (theta, rx, cmd) = (t.col("theta_v_meas"), t.col("rx_measurement"), t.col("delta_a_cmd"));
+    assert_eq!(cmd.len(), 2000);
+    // Row k's theta_v_meas is the plant's output after tick k; the controller's request at
+    // tick k carries the output after tick k-1, here 5 ticks later: theta_v_meas[k - 6].
+    for k in 6..rx.len() {
+        assert_eq!(rx[k].to_bits(), theta[k - 6].to_bits(), "measurement delay at row {k}");
+    }
+    // tilt_pi.py with k_p = 12 (set by the scenario), k_i = 5, u_max = 0.0610865238198, h = 1 ms.
+    let (kp, ki, umax, h) = (12.0f64, 5.0f64, 0.0610865238198f64, 1e-3f64);
+    let mut integral = 0.0f64;
+    let mut saturated = 0;
+    for k in 0..cmd.len() {
+        let e = -rx[k];
+        integral += e * h;
+        let u = (kp * e + ki * integral).clamp(-umax, umax);
+        saturated += usize::from(u.abs() == umax);
+        assert_eq!(u.to_bits(), cmd[k].to_bits(), "row {k}: command {} vs equations {u}", cmd[k]);
+    }
+    // The body leans in the curve: the command is not a trivial zero.
+    let peak = cmd.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(peak > 0.01, "peak command {peak} rad");
+    let _ = saturated;
+}
+
+#[test]
+fn tiltsims_own_fmus_in_place_of_every_participant_give_the_native_rows_byte_for_byte() {
+    let dir = temp_dir("fmi-round-trip");
+    let base = scenario("paper-mpc.toml");
+    for role in ["plant", "actuator", "controller"] {
+        export(role, &base, &dir.join(format!("{role}.fmu")));
+    }
+    let extra = "[participants.plant]\nfmu = \"plant.fmu\"\n\
+                 [participants.actuator]\nfmu = \"actuator.fmu\"\n\
+                 [participants.controller]\nfmu = \"controller.fmu\"\n";
+    let fmus = scenario_in(&dir, "paper-mpc.toml", "paper-mpc", extra);
+    for transport in ["ipc", "in-process"] {
+        let native = run_ok(&base, &dir.join(format!("native-{transport}")), transport, &["--duration", "2"]);
+        let fmu = run_ok(&fmus, &dir.join(format!("fmu-{transport}")), transport, &["--duration", "2"]);
+        let a = std::fs::read(native.join("timeseries.csv")).expect("csv");
+        let b = std::fs::read(fmu.join("timeseries.csv")).expect("csv");
+        assert!(a.len() > 100_000, "{transport}: a short series ({} bytes)", a.len());
+        assert!(a == b, "{transport}: the FMUs' timeseries.csv differs from the native run's");
+    }
+}
+
+/// Runs `sc` and expects exit 2 with every string of `says` in the message.
+fn refused(sc: &Path, says: &[&str]) {
+    let (code, _, err) = run(&["run", s(sc), "--out", s(&sc.with_extension("out")), "-q"]);
+    assert_eq!(code, 2, "{}: exit {code}: {err}", sc.display());
+    for w in says {
+        assert!(err.contains(w), "{}: `{w}` not in: {err}", sc.display());
+    }
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn bad_fmus_and_bad_mappings_are_refused_with_exit_2_naming_the_field() {
+    let dir = temp_dir("fmi-bad");
+    let exported = export("controller", &scenario("paper-pi.toml"), &dir.join("pi.fmu"));
+    let table = tilt_pi_table(&dir, "k_p = 12.0");
+    let case = |name: &str, extra: &str| scenario_in(&dir, "paper-pi.toml", name, extra);
+
+    // Not an FMU at all.
+    std::fs::write(dir.join("text.fmu"), "not a zip").expect("write");
+    refused(
+        &case("not-zip", "[participants.controller]\nfmu = \"text.fmu\"\n"),
+        &["participants.controller.fmu", "not a zip archive"],
+    );
+    // No library for this platform, and a model-exchange-only FMU: rewritten copies of an
+    // exported FMU (Python's zipfile).
+    let rewrite = |out: &str, code: &str| {
+        let script = format!(
+            "import zipfile\n\
+             src = zipfile.ZipFile({src:?})\n\
+             dst = zipfile.ZipFile({dst:?}, 'w')\n\
+             for i in src.infolist():\n\
+             \x20   data = src.read(i)\n\
+             {code}\n\
+             dst.close()\n",
+            src = s(&exported),
+            dst = s(&dir.join(out)),
+        );
+        let (c, _, err) = fmi_tool("python", &["-c", &script]);
+        assert_eq!(c, 0, "{err}");
+    };
+    rewrite(
+        "nolib.fmu",
+        "    if not i.filename.startswith('binaries/'): dst.writestr(i, data)",
+    );
+    refused(
+        &case("no-lib", "[participants.controller]\nfmu = \"nolib.fmu\"\n"),
+        &["participants.controller.fmu", "binaries/x86_64-linux/tiltsim_controller.so", "missing"],
+    );
+    rewrite(
+        "me.fmu",
+        "    if i.filename == 'modelDescription.xml': data = data.replace(b'<CoSimulation ', b'<ModelExchange ')\n    dst.writestr(i, data)",
+    );
+    refused(
+        &case("me-only", "[participants.controller]\nfmu = \"me.fmu\"\n"),
+        &["participants.controller.fmu", "model exchange only"],
+    );
+    // Mappings: a variable the FMU lacks, the wrong causality, the wrong type, a field the
+    // role does not have, a parameter the FMU lacks.
+    let cases: [(&str, &str, &str, &[&str]); 5] = [
+        ("no-var", "outputs = { delta_a_cmd = \"u\" }", "outputs = { delta_a_cmd = \"nope\" }", &["participants.controller.outputs.delta_a_cmd", "has no `nope`", "its outputs: u, integral"]),
+        ("causality", "outputs = { delta_a_cmd = \"u\" }", "outputs = { delta_a_cmd = \"theta_meas\" }", &["participants.controller.outputs.delta_a_cmd", "causality `output`", "`theta_meas` is `input`"]),
+        ("type", "outputs = { delta_a_cmd = \"u\" }", "outputs = { delta_a_cmd = \"u\", solver_status = \"integral\" }", &["participants.controller.outputs.solver_status", "an integer", "is a Real"]),
+        ("field", "inputs = { theta_v_meas = \"theta_meas\" }", "inputs = { theta = \"theta_meas\" }", &["participants.controller.inputs.theta", "t, s, theta_v_meas"]),
+        ("param", "k_p = 12.0", "k_q = 12.0", &["participants.controller.parameters.k_q", "has no `k_q`", "k_p"]),
+    ];
+    for (name, from, to, says) in cases {
+        assert!(table.contains(from), "{name}");
+        refused(&case(name, &table.replace(from, to)), says);
+    }
+    // A step the FMU cannot take: the exported plant steps with a fixed 1 ms; a 0.5 ms run
+    // would need half steps.
+    export("plant", &scenario("paper-pi.toml"), &dir.join("plant.fmu"));
+    let sc = case(
+        "half-step",
+        "[participants.plant]\nfmu = \"plant.fmu\"\n",
+    );
+    let text = std::fs::read_to_string(&sc).expect("read").replacen(
+        "[actuator]",
+        "[run]\ndt_s = 0.0005\n\n[actuator]",
+        1,
+    );
+    std::fs::write(&sc, text).expect("write");
+    refused(&sc, &["participants.plant.fmu", "fixed 0.001 s", "0.0005 s is not a whole multiple"]);
+}
+
+#[test]
+fn an_fmu_whose_step_fails_or_whose_process_is_killed_is_a_named_participant_failure() {
+    let dir = temp_dir("fmi-failure");
+    // tilt_pi.py fails every step from 0.5 s on.
+    let sc = scenario_in(
+        &dir,
+        "paper-pi.toml",
+        "failing-fmu",
+        &tilt_pi_table(&dir, "k_p = 12.0, fail_at = 0.5"),
+    );
+    for transport in ["ipc", "in-process"] {
+        let pfx = prefix(&format!("fmi_fail_{}", transport.replace('-', "_")));
+        let out = dir.join(transport);
+        let (code, _, err) = run(&[
+            "run", s(&sc), "--out", s(&out), "--transport", transport, "--duration", "2", "--ipc-prefix", &pfx,
+        ]);
+        assert_eq!(code, 1, "{transport}: {err}");
+        assert!(err.contains("participant controller"), "{transport}: {err}");
+        assert!(err.contains("TiltPi.fmu") && err.contains("fmi2DoStep returned"), "{transport}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        // The rows before the failing step are kept, complete.
+        let sum = summary(&out);
+        assert_eq!(sum["steps_completed"], 500, "{transport}");
+        assert_eq!(Series::read(&out.join("timeseries.csv")).rows.len(), 500, "{transport}");
+        assert!(leftovers(&pfx).is_empty(), "{transport}: {:?}", leftovers(&pfx));
+    }
+
+    // A kill of the FMU's process at 8 s: detected, named and degraded exactly as for the
+    // native controller; every row the same.
+    let base = scenario("fault-controller-killed.toml");
+    export("controller", &base, &dir.join("killed.fmu"));
+    let fmu = scenario_in(
+        &dir,
+        "fault-controller-killed.toml",
+        "fault-controller-killed",
+        "[participants.controller]\nfmu = \"killed.fmu\"\n",
+    );
+    let native = run_ok(&base, &dir.join("native-kill"), "ipc", &["--duration", "10"]);
+    let with_fmu = run_ok(&fmu, &dir.join("fmu-kill"), "ipc", &["--duration", "10"]);
+    for f in ["timeseries.csv", "events.csv"] {
+        let a = std::fs::read(native.join(f)).expect(f);
+        let b = std::fs::read(with_fmu.join(f)).expect(f);
+        assert!(a == b, "{f} differs between the native and the FMU controller");
+    }
+    let events = std::fs::read_to_string(with_fmu.join("events.csv")).expect("events");
+    assert!(
+        events.lines().any(|l| l.contains("controller") && l.contains("kill")),
+        "{events}"
+    );
+    assert_eq!(summary(&with_fmu)["status"], summary(&native)["status"]);
+}
