@@ -316,3 +316,34 @@ fn an_fmu_whose_step_fails_or_whose_process_is_killed_is_a_named_participant_fai
     );
     assert_eq!(summary(&with_fmu)["status"], summary(&native)["status"]);
 }
+
+#[test]
+fn the_shipped_fmu_example_runs_as_documented_and_its_parameter_takes_effect() {
+    // The layout the example's comment describes: scenarios/ beside out/fmu/.
+    let dir = temp_dir("fmi-example");
+    std::fs::create_dir_all(dir.join("scenarios")).expect("mkdir");
+    let text = std::fs::read_to_string(scenario("fmu-controller.toml")).expect("example");
+    let example = dir.join("scenarios/fmu-controller.toml");
+    std::fs::write(&example, &text).expect("write");
+    export(
+        "controller",
+        &scenario("paper-pi.toml"),
+        &dir.join("out/fmu/paper-pi-controller.fmu"),
+    );
+    let with_fmu = run_ok(&example, &dir.join("fmu"), "ipc", &["--duration", "2"]);
+    // The same scenario with the native controller and kp = 30 in its own settings.
+    let start = text.find("[participants.controller]").expect("table");
+    let end = text.find("[links.measurement]").expect("links");
+    let native_text = format!("{}[controller.pi]\nkp = 30.0\n\n{}", &text[..start], &text[end..]);
+    let native_sc = dir.join("native.toml");
+    std::fs::write(&native_sc, native_text).expect("write");
+    let native = run_ok(&native_sc, &dir.join("native"), "ipc", &["--duration", "2"]);
+    let a = std::fs::read(native.join("timeseries.csv")).expect("csv");
+    let b = std::fs::read(with_fmu.join("timeseries.csv")).expect("csv");
+    assert!(a == b, "the example's FMU run differs from the native run with kp = 30");
+    // And kp = 30 is not the exported scenario's 38.24: the parameter changed the result.
+    let paper = scenario_in(&dir, "paper-pi.toml", "paper-pi-delayed", "[links.measurement]\ndelay_ticks = 10\n");
+    let other = run_ok(&paper, &dir.join("paper"), "ipc", &["--duration", "2"]);
+    let c = std::fs::read(other.join("timeseries.csv")).expect("csv");
+    assert!(a != c, "kp = 30 gave the same rows as kp = 38.24");
+}

@@ -460,3 +460,44 @@ mod tests {
         assert_eq!(Kind::from_raw(0), None);
     }
 }
+
+#[cfg(test)]
+mod scalar_tests {
+    use super::*;
+
+    fn count<M: Scalars>() -> usize {
+        let m = M::default();
+        (0..).take_while(|&i| m.scalar(i).is_some()).count()
+    }
+
+    #[test]
+    fn every_scalar_has_a_name_a_unit_slot_and_round_trips() {
+        fn check<M: Scalars>() {
+            let info = M::scalar_info();
+            assert_eq!(info.len(), count::<M>(), "{}: units per element", M::NAME);
+            let mut m = M::default();
+            for (i, s) in info.iter().enumerate() {
+                let v = match s.ty {
+                    ScalarType::F64 => ScalarValue::F64(i as f64 + 0.5),
+                    ScalarType::U32 => ScalarValue::U32(i as u32 + 7),
+                };
+                assert!(m.set_scalar(i, v), "{}", s.name);
+                assert_eq!(m.scalar(i), Some(v), "{}", s.name);
+            }
+            assert!(!m.set_scalar(info.len(), ScalarValue::F64(0.0)));
+        }
+        check::<ToPlant>();
+        check::<FromPlant>();
+        check::<ToActuator>();
+        check::<FromActuator>();
+        check::<ToController>();
+        check::<FromController>();
+        let p = FromPlant::scalar_info();
+        assert_eq!(p[4].name, "x[0]");
+        assert_eq!(p[5].unit, "rad");
+        assert_eq!(p[12].name, "x[8]");
+        let c = FromController::scalar_info();
+        assert_eq!(c[3].ty, ScalarType::U32);
+        assert!(c[0].description.contains("Commanded bar angle"));
+    }
+}

@@ -144,3 +144,43 @@ pub fn export(
         parameters: layout.params.len(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_value_of_every_shipped_scenario_is_a_parameter_with_its_unit() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios");
+        let mut seen = 0;
+        for e in std::fs::read_dir(&dir).unwrap().flatten() {
+            let p = e.path();
+            if p.extension().is_none_or(|x| x != "toml") {
+                continue;
+            }
+            let text = std::fs::read_to_string(&p).unwrap();
+            // Parsed without validation: the FMU example's FMU need not exist here.
+            let s: Scenario = toml::from_str(&text).unwrap();
+            let inits = Inits::from(&s);
+            for (role, v) in [
+                (Role::Plant, serde_json::to_value(&inits.plant).unwrap()),
+                (Role::Actuator, serde_json::to_value(&inits.actuator).unwrap()),
+                (Role::Controller, serde_json::to_value(&inits.controller).unwrap()),
+            ] {
+                let l = Layout::new(role, &v).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+                assert!(l.params.len() > 20, "{role}");
+                // Every real has a unit or is declared unitless on purpose.
+                for q in &l.params {
+                    if let tiltsim_fmi::layout::ParamValue::F64(_) = q.value {
+                        assert!(tiltsim_fmi::units::param_unit(&q.name).is_some(), "{}", q.name);
+                    }
+                }
+                // Setting every parameter to its own value gives the settings back.
+                let values: Vec<_> = l.params.iter().map(|q| q.value.clone()).collect();
+                assert_eq!(l.settings_with(&v, &values), v);
+            }
+            seen += 1;
+        }
+        assert!(seen > 10);
+    }
+}
