@@ -52,7 +52,15 @@ fn scenario_in(dir: &Path, base: &str, name: &str, extra: &str) -> PathBuf {
 
 /// Runs a scenario to completion; returns the run directory.
 fn run_ok(sc: &Path, out: &Path, transport: &str, extra: &[&str]) -> PathBuf {
-    let mut args = vec!["run", s(sc), "--out", s(out), "--transport", transport, "-q"];
+    let mut args = vec![
+        "run",
+        s(sc),
+        "--out",
+        s(out),
+        "--transport",
+        transport,
+        "-q",
+    ];
     args.extend_from_slice(extra);
     let (code, _, err) = run(&args);
     assert_eq!(code, 0, "{}: {err}", sc.display());
@@ -100,13 +108,21 @@ fn fmpy_validates_the_exported_fmus_and_its_cosimulation_reproduces_a_recorded_r
         &["--record", "--duration", "1"],
     );
     let check = root().join("tests/fmi/fmpy_check.py");
-    for (role, requests, fields) in [("controller", 20, 4), ("actuator", 1000, 10), ("plant", 1000, 16)] {
+    for (role, requests, fields) in [
+        ("controller", 20, 4),
+        ("actuator", 1000, 10),
+        ("plant", 1000, 16),
+    ] {
         let fmu = export(role, &sc, &dir.join(format!("{role}.fmu")));
         let mcap = rec.join("run.mcap");
         let (code, out, err) = fmi_tool("python", &[s(&check), s(&fmu), s(&mcap), role]);
         assert_eq!(code, 0, "fmpy_check {role}: {err}");
         let r: serde_json::Value = serde_json::from_str(out.trim()).expect("JSON");
-        assert_eq!(r["problems"], serde_json::json!([]), "{role}: FMPy validation");
+        assert_eq!(
+            r["problems"],
+            serde_json::json!([]),
+            "{role}: FMPy validation"
+        );
         assert_eq!(r["requests"], requests, "{role}: recorded requests");
         assert_eq!(r["steps"], requests, "{role}: FMPy's communication steps");
         assert_eq!(r["compared"], requests * fields, "{role}: values compared");
@@ -132,15 +148,26 @@ fn a_pythonfmu_controller_plays_the_controller_and_its_commands_follow_its_equat
     let inp = run_ok(&sc, &dir.join("inp"), "in-process", &["--duration", "2"]);
     let a = std::fs::read(ipc.join("timeseries.csv")).expect("csv");
     let b = std::fs::read(inp.join("timeseries.csv")).expect("csv");
-    assert!(a == b, "the FMU participant gives different rows over IPC and in-process");
+    assert!(
+        a == b,
+        "the FMU participant gives different rows over IPC and in-process"
+    );
 
     let t = Series::read(&ipc.join("timeseries.csv"));
-    let (theta, rx, cmd) = (t.col("theta_v_meas"), t.col("rx_measurement"), t.col("delta_a_cmd"));
+    let (theta, rx, cmd) = (
+        t.col("theta_v_meas"),
+        t.col("rx_measurement"),
+        t.col("delta_a_cmd"),
+    );
     assert_eq!(cmd.len(), 2000);
     // Row k's theta_v_meas is the plant's output after tick k; the controller's request at
     // tick k carries the output after tick k-1, here 5 ticks later: theta_v_meas[k - 6].
     for k in 6..rx.len() {
-        assert_eq!(rx[k].to_bits(), theta[k - 6].to_bits(), "measurement delay at row {k}");
+        assert_eq!(
+            rx[k].to_bits(),
+            theta[k - 6].to_bits(),
+            "measurement delay at row {k}"
+        );
     }
     // tilt_pi.py with k_p = 12 (set by the scenario), k_i = 5, u_max = 0.0610865238198, h = 1 ms.
     let (kp, ki, umax, h) = (12.0f64, 5.0f64, 0.0610865238198f64, 1e-3f64);
@@ -151,7 +178,12 @@ fn a_pythonfmu_controller_plays_the_controller_and_its_commands_follow_its_equat
         integral += e * h;
         let u = (kp * e + ki * integral).clamp(-umax, umax);
         saturated += usize::from(u.abs() == umax);
-        assert_eq!(u.to_bits(), cmd[k].to_bits(), "row {k}: command {} vs equations {u}", cmd[k]);
+        assert_eq!(
+            u.to_bits(),
+            cmd[k].to_bits(),
+            "row {k}: command {} vs equations {u}",
+            cmd[k]
+        );
     }
     // The body leans in the curve: the command is not a trivial zero.
     let peak = cmd.iter().fold(0.0f64, |m, v| m.max(v.abs()));
@@ -171,12 +203,29 @@ fn tiltsims_own_fmus_in_place_of_every_participant_give_the_native_rows_byte_for
                  [participants.controller]\nfmu = \"controller.fmu\"\n";
     let fmus = scenario_in(&dir, "paper-mpc.toml", "paper-mpc", extra);
     for transport in ["ipc", "in-process"] {
-        let native = run_ok(&base, &dir.join(format!("native-{transport}")), transport, &["--duration", "2"]);
-        let fmu = run_ok(&fmus, &dir.join(format!("fmu-{transport}")), transport, &["--duration", "2"]);
+        let native = run_ok(
+            &base,
+            &dir.join(format!("native-{transport}")),
+            transport,
+            &["--duration", "2"],
+        );
+        let fmu = run_ok(
+            &fmus,
+            &dir.join(format!("fmu-{transport}")),
+            transport,
+            &["--duration", "2"],
+        );
         let a = std::fs::read(native.join("timeseries.csv")).expect("csv");
         let b = std::fs::read(fmu.join("timeseries.csv")).expect("csv");
-        assert!(a.len() > 100_000, "{transport}: a short series ({} bytes)", a.len());
-        assert!(a == b, "{transport}: the FMUs' timeseries.csv differs from the native run's");
+        assert!(
+            a.len() > 100_000,
+            "{transport}: a short series ({} bytes)",
+            a.len()
+        );
+        assert!(
+            a == b,
+            "{transport}: the FMUs' timeseries.csv differs from the native run's"
+        );
     }
 }
 
@@ -193,7 +242,11 @@ fn refused(sc: &Path, says: &[&str]) {
 #[test]
 fn bad_fmus_and_bad_mappings_are_refused_with_exit_2_naming_the_field() {
     let dir = temp_dir("fmi-bad");
-    let exported = export("controller", &scenario("paper-pi.toml"), &dir.join("pi.fmu"));
+    let exported = export(
+        "controller",
+        &scenario("paper-pi.toml"),
+        &dir.join("pi.fmu"),
+    );
     let table = tilt_pi_table(&dir, "k_p = 12.0");
     let case = |name: &str, extra: &str| scenario_in(&dir, "paper-pi.toml", name, extra);
 
@@ -226,7 +279,11 @@ fn bad_fmus_and_bad_mappings_are_refused_with_exit_2_naming_the_field() {
     );
     refused(
         &case("no-lib", "[participants.controller]\nfmu = \"nolib.fmu\"\n"),
-        &["participants.controller.fmu", "binaries/x86_64-linux/tiltsim_controller.so", "missing"],
+        &[
+            "participants.controller.fmu",
+            "binaries/x86_64-linux/tiltsim_controller.so",
+            "missing",
+        ],
     );
     rewrite(
         "me.fmu",
@@ -239,11 +296,52 @@ fn bad_fmus_and_bad_mappings_are_refused_with_exit_2_naming_the_field() {
     // Mappings: a variable the FMU lacks, the wrong causality, the wrong type, a field the
     // role does not have, a parameter the FMU lacks.
     let cases: [(&str, &str, &str, &[&str]); 5] = [
-        ("no-var", "outputs = { delta_a_cmd = \"u\" }", "outputs = { delta_a_cmd = \"nope\" }", &["participants.controller.outputs.delta_a_cmd", "has no `nope`", "its outputs: u, integral"]),
-        ("causality", "outputs = { delta_a_cmd = \"u\" }", "outputs = { delta_a_cmd = \"theta_meas\" }", &["participants.controller.outputs.delta_a_cmd", "causality `output`", "`theta_meas` is `input`"]),
-        ("type", "outputs = { delta_a_cmd = \"u\" }", "outputs = { delta_a_cmd = \"u\", solver_status = \"integral\" }", &["participants.controller.outputs.solver_status", "an integer", "is a Real"]),
-        ("field", "inputs = { theta_v_meas = \"theta_meas\" }", "inputs = { theta = \"theta_meas\" }", &["participants.controller.inputs.theta", "t, s, theta_v_meas"]),
-        ("param", "k_p = 12.0", "k_q = 12.0", &["participants.controller.parameters.k_q", "has no `k_q`", "k_p"]),
+        (
+            "no-var",
+            "outputs = { delta_a_cmd = \"u\" }",
+            "outputs = { delta_a_cmd = \"nope\" }",
+            &[
+                "participants.controller.outputs.delta_a_cmd",
+                "has no `nope`",
+                "its outputs: u, integral",
+            ],
+        ),
+        (
+            "causality",
+            "outputs = { delta_a_cmd = \"u\" }",
+            "outputs = { delta_a_cmd = \"theta_meas\" }",
+            &[
+                "participants.controller.outputs.delta_a_cmd",
+                "causality `output`",
+                "`theta_meas` is `input`",
+            ],
+        ),
+        (
+            "type",
+            "outputs = { delta_a_cmd = \"u\" }",
+            "outputs = { delta_a_cmd = \"u\", solver_status = \"integral\" }",
+            &[
+                "participants.controller.outputs.solver_status",
+                "an integer",
+                "is a Real",
+            ],
+        ),
+        (
+            "field",
+            "inputs = { theta_v_meas = \"theta_meas\" }",
+            "inputs = { theta = \"theta_meas\" }",
+            &["participants.controller.inputs.theta", "t, s, theta_v_meas"],
+        ),
+        (
+            "param",
+            "k_p = 12.0",
+            "k_q = 12.0",
+            &[
+                "participants.controller.parameters.k_q",
+                "has no `k_q`",
+                "k_p",
+            ],
+        ),
     ];
     for (name, from, to, says) in cases {
         assert!(table.contains(from), "{name}");
@@ -252,17 +350,21 @@ fn bad_fmus_and_bad_mappings_are_refused_with_exit_2_naming_the_field() {
     // A step the FMU cannot take: the exported plant steps with a fixed 1 ms; a 0.5 ms run
     // would need half steps.
     export("plant", &scenario("paper-pi.toml"), &dir.join("plant.fmu"));
-    let sc = case(
-        "half-step",
-        "[participants.plant]\nfmu = \"plant.fmu\"\n",
-    );
+    let sc = case("half-step", "[participants.plant]\nfmu = \"plant.fmu\"\n");
     let text = std::fs::read_to_string(&sc).expect("read").replacen(
         "[actuator]",
         "[run]\ndt_s = 0.0005\n\n[actuator]",
         1,
     );
     std::fs::write(&sc, text).expect("write");
-    refused(&sc, &["participants.plant.fmu", "fixed 0.001 s", "0.0005 s is not a whole multiple"]);
+    refused(
+        &sc,
+        &[
+            "participants.plant.fmu",
+            "fixed 0.001 s",
+            "0.0005 s is not a whole multiple",
+        ],
+    );
 }
 
 #[test]
@@ -279,17 +381,37 @@ fn an_fmu_whose_step_fails_or_whose_process_is_killed_is_a_named_participant_fai
         let pfx = prefix(&format!("fmi_fail_{}", transport.replace('-', "_")));
         let out = dir.join(transport);
         let (code, _, err) = run(&[
-            "run", s(&sc), "--out", s(&out), "--transport", transport, "--duration", "2", "--ipc-prefix", &pfx,
+            "run",
+            s(&sc),
+            "--out",
+            s(&out),
+            "--transport",
+            transport,
+            "--duration",
+            "2",
+            "--ipc-prefix",
+            &pfx,
         ]);
         assert_eq!(code, 1, "{transport}: {err}");
         assert!(err.contains("participant controller"), "{transport}: {err}");
-        assert!(err.contains("TiltPi.fmu") && err.contains("fmi2DoStep returned"), "{transport}: {err}");
+        assert!(
+            err.contains("TiltPi.fmu") && err.contains("fmi2DoStep returned"),
+            "{transport}: {err}"
+        );
         assert!(!err.contains("panicked"), "{err}");
         // The rows before the failing step are kept, complete.
         let sum = summary(&out);
         assert_eq!(sum["steps_completed"], 500, "{transport}");
-        assert_eq!(Series::read(&out.join("timeseries.csv")).rows.len(), 500, "{transport}");
-        assert!(leftovers(&pfx).is_empty(), "{transport}: {:?}", leftovers(&pfx));
+        assert_eq!(
+            Series::read(&out.join("timeseries.csv")).rows.len(),
+            500,
+            "{transport}"
+        );
+        assert!(
+            leftovers(&pfx).is_empty(),
+            "{transport}: {:?}",
+            leftovers(&pfx)
+        );
     }
 
     // A kill of the FMU's process at 8 s: detected, named and degraded exactly as for the
@@ -302,16 +424,26 @@ fn an_fmu_whose_step_fails_or_whose_process_is_killed_is_a_named_participant_fai
         "fault-controller-killed",
         "[participants.controller]\nfmu = \"killed.fmu\"\n",
     );
-    let native = run_ok(&base, &dir.join("native-kill"), "ipc", &["--duration", "10"]);
+    let native = run_ok(
+        &base,
+        &dir.join("native-kill"),
+        "ipc",
+        &["--duration", "10"],
+    );
     let with_fmu = run_ok(&fmu, &dir.join("fmu-kill"), "ipc", &["--duration", "10"]);
     for f in ["timeseries.csv", "events.csv"] {
         let a = std::fs::read(native.join(f)).expect(f);
         let b = std::fs::read(with_fmu.join(f)).expect(f);
-        assert!(a == b, "{f} differs between the native and the FMU controller");
+        assert!(
+            a == b,
+            "{f} differs between the native and the FMU controller"
+        );
     }
     let events = std::fs::read_to_string(with_fmu.join("events.csv")).expect("events");
     assert!(
-        events.lines().any(|l| l.contains("controller") && l.contains("kill")),
+        events
+            .lines()
+            .any(|l| l.contains("controller") && l.contains("kill")),
         "{events}"
     );
     assert_eq!(summary(&with_fmu)["status"], summary(&native)["status"]);
@@ -334,15 +466,27 @@ fn the_shipped_fmu_example_runs_as_documented_and_its_parameter_takes_effect() {
     // The same scenario with the native controller and kp = 30 in its own settings.
     let start = text.find("[participants.controller]").expect("table");
     let end = text.find("[links.measurement]").expect("links");
-    let native_text = format!("{}[controller.pi]\nkp = 30.0\n\n{}", &text[..start], &text[end..]);
+    let native_text = format!(
+        "{}[controller.pi]\nkp = 30.0\n\n{}",
+        &text[..start],
+        &text[end..]
+    );
     let native_sc = dir.join("native.toml");
     std::fs::write(&native_sc, native_text).expect("write");
     let native = run_ok(&native_sc, &dir.join("native"), "ipc", &["--duration", "2"]);
     let a = std::fs::read(native.join("timeseries.csv")).expect("csv");
     let b = std::fs::read(with_fmu.join("timeseries.csv")).expect("csv");
-    assert!(a == b, "the example's FMU run differs from the native run with kp = 30");
+    assert!(
+        a == b,
+        "the example's FMU run differs from the native run with kp = 30"
+    );
     // And kp = 30 is not the exported scenario's 38.24: the parameter changed the result.
-    let paper = scenario_in(&dir, "paper-pi.toml", "paper-pi-delayed", "[links.measurement]\ndelay_ticks = 10\n");
+    let paper = scenario_in(
+        &dir,
+        "paper-pi.toml",
+        "paper-pi-delayed",
+        "[links.measurement]\ndelay_ticks = 10\n",
+    );
     let other = run_ok(&paper, &dir.join("paper"), "ipc", &["--duration", "2"]);
     let c = std::fs::read(other.join("timeseries.csv")).expect("csv");
     assert!(a != c, "kp = 30 gave the same rows as kp = 38.24");

@@ -173,6 +173,15 @@ pub struct Slave {
     /// Strings passed to the FMU stay alive as long as it may read them.
     strings: Vec<CString>,
     terminated: bool,
+    hot: Hot,
+}
+
+/// The functions called every step, looked up once.
+#[derive(Clone, Copy)]
+struct Hot {
+    set_reals: *const c_void,
+    get_reals: *const c_void,
+    do_step: *const c_void,
 }
 
 // SAFETY: an FMU instance is used from one thread at a time; `Slave` is moved, never shared.
@@ -295,6 +304,17 @@ impl Slave {
         if inst.is_null() {
             return Err(format!("instantiation failed{}", log.recent()));
         }
+        let names = match version {
+            FmiVersion::V2 => ["fmi2SetReal", "fmi2GetReal", "fmi2DoStep"],
+            FmiVersion::V3 => ["fmi3SetFloat64", "fmi3GetFloat64", "fmi3DoStep"],
+        };
+        let mut ptrs = [std::ptr::null::<c_void>(); 3];
+        for (p, n) in ptrs.iter_mut().zip(names) {
+            // SAFETY: only the address is taken; it is called with the standard's signature.
+            let f: libloading::Symbol<*const c_void> = unsafe { lib.get(n.as_bytes()) }
+                .map_err(|_| format!("the library does not export `{n}`"))?;
+            *p = *f;
+        }
         let mut s = Slave {
             lib,
             inst,
@@ -303,6 +323,11 @@ impl Slave {
             _callbacks: callbacks,
             strings,
             terminated: false,
+            hot: Hot {
+                set_reals: ptrs[0],
+                get_reals: ptrs[1],
+                do_step: ptrs[2],
+            },
         };
         s.enter_initialization(start_s)?;
         Ok(s)
@@ -361,7 +386,8 @@ impl Slave {
         match self.version {
             FmiVersion::V2 => {
                 type F = unsafe extern "C" fn(Inst, *const Vr, usize, *const f64) -> c_int;
-                let f = sym!(self.lib, F, "fmi2SetReal");
+                // SAFETY: the address of fmi2SetReal, of this type.
+                let f: F = unsafe { std::mem::transmute(self.hot.set_reals) };
                 // SAFETY: slices of equal length.
                 check(
                     unsafe { f(self.inst, vrs.as_ptr(), vrs.len(), values.as_ptr()) },
@@ -371,7 +397,8 @@ impl Slave {
             }
             FmiVersion::V3 => {
                 type F = unsafe extern "C" fn(Inst, *const Vr, usize, *const f64, usize) -> c_int;
-                let f = sym!(self.lib, F, "fmi3SetFloat64");
+                // SAFETY: the address of fmi3SetFloat64, of this type.
+                let f: F = unsafe { std::mem::transmute(self.hot.set_reals) };
                 // SAFETY: slices of equal length.
                 check(
                     unsafe {
@@ -398,7 +425,8 @@ impl Slave {
         match self.version {
             FmiVersion::V2 => {
                 type F = unsafe extern "C" fn(Inst, *const Vr, usize, *mut f64) -> c_int;
-                let f = sym!(self.lib, F, "fmi2GetReal");
+                // SAFETY: the address of fmi2GetReal, of this type.
+                let f: F = unsafe { std::mem::transmute(self.hot.get_reals) };
                 // SAFETY: slices of equal length.
                 check(
                     unsafe { f(self.inst, vrs.as_ptr(), vrs.len(), values.as_mut_ptr()) },
@@ -408,7 +436,8 @@ impl Slave {
             }
             FmiVersion::V3 => {
                 type F = unsafe extern "C" fn(Inst, *const Vr, usize, *mut f64, usize) -> c_int;
-                let f = sym!(self.lib, F, "fmi3GetFloat64");
+                // SAFETY: the address of fmi3GetFloat64, of this type.
+                let f: F = unsafe { std::mem::transmute(self.hot.get_reals) };
                 // SAFETY: slices of equal length.
                 check(
                     unsafe {
@@ -582,7 +611,8 @@ impl Slave {
         match self.version {
             FmiVersion::V2 => {
                 type F = unsafe extern "C" fn(Inst, f64, f64, c_int) -> c_int;
-                let f = sym!(self.lib, F, "fmi2DoStep");
+                // SAFETY: the address of fmi2DoStep, of this type.
+                let f: F = unsafe { std::mem::transmute(self.hot.do_step) };
                 // SAFETY: a live instance.
                 check(unsafe { f(self.inst, t, h, 1) }, "fmi2DoStep", &self.log)
             }
@@ -597,7 +627,8 @@ impl Slave {
                     *mut bool,
                     *mut f64,
                 ) -> c_int;
-                let f = sym!(self.lib, F, "fmi3DoStep");
+                // SAFETY: the address of fmi3DoStep, of this type.
+                let f: F = unsafe { std::mem::transmute(self.hot.do_step) };
                 let (mut event, mut terminate, mut early, mut last) = (false, false, false, 0.0);
                 // SAFETY: a live instance and valid out-pointers.
                 let s = unsafe {

@@ -416,16 +416,21 @@ impl<S: Samples> FmuParticipant<S> {
         self.reals_out = (vrs, vals);
         r?;
         let mut j = 0;
-        for b in self.plan.outputs.clone() {
-            let v = match b.int {
+        for n in 0..self.plan.outputs.len() {
+            let (scalar, vr, int) = {
+                let b = &self.plan.outputs[n];
+                (b.scalar, b.vr, b.int)
+            };
+            let v = match int {
                 None => {
                     let x = self.reals_out.1[j];
                     j += 1;
                     ScalarValue::F64(x)
                 }
                 Some(t) => {
-                    let x = self.slave().get_int(b.vr, t)?;
+                    let x = self.slave().get_int(vr, t)?;
                     ScalarValue::U32(u32::try_from(x).map_err(|_| {
+                        let b = &self.plan.outputs[n];
                         format!(
                             "output `{}` = {x} does not fit field `{}` (0 to {})",
                             b.var,
@@ -435,21 +440,24 @@ impl<S: Samples> FmuParticipant<S> {
                     })?)
                 }
             };
-            out.set_scalar(b.scalar, v);
+            out.set_scalar(scalar, v);
         }
         Ok(out)
     }
 
     fn step_fmu(&mut self, input: &S::In) -> Result<S::Out, String> {
         let mut j = 0;
-        for b in self.plan.inputs.clone() {
-            match (b.int, input.scalar(b.scalar)) {
+        for n in 0..self.plan.inputs.len() {
+            let (int, scalar, vr) = {
+                let b = &self.plan.inputs[n];
+                (b.int, b.scalar, b.vr)
+            };
+            match (int, input.scalar(scalar)) {
                 (None, Some(ScalarValue::F64(x))) => {
                     self.reals_in.1[j] = x;
                     j += 1;
                 }
-                (Some(t), Some(ScalarValue::U32(x))) => self.slave().set_int(b.vr, t, x as i64)?,
-                (Some(t), Some(ScalarValue::F64(x))) => self.slave().set_int(b.vr, t, x as i64)?,
+                (Some(t), Some(ScalarValue::U32(x))) => self.slave().set_int(vr, t, x as i64)?,
                 _ => {}
             }
         }

@@ -42,7 +42,10 @@ pub struct Instance {
     base: Value,
     params: Vec<ParamValue>,
     inputs: Vec<ScalarValue>,
-    built_with: Option<Vec<ParamValue>>,
+    /// A parameter was set after the model was built.
+    params_changed: bool,
+    /// The communication period of the built model (s).
+    period: f64,
     model: Option<Box<dyn Model>>,
     state: State,
     time: f64,
@@ -73,19 +76,17 @@ impl Instance {
         ERROR
     }
 
-    fn period(&self) -> f64 {
-        period_of(self.layout.role, &self.settings()).unwrap_or(f64::NAN)
-    }
-
     fn settings(&self) -> Value {
         self.layout.settings_with(&self.base, &self.params)
     }
 
-    /// The model for the current parameters, built (again) if they changed.
+    /// The model for the current parameters, built (again) if one was set since.
     fn model(&mut self) -> Result<&mut Box<dyn Model>, String> {
-        if self.built_with.as_ref() != Some(&self.params) {
-            self.model = Some(model::build(self.layout.role, &self.settings())?);
-            self.built_with = Some(self.params.clone());
+        if self.model.is_none() || self.params_changed {
+            let settings = self.settings();
+            self.period = period_of(self.layout.role, &settings).unwrap_or(f64::NAN);
+            self.model = Some(model::build(self.layout.role, &settings)?);
+            self.params_changed = false;
         }
         Ok(self.model.as_mut().expect("built above"))
     }
@@ -105,7 +106,8 @@ impl Instance {
         if self.state != State::Step {
             return Err(format!("fmi3DoStep called in {:?} mode", self.state));
         }
-        let p = self.period();
+        self.model()?;
+        let p = self.period;
         let n = (h / p).round();
         if n < 1.0 || (h - n * p).abs() > 1e-9 * p {
             return Err(format!(
@@ -118,11 +120,10 @@ impl Instance {
                 self.time
             ));
         }
-        let inputs = self.inputs.clone();
         let dt = self.dt_s;
-        let m = self.model()?;
-        for (i, v) in inputs.into_iter().enumerate() {
-            m.set_input(i, v);
+        let m = self.model.as_mut().expect("built above");
+        for (i, v) in self.inputs.iter().enumerate() {
+            m.set_input(i, *v);
         }
         for j in 0..n as u64 {
             let k = ((t + j as f64 * p) / dt).round() as u64;
@@ -174,7 +175,8 @@ fn instantiate(
         inputs,
         layout,
         base: cfg.settings,
-        built_with: None,
+        params_changed: false,
+        period: f64::NAN,
         model: None,
         state: State::Instantiated,
         time: 0.0,
@@ -356,7 +358,7 @@ pub unsafe extern "C" fn fmi3Reset(inst: *mut c_void) -> Status {
                 }
             });
             i.model = None;
-            i.built_with = None;
+            i.params_changed = false;
             i.time = 0.0;
             i.state = State::Instantiated;
             OK
@@ -543,7 +545,13 @@ fn set_one<T: FmiValue>(i: &mut Instance, vr: Vr, v: T) -> Result<(), String> {
     settable(i, slot)?;
     let ok = match slot {
         Slot::Input(k) => v.to_scalar(i.inputs[k]).map(|s| i.inputs[k] = s).is_some(),
-        Slot::Param(k) => v.to_param(&i.params[k]).map(|p| i.params[k] = p).is_some(),
+        Slot::Param(k) => v
+            .to_param(&i.params[k])
+            .map(|p| {
+                i.params[k] = p;
+                i.params_changed = true;
+            })
+            .is_some(),
         _ => false,
     };
     if ok {
@@ -705,7 +713,10 @@ pub unsafe extern "C" fn fmi3SetString(
                 };
                 let r = match i.layout.slot(vr) {
                     Some(slot @ Slot::Param(k)) if matches!(i.params[k], ParamValue::Str(_)) => {
-                        settable(i, slot).map(|()| i.params[k] = ParamValue::Str(s.to_string()))
+                        settable(i, slot).map(|()| {
+                            i.params[k] = ParamValue::Str(s.to_string());
+                            i.params_changed = true;
+                        })
                     }
                     _ => Err(format!("value reference {vr} is not a String")),
                 };

@@ -164,15 +164,25 @@ mod tests {
             let inits = Inits::from(&s);
             for (role, v) in [
                 (Role::Plant, serde_json::to_value(&inits.plant).unwrap()),
-                (Role::Actuator, serde_json::to_value(&inits.actuator).unwrap()),
-                (Role::Controller, serde_json::to_value(&inits.controller).unwrap()),
+                (
+                    Role::Actuator,
+                    serde_json::to_value(&inits.actuator).unwrap(),
+                ),
+                (
+                    Role::Controller,
+                    serde_json::to_value(&inits.controller).unwrap(),
+                ),
             ] {
                 let l = Layout::new(role, &v).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
                 assert!(l.params.len() > 20, "{role}");
                 // Every real has a unit or is declared unitless on purpose.
                 for q in &l.params {
                     if let tiltsim_fmi::layout::ParamValue::F64(_) = q.value {
-                        assert!(tiltsim_fmi::units::param_unit(&q.name).is_some(), "{}", q.name);
+                        assert!(
+                            tiltsim_fmi::units::param_unit(&q.name).is_some(),
+                            "{}",
+                            q.name
+                        );
                     }
                 }
                 // Setting every parameter to its own value gives the settings back.

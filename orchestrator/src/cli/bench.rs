@@ -24,6 +24,13 @@ pub struct BenchArgs {
     /// Round trips per size with --ping-pong.
     #[arg(long, default_value_t = 100_000)]
     rounds: usize,
+    /// Measure each participant as its exported FMU (FMI 3.0, its own process) against the
+    /// native participant: wall time per tick, medians of --fmu-runs alternating runs.
+    #[arg(long)]
+    fmu: bool,
+    /// Runs of each with --fmu.
+    #[arg(long, default_value_t = 5)]
+    fmu_runs: usize,
 }
 
 /// `tiltsim bench-echo` (hidden): the echo side of `bench --ping-pong`.
@@ -115,6 +122,33 @@ pub fn exec(a: BenchArgs) -> CliResult {
         )));
     }
     let scratch = crate::bench::scratch_dir(&a.out);
+    if a.fmu {
+        if !(1..=100).contains(&a.fmu_runs) {
+            return Err(CliError::Invalid(format!(
+                "command line: --fmu-runs {}: allowed 1 to 100",
+                a.fmu_runs
+            )));
+        }
+        let rows = crate::bench::fmu(&s, d, a.fmu_runs, &exe, &scratch, |name| {
+            eprintln!("  measuring {name} ...");
+        });
+        let _ = std::fs::remove_dir_all(&scratch);
+        let rows = rows.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
+        println!(
+            "{}",
+            crate::bench::fmu_table(&s.name, s.run.transport.name(), &rows)
+        );
+        if let Some(dir) = a.out.parent() {
+            let _ = std::fs::create_dir_all(dir);
+        }
+        let machine = crate::bench::Machine::this();
+        write_json(
+            &a.out,
+            &serde_json::json!({ "fmu": rows, "scenario": s.name, "duration_s": d, "machine": machine }),
+        )?;
+        println!("wrote {}", a.out.display());
+        return Ok(());
+    }
     let report = crate::bench::run(&s, d, &exe, &scratch, |name| {
         eprintln!("  measuring {name} ...");
     });
