@@ -152,7 +152,7 @@ pub fn plan(
     }
     if let Some(h) = md.fixed_step {
         let n = period_s / h;
-        if !(h > 0.0) || (n - n.round()).abs() > 1e-9 * n.max(1.0) || n.round() < 1.0 {
+        if h.is_nan() || h <= 0.0 || (n - n.round()).abs() > 1e-9 * n.max(1.0) || n.round() < 1.0 {
             return Err(PlanError {
                 field: "fmu".into(),
                 value: fmu(),

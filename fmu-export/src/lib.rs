@@ -8,6 +8,15 @@
 //! execution are not offered: their functions exist (the standard asks every FMU to export
 //! them) and return `fmi3Error`.
 
+//!
+//! # Safety
+//!
+//! The exported functions are called by an FMI importer under the standard's contract: an
+//! instance pointer from `fmi3InstantiateCoSimulation` not yet freed, arrays of the lengths
+//! given, NUL-terminated strings. That contract is their safety section, stated once here.
+
+#![allow(clippy::missing_safety_doc)]
+
 pub mod model;
 
 use std::ffi::{c_char, c_void, CStr, CString};
