@@ -447,6 +447,25 @@ fn an_fmu_whose_step_fails_or_whose_process_is_killed_is_a_named_participant_fai
         "{events}"
     );
     assert_eq!(summary(&with_fmu)["status"], summary(&native)["status"]);
+    // The killed process could not remove its unpacked FMU; the orchestrator did.
+    let stale: Vec<_> = std::fs::read_dir(std::env::temp_dir())
+        .expect("temp dir")
+        .flatten()
+        .filter_map(|e| {
+            let n = e.file_name().to_string_lossy().into_owned();
+            let pid: u32 = n
+                .strip_prefix("tiltsim-fmu-")?
+                .split('-')
+                .next()?
+                .parse()
+                .ok()?;
+            (!Path::new(&format!("/proc/{pid}")).exists()).then_some(n)
+        })
+        .collect();
+    assert!(
+        stale.is_empty(),
+        "unpacked FMUs of dead processes left: {stale:?}"
+    );
 }
 
 #[test]

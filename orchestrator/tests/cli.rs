@@ -28,12 +28,38 @@ fn shipped_scenarios_validate() {
         .parent()
         .unwrap()
         .join("scenarios");
+    // Copies in the layout the FMU example documents: scenarios/ beside out/fmu/.
+    let dir = std::env::temp_dir().join(format!("tiltsim-cli-shipped-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("scenarios")).unwrap();
+    let mut copies = Vec::new();
     for e in std::fs::read_dir(root).unwrap() {
         let p = e.unwrap().path();
+        let to = dir.join("scenarios").join(p.file_name().unwrap());
+        std::fs::copy(&p, &to).unwrap();
+        copies.push(to);
+    }
+    // Before its FMU is exported the example names what is missing.
+    let example = dir.join("scenarios/fmu-controller.toml");
+    let (code, _, err) = tiltsim(&["validate", example.to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("participants.controller.fmu"), "{err}");
+    let (code, _, err) = tiltsim(&[
+        "export-fmu",
+        "controller",
+        dir.join("scenarios/paper-pi.toml").to_str().unwrap(),
+        "--out",
+        dir.join("out/fmu/paper-pi-controller.fmu")
+            .to_str()
+            .unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    for p in copies {
         let (code, out, err) = tiltsim(&["validate", p.to_str().unwrap()]);
         assert_eq!(code, 0, "{}: {err}", p.display());
         assert!(out.contains("valid"));
     }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -1,4 +1,5 @@
-//! `tiltsim clean`: remove the shared-memory files of runs whose orchestrator is dead.
+//! `tiltsim clean`: remove the shared-memory files of runs whose orchestrator is dead, and the
+//! FMUs unpacked by participant processes that are dead.
 
 use super::error::CliResult;
 
@@ -14,6 +15,9 @@ pub fn exec(_: CleanArgs) -> CliResult {
     }
     for p in dead {
         println!("removed the files of dead run {p}*");
+    }
+    for d in tiltsim_fmi::archive::remove_dead_unpacked() {
+        println!("removed the unpacked FMU {}", d.display());
     }
     Ok(())
 }

@@ -236,6 +236,10 @@ fn shut_down(
     let starved = team.ps.starved_waits();
     let lost = team.take_lost();
     let exits = team.ps.shut_down(lost);
+    // FMUs unpacked by participant processes that were killed.
+    if !team.scenario().participants.is_empty() {
+        tiltsim_fmi::archive::remove_dead_unpacked();
+    }
     let degraded = team.degraded();
     let mut leftover = Vec::new();
     if let Some(hub) = team.ps.hub.take() {
