@@ -23,9 +23,22 @@ fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
 }
 
-/// `tiltsim export-fmu ROLE SCENARIO --out DIR/NAME`.
+/// `tiltsim export-fmu ROLE SCENARIO --out DIR/NAME` (FMI 3.0).
 fn export(role: &str, scenario: &Path, out: &Path) -> PathBuf {
-    let (code, _, err) = run(&["export-fmu", role, s(scenario), "--out", s(out)]);
+    export_version(role, scenario, out, "3")
+}
+
+/// `tiltsim export-fmu ROLE SCENARIO --out DIR/NAME --fmi-version V`.
+fn export_version(role: &str, scenario: &Path, out: &Path, version: &str) -> PathBuf {
+    let (code, _, err) = run(&[
+        "export-fmu",
+        role,
+        s(scenario),
+        "--out",
+        s(out),
+        "--fmi-version",
+        version,
+    ]);
     assert_eq!(code, 0, "export-fmu {role}: {err}");
     out.to_path_buf()
 }
@@ -108,29 +121,39 @@ fn fmpy_validates_the_exported_fmus_and_its_cosimulation_reproduces_a_recorded_r
         &["--record", "--duration", "1"],
     );
     let check = root().join("tests/fmi/fmpy_check.py");
-    for (role, requests, fields) in [
+    let roles = [
         ("controller", 20, 4),
         ("actuator", 1000, 10),
         ("plant", 1000, 16),
-    ] {
-        let fmu = export(role, &sc, &dir.join(format!("{role}.fmu")));
-        let mcap = rec.join("run.mcap");
-        let (code, out, err) = fmi_tool("python", &[s(&check), s(&fmu), s(&mcap), role]);
-        assert_eq!(code, 0, "fmpy_check {role}: {err}");
-        let r: serde_json::Value = serde_json::from_str(out.trim()).expect("JSON");
-        assert_eq!(
-            r["problems"],
-            serde_json::json!([]),
-            "{role}: FMPy validation"
-        );
-        assert_eq!(r["requests"], requests, "{role}: recorded requests");
-        assert_eq!(r["steps"], requests, "{role}: FMPy's communication steps");
-        assert_eq!(r["compared"], requests * fields, "{role}: values compared");
-        assert_eq!(
-            r["mismatches"], 0,
-            "{role}: FMPy's outputs differ from the run's: first {}, largest {}",
-            r["first"], r["largest"]
-        );
+    ];
+    let mcap = rec.join("run.mcap");
+    // FMI 3.0 (the default) and FMI 2.0 exports of each participant.
+    for version in ["3", "2"] {
+        for (role, requests, fields) in roles {
+            let what = format!("{role} (FMI {version})");
+            let fmu = export_version(
+                role,
+                &sc,
+                &dir.join(format!("{role}-{version}.fmu")),
+                version,
+            );
+            let (code, out, err) = fmi_tool("python", &[s(&check), s(&fmu), s(&mcap), role]);
+            assert_eq!(code, 0, "fmpy_check {what}: {err}");
+            let r: serde_json::Value = serde_json::from_str(out.trim()).expect("JSON");
+            assert_eq!(
+                r["problems"],
+                serde_json::json!([]),
+                "{what}: FMPy validation"
+            );
+            assert_eq!(r["requests"], requests, "{what}: recorded requests");
+            assert_eq!(r["steps"], requests, "{what}: FMPy's communication steps");
+            assert_eq!(r["compared"], requests * fields, "{what}: values compared");
+            assert_eq!(
+                r["mismatches"], 0,
+                "{what}: FMPy's outputs differ from the run's: first {}, largest {}",
+                r["first"], r["largest"]
+            );
+        }
     }
 }
 
@@ -195,37 +218,45 @@ fn a_pythonfmu_controller_plays_the_controller_and_its_commands_follow_its_equat
 fn tiltsims_own_fmus_in_place_of_every_participant_give_the_native_rows_byte_for_byte() {
     let dir = temp_dir("fmi-round-trip");
     let base = scenario("paper-mpc.toml");
-    for role in ["plant", "actuator", "controller"] {
-        export(role, &base, &dir.join(format!("{role}.fmu")));
-    }
-    let extra = "[participants.plant]\nfmu = \"plant.fmu\"\n\
-                 [participants.actuator]\nfmu = \"actuator.fmu\"\n\
-                 [participants.controller]\nfmu = \"controller.fmu\"\n";
-    let fmus = scenario_in(&dir, "paper-mpc.toml", "paper-mpc", extra);
-    for transport in ["ipc", "in-process"] {
-        let native = run_ok(
-            &base,
-            &dir.join(format!("native-{transport}")),
-            transport,
-            &["--duration", "2"],
+    // FMI 3.0 and FMI 2.0 exports, each imported through tiltsim's binding of that version.
+    for version in ["3", "2"] {
+        for role in ["plant", "actuator", "controller"] {
+            export_version(
+                role,
+                &base,
+                &dir.join(format!("{role}-{version}.fmu")),
+                version,
+            );
+        }
+        let extra = format!(
+            "[participants.plant]\nfmu = \"plant-{version}.fmu\"\n\
+             [participants.actuator]\nfmu = \"actuator-{version}.fmu\"\n\
+             [participants.controller]\nfmu = \"controller-{version}.fmu\"\n"
         );
-        let fmu = run_ok(
-            &fmus,
-            &dir.join(format!("fmu-{transport}")),
-            transport,
-            &["--duration", "2"],
-        );
-        let a = std::fs::read(native.join("timeseries.csv")).expect("csv");
-        let b = std::fs::read(fmu.join("timeseries.csv")).expect("csv");
-        assert!(
-            a.len() > 100_000,
-            "{transport}: a short series ({} bytes)",
-            a.len()
-        );
-        assert!(
-            a == b,
-            "{transport}: the FMUs' timeseries.csv differs from the native run's"
-        );
+        let fmus = scenario_in(&dir, "paper-mpc.toml", "paper-mpc", &extra);
+        for transport in ["ipc", "in-process"] {
+            let native = dir.join(format!("native-{transport}"));
+            if !native.exists() {
+                run_ok(&base, &native, transport, &["--duration", "2"]);
+            }
+            let fmu = run_ok(
+                &fmus,
+                &dir.join(format!("fmu-{version}-{transport}")),
+                transport,
+                &["--duration", "2"],
+            );
+            let a = std::fs::read(native.join("timeseries.csv")).expect("csv");
+            let b = std::fs::read(fmu.join("timeseries.csv")).expect("csv");
+            assert!(
+                a.len() > 100_000,
+                "{transport}: a short series ({} bytes)",
+                a.len()
+            );
+            assert!(
+                a == b,
+                "FMI {version}, {transport}: the FMUs' timeseries.csv differs from the native run's"
+            );
+        }
     }
 }
 

@@ -15,10 +15,11 @@ pub fn platform_dir(version: FmiVersion) -> &'static str {
     }
 }
 
-/// Writes an FMU: `modelDescription.xml`, the library as
-/// `binaries/x86_64-linux/<identifier>.so` and `resources/<name>` files. Written to a
+/// Writes an FMU of `version`: `modelDescription.xml`, the library as
+/// `binaries/<platform>/<identifier>.so` and `resources/<name>` files. Written to a
 /// temporary name and renamed, so `out` is whole or absent.
 pub fn write_fmu(
+    version: FmiVersion,
     out: &Path,
     description: &str,
     identifier: &str,
@@ -38,7 +39,10 @@ pub fn write_fmu(
             z.write_all(bytes)
         };
         put("modelDescription.xml", description.as_bytes())?;
-        put(&format!("binaries/x86_64-linux/{identifier}.so"), library)?;
+        put(
+            &format!("binaries/{}/{identifier}.so", platform_dir(version)),
+            library,
+        )?;
         for (name, bytes) in resources {
             put(&format!("resources/{name}"), bytes)?;
         }

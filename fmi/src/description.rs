@@ -63,26 +63,7 @@ pub fn write_fmi3(layout: &Layout, info: &ExportInfo) -> String {
         esc(&info.model_identifier),
         real(info.step_s)
     );
-    let mut used: Vec<&str> = layout.inputs.iter().map(|s| s.unit).collect();
-    used.extend(layout.outputs.iter().map(|s| s.unit));
-    used.extend(layout.params.iter().map(|p| p.unit));
-    x.push_str("  <UnitDefinitions>\n");
-    for (name, (kg, m, s, a, rad, factor)) in UNIT_DEFS {
-        if !used.contains(name) {
-            continue;
-        }
-        let mut b = String::new();
-        for (k, e) in [("kg", kg), ("m", m), ("s", s), ("A", a), ("rad", rad)] {
-            if *e != 0 {
-                let _ = write!(b, r#" {k}="{e}""#);
-            }
-        }
-        if *factor != 1.0 {
-            let _ = write!(b, r#" factor="{}""#, real(*factor));
-        }
-        let _ = writeln!(x, r#"    <Unit name="{}"><BaseUnit{b}/></Unit>"#, esc(name));
-    }
-    x.push_str("  </UnitDefinitions>\n");
+    units_xml(layout, &mut x);
     let _ = writeln!(
         x,
         r#"  <DefaultExperiment startTime="0" stopTime="{}" stepSize="{}"/>"#,
@@ -173,6 +154,136 @@ pub fn write_fmi3(layout: &Layout, info: &ExportInfo) -> String {
     }
     x.push_str("  </ModelStructure>\n</fmiModelDescription>\n");
     x
+}
+
+/// The FMI 2.0 co-simulation model description of `layout` (same value references as FMI
+/// 3.0; FMI 2.0 has no 64-bit integers: unsigned and 64-bit values are `Integer`, and a value
+/// that does not fit 32 bits is an error).
+pub fn write_fmi2(layout: &Layout, info: &ExportInfo) -> Result<String, String> {
+    let mut x = String::new();
+    let _ = writeln!(x, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
+    let _ = writeln!(
+        x,
+        r#"<fmiModelDescription fmiVersion="2.0" modelName="{}" guid="{}" description="{}" generationTool="tiltsim {}" variableNamingConvention="flat" numberOfEventIndicators="0">"#,
+        esc(&info.model_name),
+        esc(&info.token),
+        esc(&info.description),
+        env!("CARGO_PKG_VERSION"),
+    );
+    let _ = writeln!(
+        x,
+        r#"  <CoSimulation modelIdentifier="{}" canHandleVariableCommunicationStepSize="false" canInterpolateInputs="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="false" canSerializeFMUstate="false"/>"#,
+        esc(&info.model_identifier),
+    );
+    units_xml(layout, &mut x);
+    let _ = writeln!(
+        x,
+        r#"  <DefaultExperiment startTime="0" stopTime="{}" stepSize="{}"/>"#,
+        real(info.stop_s),
+        real(info.step_s)
+    );
+    x.push_str("  <ModelVariables>\n");
+    let unit = |u: &str| {
+        if u.is_empty() {
+            String::new()
+        } else {
+            format!(r#" unit="{}""#, esc(u))
+        }
+    };
+    let mut index = 0usize;
+    let mut outputs = Vec::new();
+    for (i, s) in layout.inputs.iter().enumerate() {
+        index += 1;
+        let (var, ty) = match s.ty {
+            ScalarType::F64 => (
+                "continuous",
+                format!(r#"<Real start="0"{}/>"#, unit(s.unit)),
+            ),
+            ScalarType::U32 => ("discrete", r#"<Integer start="0"/>"#.to_string()),
+        };
+        let _ = writeln!(
+            x,
+            r#"    <ScalarVariable name="{}" valueReference="{}" causality="input" variability="{var}" description="{}">{ty}</ScalarVariable>"#,
+            esc(&s.name),
+            layout.input_vr(i),
+            esc(s.description),
+        );
+    }
+    for (i, s) in layout.outputs.iter().enumerate() {
+        index += 1;
+        outputs.push(index);
+        let (var, ty) = match s.ty {
+            ScalarType::F64 => ("continuous", format!(r#"<Real{}/>"#, unit(s.unit))),
+            ScalarType::U32 => ("discrete", "<Integer/>".to_string()),
+        };
+        let _ = writeln!(
+            x,
+            r#"    <ScalarVariable name="{}" valueReference="{}" causality="output" variability="{var}" initial="calculated" description="{}">{ty}</ScalarVariable>"#,
+            esc(&s.name),
+            layout.output_vr(i),
+            esc(s.description),
+        );
+    }
+    for (i, p) in layout.params.iter().enumerate() {
+        let int = |v: i64| {
+            i32::try_from(v).map_err(|_| {
+                format!(
+                    "parameter `{}` = {v} does not fit an FMI 2.0 Integer (32 bits); export FMI 3.0",
+                    p.name
+                )
+            })
+        };
+        let ty = match &p.value {
+            ParamValue::F64(v) => format!(r#"<Real start="{}"{}/>"#, real(*v), unit(p.unit)),
+            ParamValue::U64(v) => format!(
+                r#"<Integer start="{}"/>"#,
+                int(i64::try_from(*v).unwrap_or(i64::MAX))?
+            ),
+            ParamValue::I64(v) => format!(r#"<Integer start="{}"/>"#, int(*v)?),
+            ParamValue::Bool(v) => format!(r#"<Boolean start="{v}"/>"#),
+            ParamValue::Str(v) => format!(r#"<String start="{}"/>"#, esc(v)),
+        };
+        let _ = writeln!(
+            x,
+            r#"    <ScalarVariable name="{}" valueReference="{}" causality="parameter" variability="fixed" initial="exact">{ty}</ScalarVariable>"#,
+            esc(&p.name),
+            layout.param_vr(i),
+        );
+    }
+    x.push_str("  </ModelVariables>\n  <ModelStructure>\n    <Outputs>\n");
+    for i in &outputs {
+        let _ = writeln!(x, r#"      <Unknown index="{i}"/>"#);
+    }
+    x.push_str("    </Outputs>\n    <InitialUnknowns>\n");
+    for i in &outputs {
+        let _ = writeln!(x, r#"      <Unknown index="{i}"/>"#);
+    }
+    x.push_str("    </InitialUnknowns>\n  </ModelStructure>\n</fmiModelDescription>\n");
+    Ok(x)
+}
+
+/// `<UnitDefinitions>` of the units `layout` uses.
+fn units_xml(layout: &Layout, x: &mut String) {
+    let mut used: Vec<&str> = layout.inputs.iter().map(|s| s.unit).collect();
+    used.extend(layout.outputs.iter().map(|s| s.unit));
+    used.extend(layout.params.iter().map(|p| p.unit));
+    x.push_str("  <UnitDefinitions>\n");
+    for (name, (kg, m, s, a, rad, factor)) in UNIT_DEFS {
+        if !used.contains(name) {
+            continue;
+        }
+        let mut b = String::new();
+        for (k, e) in [("kg", kg), ("m", m), ("s", s), ("A", a), ("rad", rad)] {
+            if *e != 0 {
+                let _ = write!(b, r#" {k}="{e}""#);
+            }
+        }
+        if *factor != 1.0 {
+            let _ = write!(b, r#" factor="{}""#, real(*factor));
+        }
+        let _ = writeln!(x, r#"    <Unit name="{}"><BaseUnit{b}/></Unit>"#, esc(name));
+    }
+    x.push_str("  </UnitDefinitions>\n");
 }
 
 /// FMI version of an FMU.

@@ -17,6 +17,7 @@
 
 #![allow(clippy::missing_safety_doc)]
 
+pub mod fmi2;
 pub mod model;
 
 use std::ffi::{c_char, c_void, CStr, CString};
@@ -28,15 +29,15 @@ use tiltsim_fmi::layout::{period_of, token, FmuConfig, Layout, ParamValue, Slot}
 
 use model::Model;
 
-type Status = i32;
-const OK: Status = 0;
-const ERROR: Status = 3;
+pub(crate) type Status = i32;
+pub(crate) const OK: Status = 0;
+pub(crate) const ERROR: Status = 3;
 const FATAL: Status = 4;
-type Vr = u32;
+pub(crate) type Vr = u32;
 type LogFn = unsafe extern "C" fn(*mut c_void, Status, *const c_char, *const c_char);
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum State {
+pub(crate) enum State {
     Instantiated,
     Initialization,
     Step,
@@ -46,26 +47,31 @@ enum State {
 
 /// One FMU instance.
 pub struct Instance {
-    name: String,
-    layout: Layout,
-    base: Value,
-    params: Vec<ParamValue>,
-    inputs: Vec<ScalarValue>,
+    pub(crate) name: String,
+    pub(crate) layout: Layout,
+    pub(crate) base: Value,
+    pub(crate) params: Vec<ParamValue>,
+    pub(crate) inputs: Vec<ScalarValue>,
     /// A parameter was set after the model was built.
-    params_changed: bool,
+    pub(crate) params_changed: bool,
     /// The communication period of the built model (s).
-    period: f64,
-    model: Option<Box<dyn Model>>,
-    state: State,
-    time: f64,
-    dt_s: f64,
-    log: Option<LogFn>,
-    env: *mut c_void,
-    strings: Vec<CString>,
+    pub(crate) period: f64,
+    pub(crate) model: Option<Box<dyn Model>>,
+    pub(crate) state: State,
+    pub(crate) time: f64,
+    pub(crate) dt_s: f64,
+    pub(crate) log: Option<LogFn>,
+    /// The FMI 2.0 logger, for instances made by `fmi2Instantiate`.
+    pub(crate) log2: Option<fmi2::Logger>,
+    pub(crate) env: *mut c_void,
+    pub(crate) strings: Vec<CString>,
 }
 
 impl Instance {
     fn say(&self, status: Status, msg: &str) {
+        if let Some(f) = self.log2 {
+            fmi2::say(f, self.env, &self.name, status, msg);
+        }
         if let Some(f) = self.log {
             let cat = CString::new(if status >= ERROR {
                 "logStatusError"
@@ -80,7 +86,7 @@ impl Instance {
         }
     }
 
-    fn fail(&mut self, msg: &str) -> Status {
+    pub(crate) fn fail(&mut self, msg: &str) -> Status {
         self.say(ERROR, msg);
         ERROR
     }
@@ -90,7 +96,7 @@ impl Instance {
     }
 
     /// The model for the current parameters, built (again) if one was set since.
-    fn model(&mut self) -> Result<&mut Box<dyn Model>, String> {
+    pub(crate) fn model(&mut self) -> Result<&mut Box<dyn Model>, String> {
         if self.model.is_none() || self.params_changed {
             let settings = self.settings();
             self.period = period_of(self.layout.role, &settings).unwrap_or(f64::NAN);
@@ -111,7 +117,7 @@ impl Instance {
 
     /// A communication step of `h`: the participant's period `p` (fixedInternalStepSize) or a
     /// whole multiple of it, taken as that many steps with the inputs held.
-    fn do_step(&mut self, t: f64, h: f64) -> Result<(), String> {
+    pub(crate) fn do_step(&mut self, t: f64, h: f64) -> Result<(), String> {
         if self.state != State::Step {
             return Err(format!("fmi3DoStep called in {:?} mode", self.state));
         }
@@ -143,7 +149,7 @@ impl Instance {
     }
 }
 
-unsafe fn cstr<'a>(p: *const c_char) -> Option<&'a str> {
+pub(crate) unsafe fn cstr<'a>(p: *const c_char) -> Option<&'a str> {
     if p.is_null() {
         None
     } else {
@@ -152,7 +158,7 @@ unsafe fn cstr<'a>(p: *const c_char) -> Option<&'a str> {
     }
 }
 
-fn instantiate(
+pub(crate) fn instantiate(
     name: &str,
     token_given: &str,
     resources: &str,
@@ -191,6 +197,7 @@ fn instantiate(
         time: 0.0,
         dt_s: cfg.dt_s,
         log,
+        log2: None,
         env,
         strings: Vec::new(),
     })
@@ -198,7 +205,7 @@ fn instantiate(
 
 /// Runs `f` on the instance, turning a panic into `fmi3Fatal` (a panic must not cross the C
 /// boundary) and a failed instance into `fmi3Error`.
-unsafe fn with(inst: *mut c_void, f: impl FnOnce(&mut Instance) -> Status) -> Status {
+pub(crate) unsafe fn with(inst: *mut c_void, f: impl FnOnce(&mut Instance) -> Status) -> Status {
     if inst.is_null() {
         return ERROR;
     }
@@ -409,7 +416,7 @@ pub unsafe extern "C" fn fmi3DoStep(
 }
 
 /// Which variables a setter may change in the instance's state.
-fn settable(i: &Instance, slot: Slot) -> Result<(), String> {
+pub(crate) fn settable(i: &Instance, slot: Slot) -> Result<(), String> {
     match (slot, i.state) {
         (Slot::Input(_), State::Instantiated | State::Initialization | State::Step) => Ok(()),
         (Slot::Param(_), State::Instantiated | State::Initialization) => Ok(()),
@@ -420,7 +427,7 @@ fn settable(i: &Instance, slot: Slot) -> Result<(), String> {
 }
 
 /// Gets/sets values of one FMI type through the layout.
-trait FmiValue: Copy {
+pub(crate) trait FmiValue: Copy {
     const NAME: &'static str;
     fn from_scalar(v: ScalarValue) -> Option<Self>;
     fn to_scalar(self, like: ScalarValue) -> Option<ScalarValue>;
@@ -532,7 +539,7 @@ impl FmiValue for bool {
     }
 }
 
-fn get_one<T: FmiValue>(i: &mut Instance, vr: Vr) -> Result<T, String> {
+pub(crate) fn get_one<T: FmiValue>(i: &mut Instance, vr: Vr) -> Result<T, String> {
     let slot = i
         .layout
         .slot(vr)
@@ -546,7 +553,7 @@ fn get_one<T: FmiValue>(i: &mut Instance, vr: Vr) -> Result<T, String> {
     v.ok_or_else(|| format!("value reference {vr} is not a {}", T::NAME))
 }
 
-fn set_one<T: FmiValue>(i: &mut Instance, vr: Vr, v: T) -> Result<(), String> {
+pub(crate) fn set_one<T: FmiValue>(i: &mut Instance, vr: Vr, v: T) -> Result<(), String> {
     let slot = i
         .layout
         .slot(vr)
@@ -570,7 +577,7 @@ fn set_one<T: FmiValue>(i: &mut Instance, vr: Vr, v: T) -> Result<(), String> {
     }
 }
 
-unsafe fn get_many<T: FmiValue>(
+pub(crate) unsafe fn get_many<T: FmiValue>(
     inst: *mut c_void,
     vrs: *const Vr,
     n: usize,
@@ -597,7 +604,7 @@ unsafe fn get_many<T: FmiValue>(
     }
 }
 
-unsafe fn set_many<T: FmiValue>(
+pub(crate) unsafe fn set_many<T: FmiValue>(
     inst: *mut c_void,
     vrs: *const Vr,
     n: usize,

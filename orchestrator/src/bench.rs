@@ -330,7 +330,14 @@ pub fn fmu(
     let mut out = Vec::new();
     for role in cosim::Role::ALL {
         let path = scratch.join(format!("{}.fmu", role.name()));
-        crate::export_fmu::export(&s, role, &path, None).map_err(|e| BenchError::Run {
+        crate::export_fmu::export(
+            &s,
+            role,
+            tiltsim_fmi::description::FmiVersion::V3,
+            &path,
+            None,
+        )
+        .map_err(|e| BenchError::Run {
             config: format!("export {role}"),
             why: e.to_string(),
         })?;

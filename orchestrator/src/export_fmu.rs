@@ -1,11 +1,11 @@
-//! A participant of a scenario as an FMI 3.0 co-simulation FMU: the model description from
+//! A participant of a scenario as an FMI 3.0 (or 2.0) co-simulation FMU: the model description from
 //! [`tiltsim_fmi::Layout`], the FMU library `libtiltsim_fmu.so` (crate `tiltsim-fmu`, built
 //! by cargo beside `tiltsim`) and the participant's settings as `resources/tiltsim.json`.
 
 use std::path::{Path, PathBuf};
 
 use cosim::Role;
-use tiltsim_fmi::description::{write_fmi3, ExportInfo};
+use tiltsim_fmi::description::{write_fmi2, write_fmi3, ExportInfo, FmiVersion};
 use tiltsim_fmi::layout::{period_of, token, FmuConfig};
 use tiltsim_fmi::Layout;
 
@@ -75,6 +75,7 @@ pub fn library_candidates(explicit: Option<&Path>) -> Vec<PathBuf> {
 pub fn export(
     s: &Scenario,
     role: Role,
+    version: FmiVersion,
     out: &Path,
     library: Option<&Path>,
 ) -> Result<Exported, ExportError> {
@@ -125,18 +126,28 @@ pub fn export(
         step_s,
         stop_s: s.duration(),
     };
-    let xml = write_fmi3(&layout, &info);
+    let xml = match version {
+        FmiVersion::V3 => write_fmi3(&layout, &info),
+        FmiVersion::V2 => write_fmi2(&layout, &info).map_err(ExportError::Layout)?,
+    };
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|source| ExportError::Io {
             path: dir.to_path_buf(),
             source,
         })?;
     }
-    tiltsim_fmi::archive::write_fmu(out, &xml, &identifier, &lib, &[("tiltsim.json", &bytes)])
-        .map_err(|source| ExportError::Io {
-            path: out.to_path_buf(),
-            source,
-        })?;
+    tiltsim_fmi::archive::write_fmu(
+        version,
+        out,
+        &xml,
+        &identifier,
+        &lib,
+        &[("tiltsim.json", &bytes)],
+    )
+    .map_err(|source| ExportError::Io {
+        path: out.to_path_buf(),
+        source,
+    })?;
     Ok(Exported {
         step_s,
         inputs: layout.inputs.len(),

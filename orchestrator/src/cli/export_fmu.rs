@@ -15,6 +15,9 @@ pub struct ExportFmuArgs {
     /// The FMU file to write.
     #[arg(long)]
     out: PathBuf,
+    /// FMI version: 3 (FMI 3.0) or 2 (FMI 2.0, for importers that do not read 3.0).
+    #[arg(long, default_value_t = 3)]
+    fmi_version: u8,
     /// The FMU library to package (default: libtiltsim_fmu.so beside this program, as cargo
     /// builds it; or the TILTSIM_FMU_LIBRARY environment variable).
     #[arg(long)]
@@ -29,11 +32,20 @@ pub fn exec(a: ExportFmuArgs) -> CliResult {
             a.role
         ))
     })?;
+    let version = match a.fmi_version {
+        2 => tiltsim_fmi::description::FmiVersion::V2,
+        3 => tiltsim_fmi::description::FmiVersion::V3,
+        v => {
+            return Err(CliError::Invalid(format!(
+                "command line: --fmi-version {v}: allowed 2 or 3"
+            )))
+        }
+    };
     let s = super::common::load(&a.scenario)?;
-    let r = crate::export_fmu::export(&s, role, &a.out, a.library.as_deref())
+    let r = crate::export_fmu::export(&s, role, version, &a.out, a.library.as_deref())
         .map_err(|e| CliError::Invalid(e.to_string()))?;
     println!(
-        "wrote {} ({role}, FMI 3.0 co-simulation, step {} s, {} inputs, {} outputs, {} parameters)",
+        "wrote {} ({role}, {version} co-simulation, step {} s, {} inputs, {} outputs, {} parameters)",
         a.out.display(),
         r.step_s,
         r.inputs,
