@@ -541,3 +541,39 @@ fn the_shipped_fmu_example_runs_as_documented_and_its_parameter_takes_effect() {
     let c = std::fs::read(other.join("timeseries.csv")).expect("csv");
     assert!(a != c, "kp = 30 gave the same rows as kp = 38.24");
 }
+
+#[test]
+fn a_recorded_run_with_an_fmu_replays_the_fmu_itself() {
+    let dir = temp_dir("fmi-replay");
+    let sc = scenario_in(
+        &dir,
+        "paper-pi.toml",
+        "tilt-pi-recorded",
+        &tilt_pi_table(&dir, "k_p = 12.0"),
+    );
+    let rec = run_ok(
+        &sc,
+        &dir.join("run"),
+        "ipc",
+        &["--record", "--duration", "1"],
+    );
+    for transport in ["in-process", "ipc"] {
+        let out = dir.join(format!("replay-{transport}"));
+        let (code, stdout, err) = run(&[
+            "replay",
+            s(&rec),
+            "--participant",
+            "controller",
+            "--transport",
+            transport,
+            "--out",
+            s(&out),
+        ]);
+        assert_eq!(code, 0, "{transport}: {err}");
+        // tilt_pi.py's commands, not the native PI's: every output identical.
+        assert!(
+            stdout.contains("every output identical"),
+            "{transport}: {stdout}"
+        );
+    }
+}

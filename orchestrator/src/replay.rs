@@ -259,17 +259,23 @@ fn run_role(
         ),
     };
     let startup = std::time::Duration::from_millis(s.run.startup_ms);
+    // An FMU that played the role in the recorded run plays it again.
+    let fmu = s.fmu_init(role);
     macro_rules! endpoint {
-        ($model:expr, $params:expr, $i:ty, $o:ty) => {{
-            let ep: Box<dyn Endpoint<$i, $o>> = match (at, &hub) {
-                (Where::Process(exe), Some(hub)) => {
+        ($model:expr, $params:expr, $io:ty, $i:ty, $o:ty) => {{
+            let ep: Box<dyn Endpoint<$i, $o>> = match (at, &hub, &fmu) {
+                (Where::Process(exe), Some(hub), _) => {
+                    let (command, params) = match &fmu {
+                        Some(init) => ("fmu-participant", serde_json::to_string(init)),
+                        None => ("participant", serde_json::to_string($params)),
+                    };
                     let launch = cosim::ipc::Launch {
                         program: exe.clone(),
                         args: vec![
-                            "participant".into(),
+                            command.into(),
                             role.name().into(),
                             "--params".into(),
-                            serde_json::to_string($params).unwrap_or_default().into(),
+                            params.unwrap_or_default().into(),
                         ],
                     };
                     Box::new(
@@ -277,6 +283,10 @@ fn run_role(
                             .map_err(|e| ReplayError::Model(e.to_string()))?,
                     )
                 }
+                (_, _, Some(init)) => Box::new(InProcess::new(
+                    tiltsim_fmi::FmuParticipant::<$io>::new(init.clone())
+                        .map_err(ReplayError::Model)?,
+                )),
                 _ => Box::new(InProcess::new($model?)),
             };
             ep
@@ -287,6 +297,7 @@ fn run_role(
             let mut ep = endpoint!(
                 Ok::<_, ReplayError>(plant_proc::Plant::new(&inits.plant)),
                 &inits.plant,
+                tiltsim_fmi::PlantIo,
                 ToPlant,
                 FromPlant
             );
@@ -306,6 +317,7 @@ fn run_role(
             let mut ep = endpoint!(
                 Ok::<_, ReplayError>(actuator_proc::Actuator::new(&inits.actuator)),
                 &inits.actuator,
+                tiltsim_fmi::ActuatorIo,
                 ToActuator,
                 FromActuator
             );
@@ -325,6 +337,7 @@ fn run_role(
             let mut ep = endpoint!(
                 controller_proc::Controller::new(&inits.controller).map_err(ReplayError::Model),
                 &inits.controller,
+                tiltsim_fmi::ControllerIo,
                 ToController,
                 FromController
             );
