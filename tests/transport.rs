@@ -190,3 +190,71 @@ fn a_slow_controller_is_held_between_its_updates() {
         assert!(leftovers(&pfx).is_empty());
     }
 }
+
+#[test]
+fn jacobi_over_ipc_gives_the_measured_heaviest_participant_a_cpu_of_its_own() {
+    // paper-mpc: the actuator's switched electrics (~30 µs per tick) against the plant
+    // (~0.2 µs) and the MPC (~35 µs every 50 ticks, under 1 µs per tick).
+    let measured = run_with(
+        "cpu-plan-measured",
+        "paper-mpc.toml",
+        "ipc",
+        "jacobi",
+        &["--duration", "1"],
+    );
+    let plan = &summary(&measured)["timing"]["cpu_plan"];
+    let cpus = cosim::ipc::allowed_cpus();
+    if cpus.len() >= 2 {
+        assert_eq!(plan["own_cpu"], "actuator", "{plan}");
+        assert_eq!(plan["applied"], true, "{plan}");
+        assert_eq!(plan["heavy_cpu"], *cpus.last().unwrap(), "{plan}");
+        assert_eq!(plan["shared_cpu"], cpus[0], "{plan}");
+        let c = &plan["compute_per_tick_us"];
+        let (a, p, k) = (
+            c["actuator"].as_f64().unwrap(),
+            c["plant"].as_f64().unwrap(),
+            c["controller"].as_f64().unwrap(),
+        );
+        assert!(a > 0.5 * (a + p + k), "{plan}");
+    } else {
+        // One CPU: nothing to place.
+        assert!(plan.is_null(), "{plan}");
+    }
+    // Placement never changes a value: the fixed plan, the measured one and Gauss-Seidel's
+    // in-process twin of Jacobi give the same rows.
+    let fixed_sc = tiltsim_suite::scenario_with(
+        "paper-mpc.toml",
+        "[actuator]",
+        "[run]\ncpu_plan = \"fixed\"\n\n[actuator]",
+        "cpu-plan-fixed",
+    );
+    let out = temp_dir("cpu-plan-fixed-run");
+    let (code, _, err) = run(&[
+        "run",
+        fixed_sc.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--master",
+        "jacobi",
+        "--duration",
+        "1",
+        "-q",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(summary(&out)["timing"]["cpu_plan"].is_null());
+    let in_process = run_with(
+        "cpu-plan-inproc",
+        "paper-mpc.toml",
+        "in-process",
+        "jacobi",
+        &["--duration", "1"],
+    );
+    assert!(
+        bytes(&measured) == bytes(&out),
+        "measured and fixed plans differ"
+    );
+    assert!(
+        bytes(&measured) == bytes(&in_process),
+        "IPC and in-process Jacobi differ"
+    );
+}

@@ -71,6 +71,10 @@ pub struct Report {
     pub wall_ipc_s: f64,
     /// `wall_ipc_s / wall_in_process_s`.
     pub ipc_over_in_process: f64,
+    /// Wall time across processes (s), Jacobi (pipelined, measured CPU plan), adaptive wait.
+    pub wall_ipc_jacobi_s: f64,
+    /// `wall_ipc_jacobi_s / wall_in_process_s`.
+    pub jacobi_ipc_over_in_process: f64,
 }
 
 /// Why a configuration could not be measured.
@@ -136,6 +140,7 @@ pub fn run(
     let mut configs = Vec::new();
     let mut wall_local = 0.0;
     let mut wall_ipc = 0.0;
+    let mut wall_jacobi = 0.0;
     for (i, (t, m, w)) in plan.into_iter().enumerate() {
         let mut s = base.clone();
         // Spinning waiters on a 2-CPU machine starve each other (a tick costs whole
@@ -157,6 +162,8 @@ pub fn run(
             wall_local = sum.wall_time_s;
         } else if m == Master::GaussSeidel && w == WaitStrategy::Adaptive {
             wall_ipc = sum.wall_time_s;
+        } else if m == Master::Jacobi && w == WaitStrategy::Adaptive {
+            wall_jacobi = sum.wall_time_s;
         }
         configs.push(Config {
             transport: t.name(),
@@ -204,6 +211,12 @@ pub fn run(
         wall_ipc_s: wall_ipc,
         ipc_over_in_process: if wall_local > 0.0 {
             wall_ipc / wall_local
+        } else {
+            f64::NAN
+        },
+        wall_ipc_jacobi_s: wall_jacobi,
+        jacobi_ipc_over_in_process: if wall_local > 0.0 {
+            wall_jacobi / wall_local
         } else {
             f64::NAN
         },
@@ -275,8 +288,14 @@ pub fn table(r: &Report) -> String {
     let _ = writeln!(
         s,
         "\niceoryx2 round-trip floor (best p50 over the IPC configurations): {:.2} µs\n\
-         wall time: in-process {:.3} s, IPC (gauss-seidel, adaptive) {:.3} s, ratio {:.2}",
-        r.ipc_round_trip_floor_us, r.wall_in_process_s, r.wall_ipc_s, r.ipc_over_in_process
+         wall time: in-process {:.3} s, IPC (gauss-seidel, adaptive) {:.3} s, ratio {:.2}; \
+         IPC (jacobi, adaptive) {:.3} s, ratio {:.2}",
+        r.ipc_round_trip_floor_us,
+        r.wall_in_process_s,
+        r.wall_ipc_s,
+        r.ipc_over_in_process,
+        r.wall_ipc_jacobi_s,
+        r.jacobi_ipc_over_in_process
     );
     s
 }

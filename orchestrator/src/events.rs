@@ -86,6 +86,16 @@ impl EventLog {
         }
     }
 
+    /// An empty log with the same base tick, for events kept aside and appended later.
+    pub fn aside(&self) -> Self {
+        EventLog::new(self.dt)
+    }
+
+    /// Appends the events of `other` (kept aside with [`EventLog::aside`]), in their order.
+    pub fn append(&mut self, other: EventLog) {
+        self.events.extend(other.events);
+    }
+
     /// Logs an event at tick `k`.
     pub fn push(
         &mut self,

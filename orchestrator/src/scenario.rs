@@ -83,6 +83,20 @@ pub struct RunSettings {
     pub startup_ms: u64,
     /// Pin the orchestrator to one CPU and the participants to another (ipc transport).
     pub pin_cpus: bool,
+    /// Under Jacobi over IPC, give the participant measured heaviest a CPU of its own after a
+    /// warm-up (`measured`, default) or keep every participant on one CPU (`fixed`).
+    pub cpu_plan: CpuPlanMode,
+}
+
+/// How a Jacobi run over IPC places its processes (`run.cpu_plan`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum CpuPlanMode {
+    /// From the participants' measured compute (engine/cpu_plan.rs).
+    #[default]
+    Measured,
+    /// The orchestrator on one CPU, every participant on another.
+    Fixed,
 }
 
 impl Default for RunSettings {
@@ -98,6 +112,7 @@ impl Default for RunSettings {
             hang_ceiling_ms: 60_000,
             startup_ms: 5000,
             pin_cpus: true,
+            cpu_plan: CpuPlanMode::Measured,
         }
     }
 }

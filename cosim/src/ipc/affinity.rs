@@ -31,6 +31,23 @@ pub fn set_cpus(cpus: &[usize]) -> bool {
     }
 }
 
+/// Restricts process `pid` (a participant of this run) to `cpus`. Returns false if the
+/// kernel refused.
+pub fn set_cpus_of(pid: u32, cpus: &[usize]) -> bool {
+    // SAFETY: as above, for another process of the same user.
+    unsafe {
+        let mut set: libc::cpu_set_t = core::mem::zeroed();
+        for &c in cpus {
+            libc::CPU_SET(c, &mut set);
+        }
+        libc::sched_setaffinity(
+            pid as libc::pid_t,
+            core::mem::size_of::<libc::cpu_set_t>(),
+            &set,
+        ) == 0
+    }
+}
+
 /// CPU placement of a run: the orchestrator on one CPU, every participant on another, so the
 /// participants' waits round-robin on one run queue while the orchestrator polls undisturbed.
 /// `None` when fewer than two CPUs are allowed.

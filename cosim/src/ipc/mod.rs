@@ -21,7 +21,7 @@ pub mod pingpong;
 mod serve;
 mod supervise;
 
-pub use affinity::{allowed_cpus, cpu_plan, pin_to_cpu, set_cpus};
+pub use affinity::{allowed_cpus, cpu_plan, pin_to_cpu, set_cpus, set_cpus_of};
 pub use cleanup::{leftover_files, remove_dead_runs, remove_run_files};
 pub use hub::{IpcEndpoint, IpcHub, Launch};
 pub use serve::{

@@ -100,8 +100,21 @@ impl Algorithm for GaussSeidel {
 /// Jacobi: all requests, then all replies.
 pub(crate) struct Jacobi;
 
-impl Algorithm for Jacobi {
-    fn tick(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<TickIo, LinkError> {
+/// A Jacobi tick whose requests are out and whose replies are still to come.
+pub(crate) struct Posted {
+    k: u64,
+    due: bool,
+    io: TickIo,
+    to_a: ToActuator,
+    to_p: ToPlant,
+    tc: Option<u64>,
+    ta: Option<u64>,
+    tp: Option<u64>,
+}
+
+impl Jacobi {
+    /// Sends tick `k`'s requests, built from the outputs held after tick `k − 1`.
+    pub(crate) fn post(team: &mut Team, k: u64, controller_due: bool) -> Result<Posted, LinkError> {
         let mut io = TickIo::default();
         let step = Header::new(k, Kind::Step);
         let to_c = plant_outputs(team, k, &mut io);
@@ -128,12 +141,34 @@ impl Algorithm for Jacobi {
         };
         let ta = team.post_step(actuator, to_a)?;
         let tp = team.post_step(plant, to_p)?;
-        if controller_due {
-            team.held.c = team.answer(controller, to_c, tc)?;
+        Ok(Posted {
+            k,
+            due: controller_due,
+            io,
+            to_a,
+            to_p,
+            tc,
+            ta,
+            tp,
+        })
+    }
+
+    /// Collects the replies to `p`'s requests into the held outputs.
+    pub(crate) fn collect(team: &mut Team, p: Posted) -> Result<TickIo, LinkError> {
+        debug_assert_eq!(p.to_p.header.step, p.k);
+        if p.due {
+            team.held.c = team.answer(controller, p.io.to_controller, p.tc)?;
         }
-        team.held.a = team.answer(actuator, to_a, ta)?;
-        team.held.p = team.answer(plant, to_p, tp)?;
-        Ok(io)
+        team.held.a = team.answer(actuator, p.to_a, p.ta)?;
+        team.held.p = team.answer(plant, p.to_p, p.tp)?;
+        Ok(p.io)
+    }
+}
+
+impl Algorithm for Jacobi {
+    fn tick(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<TickIo, LinkError> {
+        let p = Jacobi::post(team, k, controller_due)?;
+        Jacobi::collect(team, p)
     }
 
     fn critical_path(&self, c: [u64; 3]) -> u64 {

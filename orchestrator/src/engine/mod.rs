@@ -13,6 +13,7 @@
 //! look, comfort, flags, figures) is the caller's step (`crate::analysis`).
 
 pub(crate) mod algorithm;
+pub mod cpu_plan;
 pub(crate) mod launch;
 pub(crate) mod manipulator;
 pub mod mcap;
@@ -36,7 +37,7 @@ pub use summary::{
 use crate::events::EventLog;
 use crate::record::Recorder;
 use crate::roles::RoleMap;
-use crate::scenario::{Scenario, Transport};
+use crate::scenario::{Master, Scenario, Transport};
 use observer::{ComputeStats, DriveEvents, Latency, Observer, Pacing, RowRecorder, TickRecord};
 use observer::{TickTiming, Trace};
 use team::Team;
@@ -52,6 +53,7 @@ struct Observers {
     pacing: Option<Pacing>,
     progress: Option<observer::Progress>,
     mcap: Option<mcap::McapRecorder>,
+    cpu_plan: Option<cpu_plan::CpuPlanner>,
 }
 
 impl Observers {
@@ -63,6 +65,7 @@ impl Observers {
         } = out;
         Observers {
             recorder: RowRecorder(recorder),
+            cpu_plan: None,
             timing: TickTiming::default(),
             compute: ComputeStats::default(),
             latency: Latency::default(),
@@ -122,6 +125,9 @@ pub(crate) enum Stop {
 /// Steps every tick; returns the error that stopped the run, if any.
 fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Result<(), Stop> {
     let s = team.scenario();
+    if s.run.master == Master::Jacobi && obs.pacing.is_none() {
+        return lockstep_pipelined(team, obs, interrupt);
+    }
     // The Init exchanges stay in `team.exchanges`: the observers see them with tick 0's.
     team.initialise()?;
     let algorithm = algorithm::of(s.run.master);
@@ -155,7 +161,82 @@ fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Res
         };
         obs.after_tick(&record, &mut team.events)
             .map_err(Stop::Write)?;
+        if let Some(plan) = &mut obs.cpu_plan {
+            plan.observe(&record.compute_ns, &team.ps.pids());
+        }
         team.exchanges.clear();
+    }
+    Ok(())
+}
+
+/// Jacobi, pipelined: as soon as tick `k`'s replies are in, tick `k + 1`'s requests (which
+/// depend only on them) go out, and tick `k` is recorded while the participants compute
+/// `k + 1`. Every value, row and event is the one the plain loop gives, in the same order
+/// (events of posting `k + 1`, link effects and faults, are kept aside and logged after tick
+/// `k`'s); only wall-clock placement changes. Not used when paced: a paced tick's requests
+/// wait for its wall-clock time.
+fn lockstep_pipelined(
+    team: &mut Team,
+    obs: &mut Observers,
+    interrupt: &AtomicBool,
+) -> Result<(), Stop> {
+    let s = team.scenario();
+    team.initialise()?;
+    let c_period = s.controller_period_ticks();
+    let steps = s.steps();
+    let due = |k: u64| k.is_multiple_of(c_period);
+    let post = |team: &mut Team, k: u64| -> Result<algorithm::Posted, LinkError> {
+        team.inject_faults(k);
+        algorithm::Jacobi::post(team, k, due(k))
+    };
+    if steps == 0 || interrupt.load(Ordering::Relaxed) {
+        return Ok(());
+    }
+    let mut started = Instant::now();
+    let mut posted = post(team, 0)?;
+    for k in 0..steps {
+        let io = algorithm::Jacobi::collect(team, posted)?;
+        let h = team.held;
+        let tick_exchanges = std::mem::take(&mut team.exchanges);
+        // The next tick's requests, with their events kept for after this tick's.
+        let mut next = None;
+        let mut next_events = team.events.aside();
+        let next_started = Instant::now();
+        if k + 1 < steps && !interrupt.load(Ordering::Relaxed) {
+            std::mem::swap(&mut team.events, &mut next_events);
+            next = Some(post(team, k + 1));
+            std::mem::swap(&mut team.events, &mut next_events);
+        }
+        let compute = RoleMap::new([
+            h.p.header.compute_ns,
+            h.a.header.compute_ns,
+            if due(k) { h.c.header.compute_ns } else { 0 },
+        ]);
+        let record = TickRecord {
+            k,
+            held: &h,
+            rx: &io.rx,
+            tx: &io.tx,
+            to_controller: &io.to_controller,
+            controller_due: due(k),
+            critical_us: algorithm::of(Master::Jacobi).critical_path(compute.clone().into_array())
+                as f64
+                * 1e-3,
+            compute_ns: compute,
+            started,
+            exchanges: &tick_exchanges,
+        };
+        obs.after_tick(&record, &mut team.events)
+            .map_err(Stop::Write)?;
+        if let Some(plan) = &mut obs.cpu_plan {
+            plan.observe(&record.compute_ns, &team.ps.pids());
+        }
+        team.events.append(next_events);
+        match next {
+            None => return Ok(()),
+            Some(p) => posted = p?,
+        }
+        started = next_started;
     }
     Ok(())
 }
@@ -320,6 +401,7 @@ pub fn run_recorded(
     let ps = launch::start(s, opts, &prefix)?;
     let mut team = Team::new(s, ps);
     let mut obs = Observers::new(s, opts, outputs);
+    obs.cpu_plan = cpu_plan::CpuPlanner::new(s, &cpus);
     let loop_started = Instant::now();
     let mut outcome = lockstep(&mut team, &mut obs, &opts.interrupt);
     let wall = loop_started.elapsed().as_secs_f64();
@@ -430,6 +512,7 @@ fn report(
             max: o.max,
             mean: o.mean,
             tick_us: obs.timing.ticks.percentiles(),
+            cpu_plan: obs.cpu_plan.as_ref().and_then(|p| p.report()),
             cpu_s: CpuTime {
                 orchestrator: e.cpu_orchestrator,
                 participants: e.exits.iter().filter_map(|(_, x)| x.cpu_s).sum(),

@@ -47,6 +47,9 @@ pub struct Timing {
     pub tick_us: Percentiles,
     /// Orchestrator CPU time, user + system (s), and the participants' (s), when measurable.
     pub cpu_s: CpuTime,
+    /// The CPU plan chosen from the participants' measured compute (Jacobi over IPC).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cpu_plan: Option<super::cpu_plan::CpuPlanReport>,
 }
 
 /// CPU time spent.
