@@ -24,10 +24,28 @@ pub(crate) struct TickIo {
     pub to_controller: ToController,
 }
 
+/// A tick whose first requests are out: started by [`Algorithm::start`], completed by
+/// [`Algorithm::finish`]. The pipelined loop starts tick `k + 1` before it records tick `k`.
+pub(crate) enum Pending {
+    /// Gauss-Seidel: the first request of the chain (controller when due, else actuator).
+    GaussSeidel(GsStarted),
+    /// Jacobi: every request.
+    Jacobi(Posted),
+}
+
 /// A master algorithm.
 pub(crate) trait Algorithm {
+    /// Sends tick `k`'s first requests: what depends only on the outputs held after `k − 1`.
+    fn start(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<Pending, LinkError>;
+
+    /// Completes a started tick: its replies and any requests that depend on them.
+    fn finish(&self, team: &mut Team, p: Pending) -> Result<TickIo, LinkError>;
+
     /// Steps every participant due at tick `k` through `team`.
-    fn tick(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<TickIo, LinkError>;
+    fn tick(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<TickIo, LinkError> {
+        let p = self.start(team, k, controller_due)?;
+        self.finish(team, p)
+    }
 
     /// The participants' compute time on the tick's critical path (ns): the sum when they run
     /// one after the other, the largest when they run in parallel.
@@ -61,31 +79,70 @@ fn plant_outputs(team: &mut Team, k: u64, io: &mut TickIo) -> ToController {
 /// Gauss-Seidel: one participant after the other.
 pub(crate) struct GaussSeidel;
 
+/// A Gauss-Seidel tick with the first request of its chain out.
+pub(crate) struct GsStarted {
+    due: bool,
+    io: TickIo,
+    /// The controller's request, posted when due.
+    tc: Option<u64>,
+    /// The actuator's request, posted when the controller was not due.
+    to_a: ToActuator,
+    ta: Option<u64>,
+}
+
+/// The actuator's request of tick `k` from the controller's held command.
+fn actuator_request(team: &mut Team, k: u64, io: &mut TickIo) -> ToActuator {
+    io.tx[LinkId::ActuatorCommand as usize] = team.held.c.delta_a_cmd;
+    let cmd = team.carry(LinkId::ActuatorCommand, k, team.held.c.delta_a_cmd);
+    io.rx[LinkId::ActuatorCommand as usize] = cmd;
+    ToActuator {
+        header: Header::new(k, Kind::Step),
+        delta_a_cmd: cmd,
+        psi: io.rx[LinkId::BarTwist as usize],
+    }
+}
+
 impl Algorithm for GaussSeidel {
-    fn tick(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<TickIo, LinkError> {
+    fn start(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<Pending, LinkError> {
         let mut io = TickIo::default();
-        let step = Header::new(k, Kind::Step);
         let to_c = plant_outputs(team, k, &mut io);
         io.to_controller = to_c;
-        if controller_due {
-            team.held.c = team.ask(controller, to_c)?;
-        }
-        io.tx[LinkId::ActuatorCommand as usize] = team.held.c.delta_a_cmd;
-        let cmd = team.carry(LinkId::ActuatorCommand, k, team.held.c.delta_a_cmd);
-        io.rx[LinkId::ActuatorCommand as usize] = cmd;
-        let to_a = ToActuator {
-            header: step,
-            delta_a_cmd: cmd,
-            psi: io.rx[LinkId::BarTwist as usize],
+        let mut st = GsStarted {
+            due: controller_due,
+            io,
+            tc: None,
+            to_a: ToActuator::default(),
+            ta: None,
         };
-        team.held.a = team.ask(actuator, to_a)?;
+        if controller_due {
+            st.tc = team.post_step(controller, to_c)?;
+        } else {
+            st.to_a = actuator_request(team, k, &mut st.io);
+            st.ta = team.post_step(actuator, st.to_a)?;
+        }
+        Ok(Pending::GaussSeidel(st))
+    }
+
+    fn finish(&self, team: &mut Team, p: Pending) -> Result<TickIo, LinkError> {
+        let Pending::GaussSeidel(mut st) = p else {
+            unreachable!("a Gauss-Seidel tick is finished by Gauss-Seidel");
+        };
+        let k = st.io.to_controller.header.step;
+        if st.due {
+            team.held.c = team.answer(controller, st.io.to_controller, st.tc)?;
+            let to_a = actuator_request(team, k, &mut st.io);
+            team.held.a = team.ask(actuator, to_a)?;
+        } else {
+            team.held.a = team.answer(actuator, st.to_a, st.ta)?;
+        }
+        let mut io = st.io;
         io.tx[LinkId::BarAngle as usize] = team.held.a.delta_a;
         let bar = team.carry(LinkId::BarAngle, k, team.held.a.delta_a);
         io.rx[LinkId::BarAngle as usize] = bar;
         team.held.p = team.ask(
             plant,
             ToPlant {
-                header: step,
+                header: Header::new(k, Kind::Step),
                 delta_a: bar,
             },
         )?;
@@ -166,8 +223,14 @@ impl Jacobi {
 }
 
 impl Algorithm for Jacobi {
-    fn tick(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<TickIo, LinkError> {
-        let p = Jacobi::post(team, k, controller_due)?;
+    fn start(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<Pending, LinkError> {
+        Jacobi::post(team, k, controller_due).map(Pending::Jacobi)
+    }
+
+    fn finish(&self, team: &mut Team, p: Pending) -> Result<TickIo, LinkError> {
+        let Pending::Jacobi(p) = p else {
+            unreachable!("a Jacobi tick is finished by Jacobi");
+        };
         Jacobi::collect(team, p)
     }
 

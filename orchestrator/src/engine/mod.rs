@@ -37,7 +37,7 @@ pub use summary::{
 use crate::events::EventLog;
 use crate::record::Recorder;
 use crate::roles::RoleMap;
-use crate::scenario::{Master, Scenario, Transport};
+use crate::scenario::{Scenario, Transport};
 use observer::{ComputeStats, DriveEvents, Latency, Observer, Pacing, RowRecorder, TickRecord};
 use observer::{TickTiming, Trace};
 use team::Team;
@@ -125,7 +125,7 @@ pub(crate) enum Stop {
 /// Steps every tick; returns the error that stopped the run, if any.
 fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Result<(), Stop> {
     let s = team.scenario();
-    if s.run.master == Master::Jacobi && obs.pacing.is_none() {
+    if obs.pacing.is_none() {
         return lockstep_pipelined(team, obs, interrupt);
     }
     // The Init exchanges stay in `team.exchanges`: the observers see them with tick 0's.
@@ -169,9 +169,9 @@ fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Res
     Ok(())
 }
 
-/// Jacobi, pipelined: as soon as tick `k`'s replies are in, tick `k + 1`'s requests (which
-/// depend only on them) go out, and tick `k` is recorded while the participants compute
-/// `k + 1`. Every value, row and event is the one the plain loop gives, in the same order
+/// Pipelined: as soon as tick `k`'s replies are in, tick `k + 1`'s first requests (which
+/// depend only on them: Jacobi's every request, Gauss-Seidel's first of the chain) go out,
+/// and tick `k` is recorded while the participants compute. Every value, row and event is the one the plain loop gives, in the same order
 /// (events of posting `k + 1`, link effects and faults, are kept aside and logged after tick
 /// `k`'s); only wall-clock placement changes. Not used when paced: a paced tick's requests
 /// wait for its wall-clock time.
@@ -185,9 +185,10 @@ fn lockstep_pipelined(
     let c_period = s.controller_period_ticks();
     let steps = s.steps();
     let due = |k: u64| k.is_multiple_of(c_period);
-    let post = |team: &mut Team, k: u64| -> Result<algorithm::Posted, LinkError> {
+    let algorithm = algorithm::of(s.run.master);
+    let post = |team: &mut Team, k: u64| -> Result<algorithm::Pending, LinkError> {
         team.inject_faults(k);
-        algorithm::Jacobi::post(team, k, due(k))
+        algorithm.start(team, k, due(k))
     };
     if steps == 0 || interrupt.load(Ordering::Relaxed) {
         return Ok(());
@@ -195,7 +196,7 @@ fn lockstep_pipelined(
     let mut started = Instant::now();
     let mut posted = post(team, 0)?;
     for k in 0..steps {
-        let io = algorithm::Jacobi::collect(team, posted)?;
+        let io = algorithm.finish(team, posted)?;
         let h = team.held;
         let tick_exchanges = std::mem::take(&mut team.exchanges);
         // The next tick's requests, with their events kept for after this tick's.
@@ -219,9 +220,7 @@ fn lockstep_pipelined(
             tx: &io.tx,
             to_controller: &io.to_controller,
             controller_due: due(k),
-            critical_us: algorithm::of(Master::Jacobi).critical_path(compute.clone().into_array())
-                as f64
-                * 1e-3,
+            critical_us: algorithm.critical_path(compute.clone().into_array()) as f64 * 1e-3,
             compute_ns: compute,
             started,
             exchanges: &tick_exchanges,
