@@ -4,9 +4,9 @@
 //! together on the last (`cosim::ipc::cpu_plan`). Under Jacobi the participants compute at
 //! the same time, so a heavy one (the actuator's 1 µs electrics: ~30 µs per tick against
 //! ~0.2 µs for the plant) is delayed by the others on its CPU. After a warm-up the planner
-//! measures each participant's compute per tick; when one takes at least half of the total it
-//! keeps the last CPU to itself and the others move to the orchestrator's CPU, where they run
-//! while the orchestrator waits for the heavy one. Which participant is heavy is measured,
+//! measures each participant's compute per tick; when one takes at least half of the total and
+//! at least 10 µs per tick it keeps the last CPU to itself and the others move to the
+//! orchestrator's CPU, where they run while the orchestrator waits for the heavy one. Which participant is heavy is measured,
 //! never assumed. Only placement changes: no value computed depends on it.
 
 use serde::Serialize;
@@ -42,8 +42,12 @@ pub(crate) struct CpuPlanner {
     report: Option<CpuPlanReport>,
 }
 
-/// A participant whose compute is at least this share of the total gets a CPU of its own.
+/// A participant whose compute is at least this share of the total gets a CPU of its own...
 const HEAVY_SHARE: f64 = 0.5;
+/// ...if it computes at least this long per tick (µs): several iceoryx2 round trips, so that
+/// the others' waits on the orchestrator's CPU cost less than the parallel compute saves. A
+/// run of light participants (paper-passive: 0.2 µs per tick) keeps the starting placement.
+const HEAVY_MIN_US: f64 = 10.0;
 
 impl CpuPlanner {
     /// A planner for `s`, if it runs Jacobi over IPC with CPU pinning on two or more of
@@ -89,7 +93,7 @@ impl CpuPlanner {
         let heavy = Role::ALL
             .into_iter()
             .max_by(|a, b| per_tick(*a).total_cmp(&per_tick(*b)))
-            .filter(|&r| total > 0.0 && per_tick(r) >= HEAVY_SHARE * total);
+            .filter(|&r| per_tick(r) >= HEAVY_MIN_US && per_tick(r) >= HEAVY_SHARE * total);
         let (shared, own) = self.cpus;
         let mut applied = true;
         if let Some(h) = heavy {
