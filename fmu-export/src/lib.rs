@@ -482,62 +482,32 @@ impl FmiValue for u32 {
     }
 }
 
-impl FmiValue for u64 {
-    const NAME: &'static str = "UInt64";
-    fn from_scalar(_: ScalarValue) -> Option<Self> {
-        None
-    }
-    fn to_scalar(self, _: ScalarValue) -> Option<ScalarValue> {
-        None
-    }
-    fn from_param(v: &ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::U64(x) => Some(*x),
-            _ => None,
+/// The types only parameters have (no sample field is of them).
+macro_rules! parameter_only {
+    ($t:ty, $variant:ident, $name:literal) => {
+        impl FmiValue for $t {
+            const NAME: &'static str = $name;
+            fn from_scalar(_: ScalarValue) -> Option<Self> {
+                None
+            }
+            fn to_scalar(self, _: ScalarValue) -> Option<ScalarValue> {
+                None
+            }
+            fn from_param(v: &ParamValue) -> Option<Self> {
+                match v {
+                    ParamValue::$variant(x) => Some(*x),
+                    _ => None,
+                }
+            }
+            fn to_param(self, like: &ParamValue) -> Option<ParamValue> {
+                matches!(like, ParamValue::$variant(_)).then_some(ParamValue::$variant(self))
+            }
         }
-    }
-    fn to_param(self, like: &ParamValue) -> Option<ParamValue> {
-        matches!(like, ParamValue::U64(_)).then_some(ParamValue::U64(self))
-    }
+    };
 }
-
-impl FmiValue for i64 {
-    const NAME: &'static str = "Int64";
-    fn from_scalar(_: ScalarValue) -> Option<Self> {
-        None
-    }
-    fn to_scalar(self, _: ScalarValue) -> Option<ScalarValue> {
-        None
-    }
-    fn from_param(v: &ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::I64(x) => Some(*x),
-            _ => None,
-        }
-    }
-    fn to_param(self, like: &ParamValue) -> Option<ParamValue> {
-        matches!(like, ParamValue::I64(_)).then_some(ParamValue::I64(self))
-    }
-}
-
-impl FmiValue for bool {
-    const NAME: &'static str = "Boolean";
-    fn from_scalar(_: ScalarValue) -> Option<Self> {
-        None
-    }
-    fn to_scalar(self, _: ScalarValue) -> Option<ScalarValue> {
-        None
-    }
-    fn from_param(v: &ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Bool(x) => Some(*x),
-            _ => None,
-        }
-    }
-    fn to_param(self, like: &ParamValue) -> Option<ParamValue> {
-        matches!(like, ParamValue::Bool(_)).then_some(ParamValue::Bool(self))
-    }
-}
+parameter_only!(u64, U64, "UInt64");
+parameter_only!(i64, I64, "Int64");
+parameter_only!(bool, Bool, "Boolean");
 
 pub(crate) fn get_one<T: FmiValue>(i: &mut Instance, vr: Vr) -> Result<T, String> {
     let slot = i
