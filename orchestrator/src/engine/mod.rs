@@ -229,7 +229,9 @@ fn lockstep_pipelined(
             controller_due: due(k),
             critical_us: algorithm.critical_path(compute.clone().into_array()) as f64 * 1e-3,
             compute_ns: compute,
-            started,
+            // The timing observer measures to now: the start is moved on by the time spent
+            // starting tick k + 1, which is not tick k's.
+            started: started + next_post_time,
             exchanges: &tick_exchanges,
         };
         obs.after_tick(&record, &mut team.events)
