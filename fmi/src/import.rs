@@ -306,6 +306,16 @@ pub struct FmuInit {
 /// Opens the FMU of `init` and checks it: every problem of the file or the mapping as one
 /// message, before anything runs.
 pub fn check(init: &FmuInit) -> Result<(ModelDescription, Plan), PlanError> {
+    if !init.settings.fmu.exists() {
+        return Err(PlanError {
+            field: "fmu".into(),
+            value: format!("{:?}", init.settings.fmu.display().to_string()),
+            allowed: format!(
+                "the path of an FMU file (there is none there; tiltsim's own {} is made with `tiltsim export-fmu {} SCENARIO --out FILE.fmu`)",
+                init.role, init.role
+            ),
+        });
+    }
     let md = read_description(&init.settings.fmu).map_err(|why| PlanError {
         field: "fmu".into(),
         value: format!("{:?}", init.settings.fmu.display().to_string()),

@@ -44,6 +44,7 @@ fn shipped_scenarios_validate() {
     let (code, _, err) = tiltsim(&["validate", example.to_str().unwrap()]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("participants.controller.fmu"), "{err}");
+    assert!(err.contains("tiltsim export-fmu controller"), "{err}");
     let (code, _, err) = tiltsim(&[
         "export-fmu",
         "controller",
