@@ -172,7 +172,6 @@ pub struct Slave {
     _callbacks: Option<Box<Callbacks2>>,
     /// Strings passed to the FMU stay alive as long as it may read them.
     strings: Vec<CString>,
-    terminated: bool,
     hot: Hot,
 }
 
@@ -322,7 +321,6 @@ impl Slave {
             log,
             _callbacks: callbacks,
             strings,
-            terminated: false,
             hot: Hot {
                 set_reals: ptrs[0],
                 get_reals: ptrs[1],
@@ -669,11 +667,8 @@ impl Drop for Slave {
         };
         // SAFETY: the standard's signatures; the instance is live until freed here.
         unsafe {
-            if !self.terminated {
-                if let Ok(f) = self.lib.get::<F>(term.as_bytes()) {
-                    f(self.inst);
-                }
-                self.terminated = true;
+            if let Ok(f) = self.lib.get::<F>(term.as_bytes()) {
+                f(self.inst);
             }
             if let Ok(f) = self.lib.get::<Free>(free.as_bytes()) {
                 f(self.inst);

@@ -408,11 +408,6 @@ impl<S: Samples> FmuParticipant<S> {
         Ok(p)
     }
 
-    /// Reply fields the FMU does not provide.
-    pub fn missing_outputs(&self) -> &[String] {
-        &self.plan.missing_outputs
-    }
-
     fn slave(&mut self) -> &mut Slave {
         self.slave
             .as_mut()

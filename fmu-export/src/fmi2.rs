@@ -8,7 +8,7 @@ use std::panic::catch_unwind;
 use cosim::msg::ScalarValue;
 use tiltsim_fmi::layout::ParamValue;
 
-use crate::{cstr, get_one, instantiate, set_one, with, FmiValue};
+use crate::{cstr, get_many, instantiate, set_many, with, FmiValue};
 use crate::{Status, Vr, ERROR, OK};
 
 /// `fmi2CallbackLogger` (printf-style; called here with the format `"%s"`).
@@ -274,46 +274,6 @@ impl FmiValue for Bool2 {
     }
 }
 
-unsafe fn get2<T: FmiValue>(inst: *mut c_void, vrs: *const Vr, n: usize, values: *mut T) -> Status {
-    // SAFETY: see `with`; arrays of `n` elements from the caller.
-    unsafe {
-        with(inst, |i| {
-            if n > 0 && (vrs.is_null() || values.is_null()) {
-                return i.fail(&format!("fmi2Get{}: null arrays", T::NAME));
-            }
-            for j in 0..n {
-                match get_one::<T>(i, *vrs.add(j)) {
-                    Ok(v) => *values.add(j) = v,
-                    Err(e) => return i.fail(&format!("fmi2Get{}: {e}", T::NAME)),
-                }
-            }
-            OK
-        })
-    }
-}
-
-unsafe fn set2<T: FmiValue>(
-    inst: *mut c_void,
-    vrs: *const Vr,
-    n: usize,
-    values: *const T,
-) -> Status {
-    // SAFETY: see `get2`.
-    unsafe {
-        with(inst, |i| {
-            if n > 0 && (vrs.is_null() || values.is_null()) {
-                return i.fail(&format!("fmi2Set{}: null arrays", T::NAME));
-            }
-            for j in 0..n {
-                if let Err(e) = set_one::<T>(i, *vrs.add(j), *values.add(j)) {
-                    return i.fail(&format!("fmi2Set{}: {e}", T::NAME));
-                }
-            }
-            OK
-        })
-    }
-}
-
 /// `fmi2GetReal`.
 #[no_mangle]
 pub unsafe extern "C" fn fmi2GetReal(
@@ -323,7 +283,7 @@ pub unsafe extern "C" fn fmi2GetReal(
     v: *mut f64,
 ) -> Status {
     // SAFETY: forwarded.
-    unsafe { get2::<f64>(inst, vrs, n, v) }
+    unsafe { get_many::<f64>("fmi2", inst, vrs, n, v, n) }
 }
 /// `fmi2SetReal`.
 #[no_mangle]
@@ -334,7 +294,7 @@ pub unsafe extern "C" fn fmi2SetReal(
     v: *const f64,
 ) -> Status {
     // SAFETY: forwarded.
-    unsafe { set2::<f64>(inst, vrs, n, v) }
+    unsafe { set_many::<f64>("fmi2", inst, vrs, n, v, n) }
 }
 /// `fmi2GetInteger`.
 #[no_mangle]
@@ -345,7 +305,7 @@ pub unsafe extern "C" fn fmi2GetInteger(
     v: *mut c_int,
 ) -> Status {
     // SAFETY: forwarded; `Int2` is a transparent `int`.
-    unsafe { get2::<Int2>(inst, vrs, n, v as *mut Int2) }
+    unsafe { get_many::<Int2>("fmi2", inst, vrs, n, v as *mut Int2, n) }
 }
 /// `fmi2SetInteger`.
 #[no_mangle]
@@ -356,7 +316,7 @@ pub unsafe extern "C" fn fmi2SetInteger(
     v: *const c_int,
 ) -> Status {
     // SAFETY: forwarded; `Int2` is a transparent `int`.
-    unsafe { set2::<Int2>(inst, vrs, n, v as *const Int2) }
+    unsafe { set_many::<Int2>("fmi2", inst, vrs, n, v as *const Int2, n) }
 }
 /// `fmi2GetBoolean`.
 #[no_mangle]
@@ -367,7 +327,7 @@ pub unsafe extern "C" fn fmi2GetBoolean(
     v: *mut c_int,
 ) -> Status {
     // SAFETY: forwarded; `Bool2` is a transparent `int`.
-    unsafe { get2::<Bool2>(inst, vrs, n, v as *mut Bool2) }
+    unsafe { get_many::<Bool2>("fmi2", inst, vrs, n, v as *mut Bool2, n) }
 }
 /// `fmi2SetBoolean`.
 #[no_mangle]
@@ -378,7 +338,7 @@ pub unsafe extern "C" fn fmi2SetBoolean(
     v: *const c_int,
 ) -> Status {
     // SAFETY: forwarded; `Bool2` is a transparent `int`.
-    unsafe { set2::<Bool2>(inst, vrs, n, v as *const Bool2) }
+    unsafe { set_many::<Bool2>("fmi2", inst, vrs, n, v as *const Bool2, n) }
 }
 
 /// `fmi2GetString`.

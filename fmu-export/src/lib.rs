@@ -547,7 +547,10 @@ pub(crate) fn set_one<T: FmiValue>(i: &mut Instance, vr: Vr, v: T) -> Result<(),
     }
 }
 
+/// `fmi3Get<T>` / `fmi2Get<T>` (`api` names the caller in messages; FMI 2.0 passes
+/// `nv = n`).
 pub(crate) unsafe fn get_many<T: FmiValue>(
+    api: &str,
     inst: *mut c_void,
     vrs: *const Vr,
     n: usize,
@@ -559,14 +562,14 @@ pub(crate) unsafe fn get_many<T: FmiValue>(
         with(inst, |i| {
             if n != nv || (n > 0 && (vrs.is_null() || values.is_null())) {
                 return i.fail(&format!(
-                    "fmi3Get{}: {n} value references, {nv} values",
+                    "{api}Get{}: {n} value references, {nv} values",
                     T::NAME
                 ));
             }
             for j in 0..n {
                 match get_one::<T>(i, *vrs.add(j)) {
                     Ok(v) => *values.add(j) = v,
-                    Err(e) => return i.fail(&format!("fmi3Get{}: {e}", T::NAME)),
+                    Err(e) => return i.fail(&format!("{api}Get{}: {e}", T::NAME)),
                 }
             }
             OK
@@ -574,7 +577,9 @@ pub(crate) unsafe fn get_many<T: FmiValue>(
     }
 }
 
+/// `fmi3Set<T>` / `fmi2Set<T>`, as [`get_many`].
 pub(crate) unsafe fn set_many<T: FmiValue>(
+    api: &str,
     inst: *mut c_void,
     vrs: *const Vr,
     n: usize,
@@ -586,13 +591,13 @@ pub(crate) unsafe fn set_many<T: FmiValue>(
         with(inst, |i| {
             if n != nv || (n > 0 && (vrs.is_null() || values.is_null())) {
                 return i.fail(&format!(
-                    "fmi3Set{}: {n} value references, {nv} values",
+                    "{api}Set{}: {n} value references, {nv} values",
                     T::NAME
                 ));
             }
             for j in 0..n {
                 if let Err(e) = set_one::<T>(i, *vrs.add(j), *values.add(j)) {
-                    return i.fail(&format!("fmi3Set{}: {e}", T::NAME));
+                    return i.fail(&format!("{api}Set{}: {e}", T::NAME));
                 }
             }
             OK
@@ -612,7 +617,7 @@ macro_rules! typed {
             nv: usize,
         ) -> Status {
             // SAFETY: forwarded as received.
-            unsafe { get_many::<$t>(inst, vrs, n, v, nv) }
+            unsafe { get_many::<$t>("fmi3", inst, vrs, n, v, nv) }
         }
         /// The standard's setter of this type.
         #[no_mangle]
@@ -624,7 +629,7 @@ macro_rules! typed {
             nv: usize,
         ) -> Status {
             // SAFETY: forwarded as received.
-            unsafe { set_many::<$t>(inst, vrs, n, v, nv) }
+            unsafe { set_many::<$t>("fmi3", inst, vrs, n, v, nv) }
         }
     };
 }

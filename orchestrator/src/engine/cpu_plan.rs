@@ -21,7 +21,8 @@ use crate::scenario::{CpuPlanMode, Master, Scenario, Transport};
 pub struct CpuPlanReport {
     /// Ticks measured before deciding.
     pub warmup_ticks: u64,
-    /// Mean compute per tick of each participant over the warm-up (µs), by role.
+    /// Compute per tick of each participant over the warm-up (µs), by role: the median compute
+    /// of its steps times its steps per tick (a preempted step does not make it heavy).
     pub compute_per_tick_us: std::collections::BTreeMap<&'static str, f64>,
     /// The participant given a CPU of its own, if one was heavy enough.
     pub own_cpu: Option<&'static str>,
@@ -37,7 +38,8 @@ pub struct CpuPlanReport {
 pub(crate) struct CpuPlanner {
     warmup: u64,
     ticks: u64,
-    sums: RoleMap<u64>,
+    /// Compute of each step of each participant (ns).
+    calls: RoleMap<Vec<u64>>,
     cpus: (usize, usize),
     report: Option<CpuPlanReport>,
 }
@@ -69,7 +71,7 @@ impl CpuPlanner {
         (warmup < s.steps()).then(|| CpuPlanner {
             warmup,
             ticks: 0,
-            sums: RoleMap::default(),
+            calls: RoleMap::default(),
             cpus,
             report: None,
         })
@@ -81,14 +83,25 @@ impl CpuPlanner {
         if self.report.is_some() {
             return;
         }
-        for (r, v) in compute.iter() {
-            self.sums[r] += v;
+        for (r, &v) in compute.iter() {
+            // Zero: not stepped this tick (the controller between its updates).
+            if v > 0 {
+                self.calls[r].push(v);
+            }
         }
         self.ticks += 1;
         if self.ticks < self.warmup {
             return;
         }
-        let per_tick = |r: Role| self.sums[r] as f64 / self.ticks as f64 * 1e-3;
+        for r in Role::ALL {
+            self.calls[r].sort_unstable();
+        }
+        let ticks = self.ticks as f64;
+        let per_tick = |r: Role| {
+            let c = &self.calls[r];
+            c.get(c.len() / 2)
+                .map_or(0.0, |&m| m as f64 * 1e-3 * c.len() as f64 / ticks)
+        };
         let total: f64 = Role::ALL.iter().map(|&r| per_tick(r)).sum();
         let heavy = Role::ALL
             .into_iter()

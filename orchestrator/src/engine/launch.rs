@@ -113,6 +113,17 @@ pub(crate) fn start(
     prefix: &str,
 ) -> Result<Participants, RunError> {
     let inits = Inits::from(s);
+    // Reply fields an FMU does not provide are recorded as 0: say so once, before the run.
+    for role in Role::ALL {
+        if let Some(Ok((_, plan))) = s.fmu_init(role).map(|i| tiltsim_fmi::import::check(&i)) {
+            if !plan.missing_outputs.is_empty() {
+                tracing::warn!(
+                    "the {role}'s FMU provides no {}: recorded as 0",
+                    plan.missing_outputs.join(", ")
+                );
+            }
+        }
+    }
     match s.run.transport {
         Transport::InProcess => {
             let d = Duration::from_millis(s.run.deadline_ms);
