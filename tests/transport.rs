@@ -9,7 +9,11 @@ use tiltsim_suite::{leftovers, prefix, run, scenario, summary, temp_dir, Series}
 fn run_with(name: &str, scen: &str, transport: &str, master: &str, extra: &[&str]) -> PathBuf {
     let dir = temp_dir(name);
     let pfx = prefix(name);
-    let sc = scenario(scen);
+    let sc = if std::path::Path::new(scen).is_absolute() {
+        PathBuf::from(scen)
+    } else {
+        scenario(scen)
+    };
     let mut args = vec![
         "run",
         sc.to_str().unwrap(),
@@ -193,11 +197,16 @@ fn a_slow_controller_is_held_between_its_updates() {
 
 #[test]
 fn jacobi_over_ipc_gives_the_measured_heaviest_participant_a_cpu_of_its_own() {
-    // paper-mpc: the actuator's switched electrics (~30 µs per tick) against the plant
-    // (~0.2 µs) and the MPC (~35 µs every 50 ticks, under 1 µs per tick).
+    // paper-mpc with the 1 µs fixed-step electrics (~30 µs per tick; the event-driven ones take
+    // ~6, below the plan's 10 µs threshold) against the plant (~0.2 µs) and the MPC (~35 µs
+    // every 50 ticks, under 1 µs per tick).
+    const FIXED_STEP: &str = "[actuator.bldc]\nswitched_integration = \"fixed-step\"\n\n[actuator]";
+    let heavy =
+        tiltsim_suite::scenario_with("paper-mpc.toml", "[actuator]", FIXED_STEP, "cpu-plan-heavy");
+    let heavy = heavy.to_str().unwrap();
     let measured = run_with(
         "cpu-plan-measured",
-        "paper-mpc.toml",
+        heavy,
         "ipc",
         "jacobi",
         &["--duration", "1"],
@@ -225,7 +234,7 @@ fn jacobi_over_ipc_gives_the_measured_heaviest_participant_a_cpu_of_its_own() {
     let fixed_sc = tiltsim_suite::scenario_with(
         "paper-mpc.toml",
         "[actuator]",
-        "[run]\ncpu_plan = \"fixed\"\n\n[actuator]",
+        &format!("[run]\ncpu_plan = \"fixed\"\n\n{FIXED_STEP}"),
         "cpu-plan-fixed",
     );
     let out = temp_dir("cpu-plan-fixed-run");
@@ -244,7 +253,7 @@ fn jacobi_over_ipc_gives_the_measured_heaviest_participant_a_cpu_of_its_own() {
     assert!(summary(&out)["timing"]["cpu_plan"].is_null());
     let in_process = run_with(
         "cpu-plan-inproc",
-        "paper-mpc.toml",
+        heavy,
         "in-process",
         "jacobi",
         &["--duration", "1"],

@@ -108,8 +108,8 @@ pub struct LinkEnergy {
 /// The DC link's state.
 #[derive(Debug, Clone)]
 pub struct DcLink {
-    p: DcLinkParams,
-    v_supply: f64,
+    pub(crate) p: DcLinkParams,
+    pub(crate) v_supply: f64,
     /// Link voltage v (V).
     pub v: f64,
     /// Chopper switch state.

@@ -19,7 +19,7 @@ use cosim::settings::Checker;
 use cosim::{Participant, Role};
 use serde::{Deserialize, Serialize};
 
-pub use bldc::{Bldc, BldcParams, Electrics};
+pub use bldc::{Bldc, BldcParams, Electrics, EventStats, SwitchedIntegration};
 pub use dc_link::{DcLink, DcLinkParams};
 pub use shaping::{CommandShaping, Shaper};
 

@@ -1,0 +1,728 @@
+//! Event-driven integration of the switched electrics (`bldc.switched_integration = "event"`).
+//!
+//! Between two events (a hysteresis comparator switching, a commutation, a DC-link threshold,
+//! a control update) the drive in its usual state is a linear time-invariant system: two
+//! phases of the commutated pair conduct (i_+ = −i_− = I) through legs that each sit at the
+//! link or at 0 V, the third phase floats with no current, the back-EMF shapes of the pair are
+//! on their flat tops (f_+ = 1, f_− = −1 over the whole sector), and the rectifier, the chopper
+//! and ψ are constant. With s ∈ {+1, 0, −1} the pair voltage in units of the link voltage v:
+//!
+//! ```text
+//! 2 L_s dI/dt = s v − 2 R_s I − k_t ω                        (eq 3 for the pair, e_+ − e_− = k_t ω)
+//! J dω/dt     = k_t I − B_f ω − k_vr (θ_m/G − ψ)/G           (eq 4, T_e = λ(f_+ − f_−) I = k_t I)
+//! dθ_m/dt     = ω
+//! C dv/dt     = g_r (V_app − v) − s I − g_ch v               (the DC link, dc_link.rs)
+//! ```
+//!
+//! x' = A x + b is integrated from event to event by its Taylor series to third order,
+//! x(τ) = Σ c_k τ^k with c_1 = A x_0 + b and c_{k+1} = A c_k/(k+1), over segments of at most
+//! [`MAX_SEGMENT_S`]: the fastest pole left (the link's R_s C = 220 µs) makes the truncation
+//! error (τ/220 µs)⁴/24 ≈ 1e-5 of a deviation, below 1e-4 A in the phase current. Each event is
+//! the first root of a cubic in τ, found on its monotone pieces by safeguarded Newton to
+//! 1e-14 s, and the state is put exactly on the threshold there. Torque, power, losses and the
+//! link's energy are integrated over the segment by 3-point Gauss-Legendre quadrature (exact
+//! to degree 5, the products of cubics are degree 6: error below 1e-12 of a segment's value).
+//!
+//! Anything outside the usual state (the gates blocked by a protection, a commutation while
+//! the outgoing phase still carries current through its diodes, a floating terminal that
+//! would leave [0, v], the bar near its end stop, speeds where the floating phase's back-EMF
+//! reaches half the link) is taken by the fixed-step model one `dt_switched_s` step at a time
+//! until the usual state returns: the same equations, so the two paths agree where they meet.
+
+use std::f64::consts::{FRAC_PI_3, FRAC_PI_6, TAU};
+
+use super::{limit, shapes_and_sector_reduced, Bldc, Gate};
+
+/// Longest segment between two evaluations of the Taylor series (s).
+pub const MAX_SEGMENT_S: f64 = 50e-6;
+
+/// The fixed step taken outside the usual state, as a fraction of `dt_switched_s`: those
+/// stretches (commutations, protections) are short, so a finer step costs little and keeps
+/// them as accurate as the segments around them.
+pub const FALLBACK_STEP: f64 = 0.1;
+
+/// Gauss-Legendre nodes on [−1, 1] and weights (2 points, exact to degree 3).
+const GL_X: [f64; 2] = [-0.577_350_269_189_625_8, 0.577_350_269_189_625_8];
+const GL_W: [f64; 2] = [1.0, 1.0];
+
+/// Counters of the event-driven integration since the drive was made.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct EventStats {
+    /// Segments integrated in closed form.
+    pub segments: u64,
+    /// Hysteresis comparator events.
+    pub switchings: u64,
+    /// Commutations located.
+    pub commutations: u64,
+    /// DC-link events (rectifier conducting or blocking, chopper on or off, over-voltage).
+    pub link_events: u64,
+    /// Fixed steps taken outside the usual state.
+    pub fixed_steps: u64,
+}
+
+/// Order of the Taylor series.
+const ORDER: usize = 5;
+
+/// A polynomial Σ c_k τ^k of degree [`ORDER`] (degree 3 in the tests of [`reach`]).
+type Poly = [f64; ORDER + 1];
+
+#[inline]
+fn eval(c: &Poly, t: f64) -> f64 {
+    let mut x = c[ORDER];
+    for k in (0..ORDER).rev() {
+        x = c[k] + t * x;
+    }
+    x
+}
+
+#[inline]
+fn slope(c: &Poly, t: f64) -> f64 {
+    let mut x = ORDER as f64 * c[ORDER];
+    for k in (1..ORDER).rev() {
+        x = k as f64 * c[k] + t * x;
+    }
+    x
+}
+
+/// The cubic part c0 + c1 τ + c2 τ² + c3 τ³ of a polynomial.
+#[inline]
+fn cubic(c: &Poly, t: f64) -> f64 {
+    c[0] + t * (c[1] + t * (c[2] + t * c[3]))
+}
+
+#[inline]
+fn cubic_slope(c: &Poly, t: f64) -> f64 {
+    c[1] + t * (2.0 * c[2] + t * 3.0 * c[3])
+}
+
+/// The direction a cubic leaves its starting value in: the sign of its first non-zero
+/// coefficient after c0 (0 if it stays).
+#[inline]
+fn leaving(c: &Poly) -> f64 {
+    if c[1] != 0.0 {
+        c[1].signum()
+    } else if c[2] != 0.0 {
+        c[2].signum()
+    } else if c[3] != 0.0 {
+        c[3].signum()
+    } else {
+        0.0
+    }
+}
+
+/// The first τ in [0, h] at which polynomial `c` reaches `level` travelling in direction
+/// `dir` (+1 upwards, −1 downwards); `None` if it does not within h. One already beyond the
+/// level, or on it and moving on, reaches it at once. The crossing is found on the cubic part
+/// (monotone pieces, safeguarded Newton) and polished by Newton on the whole polynomial; the
+/// higher terms are below 1e-6 of the cubic ones over a segment.
+#[inline]
+pub(crate) fn reach(c: &Poly, level: f64, dir: f64, h: f64) -> Option<f64> {
+    let g0 = dir * (c[0] - level);
+    let mut bound = 0.0;
+    for k in (1..=ORDER).rev() {
+        bound = (bound + c[k].abs()) * h;
+    }
+    if g0 + bound < 0.0 {
+        return None;
+    }
+    // The usual case: the slope keeps the sign of c1 over [0, h] (its change is bounded by
+    // Σ k |c_k| h^(k−1) < |c1|), so g is monotone: Newton on the whole polynomial from the
+    // linear estimate, kept in the bracket.
+    let mut dslope = 0.0;
+    for k in (2..=ORDER).rev() {
+        dslope = dslope * h + k as f64 * c[k].abs();
+    }
+    dslope *= h;
+    if dslope < c[1].abs() {
+        if g0 > 0.0 || (g0 == 0.0 && dir * c[1] > 0.0) {
+            return Some(0.0);
+        }
+        if dir * c[1] <= 0.0 || dir * (eval(c, h) - level) <= 0.0 {
+            return None;
+        }
+        let (mut lo, mut hi) = (0.0, h);
+        let mut t = (-g0 / (dir * c[1])).min(h);
+        for _ in 0..60 {
+            let gt = dir * (eval(c, t) - level);
+            if gt == 0.0 {
+                return Some(t);
+            }
+            if gt > 0.0 {
+                hi = t;
+            } else {
+                lo = t;
+            }
+            let step = gt / (dir * slope(c, t));
+            let next = t - step;
+            if next > lo && next < hi {
+                // Newton converges quadratically here (|c2| τ ≪ |c1|): after a step of
+                // 1e-10 s the error left is below 1e-16 s.
+                if step.abs() <= 1e-10 {
+                    return Some(next);
+                }
+                t = next;
+            } else {
+                if hi - lo <= 1e-14 {
+                    return Some(hi);
+                }
+                t = 0.5 * (lo + hi);
+            }
+        }
+        return Some(hi);
+    }
+    let t = reach_cubic(c, level, dir, h)?;
+    if t == 0.0 {
+        return Some(0.0);
+    }
+    let mut t1 = t;
+    for _ in 0..2 {
+        let d = slope(c, t1);
+        if d == 0.0 {
+            break;
+        }
+        t1 -= (eval(c, t1) - level) / d;
+    }
+    Some(if t1 > 0.0 && t1 <= h && (t1 - t).abs() < 1e-9 {
+        t1
+    } else {
+        t
+    })
+}
+
+fn reach_cubic(c: &Poly, level: f64, dir: f64, h: f64) -> Option<f64> {
+    let g = |t: f64| dir * (cubic(c, t) - level);
+    let g0 = g(0.0);
+    if g0 > 0.0 || (g0 == 0.0 && dir * leaving(c) > 0.0) {
+        return Some(0.0);
+    }
+    // Monotone pieces: split at the turning points (roots of the slope) inside (0, h).
+    let mut cuts = [h; 3];
+    let mut n = 0;
+    let (a, b, cc) = (3.0 * c[3], 2.0 * c[2], c[1]);
+    let mut push = |t: f64| {
+        if t > 0.0 && t < h {
+            cuts[n] = t;
+            n += 1;
+        }
+    };
+    if a != 0.0 {
+        let disc = b * b - 4.0 * a * cc;
+        if disc >= 0.0 {
+            let q = -0.5 * (b + b.signum() * disc.sqrt());
+            if q != 0.0 {
+                push(q / a);
+                push(cc / q);
+            } else {
+                push(0.0);
+            }
+        }
+    } else if b != 0.0 {
+        push(-cc / b);
+    }
+    if n == 2 && cuts[0] > cuts[1] {
+        cuts.swap(0, 1);
+    }
+    cuts[n] = h;
+    let mut lo = 0.0;
+    for &hi in &cuts[..=n] {
+        // Strictly past the level: a cubic that only touches it (or stays on it) goes on.
+        if g(hi) > 0.0 {
+            return Some(root(&g, c, dir, lo, hi));
+        }
+        lo = hi;
+    }
+    None
+}
+
+/// The root of monotone `g` in [lo, hi] with g(lo) ≤ 0 ≤ g(hi), by Newton kept in the bracket.
+fn root(g: &impl Fn(f64) -> f64, c: &Poly, dir: f64, mut lo: f64, mut hi: f64) -> f64 {
+    let (glo, ghi) = (g(lo), g(hi));
+    let mut t = if ghi > glo {
+        lo + (hi - lo) * (-glo / (ghi - glo))
+    } else {
+        hi
+    };
+    for _ in 0..60 {
+        let gt = g(t);
+        if gt == 0.0 {
+            return t;
+        }
+        if gt > 0.0 {
+            hi = t;
+        } else {
+            lo = t;
+        }
+        let step = gt / (dir * cubic_slope(c, t));
+        let next = t - step;
+        if next > lo && next < hi {
+            if step.abs() <= 1e-14 {
+                return next;
+            }
+            t = next;
+        } else {
+            if hi - lo <= 1e-14 {
+                return hi;
+            }
+            t = 0.5 * (lo + hi);
+        }
+    }
+    hi
+}
+
+/// What ended a segment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Event {
+    /// The segment's length ran out.
+    End,
+    /// I reached the upper comparator threshold.
+    Upper,
+    /// I reached the lower comparator threshold.
+    Lower,
+    /// θ_e reached the sector boundary Δθ_m (commutation); +1 forwards, −1 backwards.
+    Commutation(f64, f64),
+    /// The floating terminal's sign condition (s = 0) is about to fail.
+    Floating,
+    /// The link reached a level; the exact value to put it at.
+    Link(f64),
+}
+
+/// The drive's constants as the segment equations use them (no division per segment).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Consts {
+    /// 1/(2 L_s), R_s/L_s, k_t/(2 L_s).
+    inv_2l: f64,
+    r_l: f64,
+    kt_2l: f64,
+    /// k_t/J, B_f/J, k_vr/(G² J).
+    kt_j: f64,
+    bf_j: f64,
+    kappa_j: f64,
+    /// 1/C, the rectifier's and the chopper's conductances.
+    inv_c: f64,
+    g_r: f64,
+    g_ch: f64,
+    /// G, 1/G, k_vr/G, k_t, 2 R_s, B_f.
+    g: f64,
+    inv_g: f64,
+    k_vr_g: f64,
+    k_t: f64,
+    two_r: f64,
+    b_f: f64,
+}
+
+/// 1/n for the Taylor recursion.
+const INV_N: [f64; ORDER + 1] = [1.0, 1.0, 0.5, 1.0 / 3.0, 0.25, 0.2];
+
+impl Consts {
+    pub(super) fn new(p: &super::BldcParams, link: &crate::DcLinkParams, k_vr: f64) -> Self {
+        let g = p.gear();
+        Consts {
+            inv_2l: 1.0 / (2.0 * p.l_s),
+            r_l: p.r_s / p.l_s,
+            kt_2l: p.k_t / (2.0 * p.l_s),
+            kt_j: p.k_t / p.j_rot,
+            bf_j: p.b_f / p.j_rot,
+            kappa_j: k_vr / (g * g * p.j_rot),
+            inv_c: 1.0 / link.capacitance_f,
+            g_r: 1.0 / link.supply_resistance_ohm,
+            g_ch: 1.0 / link.chopper_resistance_ohm,
+            g,
+            inv_g: 1.0 / g,
+            k_vr_g: k_vr / g,
+            k_t: p.k_t,
+            two_r: 2.0 * p.r_s,
+            b_f: p.b_f,
+        }
+    }
+
+    /// Taylor coefficients of (I, ω, Δθ_m, v) from (I, ω, v) at the segment's start, with
+    /// the pair at s·v, the rectifier's and chopper's conductances `g_r`, `g_ch`, the rotor
+    /// at `theta_m` and the bar twisted by `psi` at the bogie, the supply at `v_s`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn series(
+        &self,
+        s: f64,
+        g_r: f64,
+        g_ch: f64,
+        x: [f64; 3],
+        theta_m: f64,
+        psi: f64,
+        v_s: f64,
+    ) -> [Poly; 4] {
+        let g_v = (g_r + g_ch) * self.inv_c;
+        let s_c = s * self.inv_c;
+        let s_2l = s * self.inv_2l;
+        let a_x = |x: [f64; 4]| {
+            [
+                s_2l * x[3] - self.r_l * x[0] - self.kt_2l * x[1],
+                self.kt_j * x[0] - self.bf_j * x[1] - self.kappa_j * x[2],
+                x[1],
+                -g_v * x[3] - s_c * x[0],
+            ]
+        };
+        // θ_m is carried as Δθ_m from the segment's start (its coefficients stay small).
+        let x0 = [x[0], x[1], 0.0, x[2]];
+        let mut ck = a_x(x0);
+        ck[1] -= self.kappa_j * (theta_m - self.g * psi);
+        ck[3] += g_r * v_s * self.inv_c;
+        let mut out = [[0.0; ORDER + 1]; 4];
+        for k in 0..4 {
+            out[k][0] = x0[k];
+            out[k][1] = ck[k];
+        }
+        for (n, inv) in INV_N.iter().enumerate().skip(2) {
+            ck = a_x(ck).map(|x| x * inv);
+            for k in 0..4 {
+                out[k][n] = ck[k];
+            }
+        }
+        out
+    }
+}
+
+impl Bldc {
+    /// Advances the switched drive event by event over `n` electrical steps, running the
+    /// control loops at their instants as the fixed-step model does; returns the sums of
+    /// torque, inverter power and chopper power in units of one step (integral / dt), so that
+    /// the interval's means are formed as in the fixed-step model.
+    pub(super) fn run_events(&mut self, psi: f64, n: u64) -> (f64, f64, f64) {
+        let (mut te, mut p, mut ch) = (0.0, 0.0, 0.0);
+        let inv_dt = 1.0 / self.dt;
+        let mut k = 0u64;
+        while k < n {
+            if self.sub_count == 0 {
+                self.control_update();
+            }
+            let m = (u64::from(self.sub_per_control - self.sub_count)).min(n - k);
+            let span = m as f64 * self.dt;
+            let mut t = 0.0;
+            let mut stalled = 0;
+            while span - t > 1e-15 {
+                let left = span - t;
+                // Events at the same instant change the state each time (gates, mode, sector);
+                // should they ever stop making progress, a fixed step moves time on.
+                let segment = if stalled < 8 {
+                    self.segment(psi, left)
+                } else {
+                    Err(FALLBACK_STEP)
+                };
+                let (h, a, b, c) = match segment {
+                    Ok(r) => {
+                        stalled = if r.0 < 1e-12 { stalled + 1 } else { 0 };
+                        r
+                    }
+                    Err(fraction) => {
+                        stalled = 0;
+                        let h = (self.dt * fraction).min(left);
+                        self.count_down_block();
+                        self.stats.fixed_steps += 1;
+                        let (a, b, c) = self.fixed_step(psi, h);
+                        (h, a * h, b * h, c * h)
+                    }
+                };
+                t += h;
+                te += a * inv_dt;
+                p += b * inv_dt;
+                ch += c * inv_dt;
+            }
+            self.sub_count =
+                ((u64::from(self.sub_count) + m) % u64::from(self.sub_per_control)) as u32;
+            self.sub_in_interval += m;
+            k += m;
+        }
+        (te, p, ch)
+    }
+
+    /// One segment of the usual state from now, at most `left` long: returns its length and
+    /// the integrals of torque, inverter power and chopper power over it, or, when the drive
+    /// is not in the usual state, nothing advanced and the fixed step to take instead as a
+    /// fraction of `dt_switched_s`.
+    fn segment(&mut self, psi: f64, left: f64) -> Result<(f64, f64, f64, f64), f64> {
+        if self.blocked || self.blocked_steps > 0 {
+            return Err(FALLBACK_STEP);
+        }
+        let i = self.i;
+        self.protect(i[0].abs().max(i[1].abs()).max(i[2].abs()));
+        if self.blocked {
+            return Err(FALLBACK_STEP);
+        }
+        let (f, sec) = shapes_and_sector_reduced(self.theta_e);
+        let (pp, mm) = self.table[sec];
+        let off = 3 - pp - mm;
+        if i[off] != 0.0 {
+            return Err(FALLBACK_STEP);
+        }
+        self.compare(pp, mm, self.i_ref);
+        let v0 = self.link.v;
+        let (s, vn_per_v) = match (self.gates[pp], self.gates[mm]) {
+            (Gate::Upper, Gate::Lower) => (1.0, 0.5),
+            (Gate::Lower, Gate::Upper) => (-1.0, 0.5),
+            (Gate::Upper, Gate::Upper) => (0.0, 1.0),
+            (Gate::Lower, Gate::Lower) => (0.0, 0.0),
+            _ => return Err(FALLBACK_STEP),
+        };
+        let e_off = self.lambda * self.omega * f[off];
+        let u = vn_per_v * v0 + e_off;
+        if !(0.0..=v0).contains(&u) {
+            return Err(FALLBACK_STEP);
+        }
+        let h = left.min(MAX_SEGMENT_S);
+
+        // The link's state for the segment, decided as its fixed step decides it.
+        let k = self.consts;
+        let lp = &self.link.p;
+        if v0 >= lp.chopper_on_v {
+            self.link.chopper_on = true;
+        } else if v0 <= lp.chopper_off_v {
+            self.link.chopper_on = false;
+        }
+        let v_s = self.link.v_supply;
+        let g_ch = if self.link.chopper_on { k.g_ch } else { 0.0 };
+        let i_pair = i[pp];
+        // The rectifier conducts below the supply voltage, and at it when the link would
+        // otherwise fall.
+        let rect = if v0 == v_s {
+            let dv = -g_ch * v0 - s * i_pair;
+            if dv != 0.0 {
+                dv < 0.0
+            } else {
+                leaving(
+                    &k.series(
+                        s,
+                        0.0,
+                        g_ch,
+                        [i_pair, self.omega, v0],
+                        self.theta_m,
+                        psi,
+                        v_s,
+                    )[3],
+                ) < 0.0
+            }
+        } else {
+            v0 < v_s
+        };
+        let g_r = if rect { k.g_r } else { 0.0 };
+        let [ci, cw, cth, cv] = k.series(
+            s,
+            g_r,
+            g_ch,
+            [i_pair, self.omega, v0],
+            self.theta_m,
+            psi,
+            v_s,
+        );
+
+        // Speeds at which the floating terminal could leave [0, v] with the pair at ±v/2.
+        let w_max = cw[0].abs() + (cw[1].abs() + (cw[2].abs() + cw[3].abs() * h) * h) * h;
+        let dv_max = (cv[1].abs() + (cv[2].abs() + cv[3].abs() * h) * h) * h;
+        if s != 0.0 && self.lambda * w_max >= 0.5 * (v0 - dv_max) {
+            // High speed: the floating phase may conduct through its diodes all along;
+            // the fixed-step model at its own step takes it.
+            return Err(1.0);
+        }
+        // The bar's end stop is the fixed-step model's to handle.
+        if self.theta_m.abs() + w_max * h >= self.gear * self.stroke {
+            return Err(FALLBACK_STEP);
+        }
+
+        // The first event.
+        let mut tau = h;
+        let mut what = Event::End;
+        let mut take = |t: Option<f64>, e: Event| {
+            if let Some(t) = t {
+                if t < tau {
+                    tau = t;
+                    what = e;
+                }
+            }
+        };
+        let band = 0.5 * self.p.hysteresis_a;
+        let (hi, lo) = (self.i_ref + band, self.i_ref - band);
+        if s >= 0.0 {
+            take(reach(&ci, hi, 1.0, h), Event::Upper);
+        }
+        if s <= 0.0 {
+            take(reach(&ci, lo, -1.0, h), Event::Lower);
+        }
+        let half_pp = 0.5 * self.p.poles as f64;
+        let th = if self.theta_e < FRAC_PI_6 {
+            self.theta_e + TAU
+        } else {
+            self.theta_e
+        };
+        let start = FRAC_PI_6 + FRAC_PI_3 * sec as f64;
+        let d_hi = (start + FRAC_PI_3 - th) / half_pp;
+        let d_lo = (start - th) / half_pp;
+        take(reach(&cth, d_hi, 1.0, h), Event::Commutation(d_hi, 1.0));
+        take(reach(&cth, d_lo, -1.0, h), Event::Commutation(d_lo, -1.0));
+        if s == 0.0 {
+            // The floating terminal stays inside the link while λ ω f_off keeps the sign that
+            // puts it there: up to a zero of ω or of f_off (mid-sector).
+            let keep = if vn_per_v == 0.0 { 1.0 } else { -1.0 };
+            let d_mid = (start + FRAC_PI_6 - th) / half_pp;
+            if self.omega * f[off] == 0.0 {
+                // On a zero of the product: go on only if it leaves the zero the right way.
+                // f_off falls (or rises) linearly across the sector, through 0 at mid-sector.
+                let f0 = self.off_start[sec];
+                let t = h.min(1e-7);
+                let f_t = f0 * (1.0 - 2.0 * (th + half_pp * eval(&cth, t) - start) / FRAC_PI_3);
+                if keep * eval(&cw, t) * f_t < 0.0 {
+                    return Err(FALLBACK_STEP);
+                }
+            }
+            if cw[0] != 0.0 {
+                take(reach(&cw, 0.0, -cw[0].signum(), h), Event::Floating);
+            }
+            if d_mid != 0.0 {
+                take(reach(&cth, d_mid, d_mid.signum(), h), Event::Floating);
+            }
+        }
+        // The link's levels within reach of this segment at all.
+        let lp = &self.link.p;
+        let (on, off, trip) = (lp.chopper_on_v, lp.chopper_off_v, lp.overvoltage_trip_v);
+        let v_reach = (cv[1].abs()
+            + (cv[2].abs() + (cv[3].abs() + (cv[4].abs() + cv[5].abs() * h) * h) * h) * h)
+            * h;
+        let near = |level: f64| (level - v0).abs() <= v_reach;
+        if self.link.chopper_on {
+            if near(off) {
+                take(reach(&cv, off, -1.0, h), Event::Link(off));
+            }
+        } else if near(on) {
+            take(reach(&cv, on, 1.0, h), Event::Link(on));
+        }
+        if near(trip) {
+            take(reach(&cv, trip, 1.0, h), Event::Link(trip.next_up()));
+        }
+        if near(v_s) {
+            take(
+                reach(&cv, v_s, if rect { 1.0 } else { -1.0 }, h),
+                Event::Link(v_s),
+            );
+        }
+
+        // Integrals over [0, τ] by 3-point Gauss-Legendre.
+        let (mut q_i, mut q_p, mut q_cu, mut q_fr, mut q_ld, mut q_r, mut q_ch) =
+            (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut peak, mut v_hi) = (i_pair.abs(), v0);
+        let half = 0.5 * tau;
+        for (xg, wg) in GL_X.iter().zip(GL_W) {
+            let t = half * (1.0 + xg);
+            let w = wg * half;
+            let (it, wt, tht, vt) = (eval(&ci, t), eval(&cw, t), eval(&cth, t), eval(&cv, t));
+            let tl = k.k_vr_g * ((self.theta_m + tht) * k.inv_g - psi);
+            q_i += w * it;
+            q_p += w * s * vt * it;
+            q_cu += w * k.two_r * it * it;
+            q_fr += w * k.b_f * wt * wt;
+            q_ld += w * tl * wt;
+            q_r += w * vt * g_r * (v_s - vt);
+            q_ch += w * g_ch * vt * vt;
+            peak = peak.max(it.abs());
+            v_hi = v_hi.max(vt);
+        }
+
+        // The state at τ, put exactly on the threshold that ended the segment.
+        let mut i_end = eval(&ci, tau);
+        let mut d_th = eval(&cth, tau);
+        let mut v_end = eval(&cv, tau);
+        let w_end = eval(&cw, tau);
+        match what {
+            Event::Upper => {
+                i_end = hi;
+                self.gates[pp] = Gate::Lower;
+                self.gates[mm] = Gate::Upper;
+                self.stats.switchings += 1;
+            }
+            Event::Lower => {
+                i_end = lo;
+                self.gates[pp] = Gate::Upper;
+                self.gates[mm] = Gate::Lower;
+                self.stats.switchings += 1;
+            }
+            Event::Commutation(d, _) => {
+                d_th = d;
+                self.stats.commutations += 1;
+            }
+            Event::Link(level) => {
+                v_end = level;
+                self.stats.link_events += 1;
+            }
+            Event::End | Event::Floating => {}
+        }
+        self.i[pp] = i_end;
+        self.i[mm] = -i_end;
+        self.omega = w_end;
+        self.theta_m += d_th;
+        let mut te = th + half_pp * d_th;
+        if let Event::Commutation(_, dir) = what {
+            // Past the boundary by a hair, so that the new sector is the one computed next.
+            te += dir * 1e-12;
+        }
+        // te lies within a sector of [0, 2π] (or a hair beyond): one wrap at most.
+        self.theta_e = if te >= TAU {
+            te - TAU
+        } else if te < 0.0 {
+            te + TAU
+        } else {
+            te
+        };
+        self.link.v = v_end;
+        self.peak = self.peak.max(peak).max(i_end.abs());
+        self.v_max = self.v_max.max(v_hi).max(v_end);
+        if peak >= self.p.current_limit_a {
+            self.limits |= limit::CURRENT;
+        }
+        self.energy.electrical_in += q_p;
+        self.energy.copper += q_cu;
+        self.energy.friction += q_fr;
+        self.energy.load += q_ld;
+        self.link.energy.rectifier += q_r;
+        self.link.energy.chopper += q_ch;
+        self.link.energy.inverter += q_p;
+        self.stats.segments += 1;
+        Ok((tau, k.k_t * q_i, q_p, q_ch))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn p(c: [f64; 4]) -> Poly {
+        let mut x = [0.0; ORDER + 1];
+        x[..4].copy_from_slice(&c);
+        x
+    }
+
+    #[test]
+    fn reach_finds_the_first_crossing_of_a_cubic() {
+        // Rising line: 2 + 3τ reaches 5 at τ = 1.
+        let t = reach(&p([2.0, 3.0, 0.0, 0.0]), 5.0, 1.0, 2.0).unwrap();
+        assert!((t - 1.0).abs() < 1e-13);
+        assert_eq!(reach(&p([2.0, 3.0, 0.0, 0.0]), 5.0, 1.0, 0.5), None);
+        // (τ − 1)(τ − 2)(τ − 3) = τ³ − 6τ² + 11τ − 6 reaches 0 upwards first at 1; its negative
+        // reaches 0 downwards first at 1 and is beyond −1 downwards... never (it starts at 6).
+        let c = p([-6.0, 11.0, -6.0, 1.0]);
+        assert!((reach(&c, 0.0, 1.0, 4.0).unwrap() - 1.0).abs() < 1e-12);
+        let neg = c.map(|x| -x);
+        assert!((reach(&neg, 0.0, -1.0, 4.0).unwrap() - 1.0).abs() < 1e-12);
+        // Beyond the level already: reached at once.
+        assert_eq!(reach(&neg, 0.0, 1.0, 4.0), Some(0.0));
+        let down = reach(&p([0.0, -1.0, 0.0, 0.0]), -0.5, -1.0, 1.0).unwrap();
+        assert!((down - 0.5).abs() < 1e-13);
+        // Starting on the level moving away: not reached; moving through: at once.
+        assert_eq!(reach(&p([1.0, -1.0, 0.0, 0.0]), 1.0, 1.0, 1.0), None);
+        assert_eq!(reach(&p([1.0, 1.0, 0.0, 0.0]), 1.0, 1.0, 1.0), Some(0.0));
+        // A parabola that turns back before the level: never reached; one that touches later.
+        assert_eq!(reach(&p([0.0, 2.0, -1.0, 0.0]), 1.5, 1.0, 3.0), None);
+        let t = reach(&p([0.0, -1.0, 1.0, 0.0]), 2.0, 1.0, 5.0).unwrap();
+        assert!((t - 2.0).abs() < 1e-12, "{t}");
+        // Up to a local maximum below the level, down, then up through it: τ³ − 6τ² + 11τ − 6
+        // has its maximum 0.385 at τ = 1.42 and reaches 1 again at τ = 3.32.
+        let t = reach(&c, 1.0, 1.0, 4.0).unwrap();
+        assert!((eval(&c, t) - 1.0).abs() < 1e-12 && t > 3.0, "{t}");
+        assert_eq!(reach(&c, 0.5, 1.0, 3.0), None);
+    }
+}
