@@ -140,35 +140,16 @@ pub(crate) fn reach(c: &Poly, level: f64, dir: f64, h: f64) -> Option<f64> {
         if dir * c[1] <= 0.0 || dir * (eval(c, h) - level) <= 0.0 {
             return None;
         }
-        let (mut lo, mut hi) = (0.0, h);
-        let mut t = (-g0 / (dir * c[1])).min(h);
-        for _ in 0..60 {
-            let gt = dir * (eval(c, t) - level);
-            if gt == 0.0 {
-                return Some(t);
-            }
-            if gt > 0.0 {
-                hi = t;
-            } else {
-                lo = t;
-            }
-            let step = gt / (dir * slope(c, t));
-            let next = t - step;
-            if next > lo && next < hi {
-                // Newton converges quadratically here (|c2| τ ≪ |c1|): after a step of
-                // 1e-10 s the error left is below 1e-16 s.
-                if step.abs() <= 1e-10 {
-                    return Some(next);
-                }
-                t = next;
-            } else {
-                if hi - lo <= 1e-14 {
-                    return Some(hi);
-                }
-                t = 0.5 * (lo + hi);
-            }
-        }
-        return Some(hi);
+        // Newton converges quadratically here (|c2| τ ≪ |c1|): after a step of 1e-10 s the
+        // error left is below 1e-16 s.
+        let t0 = (-g0 / (dir * c[1])).min(h);
+        return Some(root(
+            |t| dir * (eval(c, t) - level),
+            |t| dir * slope(c, t),
+            (0.0, h),
+            t0,
+            1e-10,
+        ));
     }
     let t = reach_cubic(c, level, dir, h)?;
     if t == 0.0 {
@@ -226,22 +207,26 @@ fn reach_cubic(c: &Poly, level: f64, dir: f64, h: f64) -> Option<f64> {
     let mut lo = 0.0;
     for &hi in &cuts[..=n] {
         // Strictly past the level: a cubic that only touches it (or stays on it) goes on.
-        if g(hi) > 0.0 {
-            return Some(root(&g, c, dir, lo, hi));
+        let (glo, ghi) = (g(lo), g(hi));
+        if ghi > 0.0 {
+            let t0 = lo + (hi - lo) * (-glo / (ghi - glo));
+            let dg = |t: f64| dir * cubic_slope(c, t);
+            return Some(root(g, dg, (lo, hi), t0, 1e-14));
         }
         lo = hi;
     }
     None
 }
 
-/// The root of monotone `g` in [lo, hi] with g(lo) ≤ 0 ≤ g(hi), by Newton kept in the bracket.
-fn root(g: &impl Fn(f64) -> f64, c: &Poly, dir: f64, mut lo: f64, mut hi: f64) -> f64 {
-    let (glo, ghi) = (g(lo), g(hi));
-    let mut t = if ghi > glo {
-        lo + (hi - lo) * (-glo / (ghi - glo))
-    } else {
-        hi
-    };
+/// The root of monotone `g` (slope `dg`) in `[lo, hi]` with g(lo) ≤ 0 ≤ g(hi), by Newton
+/// from `t` kept in the bracket, until a step is below `tol` (s).
+fn root(
+    g: impl Fn(f64) -> f64,
+    dg: impl Fn(f64) -> f64,
+    (mut lo, mut hi): (f64, f64),
+    mut t: f64,
+    tol: f64,
+) -> f64 {
     for _ in 0..60 {
         let gt = g(t);
         if gt == 0.0 {
@@ -252,10 +237,10 @@ fn root(g: &impl Fn(f64) -> f64, c: &Poly, dir: f64, mut lo: f64, mut hi: f64) -
         } else {
             lo = t;
         }
-        let step = gt / (dir * cubic_slope(c, t));
+        let step = gt / dg(t);
         let next = t - step;
         if next > lo && next < hi {
-            if step.abs() <= 1e-14 {
+            if step.abs() <= tol {
                 return next;
             }
             t = next;
