@@ -237,19 +237,13 @@ fn jacobi_over_ipc_gives_the_measured_heaviest_participant_a_cpu_of_its_own() {
         &format!("[run]\ncpu_plan = \"fixed\"\n\n{FIXED_STEP}"),
         "cpu-plan-fixed",
     );
-    let out = temp_dir("cpu-plan-fixed-run");
-    let (code, _, err) = run(&[
-        "run",
+    let out = run_with(
+        "cpu-plan-fixed-run",
         fixed_sc.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--master",
+        "ipc",
         "jacobi",
-        "--duration",
-        "1",
-        "-q",
-    ]);
-    assert_eq!(code, 0, "{err}");
+        &["--duration", "1"],
+    );
     assert!(summary(&out)["timing"]["cpu_plan"].is_null());
     let in_process = run_with(
         "cpu-plan-inproc",

@@ -377,8 +377,6 @@ pub struct Bldc {
     omega_max: f64,
     stroke: f64,
     table: [(usize, usize); 6],
-    /// Back-EMF shape of the floating phase at the start of each sector (±1).
-    off_start: [f64; 6],
     /// Event-driven or fixed-step integration of the switched electrics.
     integration: SwitchedIntegration,
     /// Counters of the event-driven integration.
@@ -439,15 +437,6 @@ impl Bldc {
             omega_max: p.speed_limit_fraction * p.v_dc / p.k_t,
             stroke: p.stroke_deg.to_radians(),
             table: commutation_table(),
-            off_start: {
-                let table = commutation_table();
-                std::array::from_fn(|k| {
-                    let (pp, mm) = table[k];
-                    let start =
-                        std::f64::consts::FRAC_PI_6 + std::f64::consts::FRAC_PI_3 * k as f64;
-                    shapes(start + 1e-6)[3 - pp - mm].signum()
-                })
-            },
             integration: p.switched_integration,
             stats: EventStats::default(),
             consts: event::Consts::new(p, link, k_vr),
