@@ -343,3 +343,39 @@ fn a_planned_sample_run_alone_with_its_settings_repeats_the_sweeps_run() {
         "the sample run alone differs from the sweep's"
     );
 }
+
+#[test]
+fn samples_kept_in_memory_give_the_results_of_samples_written_to_disk() {
+    // Without --keep-runs a sample's rows stay in memory (no timeseries.csv written and read
+    // back); with it they go through the file. The two must agree byte for byte: the file's
+    // numbers are shortest round-trip decimals of the same f64s.
+    let sc = scenario_with(
+        "paper-lqg.toml",
+        "model = \"bldc\"",
+        "model = \"ideal\"",
+        "sweep-memory",
+    );
+    let sc = sc.to_str().unwrap();
+    let dir = temp_dir("sweep-memory");
+    let sweep = |name: &str, keep: bool| {
+        let out = dir.join(name);
+        let mut args = vec!["sweep", sc, "--samples", "3", "--seed", "4", "--quiet"];
+        if keep {
+            args.push("--keep-runs");
+        }
+        args.extend(["--out", out.to_str().unwrap()]);
+        let (code, _, err) = run(&args);
+        assert_eq!(code, 0, "{err}");
+        out
+    };
+    let memory = sweep("memory", false);
+    let disk = sweep("disk", true);
+    assert!(disk.join("runs/sample-0002/timeseries.csv").exists());
+    assert!(!memory.join("runs/sample-0002").exists());
+    for f in ["samples.csv", "series.csv", "table.md", "table.csv"] {
+        assert!(
+            read(&memory.join(f)) == read(&disk.join(f)),
+            "{f} differs between rows in memory and on disk"
+        );
+    }
+}

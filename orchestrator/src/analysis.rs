@@ -1,18 +1,32 @@
 //! Analysis of a run, composed by the caller after the engine has run (or on a finished run's
 //! directory): the quick look, ride comfort, validity flags and figures, all read back from
-//! `timeseries.csv` as typed rows.
+//! `timeseries.csv` as typed rows (or from the rows a sweep's sample kept in memory).
 
 use std::path::{Path, PathBuf};
 
 use cosim::Role;
 
-use crate::engine::{QuickLook, RunError, RunOptions, Summary};
+use crate::engine::{QuickLook, Ran, RunError, RunOptions, Summary};
+use crate::record::{Row, Rows};
 use crate::scenario::Scenario;
 
 /// Runs `s` with the engine, then completes its summary with the analysis of what it recorded
 /// and, when `opts.plots`, draws its figures (see [`run_then`]).
 pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summary, RunError> {
     run_then(s, scenario_file, opts, |_| {})
+}
+
+/// [`run`] with the rows kept in memory (`opts.keep_rows` must be set; no `timeseries.csv`, no
+/// figures): the summary and the rows. A sweep's samples run this way.
+pub fn run_keeping_rows(
+    s: &Scenario,
+    scenario_file: &str,
+    opts: &RunOptions,
+) -> Result<(Summary, Vec<Row>), RunError> {
+    debug_assert!(opts.keep_rows);
+    let mut rows = Vec::new();
+    let summary = run_inner(s, scenario_file, opts, |_| {}, &mut rows)?;
+    Ok((summary, rows))
 }
 
 /// [`run`], calling `keep` with the analysed summary before the figures are drawn: the
@@ -24,7 +38,25 @@ pub fn run_then(
     opts: &RunOptions,
     keep: impl FnOnce(&Summary),
 ) -> Result<Summary, RunError> {
-    let (mut summary, recording) = crate::engine::run_recorded(s, scenario_file, opts)?;
+    run_inner(s, scenario_file, opts, keep, &mut Vec::new())
+}
+
+/// [`run_then`], leaving the rows kept in memory (if any) in `kept`.
+fn run_inner(
+    s: &Scenario,
+    scenario_file: &str,
+    opts: &RunOptions,
+    keep: impl FnOnce(&Summary),
+    kept: &mut Vec<Row>,
+) -> Result<Summary, RunError> {
+    let Ran {
+        mut summary,
+        recording,
+        rows,
+    } = crate::engine::run_recorded(s, scenario_file, opts)?;
+    if let Some(rows) = rows {
+        *kept = rows;
+    }
     // The recording closes with the summary as the caller keeps it (analysed or not).
     let keep = |sm: &Summary| {
         keep(sm);
@@ -45,7 +77,12 @@ pub fn run_then(
         keep(&summary);
         return Ok(summary);
     }
-    analyse(s, &opts.out_dir, &mut summary);
+    let source = if opts.keep_rows {
+        Rows::Kept(kept)
+    } else {
+        Rows::File(&opts.out_dir)
+    };
+    analyse(s, source, &mut summary);
     if crate::signals::received() {
         summary.analysis_skipped = Some(format!(
             "interrupted by {} during the analysis: comfort and flags incomplete, figures not drawn",
@@ -55,7 +92,7 @@ pub fn run_then(
         return Ok(summary);
     }
     keep(&summary);
-    if opts.plots {
+    if opts.plots && !opts.keep_rows {
         if let Err(e) = write_plots(s, &opts.out_dir) {
             tracing::warn!("plots not written: {e}");
         }
@@ -63,14 +100,14 @@ pub fn run_then(
     Ok(summary)
 }
 
-/// Fills `results`, `comfort` and `flags` of `summary` from the series recorded in `dir`
-/// (works on partial runs too), in one pass over the file with one row in memory at a time,
-/// so the analysis of an hour-long run needs no more memory than that of a short one.
-pub fn analyse(s: &Scenario, dir: &Path, summary: &mut Summary) {
+/// Fills `results`, `comfort` and `flags` of `summary` from the series recorded in `rows`
+/// (works on partial runs too), in one pass over them with one row in memory at a time (from a
+/// file), so the analysis of an hour-long run needs no more memory than that of a short one.
+pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
     let mut look = QuickLooker::new(s);
     let mut comfort = crate::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort);
     let mut flags = crate::validity::Flagger::new(s.run.dt_s, s.comfort.bump_stop_m);
-    let scanned = scan(s, dir, |r, x| {
+    let scanned = scan(s, rows, |r, x| {
         look.push(r);
         comfort.push(x);
         flags.push(&crate::validity::FlagSample {
@@ -97,7 +134,7 @@ pub fn analyse(s: &Scenario, dir: &Path, summary: &mut Summary) {
 /// exactly (see [`crate::comfort::Sample::ideal`]).
 pub fn ideal_tilt(s: &Scenario, dir: &Path) -> crate::comfort::Comfort {
     let mut a = crate::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort);
-    let _ = scan(s, dir, |_, x| a.push(&x.ideal()));
+    let _ = scan(s, Rows::File(dir), |_, x| a.push(&x.ideal()));
     a.finish()
 }
 
@@ -177,7 +214,7 @@ struct Derived {
 /// the next one has been read: three rows are in memory at most.
 pub fn scan(
     s: &Scenario,
-    dir: &Path,
+    rows: Rows,
     mut visit: impl FnMut(&crate::record::Row, &crate::comfort::Sample),
 ) -> std::io::Result<u64> {
     let controller = controller_proc::Controller::new(&s.controller_init()).ok();
@@ -205,7 +242,7 @@ pub fn scan(
     // rows k−1 and k, waiting for k+1.
     let mut prev: Option<Derived> = None;
     let mut cur: Option<Derived> = None;
-    let n = crate::record::each_row(dir, |r| {
+    let n = rows.each(|r| {
         if r.step % 4096 == 0 && crate::signals::received() {
             return false;
         }

@@ -375,6 +375,36 @@ fn csv_io(e: csv::Error) -> std::io::Error {
     }
 }
 
+/// Where a run's rows are: its directory's `timeseries.csv`, or kept in memory (a sweep's
+/// samples, [`crate::engine::RunOptions::keep_rows`]).
+#[derive(Debug, Clone, Copy)]
+pub enum Rows<'a> {
+    /// `timeseries.csv` of this directory.
+    File(&'a Path),
+    /// The rows themselves.
+    Kept(&'a [Row]),
+}
+
+impl Rows<'_> {
+    /// Hands each row to `visit` in order until it returns false; returns the rows visited
+    /// ([`each_row`] for a file).
+    pub fn each(&self, mut visit: impl FnMut(&Row) -> bool) -> std::io::Result<u64> {
+        match self {
+            Rows::File(dir) => each_row(dir, visit),
+            Rows::Kept(rows) => {
+                let mut n = 0;
+                for r in rows.iter() {
+                    n += 1;
+                    if !visit(r) {
+                        break;
+                    }
+                }
+                Ok(n)
+            }
+        }
+    }
+}
+
 /// Reads `dir/timeseries.csv` back, handing each row to `visit` in order, one row in memory
 /// at a time, until `visit` returns false; returns the number of rows read. A run that was
 /// cut short may end in a partial line: reading stops at the first row that is not complete.

@@ -450,8 +450,19 @@ fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
     let mut opts = RunOptions::new(dir.clone(), ex.exe.clone());
     opts.interrupt = ex.interrupt.clone();
     opts.plots = ex.keep_runs;
-    let summary = crate::analysis::run(&s, &format!("{} (sample {j})", base.name), &opts);
-    let rows = crate::record::read_rows(&dir).unwrap_or_default();
+    // A sample whose directory is removed afterwards keeps its rows in memory: no
+    // timeseries.csv to write and read back (the values are the same, f64 round-trips).
+    opts.keep_rows = !ex.keep_runs;
+    let name = format!("{} (sample {j})", base.name);
+    let (summary, rows) = if opts.keep_rows {
+        match crate::analysis::run_keeping_rows(&s, &name, &opts) {
+            Ok((sum, rows)) => (Ok(sum), rows),
+            Err(e) => (Err(e), Vec::new()),
+        }
+    } else {
+        let summary = crate::analysis::run(&s, &name, &opts);
+        (summary, crate::record::read_rows(&dir).unwrap_or_default())
+    };
     let every = (SERIES_DT / s.run.dt_s).round().max(1.0) as usize;
     // Row k holds t_{k+1}; keep t = 10 ms, 20 ms, ...
     let series: Vec<f64> = rows

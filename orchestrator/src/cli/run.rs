@@ -182,6 +182,7 @@ pub fn exec(a: RunArgs) -> CliResult {
         realtime,
         machine_progress: a.progress.is_some(),
         record: a.record,
+        keep_rows: false,
     };
     let mut kept = Ok(());
     let summary = crate::analysis::run_then(&s, &a.scenario.display().to_string(), &opts, |sm| {

@@ -35,7 +35,7 @@ pub use summary::{
 };
 
 use crate::events::EventLog;
-use crate::record::Recorder;
+use crate::record::{Recorder, Row};
 use crate::roles::RoleMap;
 use crate::scenario::{Scenario, Transport};
 use observer::{ComputeStats, DriveEvents, Latency, Observer, Pacing, RowRecorder, TickRecord};
@@ -64,7 +64,7 @@ impl Observers {
             mcap,
         } = out;
         Observers {
-            recorder: RowRecorder(recorder),
+            recorder,
             cpu_plan: None,
             timing: TickTiming::default(),
             compute: ComputeStats::default(),
@@ -251,7 +251,7 @@ fn lockstep_pipelined(
 
 /// The files a run writes as it goes.
 struct Outputs {
-    recorder: Recorder,
+    recorder: RowRecorder,
     trace: Option<Trace>,
     mcap: Option<mcap::McapRecorder>,
 }
@@ -275,8 +275,12 @@ impl Recording {
 fn create_outputs(s: &Scenario, opts: &RunOptions) -> Result<Outputs, RunError> {
     let dir = &opts.out_dir;
     std::fs::create_dir_all(dir).map_err(RunError::io(dir.clone()))?;
-    let csv = dir.join("timeseries.csv");
-    let rec = Recorder::create(&csv).map_err(RunError::io(csv))?;
+    let rec = if opts.keep_rows {
+        RowRecorder::Kept(Vec::with_capacity(s.steps() as usize))
+    } else {
+        let csv = dir.join("timeseries.csv");
+        RowRecorder::File(Box::new(Recorder::create(&csv).map_err(RunError::io(csv))?))
+    };
     let trace = if opts.trace {
         let path = dir.join("trace.csv");
         Some(Trace::create(&path, now_ns(), s.run.dt_s).map_err(RunError::io(path))?)
@@ -377,7 +381,9 @@ impl Drop for RunFilesGuard {
 /// `results`, `comfort` and `flags` are left for the caller's analysis
 /// (`crate::analysis::analyse`).
 pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summary, RunError> {
-    let (summary, recording) = run_recorded(s, scenario_file, opts)?;
+    let Ran {
+        summary, recording, ..
+    } = run_recorded(s, scenario_file, opts)?;
     if let Some(r) = recording {
         if let Err(e) = r.finish(&summary) {
             tracing::warn!("recording not completed: {e}");
@@ -386,13 +392,19 @@ pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summa
     Ok(summary)
 }
 
+/// What [`run_recorded`] returns.
+pub struct Ran {
+    /// The run's summary (not yet analysed).
+    pub summary: Summary,
+    /// `run.mcap` (with `--record`), open for the caller to finish with the analysed summary.
+    pub recording: Option<Recording>,
+    /// The rows, when kept in memory (`RunOptions::keep_rows`) instead of `timeseries.csv`.
+    pub rows: Option<Vec<Row>>,
+}
+
 /// [`run`], leaving `run.mcap` (with `--record`) open for the caller to finish with the
-/// analysed summary.
-pub fn run_recorded(
-    s: &Scenario,
-    scenario_file: &str,
-    opts: &RunOptions,
-) -> Result<(Summary, Option<Recording>), RunError> {
+/// analysed summary, and handing back the rows kept in memory.
+pub fn run_recorded(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Ran, RunError> {
     let outputs = create_outputs(s, opts)?;
     let prefix = match s.run.transport {
         Transport::Ipc => opts
@@ -417,11 +429,12 @@ pub fn run_recorded(
     if opts.realtime.is_some() {
         cosim::realtime::leave();
     }
-    let finished = obs.recorder.0.finish();
+    let finished = obs.recorder.finish();
     if let (Ok(()), Err(e)) = (&outcome, finished) {
         outcome = Err(Stop::Write(e));
     }
-    let rows = obs.recorder.0.rows_on_disk();
+    let rows = obs.recorder.rows();
+    let kept = obs.recorder.take_kept();
     if let Err(Stop::Link(e)) = &outcome {
         team.log_failure(rows, e);
     }
@@ -446,7 +459,11 @@ pub fn run_recorded(
             summary.error = Some(format!("cannot write {e}"));
         }
     }
-    Ok((summary, mcap.map(|rec| Recording { rec, events })))
+    Ok(Ran {
+        summary,
+        recording: mcap.map(|rec| Recording { rec, events }),
+        rows: kept,
+    })
 }
 
 /// Closes `trace.csv` and draws the latency histogram.

@@ -48,13 +48,52 @@ pub(crate) trait Observer {
     fn after_tick(&mut self, t: &TickRecord, events: &mut EventLog) -> std::io::Result<()>;
 }
 
-/// Streams every tick's [`Row`] to `timeseries.csv`.
-pub(crate) struct RowRecorder(pub Recorder);
+/// Streams every tick's [`Row`] to `timeseries.csv`, or keeps it in memory
+/// (`RunOptions::keep_rows`).
+pub(crate) enum RowRecorder {
+    /// To `timeseries.csv`.
+    File(Box<Recorder>),
+    /// In memory.
+    Kept(Vec<Row>),
+}
+
+impl RowRecorder {
+    /// Writes what is buffered (a no-op in memory).
+    pub fn finish(&mut self) -> std::io::Result<()> {
+        match self {
+            RowRecorder::File(r) => r.finish(),
+            RowRecorder::Kept(_) => Ok(()),
+        }
+    }
+
+    /// Complete rows recorded.
+    pub fn rows(&self) -> u64 {
+        match self {
+            RowRecorder::File(r) => r.rows_on_disk(),
+            RowRecorder::Kept(v) => v.len() as u64,
+        }
+    }
+
+    /// The rows kept in memory, if that is where they went.
+    pub fn take_kept(&mut self) -> Option<Vec<Row>> {
+        match self {
+            RowRecorder::File(_) => None,
+            RowRecorder::Kept(v) => Some(std::mem::take(v)),
+        }
+    }
+}
 
 impl Observer for RowRecorder {
     fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
         let h = t.held;
-        self.0.write(&Row::new(t.k, &h.p, &h.a, &h.c, t.rx))
+        let row = Row::new(t.k, &h.p, &h.a, &h.c, t.rx);
+        match self {
+            RowRecorder::File(r) => r.write(&row),
+            RowRecorder::Kept(v) => {
+                v.push(row);
+                Ok(())
+            }
+        }
     }
 }
 

@@ -32,6 +32,10 @@ pub struct RunOptions {
     pub machine_progress: bool,
     /// Record the run as `run.mcap` (`--record`).
     pub record: bool,
+    /// Keep the rows in memory instead of writing `timeseries.csv` (a sweep's samples, whose
+    /// directories are removed after their analysis): the run's analysis reads them from there
+    /// and no plots are drawn.
+    pub keep_rows: bool,
 }
 
 impl RunOptions {
@@ -50,6 +54,7 @@ impl RunOptions {
             realtime: None,
             machine_progress: false,
             record: false,
+            keep_rows: false,
         }
     }
 }
