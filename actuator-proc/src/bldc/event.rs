@@ -25,12 +25,19 @@
 //! quadrature (exact to degree 3; with the nearly linear currents and voltages of a segment
 //! the link's energy account closes to about 1e-7 over a run).
 //!
-//! Anything outside the usual state (the gates blocked by a protection, a commutation while
-//! the outgoing phase still carries current through its diodes, a floating terminal that
-//! would leave [0, v], the bar near its end stop, speeds where the floating phase's back-EMF
+//! A commutation leaves the outgoing phase carrying current through one of its diodes for up to
+//! a millisecond (at the current limit) while the new pair is regulated: all three phases
+//! conduct into the star point, and the outgoing phase's back-EMF shape moves along its slope,
+//! f_o = f_o0 + k_o Δθ_m. Those segments ([`Consts::transient_series`], [`Bldc::transient`])
+//! carry the products ω·Δθ_m and i_o·Δθ_m as Cauchy products in the same Taylor recursion, and
+//! end when the outgoing current reaches zero (its diode blocks), a comparator switches, a
+//! phase current reaches the over-current trip, or at the events above.
+//!
+//! What is left (the gates blocked by a protection, a floating terminal about to leave [0, v],
+//! a leg not yet gated, the bar near its end stop, speeds where the floating phase's back-EMF
 //! reaches half the link) is taken by the fixed-step model, at [`FALLBACK_STEP`] ×
-//! `dt_switched_s` (at `dt_switched_s` at high speed), until the usual state returns: the same
-//! equations, so the two paths agree where they meet.
+//! `dt_switched_s` (at `dt_switched_s` at high speed), until a segment can start again: the
+//! same equations, so the two paths agree where they meet.
 
 use std::f64::consts::{FRAC_PI_3, FRAC_PI_6, TAU};
 
@@ -267,6 +274,12 @@ enum Event {
     Floating,
     /// The link reached a level; the exact value to put it at.
     Link(f64),
+    /// During a commutation: a comparator switches leg `.0` to `.1`.
+    Leg(usize, Gate),
+    /// During a commutation: the outgoing phase's current reached zero; its diode blocks.
+    DiodeOff,
+    /// During a commutation: a phase current reached the over-current trip level.
+    Trip,
 }
 
 /// The drive's constants as the segment equations use them (no division per segment).
@@ -291,6 +304,10 @@ pub(super) struct Consts {
     k_t: f64,
     two_r: f64,
     b_f: f64,
+    /// λ_p = k_t/2 (V·s/rad per phase), 1/L_s, λ_p/J.
+    lam: f64,
+    inv_l: f64,
+    lam_j: f64,
 }
 
 /// 1/n for the Taylor recursion.
@@ -312,6 +329,9 @@ impl Consts {
             g,
             inv_g: 1.0 / g,
             k_vr_g: k_vr / g,
+            lam: 0.5 * p.k_t,
+            inv_l: 1.0 / p.l_s,
+            lam_j: 0.5 * p.k_t / p.j_rot,
             k_t: p.k_t,
             two_r: 2.0 * p.r_s,
             b_f: p.b_f,
@@ -358,6 +378,61 @@ impl Consts {
             ck = a_x(ck).map(|x| x * inv);
             for k in 0..4 {
                 out[k][n] = ck[k];
+            }
+        }
+        out
+    }
+
+    /// Taylor coefficients of (i_+, i_o, ω, Δθ_m, v) during a commutation: the two commutated
+    /// phases on their legs (`s_p`, `s_m` = 1 at the link, 0 at 0 V) and the outgoing phase on
+    /// its diode (`s_o`), all three conducting into the star point (v_n = Σ(v_x − e_x)/3,
+    /// eq 3 per phase). Its back-EMF shape falls or rises linearly across the sector,
+    /// f_o = f_o0 + k_o Δθ_m, so e_o = λ ω f_o and T_e = λ(2 i_+ + (1 + f_o) i_o) (eq 5) carry
+    /// the products ω·Δθ_m and i_o·Δθ_m, taken into the recursion as Cauchy products.
+    #[allow(clippy::too_many_arguments)]
+    fn transient_series(
+        &self,
+        legs: [f64; 3],
+        (f_o0, k_o): (f64, f64),
+        (g_r, g_ch): (f64, f64),
+        x: [f64; 4],
+        theta_m: f64,
+        psi: f64,
+        v_s: f64,
+    ) -> [Poly; 5] {
+        let [s_p, s_m, s_o] = legs;
+        let sum_s = s_p + s_m + s_o;
+        let g_v = (g_r + g_ch) * self.inv_c;
+        // out[k][n]: state k = (i_+, i_o, ω, Δθ_m, v), coefficient n.
+        let mut out = [[0.0; ORDER + 1]; 5];
+        out[0][0] = x[0];
+        out[1][0] = x[1];
+        out[2][0] = x[2];
+        out[4][0] = x[3];
+        for n in 0..ORDER {
+            let (mut wth, mut ith) = (0.0, 0.0);
+            for j in 0..=n {
+                wth += out[2][j] * out[3][n - j];
+                ith += out[1][j] * out[3][n - j];
+            }
+            let [ip, io, w, th, v] = [out[0][n], out[1][n], out[2][n], out[3][n], out[4][n]];
+            let e_o = self.lam * (f_o0 * w + k_o * wth);
+            let vn = (sum_s * v - e_o) * (1.0 / 3.0);
+            let mut d = [
+                (s_p * v - vn - self.lam * w) * self.inv_l - self.r_l * ip,
+                (s_o * v - vn - e_o) * self.inv_l - self.r_l * io,
+                self.lam_j * (2.0 * ip + (1.0 + f_o0) * io + k_o * ith)
+                    - self.bf_j * w
+                    - self.kappa_j * th,
+                w,
+                -g_v * v - ((s_p - s_m) * ip + (s_o - s_m) * io) * self.inv_c,
+            ];
+            if n == 0 {
+                d[2] -= self.kappa_j * (theta_m - self.g * psi);
+                d[4] += g_r * v_s * self.inv_c;
+            }
+            for k in 0..5 {
+                out[k][n + 1] = d[k] * INV_N[n + 1];
             }
         }
         out
@@ -433,10 +508,10 @@ impl Bldc {
         let (f, sec) = shapes_and_sector_reduced(self.theta_e);
         let (pp, mm) = self.table[sec];
         let off = 3 - pp - mm;
-        if i[off] != 0.0 {
-            return Err(FALLBACK_STEP);
-        }
         self.compare(pp, mm, self.i_ref);
+        if i[off] != 0.0 {
+            return self.transient(psi, left.min(MAX_SEGMENT_S), [pp, mm, off], sec);
+        }
         let v0 = self.link.v;
         let (s, vn_per_v) = match (self.gates[pp], self.gates[mm]) {
             (Gate::Upper, Gate::Lower) => (1.0, 0.5),
@@ -452,39 +527,21 @@ impl Bldc {
         }
         let h = left.min(MAX_SEGMENT_S);
 
-        // The link's state for the segment, decided as its fixed step decides it.
         let k = self.consts;
-        let lp = &self.link.p;
-        if v0 >= lp.chopper_on_v {
-            self.link.chopper_on = true;
-        } else if v0 <= lp.chopper_off_v {
-            self.link.chopper_on = false;
-        }
+        let g_ch = self.chopper();
         let v_s = self.link.v_supply;
-        let g_ch = if self.link.chopper_on { k.g_ch } else { 0.0 };
         let i_pair = i[pp];
-        // The rectifier conducts below the supply voltage, and at it when the link would
-        // otherwise fall.
-        let rect = if v0 == v_s {
-            let dv = -g_ch * v0 - s * i_pair;
-            if dv != 0.0 {
-                dv < 0.0
-            } else {
-                leaving(
-                    &k.series(
-                        s,
-                        0.0,
-                        g_ch,
-                        [i_pair, self.omega, v0],
-                        self.theta_m,
-                        psi,
-                        v_s,
-                    )[3],
-                ) < 0.0
-            }
-        } else {
-            v0 < v_s
-        };
+        let rect = self.rectifier(-g_ch * v0 - s * i_pair, || {
+            k.series(
+                s,
+                0.0,
+                g_ch,
+                [i_pair, self.omega, v0],
+                self.theta_m,
+                psi,
+                v_s,
+            )[3]
+        });
         let g_r = if rect { k.g_r } else { 0.0 };
         let [ci, cw, cth, cv] = k.series(
             s,
@@ -528,17 +585,8 @@ impl Bldc {
         if s <= 0.0 {
             take(reach(&ci, lo, -1.0, h), Event::Lower);
         }
+        let (th, start) = self.sector_events(sec, &cth, h, &mut take);
         let half_pp = 0.5 * self.p.poles as f64;
-        let th = if self.theta_e < FRAC_PI_6 {
-            self.theta_e + TAU
-        } else {
-            self.theta_e
-        };
-        let start = FRAC_PI_6 + FRAC_PI_3 * sec as f64;
-        let d_hi = (start + FRAC_PI_3 - th) / half_pp;
-        let d_lo = (start - th) / half_pp;
-        take(reach(&cth, d_hi, 1.0, h), Event::Commutation(d_hi, 1.0));
-        take(reach(&cth, d_lo, -1.0, h), Event::Commutation(d_lo, -1.0));
         if s == 0.0 {
             // The floating terminal stays inside the link while λ ω f_off keeps the sign that
             // puts it there: up to a zero of ω or of f_off (mid-sector).
@@ -561,29 +609,7 @@ impl Bldc {
                 take(reach(&cth, d_mid, d_mid.signum(), h), Event::Floating);
             }
         }
-        // The link's levels within reach of this segment at all.
-        let lp = &self.link.p;
-        let (on, off, trip) = (lp.chopper_on_v, lp.chopper_off_v, lp.overvoltage_trip_v);
-        let v_reach = (cv[1].abs()
-            + (cv[2].abs() + (cv[3].abs() + (cv[4].abs() + cv[5].abs() * h) * h) * h) * h)
-            * h;
-        let near = |level: f64| (level - v0).abs() <= v_reach;
-        if self.link.chopper_on {
-            if near(off) {
-                take(reach(&cv, off, -1.0, h), Event::Link(off));
-            }
-        } else if near(on) {
-            take(reach(&cv, on, 1.0, h), Event::Link(on));
-        }
-        if near(trip) {
-            take(reach(&cv, trip, 1.0, h), Event::Link(trip.next_up()));
-        }
-        if near(v_s) {
-            take(
-                reach(&cv, v_s, if rect { 1.0 } else { -1.0 }, h),
-                Event::Link(v_s),
-            );
-        }
+        self.link_events(&cv, rect, h, &mut take);
 
         // Integrals over [0, τ] by 2-point Gauss-Legendre.
         let (mut q_i, mut q_p, mut q_cu, mut q_fr, mut q_ld, mut q_r, mut q_ch) =
@@ -616,29 +642,294 @@ impl Bldc {
                 i_end = hi;
                 self.gates[pp] = Gate::Lower;
                 self.gates[mm] = Gate::Upper;
-                self.stats.switchings += 1;
             }
             Event::Lower => {
                 i_end = lo;
                 self.gates[pp] = Gate::Upper;
                 self.gates[mm] = Gate::Lower;
-                self.stats.switchings += 1;
             }
-            Event::Commutation(d, _) => {
-                d_th = d;
-                self.stats.commutations += 1;
-            }
-            Event::Link(level) => {
-                v_end = level;
-                self.stats.link_events += 1;
-            }
-            Event::End | Event::Floating => {}
+            Event::Commutation(d, _) => d_th = d,
+            Event::Link(level) => v_end = level,
+            Event::End | Event::Floating | Event::Leg(..) | Event::DiodeOff | Event::Trip => {}
         }
         self.i[pp] = i_end;
         self.i[mm] = -i_end;
+        self.close(
+            what,
+            th + half_pp * d_th,
+            d_th,
+            w_end,
+            v_end,
+            peak.max(i_end.abs()),
+            v_hi,
+            [q_p, q_cu, q_fr, q_ld, q_r, q_ch],
+        );
+        Ok((tau, k.k_t * q_i, q_p, q_ch))
+    }
+
+    /// One segment of a commutation: the outgoing phase `off` still carries current through
+    /// its diode while the commutated pair `pp`, `mm` is regulated by its comparators, all
+    /// three conducting ([`Consts::transient_series`]), at most `h` long. Ends at the first of:
+    /// the outgoing current reaching zero, a comparator switching, a sector boundary, a link
+    /// level. Returns what [`Bldc::segment`] returns.
+    fn transient(
+        &mut self,
+        psi: f64,
+        h: f64,
+        [pp, mm, off]: [usize; 3],
+        sec: usize,
+    ) -> Result<(f64, f64, f64, f64), f64> {
+        let i = self.i;
+        let (gp, gm) = (self.gates[pp], self.gates[mm]);
+        if gp == Gate::Off || gm == Gate::Off {
+            return Err(FALLBACK_STEP);
+        }
+        let at_link = |g: Gate| if g == Gate::Upper { 1.0 } else { 0.0 };
+        // The outgoing phase's diode: the lower one (0 V) for a positive current, else the upper.
+        let legs = [
+            at_link(gp),
+            at_link(gm),
+            if i[off] < 0.0 { 1.0 } else { 0.0 },
+        ];
+        let k = self.consts;
+        let v0 = self.link.v;
+        let g_ch = self.chopper();
+        let v_s = self.link.v_supply;
+        // f_o across the sector: from its value at the start (±1) linearly to the opposite.
+        let half_pp = 0.5 * self.p.poles as f64;
+        let th = if self.theta_e < FRAC_PI_6 {
+            self.theta_e + TAU
+        } else {
+            self.theta_e
+        };
+        let start = FRAC_PI_6 + FRAC_PI_3 * sec as f64;
+        let f_start = shapes(start + 1e-6)[off].signum();
+        let per_rad_e = -2.0 * f_start / FRAC_PI_3;
+        let shape = (f_start + per_rad_e * (th - start), per_rad_e * half_pp);
+        let x = [i[pp], i[off], self.omega, v0];
+        let i_inv0 = (legs[0] - legs[1]) * i[pp] + (legs[2] - legs[1]) * i[off];
+        let rect = self.rectifier(-g_ch * v0 - i_inv0, || {
+            k.transient_series(legs, shape, (0.0, g_ch), x, self.theta_m, psi, v_s)[4]
+        });
+        let g_r = if rect { k.g_r } else { 0.0 };
+        let [cp, co, cw, cth, cv] =
+            k.transient_series(legs, shape, (g_r, g_ch), x, self.theta_m, psi, v_s);
+        let mut w_max = 0.0;
+        for n in (1..=ORDER).rev() {
+            w_max = (w_max + cw[n].abs()) * h;
+        }
+        if self.theta_m.abs() + (cw[0].abs() + w_max) * h >= self.gear * self.stroke {
+            return Err(FALLBACK_STEP);
+        }
+        let cm: Poly = std::array::from_fn(|n| -cp[n] - co[n]);
+
+        let mut tau = h;
+        let mut what = Event::End;
+        let mut take = |t: Option<f64>, e: Event| {
+            if let Some(t) = t {
+                if t < tau {
+                    tau = t;
+                    what = e;
+                }
+            }
+        };
+        take(reach(&co, 0.0, -i[off].signum(), h), Event::DiodeOff);
+        // Each comparator switches its leg when its phase current leaves the band on the side
+        // its leg drives it to (the + phase to +I_ref, the − phase to −I_ref).
+        let band = 0.5 * self.p.hysteresis_a;
+        for (leg, c, target, g) in [(pp, &cp, self.i_ref, gp), (mm, &cm, -self.i_ref, gm)] {
+            if g == Gate::Upper {
+                take(
+                    reach(c, target + band, 1.0, h),
+                    Event::Leg(leg, Gate::Lower),
+                );
+            } else {
+                take(
+                    reach(c, target - band, -1.0, h),
+                    Event::Leg(leg, Gate::Upper),
+                );
+            }
+        }
+        // The comparators do not bound the three currents here: the over-current protection's
+        // level is an event too.
+        for c in [&cp, &co, &cm] {
+            take(reach(c, self.trip_a, 1.0, h), Event::Trip);
+            take(reach(c, -self.trip_a, -1.0, h), Event::Trip);
+        }
+        self.sector_events(sec, &cth, h, &mut take);
+        self.link_events(&cv, rect, h, &mut take);
+
+        // Integrals over [0, τ] by 2-point Gauss-Legendre.
+        let (f_o0, k_o) = shape;
+        let ds = [legs[0] - legs[1], legs[2] - legs[1]];
+        let mut q = [0.0; 6];
+        let mut q_te = 0.0;
+        let (mut peak, mut v_hi) = (i[0].abs().max(i[1].abs()).max(i[2].abs()), v0);
+        let half = 0.5 * tau;
+        for (xg, wg) in GL_X.iter().zip(GL_W) {
+            let t = half * (1.0 + xg);
+            let w = wg * half;
+            let (ip, io, wt, tht, vt) = (
+                eval(&cp, t),
+                eval(&co, t),
+                eval(&cw, t),
+                eval(&cth, t),
+                eval(&cv, t),
+            );
+            let im = -ip - io;
+            let tl = k.k_vr_g * ((self.theta_m + tht) * k.inv_g - psi);
+            q_te += w * k.lam * (2.0 * ip + (1.0 + f_o0 + k_o * tht) * io);
+            q[0] += w * vt * (ds[0] * ip + ds[1] * io);
+            q[1] += w * 0.5 * k.two_r * (ip * ip + io * io + im * im);
+            q[2] += w * k.b_f * wt * wt;
+            q[3] += w * tl * wt;
+            q[4] += w * vt * g_r * (v_s - vt);
+            q[5] += w * g_ch * vt * vt;
+            peak = peak.max(ip.abs()).max(io.abs()).max(im.abs());
+            v_hi = v_hi.max(vt);
+        }
+
+        let (ip, mut io) = (eval(&cp, tau), eval(&co, tau));
+        let mut d_th = eval(&cth, tau);
+        let mut v_end = eval(&cv, tau);
+        match what {
+            Event::DiodeOff => io = 0.0,
+            Event::Leg(leg, g) => self.gates[leg] = g,
+            Event::Trip => {
+                // As the protection acts on a measured current above the level.
+                self.block();
+                self.limits |= limit::CURRENT | limit::OVERCURRENT_TRIP;
+            }
+            Event::Commutation(d, _) => d_th = d,
+            Event::Link(level) => v_end = level,
+            Event::End | Event::Upper | Event::Lower | Event::Floating => {}
+        }
+        self.i[pp] = ip;
+        self.i[off] = io;
+        self.i[mm] = -ip - io;
+        let i_peak = ip.abs().max(io.abs()).max((ip + io).abs());
+        self.close(
+            what,
+            th + half_pp * d_th,
+            d_th,
+            eval(&cw, tau),
+            v_end,
+            peak.max(i_peak),
+            v_hi,
+            q,
+        );
+        Ok((tau, q_te, q[0], q[5]))
+    }
+
+    /// The chopper's state for a segment, by its hysteresis rule as its fixed step decides
+    /// it; its conductance.
+    fn chopper(&mut self) -> f64 {
+        let (v0, lp) = (self.link.v, &self.link.p);
+        if v0 >= lp.chopper_on_v {
+            self.link.chopper_on = true;
+        } else if v0 <= lp.chopper_off_v {
+            self.link.chopper_on = false;
+        }
+        if self.link.chopper_on {
+            self.consts.g_ch
+        } else {
+            0.0
+        }
+    }
+
+    /// Whether the rectifier conducts over a segment: below the supply voltage, and at it when
+    /// the link would otherwise fall (`dv`: its slope without the rectifier; when 0, the
+    /// series `without` without the rectifier decides).
+    fn rectifier(&self, dv: f64, without: impl FnOnce() -> Poly) -> bool {
+        let (v0, v_s) = (self.link.v, self.link.v_supply);
+        if v0 != v_s {
+            v0 < v_s
+        } else if dv != 0.0 {
+            dv < 0.0
+        } else {
+            leaving(&without()) < 0.0
+        }
+    }
+
+    /// Offers `take` the sector's boundaries (commutations) reached by Δθ_m (`cth`) within
+    /// `h`; returns the electrical angle unwrapped into the sector and the sector's start.
+    fn sector_events(
+        &self,
+        sec: usize,
+        cth: &Poly,
+        h: f64,
+        take: &mut impl FnMut(Option<f64>, Event),
+    ) -> (f64, f64) {
+        let half_pp = 0.5 * self.p.poles as f64;
+        let th = if self.theta_e < FRAC_PI_6 {
+            self.theta_e + TAU
+        } else {
+            self.theta_e
+        };
+        let start = FRAC_PI_6 + FRAC_PI_3 * sec as f64;
+        let d_hi = (start + FRAC_PI_3 - th) / half_pp;
+        let d_lo = (start - th) / half_pp;
+        take(reach(cth, d_hi, 1.0, h), Event::Commutation(d_hi, 1.0));
+        take(reach(cth, d_lo, -1.0, h), Event::Commutation(d_lo, -1.0));
+        (th, start)
+    }
+
+    /// Offers `take` the link's levels the voltage series `cv` reaches within `h`: the
+    /// chopper's threshold, the over-voltage trip and the supply voltage (the rectifier).
+    fn link_events(
+        &self,
+        cv: &Poly,
+        rect: bool,
+        h: f64,
+        take: &mut impl FnMut(Option<f64>, Event),
+    ) {
+        let (v0, v_s, lp) = (cv[0], self.link.v_supply, &self.link.p);
+        let (on, off, trip) = (lp.chopper_on_v, lp.chopper_off_v, lp.overvoltage_trip_v);
+        let mut v_reach = 0.0;
+        for k in (1..=ORDER).rev() {
+            v_reach = (v_reach + cv[k].abs()) * h;
+        }
+        let near = |level: f64| (level - v0).abs() <= v_reach;
+        if self.link.chopper_on {
+            if near(off) {
+                take(reach(cv, off, -1.0, h), Event::Link(off));
+            }
+        } else if near(on) {
+            take(reach(cv, on, 1.0, h), Event::Link(on));
+        }
+        if near(trip) {
+            take(reach(cv, trip, 1.0, h), Event::Link(trip.next_up()));
+        }
+        if near(v_s) {
+            let dir = if rect { 1.0 } else { -1.0 };
+            take(reach(cv, v_s, dir, h), Event::Link(v_s));
+        }
+    }
+
+    /// Ends a segment that ended with `what`: the rotor at ω `w_end`, advanced by `d_th`
+    /// (θ_e at `te`, unwrapped), the link at `v_end`; the peaks and the energy integrals
+    /// `[inverter, copper, friction, load, rectifier, chopper]` booked.
+    #[allow(clippy::too_many_arguments)]
+    fn close(
+        &mut self,
+        what: Event,
+        te: f64,
+        d_th: f64,
+        w_end: f64,
+        v_end: f64,
+        peak: f64,
+        v_hi: f64,
+        q: [f64; 6],
+    ) {
+        match what {
+            Event::Upper | Event::Lower | Event::Leg(..) => self.stats.switchings += 1,
+            Event::Commutation(..) => self.stats.commutations += 1,
+            Event::Link(_) => self.stats.link_events += 1,
+            Event::End | Event::Floating | Event::DiodeOff | Event::Trip => {}
+        }
         self.omega = w_end;
         self.theta_m += d_th;
-        let mut te = th + half_pp * d_th;
+        let mut te = te;
         if let Event::Commutation(_, dir) = what {
             // Past the boundary by a hair, so that the new sector is the one computed next.
             te += dir * 1e-12;
@@ -652,11 +943,12 @@ impl Bldc {
             te
         };
         self.link.v = v_end;
-        self.peak = self.peak.max(peak).max(i_end.abs());
+        self.peak = self.peak.max(peak);
         self.v_max = self.v_max.max(v_hi).max(v_end);
         if peak >= self.p.current_limit_a {
             self.limits |= limit::CURRENT;
         }
+        let [q_p, q_cu, q_fr, q_ld, q_r, q_ch] = q;
         self.energy.electrical_in += q_p;
         self.energy.copper += q_cu;
         self.energy.friction += q_fr;
@@ -665,7 +957,6 @@ impl Bldc {
         self.link.energy.chopper += q_ch;
         self.link.energy.inverter += q_p;
         self.stats.segments += 1;
-        Ok((tau, k.k_t * q_i, q_p, q_ch))
     }
 }
 
