@@ -72,39 +72,47 @@ fn bench_measures_every_master_and_wait_strategy_and_both_transports() {
 
 #[test]
 fn ping_pong_measures_the_one_way_latency_of_every_payload_size() {
-    let dir = tiltsim_suite::temp_dir("pingpong");
-    let out = dir.join("pp.json");
-    let (code, stdout, err) = tiltsim_suite::run(&[
-        "bench",
-        "--ping-pong",
-        "--rounds",
-        "2000",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{err}");
-    assert!(
-        stdout.contains("machine:") && stdout.contains("| 4096 |"),
-        "{stdout}"
-    );
-    let r: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
-    let sizes: Vec<u64> = r["ping_pong"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["payload_bytes"].as_u64().unwrap())
-        .collect();
-    assert_eq!(sizes, [64, 256, 1024, 4096]);
-    for s in r["ping_pong"].as_array().unwrap() {
-        let p = &s["one_way_ns"];
-        // Every round trip after the warm-up tenth is counted.
-        assert_eq!(p["n"], 2000, "{s}");
-        let (p50, p99, max) = (
-            p["p50"].as_f64().unwrap(),
-            p["p99"].as_f64().unwrap(),
-            p["max"].as_f64().unwrap(),
+    // On their own CPUs (iceoryx2's benchmark) and on one CPU (the cost of handing it over).
+    for same_cpu in [false, true] {
+        let dir = tiltsim_suite::temp_dir(&format!("pingpong-{same_cpu}"));
+        let out = dir.join("pp.json");
+        let mut args = vec![
+            "bench",
+            "--ping-pong",
+            "--rounds",
+            "2000",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        if same_cpu {
+            args.push("--same-cpu");
+        }
+        let (code, stdout, err) = tiltsim_suite::run(&args);
+        assert_eq!(code, 0, "{err}");
+        assert!(
+            stdout.contains("machine:") && stdout.contains("| 4096 |"),
+            "{stdout}"
         );
-        assert!(0.0 < p50 && p50 <= p99 && p99 <= max, "{s}");
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+        assert_eq!(r["same_cpu"], same_cpu);
+        let sizes: Vec<u64> = r["ping_pong"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s["payload_bytes"].as_u64().unwrap())
+            .collect();
+        assert_eq!(sizes, [64, 256, 1024, 4096]);
+        for s in r["ping_pong"].as_array().unwrap() {
+            let p = &s["one_way_ns"];
+            // Every round trip after the warm-up tenth is counted.
+            assert_eq!(p["n"], 2000, "{s}");
+            let (p50, p99, max) = (
+                p["p50"].as_f64().unwrap(),
+                p["p99"].as_f64().unwrap(),
+                p["max"].as_f64().unwrap(),
+            );
+            assert!(0.0 < p50 && p50 <= p99 && p99 <= max, "{s}");
+        }
     }
 }

@@ -203,6 +203,15 @@ pub trait Endpoint<I: Message, O: Message> {
     fn starved_waits(&self) -> u64 {
         0
     }
+    /// Tells the endpoint whether its participant now runs on the orchestrator's CPU. A
+    /// waiter that shares a CPU with the process it waits for yields at once, since spinning
+    /// would only delay that process. Changes how the orchestrator waits, never what it gets.
+    fn set_shares_cpu(&mut self, _shared: bool) {}
+    /// Waits (yielding the CPU) until a reply is pending, the participant is gone, or the
+    /// deadline or 2 ms have passed, without taking the reply. The orchestrator lets participants that
+    /// share its CPU answer first while another computes elsewhere; [`Endpoint::receive`]
+    /// then takes and checks the replies in the algorithm's order.
+    fn await_pending(&mut self) {}
 }
 
 /// In-process transport: the model runs inside the orchestrator's process, on `send`.

@@ -114,6 +114,7 @@ impl IpcHub {
             req,
             rep,
             wait: self.settings.wait,
+            spin_polls: crate::wait::SPIN_POLLS,
             deadline: self.settings.deadline,
             ceiling: self.settings.ceiling,
             starved_waits: 0,
@@ -157,6 +158,8 @@ pub struct IpcEndpoint<I: Message, O: Message> {
     req: PubSubFactory<ipc::Service, I, ()>,
     rep: PubSubFactory<ipc::Service, O, ()>,
     wait: WaitStrategy,
+    /// Polls spent spinning before yielding: 0 when the participant shares this CPU.
+    spin_polls: u32,
     deadline: Duration,
     ceiling: Duration,
     /// Times a reply was late but the participant was running (starved, not hung).
@@ -256,7 +259,7 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         })
     }
     fn receive(&mut self, step: u64, kind: Kind) -> Result<O, LinkError> {
-        let mut backoff = Backoff::new(self.wait);
+        let mut backoff = Backoff::with_spin(self.wait, self.spin_polls);
         let mut found = None;
         let mut look_at = self.deadline;
         let mut last_cpu: Option<u64> = None;
@@ -315,6 +318,21 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
     }
     fn starved_waits(&self) -> u64 {
         self.starved_waits
+    }
+    fn set_shares_cpu(&mut self, shared: bool) {
+        self.spin_polls = if shared { 0 } else { crate::wait::SPIN_POLLS };
+    }
+    fn await_pending(&mut self) {
+        // Bounded well below the deadline: a participant that does not answer soon is left
+        // to `receive`, which tells a dead, stalled or starved one apart.
+        let started = Instant::now();
+        let limit = self.deadline.min(crate::wait::YIELD_FOR);
+        while self.exit.is_none()
+            && !self.subscriber.has_samples().unwrap_or(true)
+            && started.elapsed() < limit
+        {
+            std::thread::yield_now();
+        }
     }
     fn inject(&mut self, fault: ProcessFault) {
         let pid = self.pid as libc::pid_t;

@@ -3,7 +3,9 @@
 //! latency is half the round trip. Payloads of 64 B to 4 KB, each written whole into loaned
 //! memory and sent (`loan_uninit`, `write_payload`, `send`), read in place on the other side.
 //! `tiltsim bench --ping-pong` runs it, so a user can put their machine next to the published
-//! figures.
+//! figures. With `--same-cpu` both processes share one CPU and yield it while they wait: the
+//! one-way latency is then the cost of handing a CPU from one process to another, the floor
+//! of every exchange with a participant that shares its CPU with another process.
 
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
@@ -98,20 +100,32 @@ fn send<T: Sized_>(p: &Publisher<ipc::Service, T, ()>, seq: u64) -> Result<(), I
     Ok(())
 }
 
-/// Spins until a sample arrives; returns its sequence number.
-fn receive<T: Sized_>(s: &Subscriber<ipc::Service, T, ()>) -> Result<u64, IpcError> {
+/// How a side waits for the other's sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Waiting {
+    /// Busy-wait (each process on its own CPU), as iceoryx2's benchmark.
+    Spin,
+    /// `sched_yield` between polls (both processes on one CPU).
+    Yield,
+}
+
+/// Polls until a sample arrives; returns its sequence number.
+fn receive<T: Sized_>(s: &Subscriber<ipc::Service, T, ()>, w: Waiting) -> Result<u64, IpcError> {
     loop {
         if let Some(sample) = s.receive().map_err(iox("receive"))? {
             return Ok(sample.payload().seq());
         }
-        core::hint::spin_loop();
+        match w {
+            Waiting::Spin => core::hint::spin_loop(),
+            Waiting::Yield => std::thread::yield_now(),
+        }
     }
 }
 
-fn echo_one<T: Sized_>(node: &Node<ipc::Service>) -> Result<(), IpcError> {
+fn echo_one<T: Sized_>(node: &Node<ipc::Service>, w: Waiting) -> Result<(), IpcError> {
     let (publisher, subscriber) = ports::<T>(node, "pong", "ping")?;
     loop {
-        let seq = receive(&subscriber)?;
+        let seq = receive(&subscriber, w)?;
         send(&publisher, seq)?;
         if seq == DONE {
             return Ok(());
@@ -120,17 +134,21 @@ fn echo_one<T: Sized_>(node: &Node<ipc::Service>) -> Result<(), IpcError> {
 }
 
 /// The echo side (`tiltsim bench-echo`): answers every ping of every size with a pong.
-pub fn echo(prefix: &str) -> Result<(), IpcError> {
+pub fn echo(prefix: &str, w: Waiting) -> Result<(), IpcError> {
     let cfg = config(prefix)?;
     let node = node(&cfg, "pingpong-echo")?;
-    echo_one::<P64>(&node)?;
-    echo_one::<P256>(&node)?;
-    echo_one::<P1024>(&node)?;
-    echo_one::<P4096>(&node)
+    echo_one::<P64>(&node, w)?;
+    echo_one::<P256>(&node, w)?;
+    echo_one::<P1024>(&node, w)?;
+    echo_one::<P4096>(&node, w)
 }
 
 /// One-way latencies (ns) of `rounds` round trips of `T`, after a handshake and warm-up.
-fn measure_one<T: Sized_>(node: &Node<ipc::Service>, rounds: usize) -> Result<Vec<f64>, IpcError> {
+fn measure_one<T: Sized_>(
+    node: &Node<ipc::Service>,
+    rounds: usize,
+    w: Waiting,
+) -> Result<Vec<f64>, IpcError> {
     let (publisher, subscriber) = ports::<T>(node, "ping", "pong")?;
     // Handshake: samples sent before the echo subscribes are lost; ping until a pong comes.
     let started = std::time::Instant::now();
@@ -142,6 +160,9 @@ fn measure_one<T: Sized_>(node: &Node<ipc::Service>, rounds: usize) -> Result<Ve
                 if s.payload().seq() == 0 {
                     break 'hand;
                 }
+            }
+            if w == Waiting::Yield {
+                std::thread::yield_now();
             }
         }
         if started.elapsed() > std::time::Duration::from_secs(10) {
@@ -157,7 +178,7 @@ fn measure_one<T: Sized_>(node: &Node<ipc::Service>, rounds: usize) -> Result<Ve
     for i in 1..=(rounds + rounds / 10) as u64 {
         let t0 = std::time::Instant::now();
         send(&publisher, i)?;
-        let got = receive(&subscriber)?;
+        let got = receive(&subscriber, w)?;
         let rtt = t0.elapsed().as_nanos() as f64;
         if got != i {
             return Err(IpcError::Iceoryx(format!(
@@ -170,19 +191,19 @@ fn measure_one<T: Sized_>(node: &Node<ipc::Service>, rounds: usize) -> Result<Ve
         }
     }
     send(&publisher, DONE)?;
-    let _ = receive(&subscriber);
+    let _ = receive(&subscriber, w);
     Ok(out)
 }
 
 /// The measuring side: one-way latencies (ns) per size in [`SIZES`], `rounds` each; the echo
-/// process must be running with the same `prefix`.
-pub fn measure(prefix: &str, rounds: usize) -> Result<Vec<Vec<f64>>, IpcError> {
+/// process must be running with the same `prefix` and waiting `w`.
+pub fn measure(prefix: &str, rounds: usize, w: Waiting) -> Result<Vec<Vec<f64>>, IpcError> {
     let cfg = config(prefix)?;
     let node = node(&cfg, "pingpong")?;
     Ok(vec![
-        measure_one::<P64>(&node, rounds)?,
-        measure_one::<P256>(&node, rounds)?,
-        measure_one::<P1024>(&node, rounds)?,
-        measure_one::<P4096>(&node, rounds)?,
+        measure_one::<P64>(&node, rounds, w)?,
+        measure_one::<P256>(&node, rounds, w)?,
+        measure_one::<P1024>(&node, rounds, w)?,
+        measure_one::<P4096>(&node, rounds, w)?,
     ])
 }

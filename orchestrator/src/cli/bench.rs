@@ -2,6 +2,8 @@
 
 use std::path::PathBuf;
 
+use cosim::ipc::pingpong::Waiting;
+
 use super::common::{load, write_json};
 use super::error::{CliError, CliResult};
 
@@ -21,6 +23,10 @@ pub struct BenchArgs {
     /// their own CPUs, busy-waiting, one-way latency for 64 B to 4 KB.
     #[arg(long)]
     ping_pong: bool,
+    /// With --ping-pong: both processes on one CPU, yielding it while they wait. The one-way
+    /// latency is then the cost of handing the CPU from one process to the other.
+    #[arg(long, requires = "ping_pong")]
+    same_cpu: bool,
     /// Round trips per size with --ping-pong.
     #[arg(long, default_value_t = 100_000)]
     rounds: usize,
@@ -42,6 +48,9 @@ pub struct EchoArgs {
     /// CPU to pin to.
     #[arg(long)]
     cpu: Option<usize>,
+    /// Yield between polls instead of spinning (`bench --ping-pong --same-cpu`).
+    #[arg(long = "yield")]
+    yielding: bool,
 }
 
 /// Runs the echo side.
@@ -49,10 +58,17 @@ pub fn echo(a: EchoArgs) -> CliResult {
     if let Some(c) = a.cpu {
         cosim::ipc::pin_to_cpu(c);
     }
-    cosim::ipc::pingpong::echo(&a.prefix).map_err(|e| CliError::Failed(format!("bench-echo: {e}")))
+    let w = if a.yielding {
+        Waiting::Yield
+    } else {
+        Waiting::Spin
+    };
+    cosim::ipc::pingpong::echo(&a.prefix, w)
+        .map_err(|e| CliError::Failed(format!("bench-echo: {e}")))
 }
 
-/// `--ping-pong`: the echo process on the last CPU, this one on the first.
+/// `--ping-pong`: the echo process on the last CPU, this one on the first (`--same-cpu`: both
+/// on the first).
 fn ping_pong(a: &BenchArgs, exe: &std::path::Path) -> CliResult {
     if !(100..=10_000_000).contains(&a.rounds) {
         return Err(CliError::Invalid(format!(
@@ -64,16 +80,23 @@ fn ping_pong(a: &BenchArgs, exe: &std::path::Path) -> CliResult {
     let prefix = cosim::ipc::unique_prefix();
     let mut cmd = std::process::Command::new(exe);
     cmd.args(["bench-echo", "--prefix", &prefix]);
+    let w = if a.same_cpu {
+        cmd.arg("--yield");
+        Waiting::Yield
+    } else {
+        Waiting::Spin
+    };
     if let (Some(first), Some(last)) = (cpus.first(), cpus.last()) {
-        if first != last {
-            cmd.args(["--cpu", &last.to_string()]);
+        let echo_cpu = if a.same_cpu { first } else { last };
+        if first != last || a.same_cpu {
+            cmd.args(["--cpu", &echo_cpu.to_string()]);
             cosim::ipc::pin_to_cpu(*first);
         }
     }
     let mut child = cmd
         .spawn()
         .map_err(|e| CliError::Failed(format!("bench: cannot start the echo process: {e}")))?;
-    let result = cosim::ipc::pingpong::measure(&prefix, a.rounds);
+    let result = cosim::ipc::pingpong::measure(&prefix, a.rounds, w);
     if result.is_err() {
         let _ = child.kill();
     }
@@ -82,8 +105,13 @@ fn ping_pong(a: &BenchArgs, exe: &std::path::Path) -> CliResult {
     cosim::ipc::remove_run_files(&prefix);
     let lat = result.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
     let machine = crate::bench::Machine::this();
+    let placement = if a.same_cpu {
+        "both processes on one CPU, yielding it while they wait"
+    } else {
+        "two processes on their own CPUs, busy-waiting"
+    };
     println!(
-        "iceoryx2 ping-pong, two processes on their own CPUs, busy-waiting, {} round trips per size\nmachine: {}, {} logical CPUs, Linux {}\n\n| payload (B) | one-way p50 (ns) | p99 (ns) | max (ns) |\n|---|---|---|---|",
+        "iceoryx2 ping-pong, {placement}, {} round trips per size\nmachine: {}, {} logical CPUs, Linux {}\n\n| payload (B) | one-way p50 (ns) | p99 (ns) | max (ns) |\n|---|---|---|---|",
         a.rounds, machine.cpu_model, machine.logical_cpus, machine.kernel
     );
     let mut sizes = Vec::new();
@@ -100,7 +128,12 @@ fn ping_pong(a: &BenchArgs, exe: &std::path::Path) -> CliResult {
     }
     write_json(
         &a.out,
-        &serde_json::json!({ "ping_pong": sizes, "rounds": a.rounds, "machine": machine }),
+        &serde_json::json!({
+            "ping_pong": sizes,
+            "rounds": a.rounds,
+            "same_cpu": a.same_cpu,
+            "machine": machine,
+        }),
     )?;
     println!("wrote {}", a.out.display());
     Ok(())

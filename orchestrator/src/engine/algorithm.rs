@@ -11,6 +11,7 @@ use cosim::{Kind, LinkError};
 
 use super::team::{actuator, controller, plant, Team};
 use crate::links::LinkId;
+use crate::roles::RoleMap;
 use crate::scenario::Master;
 
 /// What a tick's exchanges leave besides the held outputs.
@@ -213,6 +214,13 @@ impl Jacobi {
     /// Collects the replies to `p`'s requests into the held outputs.
     pub(crate) fn collect(team: &mut Team, p: Posted) -> Result<TickIo, LinkError> {
         debug_assert_eq!(p.to_p.header.step, p.k);
+        // Participants on the orchestrator's CPU answer while a heavy one computes on its own;
+        // the replies are then taken in this fixed order, whatever the placement.
+        team.ps.await_colocated(RoleMap::new([
+            p.tp.is_some(),
+            p.ta.is_some(),
+            p.tc.is_some(),
+        ]));
         if p.due {
             team.held.c = team.answer(controller, p.io.to_controller, p.tc)?;
         }

@@ -66,12 +66,37 @@ pub(crate) struct Participants {
     pub controller: ControllerEp,
     /// The transport's hub (IPC only).
     pub hub: Option<IpcHub>,
+    /// Which participants run on the orchestrator's CPU (set by the CPU plan).
+    shares_cpu: RoleMap<bool>,
 }
 
 impl Participants {
     /// Process ids (this process's for in-process participants).
     pub fn pids(&self) -> RoleMap<u32> {
         RoleMap::new([self.plant.pid(), self.actuator.pid(), self.controller.pid()])
+    }
+
+    /// Records which participants now run on the orchestrator's CPU: the orchestrator yields
+    /// at once while it waits for them.
+    pub fn set_shares_cpu(&mut self, shared: RoleMap<bool>) {
+        self.plant.set_shares_cpu(shared[Role::Plant]);
+        self.actuator.set_shares_cpu(shared[Role::Actuator]);
+        self.controller.set_shares_cpu(shared[Role::Controller]);
+        self.shares_cpu = shared;
+    }
+
+    /// Lets the participants among `pending` that share the orchestrator's CPU answer first
+    /// (their replies are waited for, not taken), while the others compute on theirs.
+    pub fn await_colocated(&mut self, pending: RoleMap<bool>) {
+        for r in Role::ALL {
+            if pending[r] && self.shares_cpu[r] {
+                match r {
+                    Role::Plant => self.plant.await_pending(),
+                    Role::Actuator => self.actuator.await_pending(),
+                    Role::Controller => self.controller.await_pending(),
+                }
+            }
+        }
     }
 
     /// Late replies waited for because the participant was running, per role.
@@ -153,6 +178,7 @@ pub(crate) fn start(
                 actuator,
                 controller,
                 hub: None,
+                shares_cpu: RoleMap::default(),
             })
         }
         Transport::Ipc => {
@@ -224,6 +250,7 @@ pub(crate) fn start(
                 actuator: Box::new(actuator),
                 controller: Box::new(controller),
                 hub: Some(hub),
+                shares_cpu: RoleMap::default(),
             })
         }
     }

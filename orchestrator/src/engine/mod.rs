@@ -159,10 +159,12 @@ fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Res
             started,
             exchanges: &team.exchanges,
         };
+        let recording = Instant::now();
         obs.after_tick(&record, &mut team.events)
             .map_err(Stop::Write)?;
+        let own_ns = recording.elapsed().as_nanos() as u64;
         if let Some(plan) = &mut obs.cpu_plan {
-            plan.observe(&record.compute_ns, &team.ps.pids());
+            plan.observe(&record.compute_ns, own_ns, &mut team.ps);
         }
         team.exchanges.clear();
     }
@@ -234,10 +236,12 @@ fn lockstep_pipelined(
             started: started + next_post_time,
             exchanges: &tick_exchanges,
         };
+        let recording = Instant::now();
         obs.after_tick(&record, &mut team.events)
             .map_err(Stop::Write)?;
+        let own_ns = recording.elapsed().as_nanos() as u64;
         if let Some(plan) = &mut obs.cpu_plan {
-            plan.observe(&record.compute_ns, &team.ps.pids());
+            plan.observe(&record.compute_ns, own_ns, &mut team.ps);
         }
         team.events.append(next_events);
         match next {
