@@ -42,6 +42,25 @@ fn bench_measures_every_master_and_wait_strategy_and_both_transports() {
         assert_eq!(ticks, want, "{c}");
     }
     assert_eq!(seen.len(), 7);
+    // Three rounds (the default) of the runs the ratios compare; each wall is the median of
+    // its rounds, the first round being the configuration's own run in the table.
+    let rounds = &r["wall_rounds"];
+    for (list, wall, cfg) in [
+        ("in_process_s", "wall_in_process_s", 0),
+        ("ipc_gauss_seidel_s", "wall_ipc_s", 1),
+        ("ipc_jacobi_s", "wall_ipc_jacobi_s", 4),
+    ] {
+        let mut v: Vec<f64> = rounds[list]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        assert_eq!(v.len(), 3, "{rounds}");
+        assert_eq!(v[0], configs[cfg]["wall_s"].as_f64().unwrap(), "{rounds}");
+        v.sort_by(f64::total_cmp);
+        assert_eq!(r[wall].as_f64().unwrap(), v[1], "{list}: {rounds}");
+    }
     // The ratio is the two wall times it names, and the floor is the best IPC round trip.
     let ratio = r["wall_ipc_s"].as_f64().unwrap() / r["wall_in_process_s"].as_f64().unwrap();
     assert!((r["ipc_over_in_process"].as_f64().unwrap() - ratio).abs() < 1e-9 * ratio);
@@ -68,6 +87,14 @@ fn bench_measures_every_master_and_wait_strategy_and_both_transports() {
         }
     }
     assert!(!dir.join("bench.runs").exists(), "scratch runs removed");
+    // The machine's own floors beside them, for a sample of tiltsim's size.
+    let f = &r["machine_floors"];
+    assert_eq!(f["payload_bytes"], 256, "{f}");
+    for k in ["one_way_cross_cpu_us", "one_way_same_cpu_us"] {
+        let v = f[k].as_f64().unwrap();
+        assert!(v.is_finite() && v > 0.0, "{f}");
+    }
+    assert!(stdout.contains("machine floors"), "{stdout}");
 }
 
 #[test]

@@ -65,16 +65,66 @@ pub struct Report {
     pub ipc_round_trip_floor_us: f64,
     /// Every configuration.
     pub configs: Vec<Config>,
-    /// Wall time in-process (s), Gauss-Seidel.
+    /// Wall time in-process (s), Gauss-Seidel: the median of its rounds.
     pub wall_in_process_s: f64,
-    /// Wall time across processes (s), Gauss-Seidel, adaptive wait.
+    /// Wall time across processes (s), Gauss-Seidel, adaptive wait: the median of its rounds.
     pub wall_ipc_s: f64,
     /// `wall_ipc_s / wall_in_process_s`.
     pub ipc_over_in_process: f64,
-    /// Wall time across processes (s), Jacobi (pipelined, measured CPU plan), adaptive wait.
+    /// Wall time across processes (s), Jacobi (pipelined, measured CPU plan), adaptive wait:
+    /// the median of its rounds.
     pub wall_ipc_jacobi_s: f64,
     /// `wall_ipc_jacobi_s / wall_in_process_s`.
     pub jacobi_ipc_over_in_process: f64,
+    /// Every round's wall time of the three configurations the ratios compare.
+    pub wall_rounds: WallRounds,
+    /// The machine's ping-pong floors, measured after the configurations (`tiltsim bench`).
+    pub machine_floors: Option<MachineFloors>,
+}
+
+/// The wall times (s) of each round of the configurations the ratios compare, in run order.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct WallRounds {
+    /// In-process, Gauss-Seidel.
+    pub in_process_s: Vec<f64>,
+    /// IPC, Gauss-Seidel, adaptive wait.
+    pub ipc_gauss_seidel_s: Vec<f64>,
+    /// IPC, Jacobi, adaptive wait.
+    pub ipc_jacobi_s: Vec<f64>,
+}
+
+impl WallRounds {
+    fn add(&mut self, t: Transport, m: Master, w: WaitStrategy, wall_s: f64) {
+        let list = match (t, m, w) {
+            (Transport::InProcess, _, _) => &mut self.in_process_s,
+            (Transport::Ipc, Master::GaussSeidel, WaitStrategy::Adaptive) => {
+                &mut self.ipc_gauss_seidel_s
+            }
+            (Transport::Ipc, Master::Jacobi, WaitStrategy::Adaptive) => &mut self.ipc_jacobi_s,
+            _ => return,
+        };
+        list.push(wall_s);
+    }
+}
+
+/// The median of `v` (the lower of the middle two), NaN when empty.
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    v.get((v.len().max(1) - 1) / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// The machine's iceoryx2 floors beside a scenario's figures (`tiltsim bench --ping-pong`).
+#[derive(Debug, Clone, Serialize)]
+pub struct MachineFloors {
+    /// Payload measured (bytes).
+    pub payload_bytes: usize,
+    /// One-way p50 between two processes busy-waiting on their own CPUs (µs).
+    pub one_way_cross_cpu_us: f64,
+    /// One-way p50 between two processes on one CPU, yielding it while they wait (µs): the
+    /// cost of handing a CPU from one process to another, which every tick pays where more
+    /// processes than CPUs take part.
+    pub one_way_same_cpu_us: f64,
 }
 
 /// Why a configuration could not be measured.
@@ -115,10 +165,14 @@ fn measure(s: &Scenario, exe: &Path, dir: &Path, config: &str) -> Result<Summary
     Ok(sum)
 }
 
-/// Runs every configuration; `progress` is told each one's name.
+/// Runs every configuration once, then `rounds − 1` more rounds of the three that the wall-time
+/// ratios compare (in-process, IPC Gauss-Seidel and IPC Jacobi, adaptive wait), one after the
+/// other, so that a shared machine's drift falls on all three alike; the ratios are those of
+/// the median walls. `progress` is told each run's name.
 pub fn run(
     base: &Scenario,
     duration: f64,
+    rounds: usize,
     exe: &Path,
     scratch: &Path,
     mut progress: impl FnMut(&str),
@@ -138,9 +192,7 @@ pub fn run(
         }
     }
     let mut configs = Vec::new();
-    let mut wall_local = 0.0;
-    let mut wall_ipc = 0.0;
-    let mut wall_jacobi = 0.0;
+    let mut walls = WallRounds::default();
     for (i, (t, m, w)) in plan.into_iter().enumerate() {
         let mut s = base.clone();
         // Spinning waiters on a 2-CPU machine starve each other (a tick costs whole
@@ -158,13 +210,7 @@ pub fn run(
         let sum = measure(&s, exe, &scratch.join(format!("config-{i}")), &name)?;
         let plant = &sum.link_latency[0];
         let compute = sum.participants[0].compute_us.p50;
-        if t == Transport::InProcess {
-            wall_local = sum.wall_time_s;
-        } else if m == Master::GaussSeidel && w == WaitStrategy::Adaptive {
-            wall_ipc = sum.wall_time_s;
-        } else if m == Master::Jacobi && w == WaitStrategy::Adaptive {
-            wall_jacobi = sum.wall_time_s;
-        }
+        walls.add(t, m, w, sum.wall_time_s);
         configs.push(Config {
             transport: t.name(),
             master: m.name(),
@@ -184,6 +230,29 @@ pub fn run(
             overhead_over_floor: None,
         });
     }
+    for round in 1..rounds {
+        for (t, m) in [
+            (Transport::InProcess, Master::GaussSeidel),
+            (Transport::Ipc, Master::GaussSeidel),
+            (Transport::Ipc, Master::Jacobi),
+        ] {
+            let mut s = base.clone();
+            s.run.duration_s = Some(duration);
+            s.run.transport = t;
+            s.run.master = m;
+            s.run.wait = WaitStrategy::Adaptive;
+            let name = format!("{} {} adaptive, round {}", t.name(), m.name(), round + 1);
+            progress(&name);
+            let dir = scratch.join(format!("round-{round}-{}-{}", t.name(), m.name()));
+            let sum = measure(&s, exe, &dir, &name)?;
+            walls.add(t, m, WaitStrategy::Adaptive, sum.wall_time_s);
+        }
+    }
+    let (wall_local, wall_ipc, wall_jacobi) = (
+        median(&walls.in_process_s),
+        median(&walls.ipc_gauss_seidel_s),
+        median(&walls.ipc_jacobi_s),
+    );
     let floor = configs
         .iter()
         .filter(|c| c.transport == "ipc")
@@ -220,6 +289,8 @@ pub fn run(
         } else {
             f64::NAN
         },
+        wall_rounds: walls,
+        machine_floors: None,
     })
 }
 
@@ -288,15 +359,24 @@ pub fn table(r: &Report) -> String {
     let _ = writeln!(
         s,
         "\niceoryx2 round-trip floor (best p50 over the IPC configurations): {:.2} µs\n\
-         wall time: in-process {:.3} s, IPC (gauss-seidel, adaptive) {:.3} s, ratio {:.2}; \
+         wall time, median of {} round(s): in-process {:.3} s, IPC (gauss-seidel, adaptive) {:.3} s, ratio {:.2}; \
          IPC (jacobi, adaptive) {:.3} s, ratio {:.2}",
         r.ipc_round_trip_floor_us,
+        r.wall_rounds.in_process_s.len(),
         r.wall_in_process_s,
         r.wall_ipc_s,
         r.ipc_over_in_process,
         r.wall_ipc_jacobi_s,
         r.jacobi_ipc_over_in_process
     );
+    if let Some(f) = &r.machine_floors {
+        let _ = writeln!(
+            s,
+            "machine floors (iceoryx2 ping-pong, {} B, one way p50): {:.2} µs between processes \
+             busy-waiting on their own CPUs, {:.2} µs handing one CPU from one process to another",
+            f.payload_bytes, f.one_way_cross_cpu_us, f.one_way_same_cpu_us
+        );
+    }
     s
 }
 

@@ -16,6 +16,10 @@ pub struct BenchArgs {
     /// Simulated seconds per configuration.
     #[arg(long, default_value_t = 2.0)]
     duration: f64,
+    /// Rounds of the three runs the wall-time ratios compare (in-process, IPC Gauss-Seidel, IPC
+    /// Jacobi), run one after the other; the ratios are those of the median walls.
+    #[arg(long, default_value_t = 3)]
+    repeat: usize,
     /// JSON report.
     #[arg(long, default_value = "out/bench.json")]
     out: PathBuf,
@@ -67,6 +71,44 @@ pub fn echo(a: EchoArgs) -> CliResult {
         .map_err(|e| CliError::Failed(format!("bench-echo: {e}")))
 }
 
+/// One-way latencies (ns) per size of `rounds` ping-pong round trips: the echo process on the
+/// last CPU and this one on the first, busy-waiting; with `same_cpu` both on the first,
+/// yielding.
+fn ping_pong_latencies(
+    exe: &std::path::Path,
+    rounds: usize,
+    same_cpu: bool,
+) -> Result<Vec<Vec<f64>>, CliError> {
+    let cpus = cosim::ipc::allowed_cpus();
+    let prefix = cosim::ipc::unique_prefix();
+    let mut cmd = std::process::Command::new(exe);
+    cmd.args(["bench-echo", "--prefix", &prefix]);
+    let w = if same_cpu {
+        cmd.arg("--yield");
+        Waiting::Yield
+    } else {
+        Waiting::Spin
+    };
+    if let (Some(first), Some(last)) = (cpus.first(), cpus.last()) {
+        let echo_cpu = if same_cpu { first } else { last };
+        if first != last || same_cpu {
+            cmd.args(["--cpu", &echo_cpu.to_string()]);
+            cosim::ipc::pin_to_cpu(*first);
+        }
+    }
+    let mut child = cmd
+        .spawn()
+        .map_err(|e| CliError::Failed(format!("bench: cannot start the echo process: {e}")))?;
+    let result = cosim::ipc::pingpong::measure(&prefix, rounds, w);
+    if result.is_err() {
+        let _ = child.kill();
+    }
+    let _ = child.wait();
+    cosim::ipc::set_cpus(&cpus);
+    cosim::ipc::remove_run_files(&prefix);
+    result.map_err(|e| CliError::Failed(format!("bench: {e}")))
+}
+
 /// `--ping-pong`: the echo process on the last CPU, this one on the first (`--same-cpu`: both
 /// on the first).
 fn ping_pong(a: &BenchArgs, exe: &std::path::Path) -> CliResult {
@@ -76,34 +118,7 @@ fn ping_pong(a: &BenchArgs, exe: &std::path::Path) -> CliResult {
             a.rounds
         )));
     }
-    let cpus = cosim::ipc::allowed_cpus();
-    let prefix = cosim::ipc::unique_prefix();
-    let mut cmd = std::process::Command::new(exe);
-    cmd.args(["bench-echo", "--prefix", &prefix]);
-    let w = if a.same_cpu {
-        cmd.arg("--yield");
-        Waiting::Yield
-    } else {
-        Waiting::Spin
-    };
-    if let (Some(first), Some(last)) = (cpus.first(), cpus.last()) {
-        let echo_cpu = if a.same_cpu { first } else { last };
-        if first != last || a.same_cpu {
-            cmd.args(["--cpu", &echo_cpu.to_string()]);
-            cosim::ipc::pin_to_cpu(*first);
-        }
-    }
-    let mut child = cmd
-        .spawn()
-        .map_err(|e| CliError::Failed(format!("bench: cannot start the echo process: {e}")))?;
-    let result = cosim::ipc::pingpong::measure(&prefix, a.rounds, w);
-    if result.is_err() {
-        let _ = child.kill();
-    }
-    let _ = child.wait();
-    cosim::ipc::set_cpus(&cpus);
-    cosim::ipc::remove_run_files(&prefix);
-    let lat = result.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
+    let lat = ping_pong_latencies(exe, a.rounds, a.same_cpu)?;
     let machine = crate::bench::Machine::this();
     let placement = if a.same_cpu {
         "both processes on one CPU, yielding it while they wait"
@@ -137,6 +152,25 @@ fn ping_pong(a: &BenchArgs, exe: &std::path::Path) -> CliResult {
     )?;
     println!("wrote {}", a.out.display());
     Ok(())
+}
+
+/// The machine's floors beside a scenario's figures: one-way p50 of a sample the size of
+/// tiltsim's (256 B), 20 000 round trips each, across CPUs busy-waiting and on one CPU yielding.
+fn machine_floors(exe: &std::path::Path) -> Result<crate::bench::MachineFloors, CliError> {
+    const ROUNDS: usize = 20_000;
+    let size = cosim::ipc::pingpong::SIZES
+        .iter()
+        .position(|&b| b == 256)
+        .expect("256 B is a ping-pong size");
+    let p50_us = |same_cpu| -> Result<f64, CliError> {
+        let mut v = ping_pong_latencies(exe, ROUNDS, same_cpu)?.swap_remove(size);
+        Ok(cosim::stats::percentiles(&mut v).p50 * 1e-3)
+    };
+    Ok(crate::bench::MachineFloors {
+        payload_bytes: 256,
+        one_way_cross_cpu_us: p50_us(false)?,
+        one_way_same_cpu_us: p50_us(true)?,
+    })
 }
 
 /// Runs the command.
@@ -182,11 +216,19 @@ pub fn exec(a: BenchArgs) -> CliResult {
         println!("wrote {}", a.out.display());
         return Ok(());
     }
-    let report = crate::bench::run(&s, d, &exe, &scratch, |name| {
+    if !(1..=100).contains(&a.repeat) {
+        return Err(CliError::Invalid(format!(
+            "command line: --repeat {}: allowed 1 to 100",
+            a.repeat
+        )));
+    }
+    let report = crate::bench::run(&s, d, a.repeat, &exe, &scratch, |name| {
         eprintln!("  measuring {name} ...");
     });
     let _ = std::fs::remove_dir_all(&scratch);
-    let report = report.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
+    let mut report = report.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
+    eprintln!("  measuring the machine's ping-pong floors ...");
+    report.machine_floors = Some(machine_floors(&exe)?);
     println!("{}", crate::bench::table(&report));
     if let Some(dir) = a.out.parent() {
         let _ = std::fs::create_dir_all(dir);
