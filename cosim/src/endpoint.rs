@@ -208,9 +208,9 @@ pub trait Endpoint<I: Message, O: Message> {
     /// would only delay that process. Changes how the orchestrator waits, never what it gets.
     fn set_shares_cpu(&mut self, _shared: bool) {}
     /// Waits (yielding the CPU) until a reply is pending, the participant is gone, or the
-    /// deadline or 2 ms have passed, without taking the reply. The orchestrator lets participants that
-    /// share its CPU answer first while another computes elsewhere; [`Endpoint::receive`]
-    /// then takes and checks the replies in the algorithm's order.
+    /// deadline or 2 ms have passed, without taking the reply. The orchestrator lets
+    /// participants that share its CPU answer first while another computes elsewhere;
+    /// [`Endpoint::receive`] then takes and checks the replies in the algorithm's order.
     fn await_pending(&mut self) {}
 }
 

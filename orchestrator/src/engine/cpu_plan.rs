@@ -58,7 +58,7 @@ pub(crate) struct CpuPlanner {
 /// and the CSV row, measured in the same warm-up). The lighter participants then run on the
 /// orchestrator's CPU, each step costing it two process switches; that pays only when the
 /// heavy one's compute hides the orchestrator's work. A run of light participants
-/// (paper-passive: 0.14 µs per tick against ~3 µs of recording) keeps the starting placement.
+/// (paper-passive: 0.14 µs per tick against 1.3-2 µs of its own) keeps the starting placement.
 const HEAVY_SHARE: f64 = 0.5;
 
 impl CpuPlanner {
