@@ -123,3 +123,104 @@ impl Backoff {
         }
     }
 }
+
+/// When a participant's next request is due at the earliest, from the spacing of its requests
+/// (the orchestrator's send stamps, one monotonic clock for all processes). A participant asked only
+/// every few ticks (the MPC every 50) would otherwise yield on every poll between its requests,
+/// and every one of those yields costs the processes that share its CPU a switch to it and
+/// back (measured on paper-mpc: the idle controller ran between every two orchestrator turns on
+/// their CPU, about 4 µs a tick). With requests at least [`Cadence::LONG`] apart it sleeps
+/// through the first [`Cadence::SHARE`] of the shortest gap seen since `Init`, in one sleep,
+/// then polls as before. The shortest, not the last: a gap stretched by a stall (a sleeping
+/// participant holds up the whole lock-step) must not lengthen the next sleep, or sleeps and
+/// stalls would feed each other. A request that comes earlier than that waits at most until
+/// the sleep ends. Only wall-clock placement changes, never a value.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Cadence {
+    last_sent_ns: Option<u64>,
+    shortest_ns: Option<u64>,
+}
+
+impl Cadence {
+    /// Requests closer than this (ns) are answered from a yield loop: a participant stepped
+    /// every tick never sleeps.
+    pub const LONG: u64 = 100_000;
+    /// The share of the expected gap slept through.
+    pub const SHARE: f64 = 0.75;
+    /// The longest single sleep (ns), so that a participant whose orchestrator has gone still
+    /// notices it.
+    pub const MAX_SLEEP: u64 = 100_000_000;
+
+    /// Notes a step request sent at `sent_ns`.
+    pub fn observe(&mut self, sent_ns: u64) {
+        if let Some(last) = self.last_sent_ns {
+            let gap = sent_ns.saturating_sub(last);
+            self.shortest_ns = Some(self.shortest_ns.map_or(gap, |s| s.min(gap)));
+        }
+        self.last_sent_ns = Some(sent_ns);
+    }
+
+    /// Forgets the spacing (after an `Init`, whose timing says nothing about the steps').
+    pub fn reset(&mut self) {
+        *self = Cadence::default();
+    }
+
+    /// Until when (monotonic ns) the participant may sleep before polling, if its requests
+    /// are far apart.
+    pub fn sleep_until(&self) -> Option<u64> {
+        let last = self.last_sent_ns?;
+        let gap = self.shortest_ns?;
+        (gap >= Self::LONG).then(|| {
+            let share = (gap as f64 * Self::SHARE) as u64;
+            last + share.min(Self::MAX_SLEEP)
+        })
+    }
+}
+
+/// Sleeps until monotonic time `until_ns` (no-op if it has passed).
+pub fn sleep_until_ns(until_ns: u64) {
+    let ts = libc::timespec {
+        tv_sec: (until_ns / 1_000_000_000) as libc::time_t,
+        tv_nsec: (until_ns % 1_000_000_000) as libc::c_long,
+    };
+    // SAFETY: an absolute sleep on CLOCK_MONOTONIC reading a valid timespec; an interrupted
+    // sleep just ends early, and the caller polls again.
+    unsafe {
+        libc::clock_nanosleep(
+            libc::CLOCK_MONOTONIC,
+            libc::TIMER_ABSTIME,
+            &ts,
+            core::ptr::null_mut(),
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_participant_sleeps_through_three_quarters_of_its_shortest_long_gap_only() {
+        let mut c = Cadence::default();
+        assert_eq!(c.sleep_until(), None, "nothing known yet");
+        c.observe(1_000_000);
+        assert_eq!(c.sleep_until(), None, "one request gives no spacing");
+        // Every 50 ticks (500 µs apart): sleeps until 375 µs after the last request.
+        c.observe(1_500_000);
+        assert_eq!(c.sleep_until(), Some(1_500_000 + 375_000));
+        // A gap stretched by a stall (100 ms) does not lengthen the sleep.
+        c.observe(101_500_000);
+        assert_eq!(c.sleep_until(), Some(101_500_000 + 375_000));
+        // Requests every tick (10 µs apart) once: never sleeps again.
+        c.observe(101_510_000);
+        assert_eq!(c.sleep_until(), None);
+        c.observe(102_010_000);
+        assert_eq!(c.sleep_until(), None);
+        // After Init the spacing is learnt again; minutes apart are slept 100 ms at a time.
+        c.reset();
+        assert_eq!(c.sleep_until(), None);
+        c.observe(0);
+        c.observe(600_000_000_000);
+        assert_eq!(c.sleep_until(), Some(600_000_000_000 + Cadence::MAX_SLEEP));
+    }
+}

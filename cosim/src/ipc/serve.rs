@@ -5,7 +5,7 @@ use std::time::Duration;
 use crate::endpoint::LinkError;
 use crate::msg::{Kind, Message, FLAG_CRASH};
 use crate::participant::{Participant, Served};
-use crate::wait::{Backoff, WaitStrategy};
+use crate::wait::{sleep_until_ns, Backoff, Cadence, WaitStrategy};
 
 use super::{
     config, iox, node, pin_to_cpu, quiet_iceoryx_logs, reply_service, request_service, service,
@@ -57,12 +57,22 @@ pub fn serve_with<P: Participant>(
     // on their own ticks, so the next step may be any later one.
     let mut last_step: Option<u64> = None;
     let mut served = Served::new(p);
+    let mut cadence = Cadence::default();
     loop {
         let mut backoff = Backoff::with_spin(wait, spin_polls);
+        let mut sleep = if wait == WaitStrategy::Adaptive {
+            cadence.sleep_until()
+        } else {
+            None
+        };
         let request = loop {
             let sample = subscriber.receive().map_err(iox("receive"))?;
             if let Some(s) = sample {
                 break *s;
+            }
+            if let Some(until) = sleep.take() {
+                sleep_until_ns(until);
+                continue;
             }
             if backoff.elapsed() > idle_limit && unsafe { libc::getppid() } != parent {
                 return Err(IpcError::Iceoryx(format!("{role}: orchestrator is gone")));
@@ -72,8 +82,12 @@ pub fn serve_with<P: Participant>(
         let h = *request.header();
         match Kind::from_raw(h.kind) {
             Some(Kind::Stop) => return Ok(()),
-            Some(Kind::Init) => last_step = None,
+            Some(Kind::Init) => {
+                last_step = None;
+                cadence.reset();
+            }
             Some(Kind::Step) => {
+                cadence.observe(h.sent_ns);
                 if let Some(last) = last_step.filter(|&l| h.step <= l) {
                     return Err(LinkError::OutOfOrder {
                         role,
@@ -281,7 +295,8 @@ where
         what: e.to_string(),
     })?;
     let model = make(settings).map_err(|what| ServeError::Model { process, what })?;
-    if a.wait == WaitStrategy::Paced {
+    if matches!(a.wait, WaitStrategy::Paced | WaitStrategy::Adaptive) {
+        // Naps and the sleep through a long gap between requests end on time.
         crate::wait::tight_timer_slack();
     }
     if let Some(priority) = a.realtime {
