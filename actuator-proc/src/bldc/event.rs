@@ -282,6 +282,32 @@ enum Event {
     Trip,
 }
 
+/// The earliest event offered so far within a segment of length `tau`: the segment ends there.
+struct First {
+    /// Where the segment ends (s from its start).
+    tau: f64,
+    /// What ends it.
+    what: Event,
+}
+
+impl First {
+    /// A segment of at most `h` with no event yet.
+    fn within(h: f64) -> Self {
+        First {
+            tau: h,
+            what: Event::End,
+        }
+    }
+
+    /// Keeps event `e` at `t` if it comes before every event offered so far.
+    fn offer(&mut self, t: Option<f64>, e: Event) {
+        if let Some(t) = t.filter(|&t| t < self.tau) {
+            self.tau = t;
+            self.what = e;
+        }
+    }
+}
+
 /// The drive's constants as the segment equations use them (no division per segment).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Consts {
@@ -567,25 +593,16 @@ impl Bldc {
         }
 
         // The first event.
-        let mut tau = h;
-        let mut what = Event::End;
-        let mut take = |t: Option<f64>, e: Event| {
-            if let Some(t) = t {
-                if t < tau {
-                    tau = t;
-                    what = e;
-                }
-            }
-        };
+        let mut first = First::within(h);
         let band = 0.5 * self.p.hysteresis_a;
         let (hi, lo) = (self.i_ref + band, self.i_ref - band);
         if s >= 0.0 {
-            take(reach(&ci, hi, 1.0, h), Event::Upper);
+            first.offer(reach(&ci, hi, 1.0, h), Event::Upper);
         }
         if s <= 0.0 {
-            take(reach(&ci, lo, -1.0, h), Event::Lower);
+            first.offer(reach(&ci, lo, -1.0, h), Event::Lower);
         }
-        let (th, start) = self.sector_events(sec, &cth, h, &mut take);
+        let (th, start) = self.sector_events(sec, &cth, h, &mut first);
         let half_pp = 0.5 * self.p.poles as f64;
         if s == 0.0 {
             // The floating terminal stays inside the link while λ ω f_off keeps the sign that
@@ -603,18 +620,19 @@ impl Bldc {
                 }
             }
             if cw[0] != 0.0 {
-                take(reach(&cw, 0.0, -cw[0].signum(), h), Event::Floating);
+                first.offer(reach(&cw, 0.0, -cw[0].signum(), h), Event::Floating);
             }
             if d_mid != 0.0 {
-                take(reach(&cth, d_mid, d_mid.signum(), h), Event::Floating);
+                first.offer(reach(&cth, d_mid, d_mid.signum(), h), Event::Floating);
             }
         }
-        self.link_events(&cv, rect, h, &mut take);
+        self.link_events(&cv, rect, h, &mut first);
 
         // Integrals over [0, τ] by 2-point Gauss-Legendre.
         let (mut q_i, mut q_p, mut q_cu, mut q_fr, mut q_ld, mut q_r, mut q_ch) =
             (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         let (mut peak, mut v_hi) = (i_pair.abs(), v0);
+        let First { tau, what } = first;
         let half = 0.5 * tau;
         for (xg, wg) in GL_X.iter().zip(GL_W) {
             let t = half * (1.0 + xg);
@@ -723,28 +741,19 @@ impl Bldc {
         }
         let cm: Poly = std::array::from_fn(|n| -cp[n] - co[n]);
 
-        let mut tau = h;
-        let mut what = Event::End;
-        let mut take = |t: Option<f64>, e: Event| {
-            if let Some(t) = t {
-                if t < tau {
-                    tau = t;
-                    what = e;
-                }
-            }
-        };
-        take(reach(&co, 0.0, -i[off].signum(), h), Event::DiodeOff);
+        let mut first = First::within(h);
+        first.offer(reach(&co, 0.0, -i[off].signum(), h), Event::DiodeOff);
         // Each comparator switches its leg when its phase current leaves the band on the side
         // its leg drives it to (the + phase to +I_ref, the − phase to −I_ref).
         let band = 0.5 * self.p.hysteresis_a;
         for (leg, c, target, g) in [(pp, &cp, self.i_ref, gp), (mm, &cm, -self.i_ref, gm)] {
             if g == Gate::Upper {
-                take(
+                first.offer(
                     reach(c, target + band, 1.0, h),
                     Event::Leg(leg, Gate::Lower),
                 );
             } else {
-                take(
+                first.offer(
                     reach(c, target - band, -1.0, h),
                     Event::Leg(leg, Gate::Upper),
                 );
@@ -753,11 +762,11 @@ impl Bldc {
         // The comparators do not bound the three currents here: the over-current protection's
         // level is an event too.
         for c in [&cp, &co, &cm] {
-            take(reach(c, self.trip_a, 1.0, h), Event::Trip);
-            take(reach(c, -self.trip_a, -1.0, h), Event::Trip);
+            first.offer(reach(c, self.trip_a, 1.0, h), Event::Trip);
+            first.offer(reach(c, -self.trip_a, -1.0, h), Event::Trip);
         }
-        self.sector_events(sec, &cth, h, &mut take);
-        self.link_events(&cv, rect, h, &mut take);
+        self.sector_events(sec, &cth, h, &mut first);
+        self.link_events(&cv, rect, h, &mut first);
 
         // Integrals over [0, τ] by 2-point Gauss-Legendre.
         let (f_o0, k_o) = shape;
@@ -765,6 +774,7 @@ impl Bldc {
         let mut q = [0.0; 6];
         let mut q_te = 0.0;
         let (mut peak, mut v_hi) = (i[0].abs().max(i[1].abs()).max(i[2].abs()), v0);
+        let First { tau, what } = first;
         let half = 0.5 * tau;
         for (xg, wg) in GL_X.iter().zip(GL_W) {
             let t = half * (1.0 + xg);
@@ -851,15 +861,9 @@ impl Bldc {
         }
     }
 
-    /// Offers `take` the sector's boundaries (commutations) reached by Δθ_m (`cth`) within
+    /// Offers `first` the sector's boundaries (commutations) reached by Δθ_m (`cth`) within
     /// `h`; returns the electrical angle unwrapped into the sector and the sector's start.
-    fn sector_events(
-        &self,
-        sec: usize,
-        cth: &Poly,
-        h: f64,
-        take: &mut impl FnMut(Option<f64>, Event),
-    ) -> (f64, f64) {
+    fn sector_events(&self, sec: usize, cth: &Poly, h: f64, first: &mut First) -> (f64, f64) {
         let half_pp = 0.5 * self.p.poles as f64;
         let th = if self.theta_e < FRAC_PI_6 {
             self.theta_e + TAU
@@ -869,20 +873,14 @@ impl Bldc {
         let start = FRAC_PI_6 + FRAC_PI_3 * sec as f64;
         let d_hi = (start + FRAC_PI_3 - th) / half_pp;
         let d_lo = (start - th) / half_pp;
-        take(reach(cth, d_hi, 1.0, h), Event::Commutation(d_hi, 1.0));
-        take(reach(cth, d_lo, -1.0, h), Event::Commutation(d_lo, -1.0));
+        first.offer(reach(cth, d_hi, 1.0, h), Event::Commutation(d_hi, 1.0));
+        first.offer(reach(cth, d_lo, -1.0, h), Event::Commutation(d_lo, -1.0));
         (th, start)
     }
 
-    /// Offers `take` the link's levels the voltage series `cv` reaches within `h`: the
+    /// Offers `first` the link's levels the voltage series `cv` reaches within `h`: the
     /// chopper's threshold, the over-voltage trip and the supply voltage (the rectifier).
-    fn link_events(
-        &self,
-        cv: &Poly,
-        rect: bool,
-        h: f64,
-        take: &mut impl FnMut(Option<f64>, Event),
-    ) {
+    fn link_events(&self, cv: &Poly, rect: bool, h: f64, first: &mut First) {
         let (v0, v_s, lp) = (cv[0], self.link.v_supply, &self.link.p);
         let (on, off, trip) = (lp.chopper_on_v, lp.chopper_off_v, lp.overvoltage_trip_v);
         let mut v_reach = 0.0;
@@ -892,17 +890,17 @@ impl Bldc {
         let near = |level: f64| (level - v0).abs() <= v_reach;
         if self.link.chopper_on {
             if near(off) {
-                take(reach(cv, off, -1.0, h), Event::Link(off));
+                first.offer(reach(cv, off, -1.0, h), Event::Link(off));
             }
         } else if near(on) {
-            take(reach(cv, on, 1.0, h), Event::Link(on));
+            first.offer(reach(cv, on, 1.0, h), Event::Link(on));
         }
         if near(trip) {
-            take(reach(cv, trip, 1.0, h), Event::Link(trip.next_up()));
+            first.offer(reach(cv, trip, 1.0, h), Event::Link(trip.next_up()));
         }
         if near(v_s) {
             let dir = if rect { 1.0 } else { -1.0 };
-            take(reach(cv, v_s, dir, h), Event::Link(v_s));
+            first.offer(reach(cv, v_s, dir, h), Event::Link(v_s));
         }
     }
 
