@@ -715,12 +715,7 @@ impl Bldc {
         let v_s = self.link.v_supply;
         // f_o across the sector: from its value at the start (±1) linearly to the opposite.
         let half_pp = 0.5 * self.p.poles as f64;
-        let th = if self.theta_e < FRAC_PI_6 {
-            self.theta_e + TAU
-        } else {
-            self.theta_e
-        };
-        let start = FRAC_PI_6 + FRAC_PI_3 * sec as f64;
+        let (th, start) = self.sector_angle(sec);
         let f_start = shapes(start + 1e-6)[off].signum();
         let per_rad_e = -2.0 * f_start / FRAC_PI_3;
         let shape = (f_start + per_rad_e * (th - start), per_rad_e * half_pp);
@@ -861,16 +856,21 @@ impl Bldc {
         }
     }
 
-    /// Offers `first` the sector's boundaries (commutations) reached by Δθ_m (`cth`) within
-    /// `h`; returns the electrical angle unwrapped into the sector and the sector's start.
-    fn sector_events(&self, sec: usize, cth: &Poly, h: f64, first: &mut First) -> (f64, f64) {
-        let half_pp = 0.5 * self.p.poles as f64;
+    /// The electrical angle θ_e unwrapped into sector `sec` (rad) and the sector's start (rad).
+    fn sector_angle(&self, sec: usize) -> (f64, f64) {
         let th = if self.theta_e < FRAC_PI_6 {
             self.theta_e + TAU
         } else {
             self.theta_e
         };
-        let start = FRAC_PI_6 + FRAC_PI_3 * sec as f64;
+        (th, FRAC_PI_6 + FRAC_PI_3 * sec as f64)
+    }
+
+    /// Offers `first` the sector's boundaries (commutations) reached by Δθ_m (`cth`) within
+    /// `h`; returns the electrical angle unwrapped into the sector and the sector's start.
+    fn sector_events(&self, sec: usize, cth: &Poly, h: f64, first: &mut First) -> (f64, f64) {
+        let half_pp = 0.5 * self.p.poles as f64;
+        let (th, start) = self.sector_angle(sec);
         let d_hi = (start + FRAC_PI_3 - th) / half_pp;
         let d_lo = (start - th) / half_pp;
         first.offer(reach(cth, d_hi, 1.0, h), Event::Commutation(d_hi, 1.0));
