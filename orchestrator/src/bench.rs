@@ -40,13 +40,19 @@ pub struct Config {
     pub wall_s: f64,
     /// CPU seconds, orchestrator + participants.
     pub cpu_s: f64,
-    /// The transport's floor for one tick (µs): the round-trip floor times the round trips
-    /// the tick waits for one after the other: every exchange the tick needs under
-    /// Gauss-Seidel (plant, actuator, and the controller when its period comes up: on average
-    /// 2 + 1/period_ticks), one under Jacobi (all in flight at once). `None` in-process.
+    /// The transport's floor for one tick as issue 16 defines it (µs): the sum of the
+    /// round-trip floors of the exchanges the tick needs (plant, actuator, and the controller
+    /// when its period comes up: on average 2 + 1/period_ticks round trips), under either
+    /// master. `None` in-process.
     pub floor_per_tick_us: Option<f64>,
     /// `overhead_p50_us / floor_per_tick_us`.
     pub overhead_over_floor: Option<f64>,
+    /// A stricter floor (µs): the round trips the tick waits for one after the other, which
+    /// is [`Config::floor_per_tick_us`] under Gauss-Seidel and one round trip under Jacobi
+    /// (every request in flight at once, as if no two participants shared a CPU).
+    pub critical_floor_per_tick_us: Option<f64>,
+    /// `overhead_p50_us / critical_floor_per_tick_us`.
+    pub overhead_over_critical_floor: Option<f64>,
 }
 
 /// The whole report.
@@ -228,6 +234,8 @@ pub fn run(
             cpu_s: sum.timing.cpu_s.orchestrator + sum.timing.cpu_s.participants,
             floor_per_tick_us: None,
             overhead_over_floor: None,
+            critical_floor_per_tick_us: None,
+            overhead_over_critical_floor: None,
         });
     }
     for round in 1..rounds {
@@ -258,16 +266,18 @@ pub fn run(
         .filter(|c| c.transport == "ipc")
         .map(|c| c.plant_round_trip_p50_us)
         .fold(f64::INFINITY, f64::min);
-    let sequential = 2.0 + 1.0 / base.controller_period_ticks() as f64;
+    let needed = 2.0 + 1.0 / base.controller_period_ticks() as f64;
     for c in configs.iter_mut().filter(|c| c.transport == "ipc") {
-        let trips = if c.master == Master::Jacobi.name() {
+        let in_turn = if c.master == Master::Jacobi.name() {
             1.0
         } else {
-            sequential
+            needed
         };
-        let f = trips * floor;
+        let (f, critical) = (needed * floor, in_turn * floor);
         c.floor_per_tick_us = Some(f);
         c.overhead_over_floor = (f > 0.0).then(|| c.overhead_p50_us / f);
+        c.critical_floor_per_tick_us = Some(critical);
+        c.overhead_over_critical_floor = (critical > 0.0).then(|| c.overhead_p50_us / critical);
     }
     Ok(Report {
         scenario: base.name.clone(),
@@ -332,14 +342,14 @@ pub fn table(r: &Report) -> String {
     let mut s = format!(
         "tiltsim bench: {} for {} s simulated per configuration on {} CPUs\n\
          machine: {}, {} logical CPUs, Linux {}\n\n\
-         | transport | master | wait | ticks | overhead p50 (µs) | p99 (µs) | floor per tick (µs) | overhead / floor | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         | transport | master | wait | ticks | overhead p50 (µs) | p99 (µs) | floor per tick (µs) | overhead / floor | critical-path floor (µs) | overhead / it | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         r.scenario, r.duration_s, r.cpus, r.machine.cpu_model, r.machine.logical_cpus, r.machine.kernel
     );
     for c in &r.configs {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {:.2} | {:.2} | {:.3} | {:.2} |",
+            "| {} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {} | {} | {:.2} | {:.2} | {:.3} | {:.2} |",
             c.transport,
             c.master,
             c.wait,
@@ -349,6 +359,10 @@ pub fn table(r: &Report) -> String {
             c.floor_per_tick_us
                 .map_or("-".into(), |f| format!("{f:.2}")),
             c.overhead_over_floor
+                .map_or("-".into(), |f| format!("{f:.2}")),
+            c.critical_floor_per_tick_us
+                .map_or("-".into(), |f| format!("{f:.2}")),
+            c.overhead_over_critical_floor
                 .map_or("-".into(), |f| format!("{f:.2}")),
             c.plant_round_trip_p50_us,
             c.plant_round_trip_p99_us,
