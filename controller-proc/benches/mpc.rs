@@ -2,88 +2,153 @@
 //! closed loop with the discretised vehicle through the paper's ρ = 0.50 case, where the input
 //! constraint is active, so both inactive and active QPs are timed.
 //!
+//! Then its accuracy: the same closed loop once more, where every update's QP whose
+//! unconstrained optimum Δu* = −H⁻¹g (closed form) keeps every constraint, so is the optimum,
+//! is also solved outside the timed update and its first move compared with Δu₀*.
+//!
 //! `cargo bench -p controller-proc --bench mpc`
 
 use std::time::Instant;
 
 use controller_proc::mpc::MpcInput;
 use controller_proc::{
-    ControllerInit, ControllerSettings, KalmanSettings, LinearModel, Mode, Mpc, MpcSettings,
+    ControllerInit, ControllerSettings, InputShape, KalmanSettings, LinearModel, Mode, Mpc,
+    MpcSettings,
 };
 use vehicle_model::{TrackParams, VehicleParams};
 
-fn main() {
+const PERIOD: f64 = 0.05;
+const REPEATS: usize = 30;
+
+/// What one closed-loop pass measured.
+#[derive(Default)]
+struct Pass {
+    /// Update times (µs).
+    times: Vec<f64>,
+    /// Clarabel iterations.
+    iterations: Vec<f64>,
+    /// |Δu₀ − Δu₀*| (rad) on the QPs whose unconstrained optimum Δu* (closed form) keeps
+    /// every constraint, so is the optimum.
+    interior: Vec<f64>,
+}
+
+/// Whether the moves `du` from `u_prev` keep every constraint of the QP with no slack:
+/// |u| ≤ u_max, |Δu| ≤ Δu_max and the prediction |f + Θ Δu| ≤ ξ_max.
+fn feasible(mpc: &Mpc, s: &MpcSettings, u_prev: f64, f: &[f64], du: &[f64]) -> bool {
+    let (u_max, du_max) = (3.5f64.to_radians(), s.du_max_deg.to_radians());
+    let y_max = s.theta_v_max_deg.to_radians();
+    let mut u = u_prev;
+    let moves = du.iter().all(|&d| {
+        u += d;
+        d.abs() <= du_max && u.abs() <= u_max
+    });
+    moves
+        && f.iter().enumerate().all(|(i, fi)| {
+            let y = fi
+                + (0..du.len())
+                    .map(|l| mpc.theta[(i, l)] * du[l])
+                    .sum::<f64>();
+            y.abs() <= y_max
+        })
+}
+
+/// Runs the MPC of `preview` in closed loop along the paper's track at ρ = 0.50; with `check`,
+/// every QP with no constraint active is also solved and compared with its closed form.
+fn pass(model: &LinearModel, preview: bool, rep: usize, check: bool, out: &mut Pass) {
     let track = TrackParams::default();
     let v = track.speed();
-    let model = LinearModel::new(&VehicleParams::default(), v);
-    let period = 0.05;
-    let mut times = Vec::new();
-    let mut iters = Vec::new();
-    let repeats = 30;
-    for preview in [false, true] {
-        for rep in 0..repeats {
-            let s = MpcSettings {
-                preview,
-                ..Default::default()
-            };
-            let mut mpc = Mpc::new(
-                &model,
-                &s,
-                &KalmanSettings::default(),
-                period,
-                3.5,
-                controller_proc::InputShape::Hold,
-            )
-            .unwrap();
-            // The tilt command of the paper's track at ρ = 0.50, from the controller's own
-            // reference generator.
-            let ctrl = controller_proc::Controller::new(&ControllerInit {
-                controller: ControllerSettings {
-                    mode: Mode::Passive,
-                    rho: 0.5,
-                    ..Default::default()
-                },
-                track: track.clone(),
-                vehicle: VehicleParams::default(),
-                input_shape: controller_proc::InputShape::Hold,
+    let s = MpcSettings {
+        preview,
+        ..Default::default()
+    };
+    let k = KalmanSettings::default();
+    let mut mpc = Mpc::new(model, &s, &k, PERIOD, 3.5, InputShape::Hold).unwrap();
+    // The tilt command of the paper's track at ρ = 0.50, from the controller's own reference
+    // generator.
+    let ctrl = controller_proc::Controller::new(&ControllerInit {
+        controller: ControllerSettings {
+            mode: Mode::Passive,
+            rho: 0.5,
+            ..Default::default()
+        },
+        track: track.clone(),
+        vehicle: VehicleParams::default(),
+        input_shape: InputShape::Hold,
+    })
+    .unwrap();
+    let d = model.discretise(PERIOD);
+    let mut x = nalgebra::DMatrix::zeros(9, 1);
+    let mut u_prev = 0.0;
+    let n = (track.length() / v / PERIOD) as usize;
+    for k in 0..n {
+        let pos = v * PERIOD * k as f64;
+        let r: Vec<f64> = (1..=5)
+            .map(|i| {
+                ctrl.reference_at(if preview {
+                    pos + v * PERIOD * i as f64
+                } else {
+                    pos
+                })
             })
-            .unwrap();
-            let d = model.discretise(period);
-            let mut x = nalgebra::DMatrix::zeros(9, 1);
-            let n = (track.length() / v / period) as usize;
-            for k in 0..n {
-                let pos = v * period * k as f64;
-                let r: Vec<f64> = (1..=5)
-                    .map(|i| {
-                        ctrl.reference_at(if preview {
-                            pos + v * period * i as f64
-                        } else {
-                            pos
-                        })
-                    })
-                    .collect();
-                let w = vec![ctrl.track_input_at(pos); 5];
-                let xi = x[(1, 0)] + 1e-3 * ((k * 7 + rep) as f64).sin();
-                let t0 = Instant::now();
-                let u = mpc.step(&MpcInput { xi, r: &r, w: &w });
-                times.push(t0.elapsed().as_secs_f64() * 1e6);
-                iters.push(u.iterations as f64);
-                let wk = nalgebra::DMatrix::from_column_slice(6, 1, &w[0]);
-                x = &d.a * &x + &d.b * u.u + &d.g * wk;
+            .collect();
+        let w = vec![ctrl.track_input_at(pos); 5];
+        let xi = x[(1, 0)] + 1e-3 * ((k * 7 + rep) as f64).sin();
+        if check {
+            // The QP the update below solves: same filtered state, free response, u(k−1).
+            let f = mpc.free_response(&mpc.filter(xi), &w);
+            let star = mpc.unconstrained(&f, &r);
+            // Strictly inside (0.1 % more move still keeps every constraint).
+            let more: Vec<f64> = star.iter().map(|d| d * (1.0 + 1e-3)).collect();
+            if feasible(&mpc, &s, u_prev, &f, &star) && feasible(&mpc, &s, u_prev, &f, &more) {
+                let (got, _, ok) = mpc.solve(&f, &r);
+                assert!(ok, "an interior QP must solve");
+                out.interior.push((got[0] - star[0]).abs());
             }
         }
+        let t0 = Instant::now();
+        let u = mpc.step(&MpcInput { xi, r: &r, w: &w });
+        out.times.push(t0.elapsed().as_secs_f64() * 1e6);
+        out.iterations.push(u.iterations as f64);
+        u_prev = u.u;
+        let wk = nalgebra::DMatrix::from_column_slice(6, 1, &w[0]);
+        x = &d.a * &x + &d.b * u.u + &d.g * wk;
     }
-    let pct = |v: &mut Vec<f64>, p: f64| {
-        v.sort_by(f64::total_cmp);
-        v[((v.len() - 1) as f64 * p).round() as usize]
-    };
+}
+
+fn pct(v: &mut [f64], p: f64) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[((v.len() - 1) as f64 * p).round() as usize]
+}
+
+fn main() {
+    let model = LinearModel::new(&VehicleParams::default(), TrackParams::default().speed());
+    let mut timed = Pass::default();
+    for preview in [false, true] {
+        for rep in 0..REPEATS {
+            pass(&model, preview, rep, false, &mut timed);
+        }
+    }
     println!(
         "MPC update (filter + QP), {} solves: p50 {:.1} us, p99 {:.1} us, max {:.1} us; Clarabel iterations p50 {:.0}, max {:.0}",
-        times.len(),
-        pct(&mut times, 0.5),
-        pct(&mut times, 0.99),
-        pct(&mut times, 1.0),
-        pct(&mut iters, 0.5),
-        pct(&mut iters, 1.0)
+        timed.times.len(),
+        pct(&mut timed.times, 0.5),
+        pct(&mut timed.times, 0.99),
+        pct(&mut timed.times, 1.0),
+        pct(&mut timed.iterations, 0.5),
+        pct(&mut timed.iterations, 1.0)
+    );
+    let mut checked = Pass::default();
+    for preview in [false, true] {
+        for rep in 0..REPEATS {
+            pass(&model, preview, rep, true, &mut checked);
+        }
+    }
+    let e = &mut checked.interior;
+    println!(
+        "accuracy against the closed form, {} QPs with no constraint active: |Δu0 − Δu0*| p50 {:.1e} rad, p99 {:.1e} rad, max {:.1e} rad",
+        e.len(),
+        pct(e, 0.5),
+        pct(e, 0.99),
+        pct(e, 1.0)
     );
 }

@@ -13,12 +13,25 @@
 //!
 //! Clarabel is an interior-point solver and takes no primal warm start; what it allows is
 //! keeping one solver and updating `q` and `b` in place (`update_q`, `update_b`), which skips
-//! the set-up and the symbolic factorisation. That is done every period. Iterative refinement
-//! of the KKT solves is off: on this 3-variable QP it cost a third of the update (p50 40.8 →
-//! 28.9 µs, p99 62.3 → 46-49 µs, `cargo bench -p controller-proc --bench mpc`) and moved the
-//! solution by at most 1e-8 rad, the solver's own tolerance (paper-mpc and ρ = 0.50:
-//! |Δδ_a,cmd| ≤ 9.2e-9 rad, P_CT equal to 7 digits). A solve that does not
-//! end `Solved`/`AlmostSolved` is counted and the previous command is held (Δu = 0, always
+//! the set-up and the symbolic factorisation. That is done every period. The solver's
+//! settings are fitted to this QP:
+//! * Iterative refinement of the KKT solves is off: on this 3-variable QP it cost a third of
+//!   the update (p50 40.8 → 28.9 µs, p99 62.3 → 46-49 µs).
+//! * Ruiz equilibration is off and the gap and feasibility tolerances are 1e-10 instead of
+//!   1e-8 ([`QP_TOLERANCE`]). The QP is small and already well scaled (radians, weights of
+//!   order one); equilibrated, the interior-point method took 12 iterations to 1e-8, and now
+//!   takes 9-13 to 1e-10.
+//! * Measured against the closed-form optimum Δu* = −H⁻¹g on the 12 165 updates of the
+//!   benchmark where no constraint is active: |Δu₀ − Δu₀*| p50 2.8e-8 → 3.5e-9 rad, max
+//!   3.3e-5 → 4.8e-6 rad (an inactive constraint with little slack still pulls an
+//!   interior-point iterate; test `mpc_meets_its_closed_form_in_closed_loop`).
+//! * Time per update, old and new benchmark binaries alternating, four runs each on a shared
+//!   2-CPU VM in a busy hour: p50 40-44 → 35-38 µs, p99 69-94 → 79-83 µs; in a quiet hour
+//!   p50 33 → 29-30 µs, p99 52-54 → 45-48 µs. The p99 is set by the host: 1-2 % of updates are
+//!   interrupted for 40-150 µs whatever the settings.
+//!
+//! All figures: `cargo bench -p controller-proc --bench mpc`. A solve that does not end
+//! `Solved`/`AlmostSolved` is counted and the previous command is held (Δu = 0, always
 //! feasible).
 
 use clarabel::algebra::CscMatrix;
@@ -32,6 +45,9 @@ use crate::design::LinearModel;
 use crate::linalg::{dare, van_loan, DesignError};
 use crate::lqg::{process_noise, KalmanSettings};
 use cosim::settings::Checker;
+
+/// Clarabel's duality-gap and feasibility tolerances (its default is 1e-8; module notes).
+const QP_TOLERANCE: f64 = 1e-10;
 
 /// MPC settings (scenario `[controller.mpc]`); the period is `controller.period_s`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -288,12 +304,16 @@ impl Mpc {
             ac[(4 * mm + p + i, mm)] = -1.0;
         }
         ac[(nc - 1, mm)] = -1.0;
+        // See the module's notes: settings fitted to a QP this small.
         let settings: DefaultSettings<f64> = DefaultSettingsBuilder::default()
             .verbose(false)
             .presolve_enable(false)
             .max_iter(s.max_iter)
-            // See the module's notes: no iterative refinement on a QP this small.
             .iterative_refinement_enable(false)
+            .equilibrate_enable(false)
+            .tol_gap_abs(QP_TOLERANCE)
+            .tol_gap_rel(QP_TOLERANCE)
+            .tol_feas(QP_TOLERANCE)
             .build()
             .map_err(|e| DesignError(format!("MPC: Clarabel settings: {e}")))?;
         let q = vec![0.0; nv];
