@@ -32,26 +32,6 @@ struct Pass {
     interior: Vec<f64>,
 }
 
-/// Whether the moves `du` from `u_prev` keep every constraint of the QP with no slack:
-/// |u| ≤ u_max, |Δu| ≤ Δu_max and the prediction |f + Θ Δu| ≤ ξ_max.
-fn feasible(mpc: &Mpc, s: &MpcSettings, u_prev: f64, f: &[f64], du: &[f64]) -> bool {
-    let (u_max, du_max) = (3.5f64.to_radians(), s.du_max_deg.to_radians());
-    let y_max = s.theta_v_max_deg.to_radians();
-    let mut u = u_prev;
-    let moves = du.iter().all(|&d| {
-        u += d;
-        d.abs() <= du_max && u.abs() <= u_max
-    });
-    moves
-        && f.iter().enumerate().all(|(i, fi)| {
-            let y = fi
-                + (0..du.len())
-                    .map(|l| mpc.theta[(i, l)] * du[l])
-                    .sum::<f64>();
-            y.abs() <= y_max
-        })
-}
-
 /// Runs the MPC of `preview` in closed loop along the paper's track at ρ = 0.50; with `check`,
 /// every QP with no constraint active is also solved and compared with its closed form.
 fn pass(model: &LinearModel, preview: bool, rep: usize, check: bool, out: &mut Pass) {
@@ -99,7 +79,8 @@ fn pass(model: &LinearModel, preview: bool, rep: usize, check: bool, out: &mut P
             let star = mpc.unconstrained(&f, &r);
             // Strictly inside (0.1 % more move still keeps every constraint).
             let more: Vec<f64> = star.iter().map(|d| d * (1.0 + 1e-3)).collect();
-            if feasible(&mpc, &s, u_prev, &f, &star) && feasible(&mpc, &s, u_prev, &f, &more) {
+            if mpc.keeps_constraints(u_prev, &f, &star) && mpc.keeps_constraints(u_prev, &f, &more)
+            {
                 let (got, _, ok) = mpc.solve(&f, &r);
                 assert!(ok, "an interior QP must solve");
                 out.interior.push((got[0] - star[0]).abs());

@@ -485,22 +485,6 @@ mod design_tests {
             input_shape: InputShape::Hold,
         })
         .unwrap();
-        let (u_max, du_max) = (3.5f64.to_radians(), s.du_max_deg.to_radians());
-        let y_max = s.theta_v_max_deg.to_radians();
-        // Every constraint of the QP with no slack, for moves `du` from `u_prev`.
-        let keeps = |mpc: &Mpc, u_prev: f64, f: &[f64], du: &[f64]| {
-            let mut u = u_prev;
-            du.iter().all(|&d| {
-                u += d;
-                d.abs() <= du_max && u.abs() <= u_max
-            }) && f.iter().enumerate().all(|(i, fi)| {
-                let y: f64 = fi
-                    + (0..du.len())
-                        .map(|l| mpc.theta[(i, l)] * du[l])
-                        .sum::<f64>();
-                y.abs() <= y_max
-            })
-        };
         let d = m.discretise(period);
         let v = track.speed();
         let mut x = nalgebra::DMatrix::zeros(9, 1);
@@ -514,7 +498,8 @@ mod design_tests {
             let f = mpc.free_response(&mpc.filter(xi), &w);
             let star = mpc.unconstrained(&f, &r);
             let more: Vec<f64> = star.iter().map(|d| d * (1.0 + 1e-3)).collect();
-            if keeps(&mpc, u_prev, &f, &star) && keeps(&mpc, u_prev, &f, &more) {
+            if mpc.keeps_constraints(u_prev, &f, &star) && mpc.keeps_constraints(u_prev, &f, &more)
+            {
                 let (du, _, ok) = mpc.solve(&f, &r);
                 assert!(ok, "step {step}: an unconstrained QP must solve");
                 errors.push((du[0] - star[0]).abs());

@@ -387,6 +387,26 @@ impl Mpc {
         sol.iter().map(|v| -v).collect()
     }
 
+    /// Whether the moves `du` from the previous command `u_prev` keep every constraint of the
+    /// QP with no slack: |u| ≤ u_max, |Δu| ≤ Δu_max and the prediction |f + Θ Δu| ≤ ξ_max.
+    /// Where the unconstrained optimum does, it is the QP's optimum.
+    pub fn keeps_constraints(&self, u_prev: f64, f: &[f64], du: &[f64]) -> bool {
+        let mut u = u_prev;
+        let moves = du.iter().all(|&d| {
+            u += d;
+            d.abs() <= self.du_max && u.abs() <= self.u_max
+        });
+        moves
+            && f.iter().enumerate().all(|(i, fi)| {
+                let y: f64 = fi
+                    + du.iter()
+                        .enumerate()
+                        .map(|(l, d)| self.theta[(i, l)] * d)
+                        .sum::<f64>();
+                y.abs() <= self.y_max
+            })
+    }
+
     /// Filters the measurement: x̂(k|k).
     pub fn filter(&self, xi: f64) -> DMatrix<f64> {
         let innovation = xi - (&self.c * &self.x_hat)[(0, 0)];
