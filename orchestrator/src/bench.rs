@@ -40,8 +40,8 @@ pub struct Config {
     pub wall_s: f64,
     /// CPU seconds, orchestrator + participants.
     pub cpu_s: f64,
-    /// The transport's floor for one tick as issue 16 defines it (µs): the sum of the
-    /// round-trip floors of the exchanges the tick needs (plant, actuator, and the controller
+    /// The transport's floor for one tick (µs): the sum of the round-trip floors of the
+    /// exchanges the tick needs (plant, actuator, and the controller
     /// when its period comes up: on average 2 + 1/period_ticks round trips), under either
     /// master. `None` in-process.
     pub floor_per_tick_us: Option<f64>,
