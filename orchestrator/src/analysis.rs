@@ -24,9 +24,7 @@ pub fn run_keeping_rows(
     opts: &RunOptions,
 ) -> Result<(Summary, Vec<Row>), RunError> {
     debug_assert!(opts.keep_rows);
-    let mut rows = Vec::new();
-    let summary = run_inner(s, scenario_file, opts, |_| {}, &mut rows)?;
-    Ok((summary, rows))
+    run_inner(s, scenario_file, opts, |_| {})
 }
 
 /// [`run`], calling `keep` with the analysed summary before the figures are drawn: the
@@ -38,25 +36,22 @@ pub fn run_then(
     opts: &RunOptions,
     keep: impl FnOnce(&Summary),
 ) -> Result<Summary, RunError> {
-    run_inner(s, scenario_file, opts, keep, &mut Vec::new())
+    Ok(run_inner(s, scenario_file, opts, keep)?.0)
 }
 
-/// [`run_then`], leaving the rows kept in memory (if any) in `kept`.
+/// [`run_then`], also returning the rows kept in memory (empty when they went to a file).
 fn run_inner(
     s: &Scenario,
     scenario_file: &str,
     opts: &RunOptions,
     keep: impl FnOnce(&Summary),
-    kept: &mut Vec<Row>,
-) -> Result<Summary, RunError> {
+) -> Result<(Summary, Vec<Row>), RunError> {
     let Ran {
         mut summary,
         recording,
         rows,
     } = crate::engine::run_recorded(s, scenario_file, opts)?;
-    if let Some(rows) = rows {
-        *kept = rows;
-    }
+    let kept = rows.unwrap_or_default();
     // The recording closes with the summary as the caller keeps it (analysed or not).
     let keep = |sm: &Summary| {
         keep(sm);
@@ -75,10 +70,10 @@ fn run_inner(
             crate::signals::describe()
         ));
         keep(&summary);
-        return Ok(summary);
+        return Ok((summary, kept));
     }
     let source = if opts.keep_rows {
-        Rows::Kept(kept)
+        Rows::Kept(&kept)
     } else {
         Rows::File(&opts.out_dir)
     };
@@ -89,7 +84,7 @@ fn run_inner(
             crate::signals::describe()
         ));
         keep(&summary);
-        return Ok(summary);
+        return Ok((summary, kept));
     }
     keep(&summary);
     if opts.plots && !opts.keep_rows {
@@ -97,7 +92,7 @@ fn run_inner(
             tracing::warn!("plots not written: {e}");
         }
     }
-    Ok(summary)
+    Ok((summary, kept))
 }
 
 /// Fills `results`, `comfort` and `flags` of `summary` from the series recorded in `rows`
