@@ -6,6 +6,10 @@
 //! unconstrained optimum Δu* = −H⁻¹g (closed form) keeps every constraint, so is the optimum,
 //! is also solved outside the timed update and its first move compared with Δu₀*.
 //!
+//! Update times are also given by the form of the QP solved (`Mpc::rows_needed`), after a
+//! second timed pass with the soft output limit lowered to 1.5°, where it binds in the curves
+//! and the full QP is solved (the paper's 6° never binds on this drive).
+//!
 //! `cargo bench -p controller-proc --bench mpc`
 
 use std::time::Instant;
@@ -13,12 +17,16 @@ use std::time::Instant;
 use controller_proc::mpc::MpcInput;
 use controller_proc::{
     ControllerInit, ControllerSettings, InputShape, KalmanSettings, LinearModel, Mode, Mpc,
-    MpcSettings,
+    MpcSettings, QpRows,
 };
 use vehicle_model::{TrackParams, VehicleParams};
 
 const PERIOD: f64 = 0.05;
 const REPEATS: usize = 30;
+/// The paper's soft output limit |θ_v| (deg), and one low enough to bind on this drive.
+const PAPER_LIMIT: f64 = 6.0;
+const BINDING_LIMIT: f64 = 1.5;
+const QP_FORMS: [QpRows; 3] = [QpRows::Full, QpRows::Inputs, QpRows::Moves];
 
 /// What one closed-loop pass measured.
 #[derive(Default)]
@@ -27,6 +35,8 @@ struct Pass {
     times: Vec<f64>,
     /// Clarabel iterations.
     iterations: Vec<f64>,
+    /// Update times (µs) by the form of the QP solved, in the order of `QP_FORMS`.
+    by_form: [Vec<f64>; 3],
     /// |Δu₀ − Δu₀*| (rad) on the QPs whose unconstrained optimum Δu* (closed form) keeps
     /// every constraint, so is the optimum.
     interior: Vec<f64>,
@@ -34,11 +44,19 @@ struct Pass {
 
 /// Runs the MPC of `preview` in closed loop along the paper's track at ρ = 0.50; with `check`,
 /// every QP with no constraint active is also solved and compared with its closed form.
-fn pass(model: &LinearModel, preview: bool, rep: usize, check: bool, out: &mut Pass) {
+fn pass(
+    model: &LinearModel,
+    preview: bool,
+    theta_v_max_deg: f64,
+    rep: usize,
+    check: bool,
+    out: &mut Pass,
+) {
     let track = TrackParams::default();
     let v = track.speed();
     let s = MpcSettings {
         preview,
+        theta_v_max_deg,
         ..Default::default()
     };
     let k = KalmanSettings::default();
@@ -86,9 +104,13 @@ fn pass(model: &LinearModel, preview: bool, rep: usize, check: bool, out: &mut P
                 out.interior.push((got[0] - star[0]).abs());
             }
         }
+        // The form the update below solves (outside the timed update).
+        let rows = mpc.rows_needed(&mpc.free_response(&mpc.filter(xi), &w));
         let t0 = Instant::now();
         let u = mpc.step(&MpcInput { xi, r: &r, w: &w });
-        out.times.push(t0.elapsed().as_secs_f64() * 1e6);
+        let us = t0.elapsed().as_secs_f64() * 1e6;
+        out.times.push(us);
+        out.by_form[QP_FORMS.iter().position(|&f| f == rows).unwrap()].push(us);
         out.iterations.push(u.iterations as f64);
         u_prev = u.u;
         let wk = nalgebra::DMatrix::from_column_slice(6, 1, &w[0]);
@@ -106,7 +128,7 @@ fn main() {
     let mut timed = Pass::default();
     for preview in [false, true] {
         for rep in 0..REPEATS {
-            pass(&model, preview, rep, false, &mut timed);
+            pass(&model, preview, PAPER_LIMIT, rep, false, &mut timed);
         }
     }
     println!(
@@ -118,10 +140,29 @@ fn main() {
         pct(&mut timed.iterations, 0.5),
         pct(&mut timed.iterations, 1.0)
     );
+    // The same drive with the output limit binding in the curves, so that the full QP is timed.
+    for preview in [false, true] {
+        for rep in 0..REPEATS {
+            pass(&model, preview, BINDING_LIMIT, rep, false, &mut timed);
+        }
+    }
+    println!("by form, both passes (the second with |θ_v| ≤ {BINDING_LIMIT}°):");
+    for (form, times) in QP_FORMS.iter().zip(timed.by_form.iter_mut()) {
+        if times.is_empty() {
+            println!("  {form:?} QP: no updates");
+        } else {
+            println!(
+                "  {form:?} QP: {} updates, p50 {:.1} us, p99 {:.1} us",
+                times.len(),
+                pct(times, 0.5),
+                pct(times, 0.99)
+            );
+        }
+    }
     let mut checked = Pass::default();
     for preview in [false, true] {
         for rep in 0..REPEATS {
-            pass(&model, preview, rep, true, &mut checked);
+            pass(&model, preview, PAPER_LIMIT, rep, true, &mut checked);
         }
     }
     let e = &mut checked.interior;

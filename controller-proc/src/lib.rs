@@ -26,7 +26,7 @@ use vehicle_model::{Track, TrackParams, Vehicle, VehicleParams, G};
 
 pub use design::LinearModel;
 pub use lqg::{KalmanSettings, Lqg, LqgSettings};
-pub use mpc::{InputShape, Mpc, MpcSettings};
+pub use mpc::{InputShape, Mpc, MpcSettings, QpRows};
 
 /// Outcome of a controller update's QP, as carried in `FromController::solver_status`.
 #[repr(u32)]
@@ -523,6 +523,95 @@ mod design_tests {
     }
 
     #[test]
+    fn mpc_leaves_out_only_rows_that_cannot_bind() {
+        // The paper's drive at ρ = 0.50 in closed loop, twice: with the paper's soft output
+        // limit (6°), where the input limit binds in the curves, and with it lowered to 1.5°,
+        // where the output limit binds (at 2.5° it never does). Where `rows_needed`
+        // lets an update leave rows out, the full QP must give the same moves (both are
+        // Clarabel's optimum of one problem to its 1e-10 gap: at most 1e-5 rad, the bound of
+        // `mpc_meets_its_closed_form_in_closed_loop`). Where it keeps the output rows, the
+        // update's prediction must keep the limit up to the slack its weight allows: a slack ε
+        // costs λ_ε ε² against the tracking cost, here ε ≲ 1e-5 rad; 1e-4 rad is the bound.
+        let m = model();
+        let track = TrackParams::default();
+        let period = 0.05;
+        let (mut gaps, mut counts, mut binding) = (Vec::new(), [0; 3], [0; 3]);
+        for theta_v_max_deg in [6.0, 1.5] {
+            let s = MpcSettings {
+                theta_v_max_deg,
+                ..Default::default()
+            };
+            let (y_max, u_max) = (s.theta_v_max_deg.to_radians(), 3.5f64.to_radians());
+            let mut mpc = Mpc::new(
+                &m,
+                &s,
+                &KalmanSettings::default(),
+                period,
+                3.5,
+                InputShape::Hold,
+            )
+            .unwrap();
+            let ctrl = Controller::new(&ControllerInit {
+                controller: ControllerSettings {
+                    mode: Mode::Passive,
+                    rho: 0.5,
+                    ..Default::default()
+                },
+                track: track.clone(),
+                vehicle: VehicleParams::default(),
+                input_shape: InputShape::Hold,
+            })
+            .unwrap();
+            let d = m.discretise(period);
+            let v = track.speed();
+            let mut x = nalgebra::DMatrix::zeros(9, 1);
+            for step in 0..(track.length() / v / period) as usize {
+                let pos = v * period * step as f64;
+                let r = vec![ctrl.reference_at(pos); 5];
+                let w = vec![ctrl.track_input_at(pos); 5];
+                let xi = x[(1, 0)] + 1e-3 * ((step * 7) as f64).sin();
+                let f = mpc.free_response(&mpc.filter(xi), &w);
+                let rows = mpc.rows_needed(&f);
+                counts[rows as usize] += 1;
+                let (du, _, ok) = mpc.solve(&f, &r);
+                assert!(ok, "step {step}");
+                let (du_full, _, ok) = mpc.solve_with(&f, &r, QpRows::Full);
+                assert!(ok, "step {step}");
+                if rows == QpRows::Full {
+                    assert_eq!(du, du_full, "step {step}: the full QP, solved twice");
+                    let worst = (0..5)
+                        .map(|i| {
+                            (f[i] + mpc.theta[(i, 0)] * du[0] + mpc.theta[(i, 1)] * du[1]).abs()
+                        })
+                        .fold(0.0, f64::max);
+                    assert!(worst <= y_max + 1e-4, "step {step}: |ξ| {worst} > {y_max}");
+                    // Whether the limit binds, so that leaving its rows out would have mattered.
+                    if worst > y_max - 1e-6 {
+                        binding[0] += 1;
+                    }
+                } else {
+                    gaps.push((du[0] - du_full[0]).abs().max((du[1] - du_full[1]).abs()));
+                }
+                let u = mpc.step(&mpc::MpcInput { xi, r: &r, w: &w });
+                // Whether an input-level limit binds where those rows are kept.
+                if rows == QpRows::Inputs && u.u.abs() > u_max - 1e-9 {
+                    binding[1] += 1;
+                }
+                let wk = nalgebra::DMatrix::from_column_slice(6, 1, &w[0]);
+                x = &d.a * &x + &d.b * u.u + &d.g * wk;
+            }
+        }
+        eprintln!("updates per form (full, inputs, moves) {counts:?}, binding {binding:?}");
+        // Every form occurs, and the limits they keep bind in some of their updates.
+        assert!(counts.iter().all(|&c| c > 20), "{counts:?}");
+        assert!(binding[0] > 5 && binding[1] > 5, "{binding:?}");
+        gaps.sort_by(f64::total_cmp);
+        let (p50, max) = (gaps[gaps.len() / 2], gaps[gaps.len() - 1]);
+        eprintln!("|Δu − Δu_full| p50 {p50:e}, max {max:e} rad");
+        assert!(p50 < 1e-8 && max < 1e-5, "p50 {p50:e}, max {max:e} rad");
+    }
+
+    #[test]
     fn unconstrained_mpc_equals_its_closed_form() {
         let m = model();
         let s = MpcSettings::default();
@@ -569,5 +658,20 @@ mod design_tests {
             "u limit: {}",
             du[0].to_degrees()
         );
+        // 0.75° below the limit: the first move is free, the second may take only the rest,
+        // so the rows of u(k+1) must be kept although those of u(k) cannot bind.
+        mpc.set_previous(2.75f64.to_radians());
+        assert_eq!(mpc.rows_needed(&f), QpRows::Inputs);
+        let (du, _, ok) = mpc.solve(&f, &r);
+        assert!(ok);
+        let (first, both) = (du[0].to_degrees(), (du[0] + du[1]).to_degrees());
+        assert!((first - 0.5).abs() < 1e-5, "first move {first}°");
+        assert!(
+            (both - 0.75).abs() < 1e-5,
+            "u(k+1) − u(k−1) = {both}°, not 0.75°"
+        );
+        // Far from every limit only the move rows are left.
+        mpc.set_previous(0.0);
+        assert_eq!(mpc.rows_needed(&f), QpRows::Moves);
     }
 }
