@@ -427,6 +427,69 @@ mod design_tests {
         LinearModel::new(&VehicleParams::default(), TrackParams::default().speed())
     }
 
+    /// One update of the MPC's closed loop along the paper's drive, before the MPC steps.
+    struct DriveUpdate<'a> {
+        step: usize,
+        /// The previous command u(k−1) (rad).
+        u_prev: f64,
+        /// The free response of the update (from the filtered measurement).
+        f: Vec<f64>,
+        /// The references over the horizon.
+        r: &'a [f64],
+    }
+
+    /// Runs `mpc` (horizon 5, period `period`) in closed loop with the discretised vehicle
+    /// along the paper's track at ρ = 0.50, the reference held over the horizon and a small
+    /// deterministic measurement noise; `each` sees every update before the MPC steps, and
+    /// gets the command it applied. Returns the number of updates.
+    fn paper_drive(
+        mpc: &mut Mpc,
+        period: f64,
+        mut each: impl FnMut(&mut Mpc, &DriveUpdate),
+        mut applied: impl FnMut(&mpc::MpcUpdate),
+    ) -> usize {
+        let m = model();
+        let track = TrackParams::default();
+        let ctrl = Controller::new(&ControllerInit {
+            controller: ControllerSettings {
+                mode: Mode::Passive,
+                rho: 0.5,
+                ..Default::default()
+            },
+            track: track.clone(),
+            vehicle: VehicleParams::default(),
+            input_shape: InputShape::Hold,
+        })
+        .unwrap();
+        let d = m.discretise(period);
+        let v = track.speed();
+        let mut x = nalgebra::DMatrix::zeros(9, 1);
+        let mut u_prev = 0.0;
+        let n = (track.length() / v / period) as usize;
+        for step in 0..n {
+            let pos = v * period * step as f64;
+            let r = vec![ctrl.reference_at(pos); 5];
+            let w = vec![ctrl.track_input_at(pos); 5];
+            let xi = x[(1, 0)] + 1e-3 * ((step * 7) as f64).sin();
+            let f = mpc.free_response(&mpc.filter(xi), &w);
+            each(
+                mpc,
+                &DriveUpdate {
+                    step,
+                    u_prev,
+                    f,
+                    r: &r,
+                },
+            );
+            let u = mpc.step(&mpc::MpcInput { xi, r: &r, w: &w });
+            applied(&u);
+            u_prev = u.u;
+            let wk = nalgebra::DMatrix::from_column_slice(6, 1, &w[0]);
+            x = &d.a * &x + &d.b * u.u + &d.g * wk;
+        }
+        n
+    }
+
     #[test]
     fn lqg_riccati_residuals_vanish_and_its_loops_are_stable() {
         let m = model();
@@ -468,49 +531,34 @@ mod design_tests {
         // first move Clarabel returns must match it. Measured with the fitted settings: p50
         // 3.5e-9 rad, max 4.8e-6 rad; with Clarabel's equilibration and its 1e-8 tolerances the
         // same loop gives 2.8e-8 and 3.3e-5 (module notes of `mpc`).
-        let m = model();
-        let track = TrackParams::default();
-        let s = MpcSettings::default();
         let period = 0.05;
-        let k = KalmanSettings::default();
-        let mut mpc = Mpc::new(&m, &s, &k, period, 3.5, InputShape::Hold).unwrap();
-        let ctrl = Controller::new(&ControllerInit {
-            controller: ControllerSettings {
-                mode: Mode::Passive,
-                rho: 0.5,
-                ..Default::default()
-            },
-            track: track.clone(),
-            vehicle: VehicleParams::default(),
-            input_shape: InputShape::Hold,
-        })
+        let mut mpc = Mpc::new(
+            &model(),
+            &MpcSettings::default(),
+            &KalmanSettings::default(),
+            period,
+            3.5,
+            InputShape::Hold,
+        )
         .unwrap();
-        let d = m.discretise(period);
-        let v = track.speed();
-        let mut x = nalgebra::DMatrix::zeros(9, 1);
-        let mut u_prev = 0.0;
         let mut errors = Vec::new();
-        for step in 0..(track.length() / v / period) as usize {
-            let pos = v * period * step as f64;
-            let r = vec![ctrl.reference_at(pos); 5];
-            let w = vec![ctrl.track_input_at(pos); 5];
-            let xi = x[(1, 0)] + 1e-3 * ((step * 7) as f64).sin();
-            let f = mpc.free_response(&mpc.filter(xi), &w);
-            let star = mpc.unconstrained(&f, &r);
-            let more: Vec<f64> = star.iter().map(|d| d * (1.0 + 1e-3)).collect();
-            if mpc.keeps_constraints(u_prev, &f, &star) && mpc.keeps_constraints(u_prev, &f, &more)
-            {
-                let (du, _, ok) = mpc.solve(&f, &r);
-                assert!(ok, "step {step}: an unconstrained QP must solve");
-                errors.push((du[0] - star[0]).abs());
-            }
-            let u = mpc.step(&mpc::MpcInput { xi, r: &r, w: &w });
-            u_prev = u.u;
-            let wk = nalgebra::DMatrix::from_column_slice(6, 1, &w[0]);
-            x = &d.a * &x + &d.b * u.u + &d.g * wk;
-        }
+        let n = paper_drive(
+            &mut mpc,
+            period,
+            |mpc, at| {
+                let star = mpc.unconstrained(&at.f, at.r);
+                let more: Vec<f64> = star.iter().map(|d| d * (1.0 + 1e-3)).collect();
+                if mpc.keeps_constraints(at.u_prev, &at.f, &star)
+                    && mpc.keeps_constraints(at.u_prev, &at.f, &more)
+                {
+                    let (du, _, ok) = mpc.solve(&at.f, at.r);
+                    assert!(ok, "step {}: an unconstrained QP must solve", at.step);
+                    errors.push((du[0] - star[0]).abs());
+                }
+            },
+            |_| {},
+        );
         // Both kinds of update occur: the limits bind in the curve transitions.
-        let n = (track.length() / v / period) as usize;
         assert!(
             errors.len() > 50 && errors.len() < n,
             "{} of {n}",
@@ -532,8 +580,6 @@ mod design_tests {
         // `mpc_meets_its_closed_form_in_closed_loop`). Where it keeps the output rows, the
         // update's prediction must keep the limit up to the slack its weight allows: a slack ε
         // costs λ_ε ε² against the tracking cost, here ε ≲ 1e-5 rad; 1e-4 rad is the bound.
-        let m = model();
-        let track = TrackParams::default();
         let period = 0.05;
         let (mut gaps, mut counts, mut binding) = (Vec::new(), [0; 3], [0; 3]);
         for theta_v_max_deg in [6.0, 1.5] {
@@ -542,64 +588,47 @@ mod design_tests {
                 ..Default::default()
             };
             let (y_max, u_max) = (s.theta_v_max_deg.to_radians(), 3.5f64.to_radians());
-            let mut mpc = Mpc::new(
-                &m,
-                &s,
-                &KalmanSettings::default(),
+            let k = KalmanSettings::default();
+            let mut mpc = Mpc::new(&model(), &s, &k, period, 3.5, InputShape::Hold).unwrap();
+            let last = std::cell::Cell::new(QpRows::Full);
+            let inputs_binding = std::cell::Cell::new(0);
+            paper_drive(
+                &mut mpc,
                 period,
-                3.5,
-                InputShape::Hold,
-            )
-            .unwrap();
-            let ctrl = Controller::new(&ControllerInit {
-                controller: ControllerSettings {
-                    mode: Mode::Passive,
-                    rho: 0.5,
-                    ..Default::default()
-                },
-                track: track.clone(),
-                vehicle: VehicleParams::default(),
-                input_shape: InputShape::Hold,
-            })
-            .unwrap();
-            let d = m.discretise(period);
-            let v = track.speed();
-            let mut x = nalgebra::DMatrix::zeros(9, 1);
-            for step in 0..(track.length() / v / period) as usize {
-                let pos = v * period * step as f64;
-                let r = vec![ctrl.reference_at(pos); 5];
-                let w = vec![ctrl.track_input_at(pos); 5];
-                let xi = x[(1, 0)] + 1e-3 * ((step * 7) as f64).sin();
-                let f = mpc.free_response(&mpc.filter(xi), &w);
-                let rows = mpc.rows_needed(&f);
-                counts[rows as usize] += 1;
-                let (du, _, ok) = mpc.solve(&f, &r);
-                assert!(ok, "step {step}");
-                let (du_full, _, ok) = mpc.solve_with(&f, &r, QpRows::Full);
-                assert!(ok, "step {step}");
-                if rows == QpRows::Full {
-                    assert_eq!(du, du_full, "step {step}: the full QP, solved twice");
-                    let worst = (0..5)
-                        .map(|i| {
-                            (f[i] + mpc.theta[(i, 0)] * du[0] + mpc.theta[(i, 1)] * du[1]).abs()
-                        })
-                        .fold(0.0, f64::max);
-                    assert!(worst <= y_max + 1e-4, "step {step}: |ξ| {worst} > {y_max}");
-                    // Whether the limit binds, so that leaving its rows out would have mattered.
-                    if worst > y_max - 1e-6 {
-                        binding[0] += 1;
+                |mpc, at| {
+                    let (f, r, step) = (&at.f, at.r, at.step);
+                    let rows = mpc.rows_needed(f);
+                    counts[rows as usize] += 1;
+                    last.set(rows);
+                    let (du, _, ok) = mpc.solve(f, r);
+                    assert!(ok, "step {step}");
+                    let (du_full, _, ok) = mpc.solve_with(f, r, QpRows::Full);
+                    assert!(ok, "step {step}");
+                    if rows == QpRows::Full {
+                        assert_eq!(du, du_full, "step {step}: the full QP, solved twice");
+                        let worst = (0..5)
+                            .map(|i| {
+                                (f[i] + mpc.theta[(i, 0)] * du[0] + mpc.theta[(i, 1)] * du[1]).abs()
+                            })
+                            .fold(0.0, f64::max);
+                        assert!(worst <= y_max + 1e-4, "step {step}: |ξ| {worst} > {y_max}");
+                        // Whether the limit binds, so that leaving its rows out would have
+                        // mattered.
+                        if worst > y_max - 1e-6 {
+                            binding[0] += 1;
+                        }
+                    } else {
+                        gaps.push((du[0] - du_full[0]).abs().max((du[1] - du_full[1]).abs()));
                     }
-                } else {
-                    gaps.push((du[0] - du_full[0]).abs().max((du[1] - du_full[1]).abs()));
-                }
-                let u = mpc.step(&mpc::MpcInput { xi, r: &r, w: &w });
+                },
                 // Whether an input-level limit binds where those rows are kept.
-                if rows == QpRows::Inputs && u.u.abs() > u_max - 1e-9 {
-                    binding[1] += 1;
-                }
-                let wk = nalgebra::DMatrix::from_column_slice(6, 1, &w[0]);
-                x = &d.a * &x + &d.b * u.u + &d.g * wk;
-            }
+                |u| {
+                    if last.get() == QpRows::Inputs && u.u.abs() > u_max - 1e-9 {
+                        inputs_binding.set(inputs_binding.get() + 1);
+                    }
+                },
+            );
+            binding[1] += inputs_binding.get();
         }
         eprintln!("updates per form (full, inputs, moves) {counts:?}, binding {binding:?}");
         // Every form occurs, and the limits they keep bind in some of their updates.
