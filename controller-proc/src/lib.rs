@@ -641,6 +641,61 @@ mod design_tests {
     }
 
     #[test]
+    fn one_move_mpc_meets_its_clamped_closed_form() {
+        // With p = M = 1 the QP is one-dimensional, and where the soft output row cannot bind
+        // its optimum is the unconstrained one, Δu* = −θ λ_ξ (f − r) / (θ² λ_ξ + λ_Δu),
+        // clamped to the moves the hard limits allow: |Δu| ≤ Δu_max, |u(k−1) + Δu| ≤ u_max.
+        // That holds with every constraint active or not, so it checks the constrained optima
+        // exactly. Along the paper's drive at ρ = 0.50, both the reduced QP an update solves
+        // and the full QP must meet it; measured p50 2.3e-10 and 3.9e-10, max 1.1e-6 and
+        // 2.6e-6 rad (an interior point near an active bound); bounds as in
+        // `mpc_meets_its_closed_form_in_closed_loop`.
+        let period = 0.05;
+        let s = MpcSettings {
+            horizon_p: 1,
+            horizon_m: 1,
+            ..Default::default()
+        };
+        let (lam, lam_du) = (s.output_weight, s.rate_weight);
+        let (du_max, u_max) = (s.du_max_deg.to_radians(), 3.5f64.to_radians());
+        let k = KalmanSettings::default();
+        let mut mpc = Mpc::new(&model(), &s, &k, period, 3.5, InputShape::Hold).unwrap();
+        let (mut reduced, mut full, mut clamped) = (Vec::new(), Vec::new(), 0);
+        paper_drive(
+            &mut mpc,
+            period,
+            |mpc, at| {
+                assert_ne!(mpc.rows_needed(&at.f), QpRows::Full, "step {}", at.step);
+                let th = mpc.theta[(0, 0)];
+                let star = -th * lam * (at.f[0] - at.r[0]) / (th * th * lam + lam_du);
+                let lo = (-du_max).max(-u_max - at.u_prev);
+                let hi = du_max.min(u_max - at.u_prev);
+                let exact = star.clamp(lo, hi);
+                if exact != star {
+                    clamped += 1;
+                }
+                let (du, _, ok) = mpc.solve(&at.f, at.r);
+                assert!(ok, "step {}", at.step);
+                reduced.push((du[0] - exact).abs());
+                let (du, _, ok) = mpc.solve_with(&at.f, at.r, QpRows::Full);
+                assert!(ok, "step {}", at.step);
+                full.push((du[0] - exact).abs());
+            },
+            |_| {},
+        );
+        // The limits bind in some updates and not in others.
+        assert!(clamped > 20 && clamped < reduced.len() - 20, "{clamped}");
+        for (what, e) in [("reduced", &mut reduced), ("full", &mut full)] {
+            e.sort_by(f64::total_cmp);
+            let (p50, max) = (e[e.len() / 2], e[e.len() - 1]);
+            assert!(
+                p50 < 1e-8 && max < 1e-5,
+                "{what}: p50 {p50:e}, max {max:e} rad"
+            );
+        }
+    }
+
+    #[test]
     fn unconstrained_mpc_equals_its_closed_form() {
         let m = model();
         let s = MpcSettings::default();
