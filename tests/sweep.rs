@@ -347,8 +347,9 @@ fn a_planned_sample_run_alone_with_its_settings_repeats_the_sweeps_run() {
 #[test]
 fn samples_kept_in_memory_give_the_results_of_samples_written_to_disk() {
     // Without --keep-runs a sample's rows stay in memory (no timeseries.csv written and read
-    // back); with it they go through the file. The two must agree byte for byte: the file's
-    // numbers are shortest round-trip decimals of the same f64s.
+    // back) and it reads no wall clock per exchange; with it they go through the file and the
+    // exchanges are timed. The two must agree byte for byte: the file's numbers are shortest
+    // round-trip decimals of the same f64s, and no value depends on the timing.
     let sc = scenario_with(
         "paper-lqg.toml",
         "model = \"bldc\"",

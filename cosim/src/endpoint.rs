@@ -243,6 +243,11 @@ impl<P: Participant> InProcess<P> {
         self.deadline = deadline;
         self
     }
+    /// Whether requests and replies carry wall-clock times ([`Served::set_timed`]).
+    pub fn timed(mut self, timed: bool) -> Self {
+        self.served.set_timed(timed);
+        self
+    }
 }
 
 impl<P: Participant> Endpoint<P::Input, P::Output> for InProcess<P> {
@@ -268,7 +273,7 @@ impl<P: Participant> Endpoint<P::Input, P::Output> for InProcess<P> {
             return Ok(());
         }
         let mut req = *req;
-        req.stamp();
+        req.stamp_at(self.served.clock());
         if let Some(d) = self.stall {
             std::thread::sleep(d.min(self.deadline + std::time::Duration::from_millis(1)));
         }
@@ -421,5 +426,27 @@ mod tests {
             matches!(ep.receive(3, Kind::Step), Err(LinkError::Transport { .. })),
             "no reply without a request"
         );
+    }
+
+    #[test]
+    fn an_untimed_endpoint_answers_alike_and_stamps_no_time() {
+        let req = ToController {
+            header: Header::new(5, Kind::Step),
+            theta_v_meas: -0.125,
+            ..Default::default()
+        };
+        let mut timed = InProcess::new(Echo);
+        let mut untimed = InProcess::new(Echo).timed(false);
+        timed.send(&req).unwrap();
+        untimed.send(&req).unwrap();
+        let (a, b) = (
+            timed.receive(5, Kind::Step).unwrap(),
+            untimed.receive(5, Kind::Step).unwrap(),
+        );
+        assert_eq!(a.theta_v_hat, b.theta_v_hat);
+        let (ha, hb) = (a.header, b.header);
+        assert!(ha.recv_ns > 0 && ha.sent_ns >= ha.recv_ns, "timed: {ha:?}");
+        assert_eq!((hb.recv_ns, hb.compute_ns, hb.sent_ns), (0, 0, 0));
+        assert_eq!((hb.step, hb.kind, hb.flags), (ha.step, ha.kind, ha.flags));
     }
 }

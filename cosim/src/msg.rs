@@ -115,10 +115,14 @@ pub trait Message: Copy + Default + core::fmt::Debug + ZeroCopySend + Send + 'st
     fn first_non_finite(&self) -> Option<usize>;
     /// Stamps the header for sending: version, size, send time.
     fn stamp(&mut self) {
+        self.stamp_at(now_ns());
+    }
+    /// Stamps the header for sending with send time `sent_ns` (0 where nothing is timed).
+    fn stamp_at(&mut self, sent_ns: u64) {
         let h = self.header_mut();
         h.version = PROTOCOL_VERSION;
         h.size = core::mem::size_of::<Self>() as u32;
-        h.sent_ns = now_ns();
+        h.sent_ns = sent_ns;
     }
 }
 

@@ -453,6 +453,8 @@ fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
     // A sample whose directory is removed afterwards keeps its rows in memory: no
     // timeseries.csv to write and read back (the values are the same, f64 round-trips).
     opts.keep_rows = !ex.keep_runs;
+    // Nor does it report wall-clock timing: no clock reads per exchange (`RunOptions::timing`).
+    opts.timing = ex.keep_runs;
     let name = format!("{} (sample {j})", base.name);
     let (summary, rows) = if opts.keep_rows {
         match crate::analysis::run_keeping_rows(&s, &name, &opts) {

@@ -183,6 +183,7 @@ pub fn exec(a: RunArgs) -> CliResult {
         machine_progress: a.progress.is_some(),
         record: a.record,
         keep_rows: false,
+        timing: true,
     };
     let mut kept = Ok(());
     let summary = crate::analysis::run_then(&s, &a.scenario.display().to_string(), &opts, |sm| {

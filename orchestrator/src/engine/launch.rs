@@ -153,24 +153,39 @@ pub(crate) fn start(
         Transport::InProcess => {
             let d = Duration::from_millis(s.run.deadline_ms);
             let plant: PlantEp = match s.fmu_init(Role::Plant) {
-                Some(init) => {
-                    Box::new(InProcess::new(fmu_model::<PlantIo>(init)?).with_deadline(d))
-                }
-                None => Box::new(InProcess::new(Plant::new(&inits.plant)).with_deadline(d)),
+                Some(init) => Box::new(
+                    InProcess::new(fmu_model::<PlantIo>(init)?)
+                        .with_deadline(d)
+                        .timed(opts.timing),
+                ),
+                None => Box::new(
+                    InProcess::new(Plant::new(&inits.plant))
+                        .with_deadline(d)
+                        .timed(opts.timing),
+                ),
             };
             let actuator: ActuatorEp = match s.fmu_init(Role::Actuator) {
-                Some(init) => {
-                    Box::new(InProcess::new(fmu_model::<ActuatorIo>(init)?).with_deadline(d))
-                }
-                None => Box::new(InProcess::new(Actuator::new(&inits.actuator)).with_deadline(d)),
+                Some(init) => Box::new(
+                    InProcess::new(fmu_model::<ActuatorIo>(init)?)
+                        .with_deadline(d)
+                        .timed(opts.timing),
+                ),
+                None => Box::new(
+                    InProcess::new(Actuator::new(&inits.actuator))
+                        .with_deadline(d)
+                        .timed(opts.timing),
+                ),
             };
             let controller: ControllerEp = match s.fmu_init(Role::Controller) {
-                Some(init) => {
-                    Box::new(InProcess::new(fmu_model::<ControllerIo>(init)?).with_deadline(d))
-                }
+                Some(init) => Box::new(
+                    InProcess::new(fmu_model::<ControllerIo>(init)?)
+                        .with_deadline(d)
+                        .timed(opts.timing),
+                ),
                 None => Box::new(
                     InProcess::new(Controller::new(&inits.controller).map_err(RunError::Design)?)
-                        .with_deadline(d),
+                        .with_deadline(d)
+                        .timed(opts.timing),
                 ),
             };
             Ok(Participants {

@@ -424,6 +424,7 @@ pub fn run_recorded(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Res
     let cpus = cosim::ipc::allowed_cpus();
     let ps = launch::start(s, opts, &prefix)?;
     let mut team = Team::new(s, ps);
+    team.timed = opts.timing;
     let mut obs = Observers::new(s, opts, outputs);
     obs.cpu_plan = cpu_plan::CpuPlanner::new(s, &cpus);
     let loop_started = Instant::now();

@@ -60,6 +60,15 @@ pub(crate) fn controller(
     &mut ps.controller
 }
 
+/// The monotonic clock (ns) when exchanges are `timed`, else 0.
+fn clock(timed: bool) -> u64 {
+    if timed {
+        now_ns()
+    } else {
+        0
+    }
+}
+
 /// The participants with everything that acts on the way to and from them.
 pub(crate) struct Team<'a> {
     s: &'a Scenario,
@@ -76,6 +85,8 @@ pub(crate) struct Team<'a> {
     pub events: EventLog,
     /// This tick's exchanges (the loop hands them to the observers and clears them).
     pub exchanges: Vec<Exchange>,
+    /// Whether exchanges are stamped with the wall clock (`RunOptions::timing`).
+    pub timed: bool,
 }
 
 impl<'a> Team<'a> {
@@ -93,6 +104,7 @@ impl<'a> Team<'a> {
             flags: RoleMap::default(),
             events,
             exchanges: Vec::new(),
+            timed: true,
         }
     }
 
@@ -170,7 +182,7 @@ impl<'a> Team<'a> {
         if self.s.faults.on_bad_data == OnBadData::Hold {
             req.header_mut().flags |= FLAG_HOLD_BAD_INPUT;
         }
-        let t0 = now_ns();
+        let t0 = clock(self.timed);
         ep.send(&req)?;
         Ok(t0)
     }
@@ -186,7 +198,7 @@ impl<'a> Team<'a> {
         let ep = pick(&mut self.ps);
         let role = ep.role();
         let reply = ep.receive(k, kind)?;
-        let t3 = now_ns();
+        let t3 = clock(self.timed);
         let h = *reply.header();
         if h.flags & FLAG_HELD != 0 {
             self.events.push(
