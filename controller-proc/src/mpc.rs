@@ -179,6 +179,8 @@ pub struct Mpc {
     fw: Vec<Vec<[f64; 6]>>,
     /// Θ (p×M).
     pub theta: DMatrix<f64>,
+    /// The furthest the moves can shift each predicted output, Σ_l |Θ_il| Δu_max (rad, p).
+    reach: Vec<f64>,
     /// Hessian without the slack, Θᵀ Λ_ξ Θ + Λ_Δu (M×M).
     pub h: DMatrix<f64>,
     /// The QP (eq 34) in each of its forms, indexed by [`QpRows`]: every form is set up once.
@@ -387,6 +389,10 @@ impl Mpc {
             fx,
             step,
             fw,
+            reach: theta
+                .row_iter()
+                .map(|row| row.iter().map(|t| t.abs()).sum::<f64>() * s.du_max_deg.to_radians())
+                .collect(),
             theta,
             h,
             forms,
@@ -465,10 +471,10 @@ impl Mpc {
     ///   when none can (j = M−1 is the widest) they are left out too.
     pub fn rows_needed(&self, f: &[f64]) -> QpRows {
         let mm = self.s.horizon_m;
-        let outputs_free = f.iter().enumerate().all(|(i, fi)| {
-            let reach: f64 = (0..mm).map(|l| self.theta[(i, l)].abs()).sum::<f64>() * self.du_max;
-            fi.abs() + reach <= self.y_max
-        });
+        let outputs_free = f
+            .iter()
+            .zip(&self.reach)
+            .all(|(fi, reach)| fi.abs() + reach <= self.y_max);
         let inputs_free = self.u_prev.abs() + mm as f64 * self.du_max <= self.u_max;
         match (outputs_free, inputs_free) {
             (false, _) => QpRows::Full,

@@ -61,6 +61,16 @@ pub fn now_ns() -> u64 {
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
+/// [`now_ns`] where wall-clock times are wanted (`timed`), else 0 without reading the clock
+/// (runs that report no timing, such as a sweep's discarded samples).
+pub fn clock_ns(timed: bool) -> u64 {
+    if timed {
+        now_ns()
+    } else {
+        0
+    }
+}
+
 /// Common prefix of every sample.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]

@@ -2,7 +2,7 @@
 
 use std::time::Instant;
 
-use crate::msg::{now_ns, Header, Kind, Message, FLAG_HELD, FLAG_HOLD_BAD_INPUT, FLAG_REJECTED};
+use crate::msg::{clock_ns, Header, Kind, Message, FLAG_HELD, FLAG_HOLD_BAD_INPUT, FLAG_REJECTED};
 
 /// The three participant roles of a tiltsim run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -106,13 +106,9 @@ impl<P: Participant> Served<P> {
         self.timed = timed;
     }
 
-    /// The monotonic clock (ns) when timed, else 0.
+    /// The monotonic clock (ns) when timed, else 0 ([`clock_ns`]).
     pub fn clock(&self) -> u64 {
-        if self.timed {
-            now_ns()
-        } else {
-            0
-        }
+        clock_ns(self.timed)
     }
 
     /// Answers one request: checks it, runs the model and stamps the reply's header.

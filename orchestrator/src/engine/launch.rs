@@ -8,7 +8,7 @@ use controller_proc::{Controller, ControllerInit};
 use cosim::endpoint::ExitReport;
 use cosim::ipc::{IpcHub, IpcSettings, Launch};
 use cosim::msg::{FromActuator, FromController, FromPlant, ToActuator, ToController, ToPlant};
-use cosim::{Endpoint, InProcess, Role};
+use cosim::{Endpoint, InProcess, Participant, Role};
 use plant_proc::{Plant, PlantSettings};
 use serde::Serialize;
 use tiltsim_fmi::{ActuatorIo, ControllerIo, PlantIo};
@@ -151,42 +151,27 @@ pub(crate) fn start(
     }
     match s.run.transport {
         Transport::InProcess => {
-            let d = Duration::from_millis(s.run.deadline_ms);
+            // A model in this process, with the run's stall deadline and timing.
+            fn local<P: Participant>(model: P, s: &Scenario, opts: &RunOptions) -> InProcess<P> {
+                InProcess::new(model)
+                    .with_deadline(Duration::from_millis(s.run.deadline_ms))
+                    .timed(opts.timing)
+            }
             let plant: PlantEp = match s.fmu_init(Role::Plant) {
-                Some(init) => Box::new(
-                    InProcess::new(fmu_model::<PlantIo>(init)?)
-                        .with_deadline(d)
-                        .timed(opts.timing),
-                ),
-                None => Box::new(
-                    InProcess::new(Plant::new(&inits.plant))
-                        .with_deadline(d)
-                        .timed(opts.timing),
-                ),
+                Some(init) => Box::new(local(fmu_model::<PlantIo>(init)?, s, opts)),
+                None => Box::new(local(Plant::new(&inits.plant), s, opts)),
             };
             let actuator: ActuatorEp = match s.fmu_init(Role::Actuator) {
-                Some(init) => Box::new(
-                    InProcess::new(fmu_model::<ActuatorIo>(init)?)
-                        .with_deadline(d)
-                        .timed(opts.timing),
-                ),
-                None => Box::new(
-                    InProcess::new(Actuator::new(&inits.actuator))
-                        .with_deadline(d)
-                        .timed(opts.timing),
-                ),
+                Some(init) => Box::new(local(fmu_model::<ActuatorIo>(init)?, s, opts)),
+                None => Box::new(local(Actuator::new(&inits.actuator), s, opts)),
             };
             let controller: ControllerEp = match s.fmu_init(Role::Controller) {
-                Some(init) => Box::new(
-                    InProcess::new(fmu_model::<ControllerIo>(init)?)
-                        .with_deadline(d)
-                        .timed(opts.timing),
-                ),
-                None => Box::new(
-                    InProcess::new(Controller::new(&inits.controller).map_err(RunError::Design)?)
-                        .with_deadline(d)
-                        .timed(opts.timing),
-                ),
+                Some(init) => Box::new(local(fmu_model::<ControllerIo>(init)?, s, opts)),
+                None => Box::new(local(
+                    Controller::new(&inits.controller).map_err(RunError::Design)?,
+                    s,
+                    opts,
+                )),
             };
             Ok(Participants {
                 plant,

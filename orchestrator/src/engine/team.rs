@@ -4,7 +4,7 @@
 //! exchange for the observers.
 
 use cosim::endpoint::ExitReport;
-use cosim::msg::{now_ns, FromActuator, FromController, FromPlant, Header, Message};
+use cosim::msg::{clock_ns, FromActuator, FromController, FromPlant, Header, Message};
 use cosim::msg::{ToActuator, ToController, ToPlant, FLAG_HELD, FLAG_HOLD_BAD_INPUT};
 use cosim::{Endpoint, Kind, LinkError, Role};
 
@@ -58,15 +58,6 @@ pub(crate) fn controller(
     ps: &mut Participants,
 ) -> &mut Box<dyn Endpoint<ToController, FromController>> {
     &mut ps.controller
-}
-
-/// The monotonic clock (ns) when exchanges are `timed`, else 0.
-fn clock(timed: bool) -> u64 {
-    if timed {
-        now_ns()
-    } else {
-        0
-    }
 }
 
 /// The participants with everything that acts on the way to and from them.
@@ -182,7 +173,7 @@ impl<'a> Team<'a> {
         if self.s.faults.on_bad_data == OnBadData::Hold {
             req.header_mut().flags |= FLAG_HOLD_BAD_INPUT;
         }
-        let t0 = clock(self.timed);
+        let t0 = clock_ns(self.timed);
         ep.send(&req)?;
         Ok(t0)
     }
@@ -198,7 +189,7 @@ impl<'a> Team<'a> {
         let ep = pick(&mut self.ps);
         let role = ep.role();
         let reply = ep.receive(k, kind)?;
-        let t3 = clock(self.timed);
+        let t3 = clock_ns(self.timed);
         let h = *reply.header();
         if h.flags & FLAG_HELD != 0 {
             self.events.push(
