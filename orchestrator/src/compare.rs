@@ -385,3 +385,69 @@ fn run_table(md: &mut String, entries: &[Entry]) {
         );
     }
 }
+
+/// `compare.json`: the runs of a compare, each in `DIR/<dir>`, written before they start so
+/// that the next compare into the directory knows which subdirectories were this one's.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Manifest {
+    /// The runs in order.
+    pub runs: Vec<ManifestRun>,
+}
+
+/// One run of a compare.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ManifestRun {
+    /// Its subdirectory and label (the scenario's name, made distinct).
+    pub dir: String,
+    /// The scenario file.
+    pub scenario: String,
+}
+
+impl Manifest {
+    /// The manifest of the compare in `dir`, if it has a readable one.
+    pub fn read(dir: &std::path::Path) -> Option<Manifest> {
+        let text = std::fs::read_to_string(dir.join("compare.json")).ok()?;
+        serde_json::from_str(&text).ok()
+    }
+}
+
+/// Names a compare's own files and figures take in its directory: no run is put there.
+const RESERVED: [&str; 5] = [
+    "plots",
+    "compare.json",
+    "table.md",
+    "table.csv",
+    crate::outdir::LOCK_FILE,
+];
+
+/// Distinct subdirectory names for runs of scenarios named `names`, in order: a name already
+/// taken (by an earlier scenario or by the compare's own files) gets the first free `-2`,
+/// `-3`, ... suffix.
+pub fn distinct_names(names: &[String]) -> Vec<String> {
+    let mut taken: Vec<String> = Vec::new();
+    for n in names {
+        let free = |c: &String| !taken.contains(c) && !RESERVED.contains(&c.as_str());
+        let mut c = n.clone();
+        let mut k = 2;
+        while !free(&c) {
+            c = format!("{n}-{k}");
+            k += 1;
+        }
+        taken.push(c);
+    }
+    taken
+}
+
+#[cfg(test)]
+mod names_tests {
+    use super::*;
+
+    #[test]
+    fn same_named_scenarios_get_distinct_directories() {
+        let v = |x: &[&str]| x.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(
+            distinct_names(&v(&["a", "b", "a", "a-2", "a", "plots"])),
+            v(&["a", "b", "a-2", "a-2-2", "a-3", "plots-2"])
+        );
+    }
+}

@@ -162,6 +162,10 @@ pub fn exec(a: RunArgs) -> CliResult {
             return Err(CliError::Invalid(format!("{}: {m}", a.scenario.display())))
         }
     }
+    // Held until the run ends, taken before anything is written there; an earlier run's files
+    // go (what this run does not write again must not stay beside its own).
+    let _lock =
+        crate::outdir::claim_run(&out, "run").map_err(|e| CliError::Invalid(e.to_string()))?;
     let (interrupt, exe) = interrupt_and_exe()?;
     let realtime = if a.realtime {
         cosim::realtime::enter(cosim::realtime::PRIORITY)

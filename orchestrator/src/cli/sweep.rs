@@ -147,11 +147,18 @@ pub fn exec(a: SweepArgs) -> CliResult {
         interrupt,
         progress: !a.quiet,
     };
+    // Held until the sweep ends: one sweep (or shard) per directory.
+    let _lock = crate::outdir::claim(&out, crate::outdir::Kind::Sweep, "sweep")
+        .map_err(|e| CliError::Invalid(e.to_string()))?;
     let started = std::time::Instant::now();
-    let swept = crate::sweep::run(&s, &plan, shard, &ex);
+    let swept = crate::sweep::run(&s, &plan, shard, &ex).map_err(|e| match e {
+        crate::sweep::SweepError::Files(m) => CliError::Failed(m),
+        e => CliError::Invalid(e.to_string()),
+    })?;
     let rows = swept.rows;
     let wall = started.elapsed().as_secs_f64();
-    crate::sweep::write_outputs(&out, &s, &plan, shard, &rows, swept.interrupted)
+    let build = crate::sweep::identity::build();
+    crate::sweep::write_outputs(&out, &s, &plan, shard, &rows, swept.interrupted, build)
         .map_err(|e| CliError::Failed(format!("{}: {e}", out.display())))?;
     if swept.interrupted {
         // What finished stays on disk, marked as such in sweep.json.
