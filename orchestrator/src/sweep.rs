@@ -1196,6 +1196,8 @@ pub struct Outputs {
     pub base: Scenario,
     /// The rows with their place (`DIR/samples.csv line N`).
     pub rows: Vec<(String, Row)>,
+    /// The samples `series.csv` has a line for.
+    pub series: std::collections::BTreeSet<usize>,
 }
 
 /// Reads a sweep's (or shard's) outputs back, each file checked against the checksum
@@ -1262,18 +1264,12 @@ fn outputs(dir: &Path) -> Result<Outputs, String> {
             .ok_or_else(|| format!("{at}: sample {j} is not in samples.csv"))?;
         row.1.series = parse_f64s(f.iter().skip(1), &at)?;
     }
-    if let Some((at, r)) = rows.iter().find(|(_, r)| !seen.contains(&r.sample)) {
-        return Err(format!(
-            "{at}: sample {} has no line in {}",
-            r.sample,
-            series_path.display()
-        ));
-    }
     Ok(Outputs {
         dir: dir.to_path_buf(),
         meta,
         base,
         rows,
+        series: seen,
     })
 }
 
@@ -1380,6 +1376,13 @@ fn join(shards: Vec<Outputs>) -> Result<(Scenario, Plan, String, Vec<Row>), Stri
                 return Err(format!("{at}: sample {} appears twice", r.sample));
             }
             check_params(&base, &plan, r).map_err(|e| format!("{at}: {e}"))?;
+            if !o.series.contains(&r.sample) {
+                return Err(format!(
+                    "{at}: sample {} has no line in {}",
+                    r.sample,
+                    d.join("series.csv").display()
+                ));
+            }
         }
         let absent: Vec<usize> = mine.iter().filter(|j| !seen.contains(j)).copied().collect();
         if !absent.is_empty() {
