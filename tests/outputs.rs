@@ -257,7 +257,12 @@ fn an_earlier_runs_recording_trace_and_replays_are_not_left_beside_a_new_run() {
     std::fs::write(d.join("notes.txt"), "mine").unwrap();
     std::fs::write(d.join("plots/mine.svg"), "<svg/>").unwrap();
     let all = files_under(&d);
-    for f in ["run.mcap", "trace.csv", "plots/latency_histogram.png", "replay-controller/replay.json"] {
+    for f in [
+        "run.mcap",
+        "trace.csv",
+        "plots/latency_histogram.png",
+        "replay-controller/replay.json",
+    ] {
         assert!(all.iter().any(|x| x == f), "{f} not in {all:?}");
     }
     // The program's list of what a run writes covers every file this one made (with
@@ -276,7 +281,12 @@ fn an_earlier_runs_recording_trace_and_replays_are_not_left_beside_a_new_run() {
     let (code, _, err) = quick_run(s(&scenario("paper-pi.toml")), &d, &[]);
     assert_eq!(code, 0, "{err}");
     let now = files_under(&d);
-    for f in ["run.mcap", "trace.csv", "plots/latency_histogram.svg", "replay-controller/replay.json"] {
+    for f in [
+        "run.mcap",
+        "trace.csv",
+        "plots/latency_histogram.svg",
+        "replay-controller/replay.json",
+    ] {
         assert!(!now.iter().any(|x| x == f), "{f} left: {now:?}");
     }
     assert!(now.iter().any(|x| x == "notes.txt") && now.iter().any(|x| x == "plots/mine.svg"));

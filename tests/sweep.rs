@@ -384,7 +384,15 @@ fn samples_kept_in_memory_give_the_results_of_samples_written_to_disk() {
 /// Arguments of a small Monte Carlo sweep of LQG with the ideal actuator.
 fn mc_args(sc: &str, out: &Path, samples: &str, shard: Option<&str>) -> Vec<String> {
     let mut a: Vec<String> = [
-        "sweep", sc, "--samples", samples, "--seed", "3", "--jobs", "1", "--out",
+        "sweep",
+        sc,
+        "--samples",
+        samples,
+        "--seed",
+        "3",
+        "--jobs",
+        "1",
+        "--out",
     ]
     .iter()
     .map(|s| s.to_string())
@@ -436,7 +444,10 @@ fn a_damaged_kept_sample_is_run_again_with_a_warning_and_the_tables_stay_whole()
     // Sample 1: its metrics array cut short (the file otherwise well-formed JSON).
     let text = std::fs::read_to_string(kept(1)).unwrap();
     let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
-    v["body"]["row"]["metrics"].as_array_mut().unwrap().truncate(3);
+    v["body"]["row"]["metrics"]
+        .as_array_mut()
+        .unwrap()
+        .truncate(3);
     std::fs::write(kept(1), v.to_string()).unwrap();
     // Sample 2: garbage. Sample 3: sample 4's file in its place.
     std::fs::write(kept(2), "{\"body\": [1, 2").unwrap();
@@ -468,7 +479,8 @@ fn reseal(dir: &Path, file: &str) {
         .map(|b| format!("{b:02x}"))
         .collect();
     let p = dir.join("sweep.json");
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
     v["sha256"][file] = serde_json::Value::String(sum);
     std::fs::write(&p, serde_json::to_string_pretty(&v).unwrap()).unwrap();
 }
@@ -594,7 +606,11 @@ fn sweep_merge_refuses_tampered_extra_missing_and_duplicated_samples_naming_the_
     for (name, change, resealed, says) in cases {
         let t = dir.join(format!("t-{name}"));
         copy_dir(&s1, &t);
-        let file = if name == "series" { "series.csv" } else { "samples.csv" };
+        let file = if name == "series" {
+            "series.csv"
+        } else {
+            "samples.csv"
+        };
         let text = change(&t, &lines(&t.join(file)));
         std::fs::write(t.join(file), text).unwrap();
         if resealed {
@@ -638,7 +654,10 @@ fn another_build_runs_a_resumed_sweep_again_and_says_so_under_quiet() {
     // other bytes and another build identity.
     let other = dir.join("tiltsim-other");
     std::fs::copy(tiltsim_suite::tiltsim(), &other).unwrap();
-    let mut f = std::fs::OpenOptions::new().append(true).open(&other).unwrap();
+    let mut f = std::fs::OpenOptions::new()
+        .append(true)
+        .open(&other)
+        .unwrap();
     std::io::Write::write_all(&mut f, b"\0").unwrap();
     drop(f);
     let out = std::process::Command::new(&other)
@@ -695,7 +714,11 @@ fn slurm_stepped_arrays_give_their_shards_and_a_resubmitted_task_is_refused_sayi
     assert_eq!(code, 0, "{err}");
     let samples: Vec<u64> = out
         .lines()
-        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["sample"].as_u64().unwrap())
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).unwrap()["sample"]
+                .as_u64()
+                .unwrap()
+        })
         .collect();
     assert_eq!(samples, [1, 5]);
     // `sbatch --array=2`: refused at start, saying how to resubmit.

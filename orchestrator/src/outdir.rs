@@ -69,11 +69,7 @@ pub const SWEEP_FILES: [&str; 6] = [
     "table.csv",
 ];
 /// Figures of a sweep in `plots/`.
-pub const SWEEP_PLOTS: [&str; 3] = [
-    "sweep_lateral_acceleration",
-    "sweep_p_ct",
-    "sweep_comfort",
-];
+pub const SWEEP_PLOTS: [&str; 3] = ["sweep_lateral_acceleration", "sweep_p_ct", "sweep_comfort"];
 /// Files of a compare (its runs are in subdirectories listed in `compare.json`).
 pub const COMPARE_FILES: [&str; 3] = ["compare.json", "table.md", "table.csv"];
 /// Figures of a compare in `plots/`.
@@ -311,7 +307,10 @@ impl Lock {
                     });
                 }
                 Err(e) => {
-                    tracing::debug!("{}: no flock ({e}); the lock's contents decide", path.display());
+                    tracing::debug!(
+                        "{}: no flock ({e}); the lock's contents decide",
+                        path.display()
+                    );
                     false
                 }
             };
@@ -536,7 +535,10 @@ mod tests {
         let t = start_ticks(std::process::id()).unwrap();
         assert!(t > 0);
         // A child started after this process started later (or in the same tick).
-        let mut child = std::process::Command::new("sleep").arg("5").spawn().unwrap();
+        let mut child = std::process::Command::new("sleep")
+            .arg("5")
+            .spawn()
+            .unwrap();
         let c = start_ticks(child.id()).unwrap();
         let _ = child.kill();
         let _ = child.wait();
@@ -562,7 +564,8 @@ mod tests {
         let e = Lock::acquire(&d, "run").unwrap_err();
         assert!(matches!(e, OutDirError::InUse { .. }), "{e}");
         assert!(
-            e.to_string().contains(&format!("pid {}", std::process::id())),
+            e.to_string()
+                .contains(&format!("pid {}", std::process::id())),
             "{e}"
         );
         drop(a);

@@ -758,11 +758,7 @@ fn check_rows(
         }
     }
     if !interrupted && rows.len() != mine.len() {
-        return bad(format!(
-            "{} of {} samples finished",
-            rows.len(),
-            mine.len()
-        ));
+        return bad(format!("{} of {} samples finished", rows.len(), mine.len()));
     }
     Ok(())
 }
@@ -855,7 +851,10 @@ fn monte_carlo_tables(base: &Scenario, spread: f64, seed: u64, rows: &[Row]) -> 
         .map(String::from)
         .to_vec()];
     for (m, metric) in METRICS.iter().enumerate() {
-        let mut v: Vec<f64> = ok.iter().filter_map(|r| r.metrics.get(m).copied()).collect();
+        let mut v: Vec<f64> = ok
+            .iter()
+            .filter_map(|r| r.metrics.get(m).copied())
+            .collect();
         v.sort_by(|a, b| a.total_cmp(b));
         let q = [0.5, 0.05, 0.95, 0.0, 1.0].map(|p| percentile(&v, p));
         let _ = writeln!(
@@ -940,7 +939,6 @@ fn grid_tables(base: &Scenario, key: &str, rows: &[Row]) -> (String, String) {
 /// are checked first and every file is made in memory before any is written, so an earlier
 /// complete table is never replaced by a truncated one; `sweep.json`, which holds the others'
 /// checksums, is written last.
-#[allow(clippy::too_many_arguments)]
 pub fn write_outputs(
     out: &Path,
     base: &Scenario,
@@ -1198,6 +1196,8 @@ pub struct Outputs {
     pub rows: Vec<(String, Row)>,
     /// The samples `series.csv` has a line for.
     pub series: std::collections::BTreeSet<usize>,
+    /// Lines of `series.csv` for samples not in `samples.csv`, each as its error.
+    pub orphans: Vec<String>,
 }
 
 /// Reads a sweep's (or shard's) outputs back, each file checked against the checksum
@@ -1208,8 +1208,8 @@ pub fn read_outputs(dir: &Path) -> Result<Outputs, SweepError> {
 
 fn outputs(dir: &Path) -> Result<Outputs, String> {
     let meta_path = dir.join("sweep.json");
-    let text = std::fs::read_to_string(&meta_path)
-        .map_err(|e| format!("{}: {e}", meta_path.display()))?;
+    let text =
+        std::fs::read_to_string(&meta_path).map_err(|e| format!("{}: {e}", meta_path.display()))?;
     let meta: SweepFile = serde_json::from_str(&text).map_err(|e| {
         format!(
             "{}: {e} (not the sweep.json of a sweep of this version of tiltsim: run the sweep again)",
@@ -1250,6 +1250,7 @@ fn outputs(dir: &Path) -> Result<Outputs, String> {
         .collect::<Result<Vec<_>, _>>()?;
     let series_path = dir.join("series.csv");
     let mut seen = std::collections::BTreeSet::new();
+    let mut orphans = Vec::new();
     for (at, f) in records(&series_path, &verified("series.csv")?)? {
         let j: usize = f
             .get(0)
@@ -1258,11 +1259,11 @@ fn outputs(dir: &Path) -> Result<Outputs, String> {
         if !seen.insert(j) {
             return Err(format!("{at}: sample {j} appears twice"));
         }
-        let row = rows
-            .iter_mut()
-            .find(|(_, r)| r.sample == j)
-            .ok_or_else(|| format!("{at}: sample {j} is not in samples.csv"))?;
-        row.1.series = parse_f64s(f.iter().skip(1), &at)?;
+        let series = parse_f64s(f.iter().skip(1), &at)?;
+        match rows.iter_mut().find(|(_, r)| r.sample == j) {
+            Some(row) => row.1.series = series,
+            None => orphans.push(format!("{at}: sample {j} is not in samples.csv")),
+        }
     }
     Ok(Outputs {
         dir: dir.to_path_buf(),
@@ -1270,6 +1271,7 @@ fn outputs(dir: &Path) -> Result<Outputs, String> {
         base,
         rows,
         series: seen,
+        orphans,
     })
 }
 
@@ -1367,10 +1369,7 @@ fn join(shards: Vec<Outputs>) -> Result<(Scenario, Plan, String, Vec<Row>), Stri
                 ));
             }
             if mine.binary_search(&r.sample).is_err() {
-                return Err(format!(
-                    "{at}: sample {} is not in shard {name}",
-                    r.sample
-                ));
+                return Err(format!("{at}: sample {} is not in shard {name}", r.sample));
             }
             if !seen.insert(r.sample) {
                 return Err(format!("{at}: sample {} appears twice", r.sample));
@@ -1393,6 +1392,9 @@ fn join(shards: Vec<Outputs>) -> Result<(Scenario, Plan, String, Vec<Row>), Stri
                 mine.len(),
                 &absent[..absent.len().min(5)]
             ));
+        }
+        if let Some(e) = o.orphans.first() {
+            return Err(e.clone());
         }
         if m.samples != seen.iter().copied().collect::<Vec<_>>() {
             return Err(format!(
@@ -1422,7 +1424,10 @@ fn join(shards: Vec<Outputs>) -> Result<(Scenario, Plan, String, Vec<Row>), Stri
 }
 
 fn shard_name(o: &Outputs) -> String {
-    o.meta.shard.clone().unwrap_or_else(|| "0/1 (a whole sweep)".into())
+    o.meta
+        .shard
+        .clone()
+        .unwrap_or_else(|| "0/1 (a whole sweep)".into())
 }
 
 #[cfg(test)]
@@ -1475,7 +1480,11 @@ mod tests {
                 ("SLURM_ARRAY_TASK_STEP", "2"),
                 ("SLURM_ARRAY_TASK_COUNT", "4"),
             ];
-            let var = |k: &str| vars.iter().find(|(n, _)| *n == k).map(|(_, v)| v.to_string());
+            let var = |k: &str| {
+                vars.iter()
+                    .find(|(n, _)| *n == k)
+                    .map(|(_, v)| v.to_string())
+            };
             assert_eq!(Shard::auto(None, var).unwrap(), Shard { index, count: 4 });
         }
         // `sbatch --array=2`, task 2 of a larger array submitted again: refused, saying how.
@@ -1492,7 +1501,10 @@ mod tests {
             ("SLURM_ARRAY_TASK_ID", "0"),
             ("SLURM_ARRAY_TASK_COUNT", "1"),
         ]);
-        assert_eq!(Shard::auto(None, one).unwrap(), Shard { index: 0, count: 1 });
+        assert_eq!(
+            Shard::auto(None, one).unwrap(),
+            Shard { index: 0, count: 1 }
+        );
         // `--array=1,2,5`: not evenly spaced, refused.
         let uneven = env(&[
             ("SLURM_ARRAY_TASK_ID", "5"),
@@ -1501,7 +1513,10 @@ mod tests {
             ("SLURM_ARRAY_TASK_COUNT", "3"),
         ]);
         let e = Shard::auto(None, uneven).unwrap_err().to_string();
-        assert!(e.contains("evenly spaced") && e.contains("--shard I/N"), "{e}");
+        assert!(
+            e.contains("evenly spaced") && e.contains("--shard I/N"),
+            "{e}"
+        );
         let aws = env(&[
             ("AWS_BATCH_JOB_ARRAY_INDEX", "2"),
             ("AWS_BATCH_JOB_ARRAY_SIZE", "3"),

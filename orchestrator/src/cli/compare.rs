@@ -27,8 +27,8 @@ pub struct CompareArgs {
 fn one(file: &Path, s: Scenario, out: &Path, base: &RunOptions) -> Result<Entry, CliError> {
     let dir = out.join(&s.name);
     // Each run of a compare is a run: its own lock, an earlier run's files removed.
-    let _lock = crate::outdir::claim_run(&dir, "compare")
-        .map_err(|e| CliError::Invalid(e.to_string()))?;
+    let _lock =
+        crate::outdir::claim_run(&dir, "compare").map_err(|e| CliError::Invalid(e.to_string()))?;
     let mut opts = base.clone();
     opts.out_dir = dir.clone();
     let summary = crate::analysis::run(&s, &file.display().to_string(), &opts)
@@ -62,7 +62,10 @@ pub fn exec(a: CompareArgs) -> CliResult {
     }
     // Scenarios of one name get distinct directories and labels: `name`, `name-2`, ...
     let names: Vec<String> = loaded.iter().map(|(_, s)| s.name.clone()).collect();
-    for ((file, s), name) in loaded.iter_mut().zip(crate::compare::distinct_names(&names)) {
+    for ((file, s), name) in loaded
+        .iter_mut()
+        .zip(crate::compare::distinct_names(&names))
+    {
         if name != s.name {
             eprintln!(
                 "note: {}: `{}` is also the name of another scenario compared (or of a file of the compare): this one runs in {} and is labelled {name}",
@@ -75,8 +78,8 @@ pub fn exec(a: CompareArgs) -> CliResult {
     }
     let invalid = |e: crate::outdir::OutDirError| CliError::Invalid(e.to_string());
     // The compare holds its directory; an earlier compare's runs and tables there go first.
-    let _lock = crate::outdir::claim(&a.out, crate::outdir::Kind::Compare, "compare")
-        .map_err(invalid)?;
+    let _lock =
+        crate::outdir::claim(&a.out, crate::outdir::Kind::Compare, "compare").map_err(invalid)?;
     if let Some(old) = crate::compare::Manifest::read(&a.out) {
         for r in old.runs {
             let dir = a.out.join(&r.dir);

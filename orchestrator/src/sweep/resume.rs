@@ -211,7 +211,9 @@ impl Done {
         if checked.is_err() {
             let _ = std::fs::remove_file(&p);
         }
-        checked.map(Some).map_err(|e| format!("{}: {e}", p.display()))
+        checked
+            .map(Some)
+            .map_err(|e| format!("{}: {e}", p.display()))
     }
 
     fn check(&self, j: usize, plan: &Plan, text: &str) -> Result<Row, String> {
@@ -220,10 +222,7 @@ impl Done {
             return Err("kept for another sweep (fingerprint differs)".into());
         }
         if k.shard != self.id.shard {
-            return Err(format!(
-                "kept for shard {}, not {}",
-                k.shard, self.id.shard
-            ));
+            return Err(format!("kept for shard {}, not {}", k.shard, self.id.shard));
         }
         if k.sample != j || k.row.sample != j {
             return Err(format!("holds sample {}, not {j}", k.sample));
