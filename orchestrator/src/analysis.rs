@@ -204,9 +204,13 @@ struct Derived {
 /// Reads a run's recorded series (`dir/timeseries.csv`) and hands each row, in order, to
 /// `visit` with its comfort sample. The reference of eq 18 is taken at each row's own
 /// position, continuous: the recorded θ_ref is the controller's, held over its period (50 ms
-/// for the MPC), whose steps would read as roll-speed spikes of the reference. Roll speeds
-/// use a central difference of the cant (one-sided at the ends), so a row is handed over when
-/// the next one has been read: three rows are in memory at most.
+/// for the MPC), whose steps would read as roll-speed spikes of the reference. The roll speed
+/// is the recorded θ̇_v plus the track model's cant rate at the row's time, on the same side
+/// of a ramp corner as the recorded state ([`vehicle_model::Track::cant_rate_at_time`]): a
+/// difference of the recorded cant would mix the slopes before and after the corner with a
+/// θ̇_v taken after its jump. The reference's roll speed is a central difference of the cant
+/// plus θ_v^d (one-sided at the ends), so a row is handed over when the next one has been
+/// read: three rows are in memory at most.
 pub fn scan(
     s: &Scenario,
     rows: Rows,
@@ -214,6 +218,8 @@ pub fn scan(
 ) -> std::io::Result<u64> {
     let controller = controller_proc::Controller::new(&s.controller_init()).ok();
     let veh = vehicle_model::Vehicle::new(s.vehicle.clone(), s.track.speed());
+    let track = vehicle_model::Track::new(&s.track, s.run.seed);
+    let v = s.track.speed();
     let dt = s.run.dt_s;
     let (h1, h2) = (s.vehicle.h1, s.vehicle.h2);
     let sample = |x: &Derived, before: &Derived, after: &Derived, steps: f64| {
@@ -229,7 +235,7 @@ pub fn scan(
             t: r.t,
             lat_acc: r.lat_acc,
             lat_acc_ref: veh.lateral_acceleration(x.reference, r.curvature, r.cant),
-            roll_speed: r.dtheta_v + deriv(&|d| d.row.cant),
+            roll_speed: r.dtheta_v + track.cant_rate_at_time(r.t, v),
             roll_speed_ref: deriv(&|d| d.row.cant + d.reference),
             deflection: r.y_v - h1 * r.theta_v - r.y_b - h2 * r.theta_b,
         }

@@ -149,6 +149,23 @@ impl Track {
         }
     }
 
+    /// The cant rate θ̇_o (rad/s) at time `t` of a vehicle running at `v` (m/s) from s = 0,
+    /// with the ramp corners on the plant's side of the jump: a corner reached at or before
+    /// `t` (s_c/v ≤ t) has been passed, because the plant applies its velocity jump in the
+    /// step that ends at it (`plant-proc`'s `advance`), so the θ̇_v recorded at `t` is already
+    /// the one after the jump. θ̇_v + this value is then the body's absolute roll rate,
+    /// continuous across every corner. Between corners it equals `v·at(v·t).dcant_ds`.
+    pub fn cant_rate_at_time(&self, t: f64, v: f64) -> f64 {
+        let slope: f64 = self
+            .corners()
+            .iter()
+            .filter(|c| c.s / v <= t)
+            .map(|c| c.dslope)
+            .sum();
+        let (_, de, _) = self.irregularity(v * t);
+        v * (slope + de)
+    }
+
     /// The four ramp corners with their slope jumps.
     pub fn corners(&self) -> [Corner; 4] {
         let k = self.cant / self.p.transition_m;
@@ -232,6 +249,29 @@ mod tests {
             prev = pa;
         }
         assert!(differs, "a different seed gives a different track");
+    }
+
+    #[test]
+    fn cant_rate_at_time_takes_the_slope_after_a_corner_reached() {
+        let mut p = TrackParams::default();
+        p.irregularity.amplitude_deg = 0.6;
+        let t = Track::new(&p, 3);
+        let v = p.speed();
+        let ramp = v * p.cant_deg.to_radians() / p.transition_m;
+        // Between corners: v·dθ_o/ds of the track point.
+        for s in [50.0, 200.0, 400.0, 560.0, 700.0] {
+            let r = t.cant_rate_at_time(s / v, v);
+            assert!((r - v * t.at(s).dcant_ds).abs() < 1e-12, "s = {s}");
+        }
+        // At each corner's instant the slope after it (the plant has applied the jump), and
+        // the one before it a hair earlier.
+        let flat = Track::new(&TrackParams::default(), 3);
+        for (c, after) in flat.corners().iter().zip([ramp, 0.0, -ramp, 0.0]) {
+            let tc = c.s / v;
+            assert!((flat.cant_rate_at_time(tc, v) - after).abs() < 1e-15);
+            let before = after - v * c.dslope;
+            assert!((flat.cant_rate_at_time(tc - 1e-9, v) - before).abs() < 1e-15);
+        }
     }
 
     #[test]
