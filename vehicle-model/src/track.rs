@@ -1,4 +1,6 @@
-//! The track: deterministic curve geometry plus the seeded cant irregularity.
+//! The track: deterministic curve geometry plus the seeded irregularity: the paper's random
+//! cant on knots, or lateral alignment and cross-level drawn from the ERRI B176 spectra
+//! ([`crate::spectrum`]).
 //!
 //! Curvature κ = 1/R and cant θ_o ramp linearly in the transitions (paper section 2.3), so the
 //! cant rate θ̇_o jumps at the four corners of the ramps and θ̈_o is a Dirac impulse there.
@@ -8,7 +10,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::params::TrackParams;
+use crate::params::{IrregularityModel, TrackParams};
 
 /// Track values at one position.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -23,6 +25,10 @@ pub struct TrackPoint {
     pub dcant_ds: f64,
     /// Smooth part of d²θ_o/ds² (irregularity only; the ramp corners are impulses) (rad/m²).
     pub d2cant_ds2: f64,
+    /// Lateral alignment irregularity y_o (m), the track's lateral input of eq 11.
+    pub y_o: f64,
+    /// dy_o/ds (rad, i.e. m/m).
+    pub dy_o_ds: f64,
 }
 
 /// A corner of a linear ramp: the cant slope changes by `dslope` (rad/m) at `s` (m).
@@ -45,6 +51,9 @@ pub struct Track {
     kappa: f64,
     cant: f64,
     knots: Vec<f64>,
+    /// Spectrum model: alignment y_o (m) and cross-level angle (rad).
+    alignment: Option<crate::spectrum::Profile>,
+    cross_level: Option<crate::spectrum::Profile>,
 }
 
 /// Quintic blend S(u) = 10u³ − 15u⁴ + 6u⁵ and its first two derivatives: S(0)=0, S(1)=1,
@@ -66,7 +75,11 @@ impl Track {
         let s2 = s1 + p.transition_m;
         let s3 = s2 + p.curve_m;
         let s4 = s3 + p.transition_m;
-        let amp = p.irregularity.amplitude_deg.to_radians();
+        let irr = &p.irregularity;
+        let amp = match irr.model {
+            IrregularityModel::Knots => irr.amplitude_deg.to_radians(),
+            IrregularityModel::Spectrum => 0.0,
+        };
         // Knots cover the track plus margin; a dedicated stream keeps them independent of the
         // sensor noise drawn from the same seed.
         let n = (p.length() / p.irregularity.knot_spacing_m).ceil() as usize + 3;
@@ -85,6 +98,23 @@ impl Track {
         } else {
             Vec::new()
         };
+        let (mut alignment, mut cross_level) = (None, None);
+        if let (IrregularityModel::Spectrum, Some(level)) = (irr.model, irr.level) {
+            use crate::spectrum::{alignment_psd, cross_level_psd, Profile};
+            let (lo, hi) = irr.band_m();
+            // Streams 3 and 4 of the seed: independent of the knots and the sensor noise.
+            let draw = |stream: u64, psd: fn(crate::spectrum::Level, f64) -> f64| {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                rng.set_stream(stream);
+                Profile::generate(|w| psd(level, w), p.length(), lo, hi, &mut rng)
+            };
+            if irr.alignment.unwrap_or(true) {
+                alignment = Some(draw(3, alignment_psd));
+            }
+            if irr.cross_level.unwrap_or(true) {
+                cross_level = Some(draw(4, cross_level_psd));
+            }
+        }
         Track {
             p: p.clone(),
             s1,
@@ -94,6 +124,8 @@ impl Track {
             kappa: 1.0 / p.radius_m,
             cant: p.cant_deg.to_radians(),
             knots,
+            alignment,
+            cross_level,
         }
     }
 
@@ -118,6 +150,9 @@ impl Track {
 
     /// Irregularity and its first two derivatives with respect to s.
     fn irregularity(&self, s: f64) -> (f64, f64, f64) {
+        if let Some(c) = &self.cross_level {
+            return c.at(s);
+        }
         if self.knots.is_empty() || s <= 0.0 {
             return (0.0, 0.0, 0.0);
         }
@@ -140,12 +175,15 @@ impl Track {
     pub fn at(&self, s: f64) -> TrackPoint {
         let (r, dr) = self.ramp(s);
         let (e, de, d2e) = self.irregularity(s);
+        let (y_o, dy_o_ds, _) = self.alignment.as_ref().map_or((0.0, 0.0, 0.0), |a| a.at(s));
         TrackPoint {
             curvature: self.kappa * r,
             cant_design: self.cant * r,
             cant: self.cant * r + e,
             dcant_ds: self.cant * dr + de,
             d2cant_ds2: d2e,
+            y_o,
+            dy_o_ds,
         }
     }
 
