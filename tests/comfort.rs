@@ -158,3 +158,44 @@ fn comfort_roll_speed_is_continuous_across_every_ramp_corner() {
         .fold(0.0, f64::max);
     assert!(worst < 2e-4, "largest difference {worst} rad/s");
 }
+
+/// `[track.irregularity]` rejects the other model's fields and a spectrum without its level,
+/// naming the file and the field, exit code 2.
+#[test]
+fn irregularity_settings_are_validated_by_name() {
+    for (from, to, field) in [
+        (
+            "level = \"high\"",
+            "level = \"high\"\namplitude_deg = 0.6",
+            "track.irregularity.amplitude_deg",
+        ),
+        ("level = \"high\"", "", "track.irregularity.level"),
+        (
+            "model = \"spectrum\"\nlevel = \"high\"",
+            "knot_spacing_m = 10.0\nlevel = \"high\"",
+            "track.irregularity.level",
+        ),
+        (
+            "level = \"high\"",
+            "level = \"high\"\nmin_wavelength_m = 200.0",
+            "track.irregularity.max_wavelength_m",
+        ),
+    ] {
+        let p = tiltsim_suite::scenario_with("straight-lqg.toml", from, to, "irregularity-bad");
+        let (code, _, err) = run(&["validate", p.to_str().unwrap()]);
+        assert_eq!(code, 2, "{to}: {err}");
+        assert!(
+            err.contains(field) && err.contains("straight-lqg.toml"),
+            "{to}: {err}"
+        );
+    }
+    let p = tiltsim_suite::scenario_with(
+        "straight-lqg.toml",
+        "level = \"high\"",
+        "level = \"medium\"",
+        "irregularity-bad-level",
+    );
+    let (code, _, err) = run(&["validate", p.to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("level") && err.contains("medium"), "{err}");
+}
