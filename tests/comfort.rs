@@ -141,7 +141,10 @@ fn comfort_roll_speed_is_continuous_across_every_ramp_corner() {
         let fd = (dy_v[j + 1] - dy_v[j - 1]) / (2.0 * dt);
         worst = worst.max((sway[j] - fd).abs());
     }
-    assert!(worst < 1e-3, "sway acceleration against d/dt ẏ_v: {worst} m/s²");
+    assert!(
+        worst < 1e-3,
+        "sway acceleration against d/dt ẏ_v: {worst} m/s²"
+    );
     // The rate's step between rows, checked below to stay under 2 rad/s² · dt, bounds |φ̈|,
     // so the central difference is within dt·2/2 = 1e-3 rad/s; the tolerance taken,
     // 2e-4 rad/s, is 100x above what the run shows (1.4e-6 rad/s) and 100x below the
@@ -253,9 +256,15 @@ fn compare_pairs_curving_comfort_with_straight_track_ride() {
     let p_ct = curve["comfort"]["p_ct"]["standing"].as_f64().unwrap();
     let n_mv = st["comfort"]["ride"]["n_mv_lateral"].as_f64().unwrap();
     assert!(n_mv > 0.0);
-    assert!((cells[3].parse::<f64>().unwrap() - p_ct).abs() < 1e-3, "{row}");
+    assert!(
+        (cells[3].parse::<f64>().unwrap() - p_ct).abs() < 1e-3,
+        "{row}"
+    );
     assert_eq!(cells[5], "straight-lqg");
-    assert!((cells[6].parse::<f64>().unwrap() - n_mv).abs() < 1e-3, "{row}");
+    assert!(
+        (cells[6].parse::<f64>().unwrap() - n_mv).abs() < 1e-3,
+        "{row}"
+    );
     let svg = std::fs::read_to_string(dir.join("plots/trade_off.svg")).unwrap();
     assert!(svg.contains(">LQG<"), "the point is labelled");
     // The paper's eq 13 is the default form, and the other form is reported beside it.
