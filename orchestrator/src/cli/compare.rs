@@ -125,6 +125,8 @@ pub fn exec(a: CompareArgs) -> CliResult {
         .collect();
     crate::analysis::write_compare_plots(&runs, &a.out)
         .map_err(|e| CliError::Failed(format!("{}: {e}", a.out.join("plots").display())))?;
+    crate::compare::write_trade_off_plot(&entries, &a.out)
+        .map_err(|e| CliError::Failed(format!("{}: {e}", a.out.join("plots").display())))?;
     println!(
         "wrote {0}/table.md, {0}/table.csv and {0}/plots/compare_*.svg|png",
         a.out.display()
