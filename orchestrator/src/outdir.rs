@@ -73,10 +73,11 @@ pub const SWEEP_PLOTS: [&str; 3] = ["sweep_lateral_acceleration", "sweep_p_ct", 
 /// Files of a compare (its runs are in subdirectories listed in `compare.json`).
 pub const COMPARE_FILES: [&str; 3] = ["compare.json", "table.md", "table.csv"];
 /// Figures of a compare in `plots/`.
-pub const COMPARE_PLOTS: [&str; 3] = [
+pub const COMPARE_PLOTS: [&str; 4] = [
     "compare_lateral_acceleration",
     "compare_body_roll",
     "compare_control",
+    "trade_off",
 ];
 
 /// What a directory holds: the results of one kind of command.
