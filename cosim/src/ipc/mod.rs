@@ -36,7 +36,7 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 
 use crate::endpoint::LinkError;
-use crate::msg::Message;
+use crate::msg::{Header, Kind, Message};
 use crate::participant::Role;
 use crate::wait::WaitStrategy;
 
@@ -155,12 +155,84 @@ fn publish<T: Message>(
         .map_err(|e| format!("send: {e:?}"))
 }
 
-/// Drains `sub` and returns the one sample for `step`, or an error for any other sample.
+/// Samples to drop on purpose, for tests of lost samples: `TILTSIM_DROP_SAMPLES` holds
+/// `ROLE:request:STEP` or `ROLE:reply:STEP` items, comma-separated. The first sending of
+/// that step's request (by the orchestrator) or reply (by the participant) is not published,
+/// as if the transport had lost it; a repeat goes through. Unset in every ordinary run.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct DropPlan {
+    steps: Vec<(Role, bool, u64)>,
+}
+
+impl DropPlan {
+    /// The variable's name.
+    pub(crate) const VAR: &'static str = "TILTSIM_DROP_SAMPLES";
+
+    /// The plan of `role` from the environment (empty when unset or unreadable).
+    pub(crate) fn from_env(role: Role) -> Self {
+        let Some(v) = std::env::var_os(Self::VAR) else {
+            return DropPlan::default();
+        };
+        let steps = v
+            .to_string_lossy()
+            .split(',')
+            .filter_map(|item| {
+                let mut it = item.trim().splitn(3, ':');
+                let r = Role::parse(it.next()?)?;
+                let request = match it.next()? {
+                    "request" => true,
+                    "reply" => false,
+                    _ => return None,
+                };
+                let step = it.next()?.parse().ok()?;
+                (r == role).then_some((r, request, step))
+            })
+            .collect();
+        DropPlan { steps }
+    }
+
+    /// Whether the first sending of a step request (`request`) or reply for `h` is dropped.
+    pub(crate) fn drops(&self, request: bool, h: &Header) -> bool {
+        !self.steps.is_empty()
+            && h.attempt == 0
+            && h.kind == Kind::Step as u32
+            && self
+                .steps
+                .iter()
+                .any(|&(_, q, s)| q == request && s == h.step)
+    }
+}
+
+/// The request last re-sent to a participant: the answers to its repeats that still come are
+/// expected and discarded.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Resent {
+    /// [`crate::msg::exchange_key`] of the request.
+    pub key: u64,
+    /// Its highest attempt sent.
+    pub attempts: u32,
+}
+
+impl Resent {
+    /// Whether reply header `h` answers a repeat of the request re-sent.
+    fn answers_repeat(&self, h: &Header) -> bool {
+        h.attempt >= 1
+            && h.attempt <= self.attempts
+            && crate::msg::exchange_key(h) == Some(self.key)
+    }
+}
+
+/// Drains `sub` and returns the one sample for `step`, or an error for any other sample. The
+/// answer to a repeated request ([`Resent`]) that comes besides the one taken is discarded and
+/// counted in `discarded`; any other extra, stale or early sample stays an error.
 fn drain<T: Message>(
     role: Role,
     sub: &Subscriber<ipc::Service, T, ()>,
     step: u64,
+    kind: Kind,
     found: &mut Option<T>,
+    resent: Option<Resent>,
+    discarded: &mut u64,
 ) -> Result<(), LinkError> {
     loop {
         let sample = sub.receive().map_err(|e| LinkError::Transport {
@@ -169,7 +241,20 @@ fn drain<T: Message>(
         })?;
         let Some(sample) = sample else { return Ok(()) };
         let value: T = *sample;
-        let got = value.header().step;
+        drop(sample);
+        let h = value.header();
+        if resent.is_some_and(|r| r.answers_repeat(h)) {
+            // The answer to a repeat is taken only as the first answer to the pending request
+            // (the original request or reply was lost); any other is an expected extra.
+            let pending = Header::new(step, kind);
+            let first_for_pending =
+                found.is_none() && crate::msg::exchange_key(h) == crate::msg::exchange_key(&pending);
+            if !first_for_pending {
+                *discarded += 1;
+                continue;
+            }
+        }
+        let got = h.step;
         if got < step {
             return Err(LinkError::Stale {
                 role,

@@ -3,12 +3,15 @@
 use std::time::Duration;
 
 use crate::endpoint::LinkError;
-use crate::msg::{Kind, Message, FLAG_CRASH};
+use std::sync::atomic::Ordering;
+
+use crate::msg::{exchange_key, now_ns, Header, Kind, Message, FLAG_CRASH};
 use crate::participant::{Participant, Served};
 use crate::wait::{sleep_until_ns, Backoff, Cadence, WaitStrategy};
 
+use super::supervise::Status;
 use super::{
-    config, iox, node, pin_to_cpu, quiet_iceoryx_logs, reply_service, request_service, service,
+    config, iox, node, DropPlan, pin_to_cpu, quiet_iceoryx_logs, reply_service, request_service, service,
     IpcError,
 };
 
@@ -58,6 +61,11 @@ pub fn serve_with<P: Participant>(
     let mut last_step: Option<u64> = None;
     let mut served = Served::new(p);
     let mut cadence = Cadence::default();
+    let status = Status::open(prefix, role);
+    let words = status.words();
+    let drops = DropPlan::from_env(role);
+    let mut repeat = Repeat::default();
+    let mut empty_polls = 0u64;
     loop {
         let mut backoff = Backoff::with_spin(wait, spin_polls);
         let mut sleep = if wait == WaitStrategy::Adaptive {
@@ -70,6 +78,9 @@ pub fn serve_with<P: Participant>(
             if let Some(s) = sample {
                 break *s;
             }
+            // Plain stores of a counter only this process writes: no cost worth naming.
+            empty_polls += 1;
+            words.empty_polls.store(empty_polls, Ordering::Release);
             if let Some(until) = sleep.take() {
                 sleep_until_ns(until);
                 continue;
@@ -80,6 +91,16 @@ pub fn serve_with<P: Participant>(
             backoff.pause();
         };
         let h = *request.header();
+        let key = exchange_key(&h);
+        if let Some(k) = key {
+            words.taken.store(k + 1, Ordering::Release);
+        }
+        // A repeat of the request last answered: its reply again, the model not stepped.
+        if let Some(again) = repeat.answer(&h) {
+            words.repeats.fetch_add(1, Ordering::Relaxed);
+            super::publish(&publisher, again).map_err(IpcError::Iceoryx)?;
+            continue;
+        }
         match Kind::from_raw(h.kind) {
             Some(Kind::Stop) => return Ok(()),
             Some(Kind::Init) => {
@@ -117,7 +138,44 @@ pub fn serve_with<P: Participant>(
             return Err(IpcError::Model(why));
         }
         tamper(&mut reply);
-        super::publish(&publisher, reply).map_err(IpcError::Iceoryx)?;
+        reply.header_mut().attempt = h.attempt;
+        repeat.keep(&h, &reply);
+        if !drops.drops(false, reply.header()) {
+            super::publish(&publisher, reply).map_err(IpcError::Iceoryx)?;
+        }
+        if let Some(k) = key {
+            words.answered.store(k + 1, Ordering::Release);
+        }
+    }
+}
+
+/// The participant's memory of the request it last answered, to answer a repeat of it (the
+/// orchestrator re-sends a request whose reply it has not seen) with the same reply, without
+/// stepping the model again.
+#[derive(Debug, Default)]
+pub(crate) struct Repeat<O: Message> {
+    last: Option<(u64, O)>,
+}
+
+impl<O: Message> Repeat<O> {
+    /// Keeps `reply`, the answer to request `h`.
+    pub(crate) fn keep(&mut self, h: &Header, reply: &O) {
+        self.last = exchange_key(h).map(|k| (k, *reply));
+    }
+
+    /// The reply to send again if `h` repeats the request last answered: the same values,
+    /// carrying the repeat's attempt, stamped anew. `None` for anything else (a new request,
+    /// or a first sending that repeats a step, which stays a protocol error).
+    pub(crate) fn answer(&self, h: &Header) -> Option<O> {
+        let (k, reply) = self.last?;
+        if h.attempt == 0 || exchange_key(h) != Some(k) {
+            return None;
+        }
+        let mut again = reply;
+        again.header_mut().attempt = h.attempt;
+        let sent = if again.header().sent_ns == 0 { 0 } else { now_ns() };
+        again.stamp_at(sent);
+        Some(again)
     }
 }
 
