@@ -97,32 +97,34 @@ PY
   if [ "$outcome" = completed ]; then rm -rf "$d" "$d.err"; fi
 }
 
-half=$((runs / 2))
-i=0
-for phase in quiet hogs; do
-  if [ $phase = hogs ]; then
-    # Not jobs of this shell: `jobs` counts runs only, `wait` waits for runs only.
-    for _ in 1 2; do
-      yes > /dev/null &
-      hogs+=($!)
-      disown $!
-    done
-  fi
-  n=$half
-  [ $phase = hogs ] && n=$((runs - half))
-  for ((j = 0; j < n; j++)); do
-    m=${masters[$((i % 2))]}
-    w=${waits[$(((i / 2) % 4))]}
-    one "$i" "$m" "$w" "$phase" &
-    i=$((i + 1))
-    while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n; done
-    if [ $((i % 100)) -eq 0 ]; then
-      echo "$(date -u +%H:%M:%S) $i of $runs started; $(awk '{c[$5]++} END {for (k in c) printf "%s %d  ", k, c[k]}' "$results")"
+# Blocks of 50 runs, quiet and under two CPU hogs in turn: half the runs each, and a soak
+# stopped early still has both.
+block=50
+for ((i = 0; i < runs; i++)); do
+  if [ $((i % block)) -eq 0 ]; then
+    wait
+    stop_hogs
+    phase=quiet
+    if [ $(((i / block) % 2)) -eq 1 ]; then
+      phase=hogs
+      # Not jobs of this shell: `jobs` counts runs only, `wait` waits for runs only.
+      for _ in 1 2; do
+        yes > /dev/null &
+        hogs+=($!)
+        disown $!
+      done
     fi
-  done
-  wait
-  stop_hogs
+  fi
+  m=${masters[$((i % 2))]}
+  w=${waits[$(((i / 2) % 4))]}
+  one "$i" "$m" "$w" "$phase" &
+  while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n; done
+  if [ $(((i + 1) % 100)) -eq 0 ]; then
+    echo "$(date -u +%H:%M:%S) $((i + 1)) of $runs started; $(awk '{c[$5]++} END {for (k in c) printf "%s %d  ", k, c[k]}' "$results")"
+  fi
 done
+wait
+stop_hogs
 
 left=$(find /dev/shm /tmp/iceoryx2 -maxdepth 5 -name "${tag}_*" 2>/dev/null | wc -l)
 count() { awk -v o="$1" '$5 == o' "$results" | wc -l; }
@@ -132,7 +134,7 @@ failed=$(count failed)
 differing=$(count differing)
 read -r resends lreq lrep <<<"$(awk '{r += $6; q += $7; p += $8} END {print r + 0, q + 0, p + 0}' "$results")"
 echo
-echo "soak: $(wc -l < "$results") IPC runs of $(basename "$scenario"), --duration $duration, $jobs at a time, half with two CPU hogs"
+echo "soak: $(wc -l < "$results") IPC runs of $(basename "$scenario"), --duration $duration, $jobs at a time, half with two CPU hogs (blocks of 50)"
 echo "  completed $completed  hung $hung  failed $failed  differing $differing"
 echo "  re-sent requests $resends (lost requests $lreq, lost replies $lrep)"
 awk '{k = $2 " " $3 " " $4; n[k]++; if ($5 == "completed") c[k]++; r[k] += $6}

@@ -131,6 +131,39 @@ impl IpcHub {
         Ok(ep)
     }
 
+    /// An endpoint for a participant served in this process (tests of the exchange itself).
+    #[cfg(test)]
+    fn attach<I: Message, O: Message>(&self, role: Role) -> Result<IpcEndpoint<I, O>, IpcError> {
+        let req = service::<I>(&self.node, &request_service(role))?;
+        let rep = service::<O>(&self.node, &reply_service(role))?;
+        Ok(IpcEndpoint {
+            role,
+            pid: std::process::id(),
+            child: None,
+            exit: None,
+            publisher: req
+                .publisher_builder()
+                .create()
+                .map_err(iox("create publisher"))?,
+            subscriber: rep
+                .subscriber_builder()
+                .create()
+                .map_err(iox("create subscriber"))?,
+            req,
+            rep,
+            wait: self.settings.wait,
+            spin_polls: crate::wait::SPIN_POLLS,
+            deadline: self.settings.deadline,
+            ceiling: self.settings.ceiling,
+            counts: ExchangeCounts::default(),
+            status: Status::create(&self.settings.prefix, role)
+                .map_err(|e| IpcError::Iceoryx(format!("status: {e}")))?,
+            last_request: None,
+            resent: None,
+            drops: DropPlan::default(),
+        })
+    }
+
     /// Removes the resources of this run's participants that died without cleaning up.
     pub fn cleanup_dead(&self) -> u64 {
         self.node.try_cleanup_dead_nodes().cleanups
@@ -609,5 +642,89 @@ impl<I: Message, O: Message> Drop for IpcEndpoint<I, O> {
         if self.child.is_some() {
             self.shutdown();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::AtomicU64;
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::msg::{FromController, ToController};
+    use crate::participant::Participant;
+
+    /// Doubles the measurement and counts its steps.
+    struct Doubler(Arc<AtomicU64>);
+    impl Participant for Doubler {
+        type Input = ToController;
+        type Output = FromController;
+        const ROLE: Role = Role::Controller;
+        fn initial_output(&mut self) -> FromController {
+            FromController::default()
+        }
+        fn step(&mut self, i: &ToController) -> FromController {
+            self.0.fetch_add(1, Ordering::Relaxed);
+            FromController {
+                theta_v_hat: 2.0 * i.theta_v_meas,
+                ..Default::default()
+            }
+        }
+    }
+
+    #[test]
+    fn a_lost_request_and_a_lost_reply_are_resent_and_the_model_steps_once_each() {
+        let prefix = super::super::unique_prefix();
+        let hub = IpcHub::new(IpcSettings {
+            prefix: prefix.clone(),
+            wait: WaitStrategy::Adaptive,
+            deadline: Duration::from_millis(500),
+            ceiling: Duration::from_secs(600),
+            participant_cpu: None,
+        })
+        .unwrap();
+        let mut ep = hub.attach::<ToController, FromController>(Role::Controller).unwrap();
+        // The orchestrator loses its first sending of step 3's request, the participant its
+        // first sending of step 5's reply.
+        ep.drops = DropPlan::new(vec![(Role::Controller, true, 3)]);
+        let steps = Arc::new(AtomicU64::new(0));
+        let (model, pfx) = (Doubler(steps.clone()), prefix.clone());
+        let served = std::thread::spawn(move || {
+            super::super::serve::serve_dropping(
+                model,
+                &pfx,
+                WaitStrategy::Adaptive,
+                crate::wait::SPIN_POLLS,
+                super::super::IDLE_LIMIT,
+                |_| {},
+                DropPlan::new(vec![(Role::Controller, false, 5)]),
+            )
+        });
+        ep.await_connection(Duration::from_secs(600)).unwrap();
+        for k in 0..8u64 {
+            let req = ToController {
+                header: Header::new(k, Kind::Step),
+                theta_v_meas: k as f64,
+                ..Default::default()
+            };
+            ep.send(&req).unwrap();
+            let reply = ep.receive(k, Kind::Step).unwrap();
+            assert_eq!(reply.theta_v_hat, 2.0 * k as f64, "step {k}");
+        }
+        // Every step computed once: the repeat of step 5 was answered from the last reply.
+        assert_eq!(steps.load(Ordering::Relaxed), 8);
+        let c = ep.counts();
+        assert_eq!((c.lost_requests, c.lost_replies, c.resends), (1, 1, 2), "{c:?}");
+        assert_eq!(c.repeats_answered, 1, "{c:?}");
+        let _ = super::super::publish(&ep.publisher, {
+            let mut m = ToController::default();
+            m.header = Header::new(u64::MAX, Kind::Stop);
+            m
+        });
+        served.join().unwrap().unwrap();
+        drop(ep);
+        drop(hub);
+        super::super::remove_run_files(&prefix);
+        assert!(super::super::leftover_files(&prefix).is_empty());
     }
 }

@@ -191,6 +191,12 @@ impl DropPlan {
         DropPlan { steps }
     }
 
+    /// A plan of `(role, request, step)` items.
+    #[cfg(test)]
+    pub(crate) fn new(steps: Vec<(Role, bool, u64)>) -> Self {
+        DropPlan { steps }
+    }
+
     /// Whether the first sending of a step request (`request`) or reply for `h` is dropped.
     pub(crate) fn drops(&self, request: bool, h: &Header) -> bool {
         !self.steps.is_empty()
@@ -273,5 +279,44 @@ fn drain<T: Message>(
             return Err(LinkError::Duplicate { role, step });
         }
         *found = Some(value);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_the_answers_to_repeats_of_the_request_re_sent_are_expected() {
+        let r = Resent {
+            key: crate::msg::exchange_key(&Header::new(7, Kind::Step)).unwrap(),
+            attempts: 2,
+        };
+        let h = |step, kind, attempt| Header {
+            attempt,
+            ..Header::new(step, kind)
+        };
+        assert!(r.answers_repeat(&h(7, Kind::Step, 1)));
+        assert!(r.answers_repeat(&h(7, Kind::Step, 2)));
+        // The original answer, an attempt never sent, another step or kind: not repeats.
+        assert!(!r.answers_repeat(&h(7, Kind::Step, 0)));
+        assert!(!r.answers_repeat(&h(7, Kind::Step, 3)));
+        assert!(!r.answers_repeat(&h(6, Kind::Step, 1)));
+        assert!(!r.answers_repeat(&h(7, Kind::Init, 1)));
+    }
+
+    #[test]
+    fn a_drop_plan_drops_first_sendings_of_its_own_steps_only() {
+        let plan = DropPlan::new(vec![(Role::Plant, true, 5), (Role::Plant, false, 9)]);
+        let h = |step, attempt| Header {
+            attempt,
+            ..Header::new(step, Kind::Step)
+        };
+        assert!(plan.drops(true, &h(5, 0)));
+        assert!(!plan.drops(true, &h(5, 1)), "a repeat goes through");
+        assert!(!plan.drops(false, &h(5, 0)));
+        assert!(plan.drops(false, &h(9, 0)));
+        assert!(!plan.drops(true, &Header::new(5, Kind::Init)));
+        assert!(!DropPlan::default().drops(true, &h(5, 0)));
     }
 }

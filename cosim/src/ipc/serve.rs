@@ -37,7 +37,21 @@ pub fn serve_with<P: Participant>(
     wait: WaitStrategy,
     spin_polls: u32,
     idle_limit: Duration,
+    tamper: impl FnMut(&mut P::Output),
+) -> Result<(), IpcError> {
+    let drops = DropPlan::from_env(P::ROLE);
+    serve_dropping(p, prefix, wait, spin_polls, idle_limit, tamper, drops)
+}
+
+/// [`serve_with`] with the samples to drop given (tests of lost samples).
+pub(crate) fn serve_dropping<P: Participant>(
+    p: P,
+    prefix: &str,
+    wait: WaitStrategy,
+    spin_polls: u32,
+    idle_limit: Duration,
     mut tamper: impl FnMut(&mut P::Output),
+    drops: DropPlan,
 ) -> Result<(), IpcError> {
     quiet_iceoryx_logs();
     let role = P::ROLE;
@@ -63,7 +77,6 @@ pub fn serve_with<P: Participant>(
     let mut cadence = Cadence::default();
     let status = Status::open(prefix, role);
     let words = status.words();
-    let drops = DropPlan::from_env(role);
     let mut repeat = Repeat::default();
     let mut empty_polls = 0u64;
     loop {
@@ -371,4 +384,40 @@ where
     };
     serve_with(model, &a.prefix, a.wait, spin, IDLE_LIMIT, tamper)
         .map_err(|source| ServeError::Link { process, source })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::FromController;
+
+    fn header(step: u64, kind: Kind, attempt: u32) -> Header {
+        Header {
+            attempt,
+            ..Header::new(step, kind)
+        }
+    }
+
+    #[test]
+    fn a_repeated_request_is_answered_with_the_last_reply_and_anything_else_is_not() {
+        let mut r = Repeat::<FromController>::default();
+        assert!(r.answer(&header(7, Kind::Step, 1)).is_none(), "nothing answered yet");
+        let reply = FromController {
+            header: header(7, Kind::Step, 0),
+            delta_a_cmd: 0.125,
+            theta_ref: -0.5,
+            ..Default::default()
+        };
+        r.keep(&header(7, Kind::Step, 0), &reply);
+        let again = r.answer(&header(7, Kind::Step, 2)).expect("a repeat of step 7");
+        assert_eq!((again.delta_a_cmd, again.theta_ref), (0.125, -0.5));
+        assert_eq!((again.header.step, again.header.attempt), (7, 2));
+        assert_eq!(again.header.size as usize, core::mem::size_of::<FromController>());
+        // A first sending of the same step again is a protocol error for the caller, not a
+        // repeat; another step, or the Init of the same index, is a new request.
+        assert!(r.answer(&header(7, Kind::Step, 0)).is_none());
+        assert!(r.answer(&header(8, Kind::Step, 1)).is_none());
+        assert!(r.answer(&header(7, Kind::Init, 1)).is_none());
+        assert!(r.answer(&header(u64::MAX, Kind::Stop, 1)).is_none());
+    }
 }
