@@ -107,7 +107,11 @@ fn sixteen_concurrent_ipc_runs_under_two_cpu_hogs_all_complete_identically() {
     drop(hogs);
     for (code, err, out, pfx, master) in outcomes {
         assert_eq!(code, 0, "{}: {err}", out.display());
-        let reference = if master == "jacobi" { &want_jacobi } else { &want };
+        let reference = if master == "jacobi" {
+            &want_jacobi
+        } else {
+            &want
+        };
         assert!(
             std::fs::read(out.join("timeseries.csv")).unwrap() == *reference,
             "{}: {master} differs from the run alone",

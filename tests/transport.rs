@@ -323,15 +323,11 @@ fn a_lost_request_or_reply_is_resent_counted_and_changes_no_value() {
         );
         assert_eq!(summary(&dir)["steps_completed"], 1000);
         let perf: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(dir.join("perf.json")).unwrap())
-                .unwrap();
+            serde_json::from_str(&std::fs::read_to_string(dir.join("perf.json")).unwrap()).unwrap();
         let lost = |role: &str| perf["participants"][role]["lost_samples"].clone();
         // What was dropped, per participant: (lost requests, lost replies).
-        for (role, requests, replies) in [
-            ("plant", 1, 1),
-            ("actuator", 0, 1),
-            ("controller", 1, 1),
-        ] {
+        for (role, requests, replies) in [("plant", 1, 1), ("actuator", 0, 1), ("controller", 1, 1)]
+        {
             let l = lost(role);
             assert_eq!(l["lost_requests"], requests, "{master} {role}: {l}");
             assert_eq!(l["lost_replies"], replies, "{master} {role}: {l}");

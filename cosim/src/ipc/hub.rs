@@ -19,8 +19,8 @@ use crate::wait::{Backoff, WaitStrategy};
 
 use super::supervise::{proc_state, try_reap, Status};
 use super::{
-    config, drain, iox, DropPlan, Resent, node, quiet_iceoryx_logs, reply_service, request_service, service,
-    IpcError, IpcSettings,
+    config, drain, iox, node, quiet_iceoryx_logs, reply_service, request_service, service,
+    DropPlan, IpcError, IpcSettings, Resent,
 };
 
 /// The orchestrator's side of the transport for one run.
@@ -683,7 +683,9 @@ mod tests {
             participant_cpu: None,
         })
         .unwrap();
-        let mut ep = hub.attach::<ToController, FromController>(Role::Controller).unwrap();
+        let mut ep = hub
+            .attach::<ToController, FromController>(Role::Controller)
+            .unwrap();
         // The orchestrator loses its first sending of step 3's request, the participant its
         // first sending of step 5's reply.
         ep.drops = DropPlan::new(vec![(Role::Controller, true, 3)]);
@@ -714,7 +716,11 @@ mod tests {
         // Every step computed once: the repeat of step 5 was answered from the last reply.
         assert_eq!(steps.load(Ordering::Relaxed), 8);
         let c = ep.counts();
-        assert_eq!((c.lost_requests, c.lost_replies, c.resends), (1, 1, 2), "{c:?}");
+        assert_eq!(
+            (c.lost_requests, c.lost_replies, c.resends),
+            (1, 1, 2),
+            "{c:?}"
+        );
         assert_eq!(c.repeats_answered, 1, "{c:?}");
         let _ = super::super::publish(&ep.publisher, {
             let mut m = ToController::default();

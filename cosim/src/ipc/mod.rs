@@ -253,8 +253,8 @@ fn drain<T: Message>(
             // The answer to a repeat is taken only as the first answer to the pending request
             // (the original request or reply was lost); any other is an expected extra.
             let pending = Header::new(step, kind);
-            let first_for_pending =
-                found.is_none() && crate::msg::exchange_key(h) == crate::msg::exchange_key(&pending);
+            let first_for_pending = found.is_none()
+                && crate::msg::exchange_key(h) == crate::msg::exchange_key(&pending);
             if !first_for_pending {
                 *discarded += 1;
                 continue;

@@ -11,8 +11,8 @@ use crate::wait::{sleep_until_ns, Backoff, Cadence, WaitStrategy};
 
 use super::supervise::Status;
 use super::{
-    config, iox, node, DropPlan, pin_to_cpu, quiet_iceoryx_logs, reply_service, request_service, service,
-    IpcError,
+    config, iox, node, pin_to_cpu, quiet_iceoryx_logs, reply_service, request_service, service,
+    DropPlan, IpcError,
 };
 
 /// Participant side: serves requests for model `p` until asked to stop.
@@ -110,8 +110,10 @@ pub(crate) fn serve_dropping<P: Participant>(
         }
         // A repeat of the request last answered: its reply again, the model not stepped.
         if let Some(again) = repeat.answer(&h) {
-            words.repeats.fetch_add(1, Ordering::Relaxed);
             super::publish(&publisher, again).map_err(IpcError::Iceoryx)?;
+            // Counted once sent: the orchestrator re-sends again only for a repeat that was
+            // answered and still did not come.
+            words.repeats.fetch_add(1, Ordering::Release);
             continue;
         }
         match Kind::from_raw(h.kind) {
@@ -186,7 +188,11 @@ impl<O: Message> Repeat<O> {
         }
         let mut again = reply;
         again.header_mut().attempt = h.attempt;
-        let sent = if again.header().sent_ns == 0 { 0 } else { now_ns() };
+        let sent = if again.header().sent_ns == 0 {
+            0
+        } else {
+            now_ns()
+        };
         again.stamp_at(sent);
         Some(again)
     }
@@ -401,7 +407,10 @@ mod tests {
     #[test]
     fn a_repeated_request_is_answered_with_the_last_reply_and_anything_else_is_not() {
         let mut r = Repeat::<FromController>::default();
-        assert!(r.answer(&header(7, Kind::Step, 1)).is_none(), "nothing answered yet");
+        assert!(
+            r.answer(&header(7, Kind::Step, 1)).is_none(),
+            "nothing answered yet"
+        );
         let reply = FromController {
             header: header(7, Kind::Step, 0),
             delta_a_cmd: 0.125,
@@ -409,10 +418,15 @@ mod tests {
             ..Default::default()
         };
         r.keep(&header(7, Kind::Step, 0), &reply);
-        let again = r.answer(&header(7, Kind::Step, 2)).expect("a repeat of step 7");
+        let again = r
+            .answer(&header(7, Kind::Step, 2))
+            .expect("a repeat of step 7");
         assert_eq!((again.delta_a_cmd, again.theta_ref), (0.125, -0.5));
         assert_eq!((again.header.step, again.header.attempt), (7, 2));
-        assert_eq!(again.header.size as usize, core::mem::size_of::<FromController>());
+        assert_eq!(
+            again.header.size as usize,
+            core::mem::size_of::<FromController>()
+        );
         // A first sending of the same step again is a protocol error for the caller, not a
         // repeat; another step, or the Init of the same index, is a new request.
         assert!(r.answer(&header(7, Kind::Step, 0)).is_none());
