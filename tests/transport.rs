@@ -331,10 +331,14 @@ fn a_lost_request_or_reply_is_resent_counted_and_changes_no_value() {
             let l = lost(role);
             assert_eq!(l["lost_requests"], requests, "{master} {role}: {l}");
             assert_eq!(l["lost_replies"], replies, "{master} {role}: {l}");
-            // One re-send repairs each loss; a lost reply is answered again from the last
-            // reply (the repeat), a lost request is simply taken the second time.
-            assert_eq!(l["resends"], requests + replies, "{master} {role}: {l}");
-            assert_eq!(l["repeats_answered"], replies, "{master} {role}: {l}");
+            // Each loss is repaired by a re-send; a lost reply is answered again from the last
+            // reply (a repeat), a lost request is simply taken the second time. (Under heavy
+            // load a re-send can also go to a participant that is only slow: never fewer.)
+            let at_least = |k: &str, n: u64| {
+                assert!(l[k].as_u64().unwrap() >= n, "{master} {role}: {k} in {l}");
+            };
+            at_least("resends", requests + replies);
+            at_least("repeats_answered", replies);
         }
     }
 }

@@ -517,6 +517,19 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
                     }
                 }
                 if elapsed > look_at {
+                    // A reply that came since the drain above is taken, not judged.
+                    drain(
+                        self.role,
+                        &self.subscriber,
+                        step,
+                        kind,
+                        &mut found,
+                        self.resent,
+                        &mut self.counts.repeats_discarded,
+                    )?;
+                    if found.is_some() {
+                        continue;
+                    }
                     let w = self.status.words();
                     let computing = w.taken.load(Ordering::Acquire) == key + 1
                         && w.answered.load(Ordering::Acquire) != key + 1;
