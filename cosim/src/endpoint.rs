@@ -192,6 +192,10 @@ pub struct ExchangeCounts {
     pub repeats_answered: u64,
     /// Answers to repeated requests that came besides the one taken, discarded.
     pub repeats_discarded: u64,
+    /// Requests whose sending reached no subscriber and was sent again at once.
+    pub undelivered_requests: u64,
+    /// Replies whose sending reached no subscriber and was sent again at once.
+    pub undelivered_replies: u64,
 }
 
 /// A process fault injected on purpose (scheduled in the scenario).

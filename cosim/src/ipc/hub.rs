@@ -425,10 +425,13 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
         self.last_request = Some(req);
         self.counts.resends += 1;
         req.stamp();
-        super::publish(&self.publisher, req).map_err(|what| LinkError::Transport {
-            role: self.role,
-            what,
-        })
+        let undelivered =
+            super::publish(&self.publisher, req).map_err(|what| LinkError::Transport {
+                role: self.role,
+                what,
+            })?;
+        self.counts.undelivered_requests += undelivered;
+        Ok(())
     }
 }
 
@@ -458,10 +461,13 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         if self.drops.drops(true, req.header()) {
             return Ok(());
         }
-        super::publish(&self.publisher, req).map_err(|what| LinkError::Transport {
-            role: self.role,
-            what,
-        })
+        let undelivered =
+            super::publish(&self.publisher, req).map_err(|what| LinkError::Transport {
+                role: self.role,
+                what,
+            })?;
+        self.counts.undelivered_requests += undelivered;
+        Ok(())
     }
     fn receive(&mut self, step: u64, kind: Kind) -> Result<O, LinkError> {
         let mut backoff = Backoff::with_spin(self.wait, self.spin_polls);
@@ -565,6 +571,7 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
     fn counts(&self) -> ExchangeCounts {
         let mut c = self.counts;
         c.repeats_answered = self.status.words().repeats.load(Ordering::Relaxed);
+        c.undelivered_replies = self.status.words().undelivered.load(Ordering::Relaxed);
         c
     }
     fn set_shares_cpu(&mut self, shared: bool) {

@@ -141,18 +141,40 @@ fn reply_service(role: Role) -> String {
     format!("tiltsim/{}/reply", role.name())
 }
 
+/// Sendings of one sample that may reach no subscriber before [`publish`] leaves it to the
+/// exchange's repair of lost samples.
+const UNDELIVERED_RETRIES: u32 = 3;
+
 /// Publishes `v` zero-copy: the sample is written into memory loaned from the shared segment
 /// (`loan_uninit`, `write_payload`) and sent from there; the subscriber reads it in place.
+///
+/// iceoryx2's `send` skips, without an error, a subscriber whose connection the publisher
+/// does not hold (not yet set up, or being set up again) and reports it only through the
+/// number of recipients it returns. Every service here has exactly one subscriber, so 0
+/// recipients is a sample lost at the source: the publisher's connections are brought up to
+/// date and the sample sent again, up to [`UNDELIVERED_RETRIES`] times. Returns how many
+/// sendings reached nobody (0 on the normal path; the caller counts them). A sample that
+/// still reached nobody (a subscriber that has gone, as at shut-down) is left to the
+/// exchange's repair of lost samples.
 fn publish<T: Message>(
     p: &iceoryx2::port::publisher::Publisher<ipc::Service, T, ()>,
     v: T,
-) -> Result<(), String> {
-    let sample = p.loan_uninit().map_err(|e| format!("loan: {e:?}"))?;
-    sample
-        .write_payload(v)
-        .send()
-        .map(|_| ())
-        .map_err(|e| format!("send: {e:?}"))
+) -> Result<u64, String> {
+    let mut undelivered = 0;
+    loop {
+        let sample = p.loan_uninit().map_err(|e| format!("loan: {e:?}"))?;
+        let recipients = sample
+            .write_payload(v)
+            .send()
+            .map_err(|e| format!("send: {e:?}"))?;
+        if recipients > 0 || undelivered >= u64::from(UNDELIVERED_RETRIES) {
+            return Ok(undelivered);
+        }
+        undelivered += 1;
+        use iceoryx2::port::update_connections::UpdateConnections;
+        p.update_connections()
+            .map_err(|e| format!("update connections: {e:?}"))?;
+    }
 }
 
 /// Samples to drop on purpose, for tests of lost samples: `TILTSIM_DROP_SAMPLES` holds

@@ -110,7 +110,8 @@ pub(crate) fn serve_dropping<P: Participant>(
         }
         // A repeat of the request last answered: its reply again, the model not stepped.
         if let Some(again) = repeat.answer(&h) {
-            super::publish(&publisher, again).map_err(IpcError::Iceoryx)?;
+            let undelivered = super::publish(&publisher, again).map_err(IpcError::Iceoryx)?;
+            words.undelivered.fetch_add(undelivered, Ordering::Relaxed);
             // Counted once sent: the orchestrator re-sends again only for a repeat that was
             // answered and still did not come.
             words.repeats.fetch_add(1, Ordering::Release);
@@ -156,7 +157,10 @@ pub(crate) fn serve_dropping<P: Participant>(
         reply.header_mut().attempt = h.attempt;
         repeat.keep(&h, &reply);
         if !drops.drops(false, reply.header()) {
-            super::publish(&publisher, reply).map_err(IpcError::Iceoryx)?;
+            let undelivered = super::publish(&publisher, reply).map_err(IpcError::Iceoryx)?;
+            if undelivered > 0 {
+                words.undelivered.fetch_add(undelivered, Ordering::Relaxed);
+            }
         }
         if let Some(k) = key {
             words.answered.store(k + 1, Ordering::Release);

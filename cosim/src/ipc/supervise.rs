@@ -50,6 +50,8 @@ pub(crate) struct StatusWords {
     pub empty_polls: AtomicU64,
     /// Repeated requests answered from the last reply.
     pub repeats: AtomicU64,
+    /// Replies whose sending reached no subscriber and were sent again.
+    pub undelivered: AtomicU64,
 }
 
 /// A participant's status words, mapped from shared memory (or private when the orchestrator

@@ -46,6 +46,10 @@ pub struct LostSamples {
     pub repeats_answered: u64,
     /// Answers to repeats that came besides the one taken, discarded.
     pub repeats_discarded: u64,
+    /// Requests whose sending reached no subscriber (sent again at once).
+    pub undelivered_requests: u64,
+    /// Replies whose sending reached no subscriber (sent again at once by the participant).
+    pub undelivered_replies: u64,
 }
 
 impl From<cosim::endpoint::ExchangeCounts> for LostSamples {
@@ -56,6 +60,8 @@ impl From<cosim::endpoint::ExchangeCounts> for LostSamples {
             lost_replies: c.lost_replies,
             repeats_answered: c.repeats_answered,
             repeats_discarded: c.repeats_discarded,
+            undelivered_requests: c.undelivered_requests,
+            undelivered_replies: c.undelivered_replies,
         }
     }
 }
