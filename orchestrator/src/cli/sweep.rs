@@ -119,11 +119,19 @@ fn holds_integer(s: &Scenario, key: &str) -> bool {
 /// `--plan-only`: one JSON line per sample of the shard.
 fn print_plan(s: &Scenario, plan: &Plan, shard: Option<Shard>) -> CliResult {
     use std::io::Write as _;
+    let interrupt = crate::signals::install();
     let mut out = std::io::stdout().lock();
     for j in shard
         .unwrap_or(Shard { index: 0, count: 1 })
         .samples(plan.len())
     {
+        if interrupt.load(std::sync::atomic::Ordering::Relaxed) {
+            let _ = out.flush();
+            return Err(CliError::Interrupted(format!(
+                "interrupted by {}: the plan printed up to sample {j}",
+                crate::signals::describe()
+            )));
+        }
         let set: serde_json::Map<String, serde_json::Value> = crate::sweep::overrides(s, plan, j)
             .map_err(|e| CliError::Invalid(e.to_string()))?
             .into_iter()
