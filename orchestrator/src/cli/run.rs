@@ -151,7 +151,11 @@ pub fn exec(a: RunArgs) -> CliResult {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("out").join(&s.name));
-    match crate::budget::check(&s, &out, a.trace) {
+    let extras = crate::budget::Extras {
+        trace: a.trace,
+        record: a.record,
+    };
+    match crate::budget::check(&s, &out, extras) {
         crate::budget::Verdict::Fits => {}
         crate::budget::Verdict::Warn(m) => eprintln!("warning: {}: {m}", a.scenario.display()),
         crate::budget::Verdict::Refuse(m) => {
