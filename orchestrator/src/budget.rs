@@ -60,8 +60,16 @@ pub struct Estimate {
 pub fn estimate(s: &Scenario, extras: Extras) -> Estimate {
     let rows = s.steps();
     let per_row = row_bytes(s)
-        + if extras.trace { TRACE_BYTES_PER_TICK } else { 0 }
-        + if extras.record { RECORD_BYTES_PER_TICK } else { 0 };
+        + if extras.trace {
+            TRACE_BYTES_PER_TICK
+        } else {
+            0
+        }
+        + if extras.record {
+            RECORD_BYTES_PER_TICK
+        } else {
+            0
+        };
     Estimate {
         rows,
         bytes: rows.saturating_mul(per_row).saturating_add(FIXED_BYTES),

@@ -32,7 +32,7 @@ pub struct RunArgs {
     #[arg(long, value_parser = bounds::int(1..=60_000u64, " ms"))]
     deadline_ms: Option<u64>,
     /// Simulated duration in s, overriding run.duration_s.
-    #[arg(long, value_parser = bounds::real((0.0, End::Open), (3600.0, End::Closed), " s"))]
+    #[arg(long, value_parser = bounds::real((1e-5, End::Closed), (3600.0, End::Closed), " s"))]
     duration: Option<f64>,
     /// Set a numeric setting, KEY=VALUE with KEY a dotted path (`vehicle.m_v=21000`);
     /// repeatable. The lines of `tiltsim sweep --plan-only` give a sample's settings.
