@@ -16,7 +16,7 @@ pub struct BenchArgs {
     scenario: PathBuf,
     /// Simulated seconds per configuration.
     #[arg(long, default_value_t = 2.0,
-          value_parser = bounds::real((0.0, End::Open), (600.0, End::Closed), " s"))]
+          value_parser = bounds::real((0.01, End::Closed), (600.0, End::Closed), " s"))]
     duration: f64,
     /// Rounds of the three runs the wall-time ratios compare (in-process, IPC Gauss-Seidel, IPC
     /// Jacobi), run one after the other; the ratios are those of the median walls.
