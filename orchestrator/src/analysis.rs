@@ -117,7 +117,9 @@ pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
             v_dc: r.v_dc,
         });
     });
-    if scanned.is_err() {
+    if let Err(e) = scanned {
+        // Results from part of a series would read as the run's: none are given.
+        tracing::warn!("comfort, flags and results not computed: {e}");
         return;
     }
     summary.results = look.q;

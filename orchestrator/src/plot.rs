@@ -743,7 +743,8 @@ pub fn write_run_plots(
 ) -> std::io::Result<Vec<PathBuf>> {
     let t: Vec<f64> = rows.iter().map(|r| r.t).collect();
     let out = dir.join("plots");
-    std::fs::create_dir_all(&out)?;
+    std::fs::create_dir_all(&out)
+        .map_err(|e| std::io::Error::new(e.kind(), format!("{}: {e}", out.display())))?;
     let mut files = Vec::new();
     for (name, title, y_label, lines) in run_charts(u_max) {
         let chart = Chart {

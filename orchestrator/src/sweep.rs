@@ -113,8 +113,17 @@ fn grid_plan(arg: &str) -> Result<Plan, String> {
         .split_once('=')
         .ok_or_else(|| format!("--grid `{arg}`: expected KEY=START:STOP:STEP or KEY=V1,V2,..."))?;
     let num = |x: &str| {
-        x.trim()
-            .parse::<f64>()
+        let x = x.trim();
+        // A value is held as f64: a whole number written in digits must be one that f64
+        // holds exactly, or it would arrive as its neighbour (2^53 + 1 as 2^53).
+        if let Ok(n) = x.parse::<i128>() {
+            if n.unsigned_abs() > 1u128 << 53 {
+                return Err(format!(
+                    "--grid `{arg}`: `{x}` is a whole number beyond 2^53 = 9007199254740992, which a grid value cannot hold exactly; set it with `tiltsim run --set KEY={x}` (or `--seed`)"
+                ));
+            }
+        }
+        x.parse::<f64>()
             .ok()
             .filter(|v| v.is_finite())
             .ok_or_else(|| format!("--grid `{arg}`: `{x}` is not a finite number"))

@@ -497,6 +497,16 @@ fn report(
             Some("a participant was lost; the run continued degraded (events.csv)".into()),
         ),
         Ok(_) => (Status::Completed, None),
+        // A signal to the whole process group (systemd, Slurm's scancel, a container
+        // runtime) reaches the participants too, and they end first: the run was
+        // interrupted, not failed by them.
+        Err(err) if opts.interrupt.load(Ordering::Relaxed) => (
+            Status::Interrupted,
+            Some(format!(
+                "interrupted by {} ({err})",
+                crate::signals::describe()
+            )),
+        ),
         Err(err) => (Status::Failed, Some(err.to_string())),
     };
     let periods = RoleMap::new([s.run.dt_s, s.run.dt_s, s.controller.period_s]);
