@@ -454,19 +454,6 @@ pub fn distinct_names(names: &[String]) -> Vec<String> {
     taken
 }
 
-#[cfg(test)]
-mod names_tests {
-    use super::*;
-
-    #[test]
-    fn same_named_scenarios_get_distinct_directories() {
-        let v = |x: &[&str]| x.iter().map(|s| s.to_string()).collect::<Vec<_>>();
-        assert_eq!(
-            distinct_names(&v(&["a", "b", "a", "a-2", "a", "plots"])),
-            v(&["a", "b", "a-2", "a-2-2", "a-3", "plots-2"])
-        );
-    }
-}
 /// Whether the run ends before its track's first transition: straight track only.
 pub fn straight_only(s: &Scenario) -> bool {
     let end = s
@@ -614,4 +601,18 @@ pub fn write_trade_off_plot(
         &series,
     )?
     .to_vec())
+}
+
+#[cfg(test)]
+mod names_tests {
+    use super::*;
+
+    #[test]
+    fn same_named_scenarios_get_distinct_directories() {
+        let v = |x: &[&str]| x.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(
+            distinct_names(&v(&["a", "b", "a", "a-2", "a", "plots"])),
+            v(&["a", "b", "a-2", "a-2-2", "a-3", "plots-2"])
+        );
+    }
 }

@@ -739,11 +739,13 @@ mod tests {
         assert_eq!((c.lost_requests, c.lost_replies), (1, 1), "{c:?}");
         // One re-send per loss; more only if a slow answer met a look under heavy load.
         assert!(c.resends >= 2 && c.repeats_answered >= 1, "{c:?}");
-        let _ = super::super::publish(&ep.publisher, {
-            let mut m = ToController::default();
-            m.header = Header::new(u64::MAX, Kind::Stop);
-            m
-        });
+        let _ = super::super::publish(
+            &ep.publisher,
+            ToController {
+                header: Header::new(u64::MAX, Kind::Stop),
+                ..Default::default()
+            },
+        );
         served.join().unwrap().unwrap();
         drop(ep);
         drop(hub);
