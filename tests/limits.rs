@@ -237,7 +237,9 @@ fn a_sigkilled_orchestrator_leaves_no_file_and_no_directory_after_the_next_run_a
     let root = temp_dir("sigkill-clean");
     let sc = scenario("paper-lqg.toml");
     for after in ["next run", "clean"] {
-        let out = root.join("killed");
+        // A directory of its own each time: a series left by the killed run before must not
+        // be taken for this run's progress.
+        let out = root.join(format!("killed-{}", after.replace(' ', "-")));
         // The default prefix, tiltsim_<pid>_..., by which a dead owner is recognised.
         let child = spawn_group(&[
             "run",
