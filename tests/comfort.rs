@@ -111,15 +111,15 @@ fn assert_png_chart(path: &std::path::Path) {
 /// remainder on each side).
 #[test]
 fn comfort_roll_speed_is_continuous_across_every_ramp_corner() {
-    use orchestrator::record::Rows;
+    use tiltsim_master::record::Rows;
     let dir = run_in_process("corner-roll", &scenario("paper-lqg.toml"));
-    let s = orchestrator::Scenario::load(&dir.join("scenario.toml")).unwrap();
+    let s = tiltsim_master::Scenario::load(&dir.join("scenario.toml")).unwrap();
     let dt = s.run.dt_s;
     let mut t = Vec::new();
     let mut phi = Vec::new();
     let mut rate = Vec::new();
     let (mut dy_v, mut sway) = (Vec::new(), Vec::new());
-    orchestrator::analysis::scan(&s, Rows::File(&dir), |r, x| {
+    tiltsim_report::analysis::scan(&s, Rows::File(&dir), |r, x| {
         t.push(r.t);
         phi.push(r.theta_v + r.cant);
         rate.push(x.roll_speed);

@@ -403,9 +403,9 @@ fn deterministic_part(dir: &Path) -> serde_json::Value {
     // The fields the file itself lists are the ones stripped.
     assert_eq!(
         s["wall_clock_fields"],
-        serde_json::json!(orchestrator::engine::summary::WALL_CLOCK_FIELDS)
+        serde_json::json!(tiltsim_master::engine::summary::WALL_CLOCK_FIELDS)
     );
-    orchestrator::engine::summary::deterministic(s)
+    tiltsim_master::engine::summary::deterministic(s)
 }
 
 #[test]

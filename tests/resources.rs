@@ -145,7 +145,7 @@ fn a_full_disk_is_named_the_summary_counts_what_is_on_disk_and_nothing_leaks() {
         panic!("the run did not start writing within 30 s");
     }
     // Another writer fills the disk, leaving 64 kB.
-    let free = orchestrator::budget::free_bytes(&mnt).unwrap();
+    let free = tiltsim_studies::budget::free_bytes(&mnt).unwrap();
     let filler = vec![0u8; (free - (64 << 10)) as usize];
     let _ = std::fs::write(mnt.join("filler"), &filler);
     let (code, _, err) = tiltsim_suite::wait_with_limit(child, Duration::from_secs(120));
@@ -225,7 +225,7 @@ fn a_run_whose_outputs_cannot_fit_is_refused_with_its_estimate() {
         out.contains("147.6 GB") && out.contains("360000000 rows"),
         "{out}"
     );
-    let free = orchestrator::budget::free_bytes(Path::new("out")).unwrap();
+    let free = tiltsim_studies::budget::free_bytes(Path::new("out")).unwrap();
     if free < 147_600_000_000 {
         assert_eq!(code, 2, "{err}");
         assert!(
@@ -276,10 +276,10 @@ fn the_output_estimate_covers_what_a_switched_drive_run_with_record_and_trace_wr
         "-q",
     ]);
     assert_eq!(code, 0, "{err}");
-    let s = orchestrator::scenario::Scenario::load(&sc).unwrap();
-    let e = orchestrator::budget::estimate(
+    let s = tiltsim_master::scenario::Scenario::load(&sc).unwrap();
+    let e = tiltsim_studies::budget::estimate(
         &s,
-        orchestrator::budget::Extras {
+        tiltsim_studies::budget::Extras {
             trace: true,
             record: true,
         },

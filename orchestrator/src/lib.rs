@@ -1,30 +1,5 @@
-//! `orchestrator`: scenario, lock-step scheduling, recording and reporting, and the `tiltsim`
-//! command-line program.
+//! `tiltsim`, the command-line program: [`cli`] parses the arguments, calls the libraries
+//! (`tiltsim-master` runs a scenario, `tiltsim-report` reports on it, `tiltsim-studies`
+//! sweeps and benchmarks) and maps their errors to exit codes in one place.
 
-pub mod analysis;
-pub mod bench;
-pub mod budget;
 pub mod cli;
-pub mod comfort;
-pub mod compare;
-pub mod degraded;
-pub mod engine;
-pub mod events;
-pub mod export_fmu;
-pub mod export_mcap;
-pub mod faults;
-pub mod files;
-pub mod linearize;
-pub mod links;
-pub mod outdir;
-pub mod plot;
-pub mod record;
-pub mod replay;
-pub mod roles;
-pub mod scenario;
-pub mod signals;
-pub mod sweep;
-pub mod validity;
-
-pub use engine::{run, RunOptions, Summary};
-pub use scenario::{Master, Scenario, Transport};

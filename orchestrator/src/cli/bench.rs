@@ -121,7 +121,7 @@ fn ping_pong(a: &BenchArgs, exe: &std::path::Path) -> CliResult {
         )));
     }
     let lat = ping_pong_latencies(exe, a.rounds, a.same_cpu)?;
-    let machine = crate::bench::Machine::this();
+    let machine = tiltsim_studies::bench::Machine::this();
     let placement = if a.same_cpu {
         "both processes on one CPU, yielding it while they wait"
     } else {
@@ -158,7 +158,9 @@ fn ping_pong(a: &BenchArgs, exe: &std::path::Path) -> CliResult {
 
 /// The machine's floors beside a scenario's figures: one-way p50 of a sample the size of
 /// tiltsim's (256 B), 20 000 round trips each, across CPUs busy-waiting and on one CPU yielding.
-fn machine_floors(exe: &std::path::Path) -> Result<crate::bench::MachineFloors, CliError> {
+fn machine_floors(
+    exe: &std::path::Path,
+) -> Result<tiltsim_studies::bench::MachineFloors, CliError> {
     const ROUNDS: usize = 20_000;
     let size = cosim::ipc::pingpong::SIZES
         .iter()
@@ -168,7 +170,7 @@ fn machine_floors(exe: &std::path::Path) -> Result<crate::bench::MachineFloors, 
         let mut v = ping_pong_latencies(exe, ROUNDS, same_cpu)?.swap_remove(size);
         Ok(cosim::stats::percentiles(&mut v).p50 * 1e-3)
     };
-    Ok(crate::bench::MachineFloors {
+    Ok(tiltsim_studies::bench::MachineFloors {
         payload_bytes: 256,
         one_way_cross_cpu_us: p50_us(false)?,
         one_way_same_cpu_us: p50_us(true)?,
@@ -190,7 +192,7 @@ pub fn exec(a: BenchArgs) -> CliResult {
             "command line: --duration {d}: allowed (0, 600] s"
         )));
     }
-    let scratch = crate::bench::scratch_dir(&a.out);
+    let scratch = tiltsim_studies::bench::scratch_dir(&a.out);
     if a.fmu {
         if !(1..=100).contains(&a.fmu_runs) {
             return Err(CliError::Invalid(format!(
@@ -198,19 +200,19 @@ pub fn exec(a: BenchArgs) -> CliResult {
                 a.fmu_runs
             )));
         }
-        let rows = crate::bench::fmu(&s, d, a.fmu_runs, &exe, &scratch, |name| {
+        let rows = tiltsim_studies::bench::fmu(&s, d, a.fmu_runs, &exe, &scratch, |name| {
             eprintln!("  measuring {name} ...");
         });
         let _ = std::fs::remove_dir_all(&scratch);
         let rows = rows.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
         println!(
             "{}",
-            crate::bench::fmu_table(&s.name, s.run.transport.name(), &rows)
+            tiltsim_studies::bench::fmu_table(&s.name, s.run.transport.name(), &rows)
         );
         if let Some(dir) = a.out.parent() {
             let _ = std::fs::create_dir_all(dir);
         }
-        let machine = crate::bench::Machine::this();
+        let machine = tiltsim_studies::bench::Machine::this();
         write_json(
             &a.out,
             &serde_json::json!({ "fmu": rows, "scenario": s.name, "duration_s": d, "machine": machine }),
@@ -224,14 +226,14 @@ pub fn exec(a: BenchArgs) -> CliResult {
             a.repeat
         )));
     }
-    let report = crate::bench::run(&s, d, a.repeat, &exe, &scratch, |name| {
+    let report = tiltsim_studies::bench::run(&s, d, a.repeat, &exe, &scratch, |name| {
         eprintln!("  measuring {name} ...");
     });
     let _ = std::fs::remove_dir_all(&scratch);
     let mut report = report.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
     eprintln!("  measuring the machine's ping-pong floors ...");
     report.machine_floors = Some(machine_floors(&exe)?);
-    println!("{}", crate::bench::table(&report));
+    println!("{}", tiltsim_studies::bench::table(&report));
     if let Some(dir) = a.out.parent() {
         let _ = std::fs::create_dir_all(dir);
     }

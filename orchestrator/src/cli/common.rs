@@ -10,7 +10,7 @@ use cosim::wait::WaitStrategy;
 use serde::Serialize;
 
 use super::error::CliError;
-use crate::scenario::{Master, Scenario, Transport};
+use tiltsim_master::scenario::{Master, Scenario, Transport};
 
 /// `--transport`.
 #[derive(ValueEnum, Clone, Copy, Debug)]
@@ -80,7 +80,7 @@ pub fn load(path: &Path) -> Result<Scenario, CliError> {
 /// The interrupt flag (set by SIGINT, SIGTERM or SIGHUP) and the executable that serves
 /// participants.
 pub fn interrupt_and_exe() -> Result<(Arc<AtomicBool>, PathBuf), CliError> {
-    let interrupt = crate::signals::install();
+    let interrupt = tiltsim_master::signals::install();
     let exe = std::env::current_exe().map_err(|e| {
         CliError::Failed(format!(
             "cannot find the tiltsim executable to start participants: {e}"
@@ -92,5 +92,5 @@ pub fn interrupt_and_exe() -> Result<(Arc<AtomicBool>, PathBuf), CliError> {
 /// Writes `v` as pretty JSON to `path`.
 pub fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), CliError> {
     let text = serde_json::to_string_pretty(v).unwrap_or_default() + "\n";
-    crate::files::write_atomic(path, text).map_err(|e| CliError::Failed(e.to_string()))
+    tiltsim_master::files::write_atomic(path, text).map_err(|e| CliError::Failed(e.to_string()))
 }

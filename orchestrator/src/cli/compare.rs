@@ -5,9 +5,9 @@ use std::path::{Path, PathBuf};
 
 use super::common::{interrupt_and_exe, load, write_json, TransportArg};
 use super::error::{CliError, CliResult};
-use crate::compare::Entry;
-use crate::engine::{RunOptions, Status};
-use crate::scenario::Scenario;
+use tiltsim_master::engine::{RunOptions, Status};
+use tiltsim_master::scenario::Scenario;
+use tiltsim_report::compare::Entry;
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -27,11 +27,11 @@ pub struct CompareArgs {
 fn one(file: &Path, s: Scenario, out: &Path, base: &RunOptions) -> Result<Entry, CliError> {
     let dir = out.join(&s.name);
     // Each run of a compare is a run: its own lock, an earlier run's files removed.
-    let _lock =
-        crate::outdir::claim_run(&dir, "compare").map_err(|e| CliError::Invalid(e.to_string()))?;
+    let _lock = tiltsim_master::outdir::claim_run(&dir, "compare")
+        .map_err(|e| CliError::Invalid(e.to_string()))?;
     let mut opts = base.clone();
     opts.out_dir = dir.clone();
-    let summary = crate::analysis::run(&s, &file.display().to_string(), &opts)
+    let summary = tiltsim_report::analysis::run(&s, &file.display().to_string(), &opts)
         .map_err(|e| CliError::Failed(format!("{}: {e}", file.display())))?;
     write_json(&dir.join("summary.json"), &summary)?;
     println!(
@@ -46,8 +46,8 @@ fn one(file: &Path, s: Scenario, out: &Path, base: &RunOptions) -> Result<Entry,
             return Err(CliError::Failed(format!("{}: {why}", s.name)));
         }
     }
-    let ideal = crate::analysis::ideal_tilt(&s, &dir);
-    Ok(crate::compare::entry(s, summary, ideal))
+    let ideal = tiltsim_report::analysis::ideal_tilt(&s, &dir);
+    Ok(tiltsim_report::compare::entry(s, summary, ideal))
 }
 
 /// Runs the command.
@@ -64,7 +64,7 @@ pub fn exec(a: CompareArgs) -> CliResult {
     let names: Vec<String> = loaded.iter().map(|(_, s)| s.name.clone()).collect();
     for ((file, s), name) in loaded
         .iter_mut()
-        .zip(crate::compare::distinct_names(&names))
+        .zip(tiltsim_report::compare::distinct_names(&names))
     {
         if name != s.name {
             eprintln!(
@@ -76,25 +76,26 @@ pub fn exec(a: CompareArgs) -> CliResult {
             s.name = name;
         }
     }
-    let invalid = |e: crate::outdir::OutDirError| CliError::Invalid(e.to_string());
+    let invalid = |e: tiltsim_master::outdir::OutDirError| CliError::Invalid(e.to_string());
     // The compare holds its directory; an earlier compare's runs and tables there go first.
     let _lock =
-        crate::outdir::claim(&a.out, crate::outdir::Kind::Compare, "compare").map_err(invalid)?;
-    if let Some(old) = crate::compare::Manifest::read(&a.out) {
+        tiltsim_master::outdir::claim(&a.out, tiltsim_master::outdir::Kind::Compare, "compare")
+            .map_err(invalid)?;
+    if let Some(old) = tiltsim_report::compare::Manifest::read(&a.out) {
         for r in old.runs {
             let dir = a.out.join(&r.dir);
             if r.dir.contains(['/', '\\']) || r.dir.starts_with('.') || !dir.is_dir() {
                 continue;
             }
-            drop(crate::outdir::claim_run(&dir, "compare").map_err(invalid)?);
-            crate::outdir::remove_if_empty(&dir);
+            drop(tiltsim_master::outdir::claim_run(&dir, "compare").map_err(invalid)?);
+            tiltsim_master::outdir::remove_if_empty(&dir);
         }
     }
-    crate::outdir::clear_compare_results(&a.out).map_err(invalid)?;
-    let manifest = crate::compare::Manifest {
+    tiltsim_master::outdir::clear_compare_results(&a.out).map_err(invalid)?;
+    let manifest = tiltsim_report::compare::Manifest {
         runs: loaded
             .iter()
-            .map(|(f, s)| crate::compare::ManifestRun {
+            .map(|(f, s)| tiltsim_report::compare::ManifestRun {
                 dir: s.name.clone(),
                 scenario: f.display().to_string(),
             })
@@ -108,10 +109,11 @@ pub fn exec(a: CompareArgs) -> CliResult {
     for (file, s) in loaded {
         entries.push(one(&file, s, &a.out, &base)?);
     }
-    let (md, csv) = crate::compare::tables(&entries);
+    let (md, csv) = tiltsim_report::compare::tables(&entries);
     for (name, text) in [("table.md", &md), ("table.csv", &csv)] {
         let p = a.out.join(name);
-        crate::files::write_atomic(&p, text).map_err(|e| CliError::Failed(e.to_string()))?;
+        tiltsim_master::files::write_atomic(&p, text)
+            .map_err(|e| CliError::Failed(e.to_string()))?;
     }
     let runs: Vec<_> = entries
         .iter()
@@ -123,9 +125,9 @@ pub fn exec(a: CompareArgs) -> CliResult {
             )
         })
         .collect();
-    crate::analysis::write_compare_plots(&runs, &a.out)
+    tiltsim_report::analysis::write_compare_plots(&runs, &a.out)
         .map_err(|e| CliError::Failed(format!("{}: {e}", a.out.join("plots").display())))?;
-    crate::compare::write_trade_off_plot(&entries, &a.out)
+    tiltsim_report::compare::write_trade_off_plot(&entries, &a.out)
         .map_err(|e| CliError::Failed(format!("{}: {e}", a.out.join("plots").display())))?;
     println!(
         "wrote {0}/table.md, {0}/table.csv and {0}/plots/compare_*.svg|png",

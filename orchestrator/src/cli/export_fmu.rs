@@ -42,7 +42,7 @@ pub fn exec(a: ExportFmuArgs) -> CliResult {
         }
     };
     let s = super::common::load(&a.scenario)?;
-    let r = crate::export_fmu::export(&s, role, version, &a.out, a.library.as_deref())
+    let r = tiltsim_master::export_fmu::export(&s, role, version, &a.out, a.library.as_deref())
         .map_err(|e| CliError::Invalid(e.to_string()))?;
     println!(
         "wrote {} ({role}, {version} co-simulation, step {} s, {} inputs, {} outputs, {} parameters)",

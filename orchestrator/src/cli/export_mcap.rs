@@ -13,7 +13,8 @@ pub struct ExportMcapArgs {
 
 /// Runs the command.
 pub fn exec(a: ExportMcapArgs) -> CliResult {
-    let p = crate::export_mcap::export(&a.run_dir).map_err(|e| CliError::Invalid(e.to_string()))?;
+    let p = tiltsim_master::export_mcap::export(&a.run_dir)
+        .map_err(|e| CliError::Invalid(e.to_string()))?;
     println!("wrote {}", p.display());
     Ok(())
 }

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use super::bounds::{self, End};
 use super::common::load;
 use super::error::{CliError, CliResult};
-use crate::linearize::PiTargets;
+use tiltsim_report::linearize::PiTargets;
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -53,14 +53,13 @@ pub fn exec(a: LinearizeArgs) -> CliResult {
         }
     }
     let s = load(&a.scenario)?;
-    let report = crate::linearize::report(&s, design).map_err(|e| {
+    let report = tiltsim_report::linearize::report(&s, design).map_err(|e| {
         CliError::Invalid(format!("{}: controller design: {e}", a.scenario.display()))
     })?;
     let text = serde_json::to_string_pretty(&report).unwrap_or_default() + "\n";
     match a.out {
-        Some(p) => {
-            crate::files::write_atomic(&p, text).map_err(|e| CliError::Failed(e.to_string()))
-        }
+        Some(p) => tiltsim_master::files::write_atomic(&p, text)
+            .map_err(|e| CliError::Failed(e.to_string())),
         None => {
             print!("{text}");
             Ok(())

@@ -16,8 +16,8 @@ pub struct PlotArgs {
 pub fn exec(a: PlotArgs) -> CliResult {
     let s = load(&a.dir.join("scenario.toml"))?;
     // Every error names its file: timeseries.csv and its line, or the figure not written.
-    let files =
-        crate::analysis::write_plots(&s, &a.dir).map_err(|e| CliError::Invalid(e.to_string()))?;
+    let files = tiltsim_report::analysis::write_plots(&s, &a.dir)
+        .map_err(|e| CliError::Invalid(e.to_string()))?;
     for f in files {
         println!("wrote {}", f.display());
     }

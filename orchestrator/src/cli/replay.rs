@@ -35,7 +35,7 @@ pub fn exec(a: ReplayArgs) -> CliResult {
         ))
     })?;
     // A run still writing its recording there is not replayed.
-    if let Some(h) = crate::outdir::live_holder(&a.run_dir) {
+    if let Some(h) = tiltsim_master::outdir::live_holder(&a.run_dir) {
         return Err(CliError::Invalid(format!(
             "{}: in use by {h}: its recording is not finished",
             a.run_dir.display()
@@ -50,18 +50,21 @@ pub fn exec(a: ReplayArgs) -> CliResult {
         .out
         .clone()
         .unwrap_or_else(|| a.run_dir.join(format!("replay-{}", role.name())));
-    let at = match a.transport.map(crate::scenario::Transport::from) {
-        Some(crate::scenario::Transport::Ipc) => {
-            crate::replay::Where::Process(std::env::current_exe().map_err(|e| {
+    let at = match a.transport.map(tiltsim_master::scenario::Transport::from) {
+        Some(tiltsim_master::scenario::Transport::Ipc) => {
+            tiltsim_master::replay::Where::Process(std::env::current_exe().map_err(|e| {
                 CliError::Failed(format!("cannot find the tiltsim executable: {e}"))
             })?)
         }
-        _ => crate::replay::Where::InProcess,
+        _ => tiltsim_master::replay::Where::InProcess,
     };
-    let r = crate::replay::replay(&a.run_dir, role, &s, &at, &out).map_err(|e| match e {
-        crate::replay::ReplayError::Recording { .. } => CliError::Invalid(e.to_string()),
-        _ => CliError::Failed(e.to_string()),
-    })?;
+    let r =
+        tiltsim_master::replay::replay(&a.run_dir, role, &s, &at, &out).map_err(|e| match e {
+            tiltsim_master::replay::ReplayError::Recording { .. } => {
+                CliError::Invalid(e.to_string())
+            }
+            _ => CliError::Failed(e.to_string()),
+        })?;
     let lost = r
         .lost_at_step
         .map(|k| format!(" (lost at step {k} in the recording; replayed up to it)"))

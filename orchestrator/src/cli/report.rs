@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use crate::engine::Summary;
+use tiltsim_master::engine::Summary;
 
 /// Prints what a run did and found.
 pub fn print(s: &Summary, out: &Path) {

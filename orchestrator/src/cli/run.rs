@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use super::bounds::{self, End};
 use super::common::{interrupt_and_exe, load, write_json, MasterArg, TransportArg, WaitArg};
 use super::error::{CliError, CliResult};
-use crate::engine::{RunOptions, Status, Summary};
-use crate::scenario::Scenario;
+use tiltsim_master::engine::{RunOptions, Status, Summary};
+use tiltsim_master::scenario::Scenario;
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -151,21 +151,23 @@ pub fn exec(a: RunArgs) -> CliResult {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("out").join(&s.name));
-    let extras = crate::budget::Extras {
+    let extras = tiltsim_studies::budget::Extras {
         trace: a.trace,
         record: a.record,
     };
-    match crate::budget::check(&s, &out, extras) {
-        crate::budget::Verdict::Fits => {}
-        crate::budget::Verdict::Warn(m) => eprintln!("warning: {}: {m}", a.scenario.display()),
-        crate::budget::Verdict::Refuse(m) => {
+    match tiltsim_studies::budget::check(&s, &out, extras) {
+        tiltsim_studies::budget::Verdict::Fits => {}
+        tiltsim_studies::budget::Verdict::Warn(m) => {
+            eprintln!("warning: {}: {m}", a.scenario.display())
+        }
+        tiltsim_studies::budget::Verdict::Refuse(m) => {
             return Err(CliError::Invalid(format!("{}: {m}", a.scenario.display())))
         }
     }
     // Held until the run ends, taken before anything is written there; an earlier run's files
     // go (what this run does not write again must not stay beside its own).
-    let _lock =
-        crate::outdir::claim_run(&out, "run").map_err(|e| CliError::Invalid(e.to_string()))?;
+    let _lock = tiltsim_master::outdir::claim_run(&out, "run")
+        .map_err(|e| CliError::Invalid(e.to_string()))?;
     let (interrupt, exe) = interrupt_and_exe()?;
     let realtime = if a.realtime {
         cosim::realtime::enter(cosim::realtime::PRIORITY)
@@ -190,11 +192,12 @@ pub fn exec(a: RunArgs) -> CliResult {
         timing: true,
     };
     let mut kept = Ok(());
-    let summary = crate::analysis::run_then(&s, &a.scenario.display().to_string(), &opts, |sm| {
-        kept = write_json(&out.join("summary.json"), sm)
-            .and_then(|_| write_json(&out.join("perf.json"), &sm.perf()));
-    })
-    .map_err(|e| CliError::Failed(e.to_string()))?;
+    let summary =
+        tiltsim_report::analysis::run_then(&s, &a.scenario.display().to_string(), &opts, |sm| {
+            kept = write_json(&out.join("summary.json"), sm)
+                .and_then(|_| write_json(&out.join("perf.json"), &sm.perf()));
+        })
+        .map_err(|e| CliError::Failed(e.to_string()))?;
     if let Err(e) = kept {
         // The run's own outcome is the more important message; the summary's loss is told too.
         eprintln!("error: summary not written: {e}");

@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use super::bounds::{self, End};
 use super::common::{interrupt_and_exe, load, TransportArg};
 use super::error::{CliError, CliResult};
-use crate::scenario::{Scenario, Transport};
-use crate::sweep::{Exec, Plan, Shard};
+use tiltsim_master::scenario::{Scenario, Transport};
+use tiltsim_studies::sweep::{Exec, Plan, Shard};
 
 /// The most samples of a Monte Carlo sweep (`--samples`).
 pub const MAX_SAMPLES: usize = 100_000;
@@ -68,7 +68,7 @@ pub struct SweepArgs {
 fn plan(a: &SweepArgs, s: &Scenario) -> Result<Plan, CliError> {
     let plan = match (&a.grid, a.samples) {
         (Some(g), _) => {
-            crate::sweep::parse_grid(g).map_err(|e| CliError::Invalid(e.to_string()))?
+            tiltsim_studies::sweep::parse_grid(g).map_err(|e| CliError::Invalid(e.to_string()))?
         }
         (None, Some(n)) => Plan::MonteCarlo {
             samples: n,
@@ -95,7 +95,7 @@ fn plan(a: &SweepArgs, s: &Scenario) -> Result<Plan, CliError> {
             }
         }
         for v in values {
-            crate::sweep::with_key(s, key, *v)
+            tiltsim_studies::sweep::with_key(s, key, *v)
                 .map_err(|e| CliError::Invalid(format!("{}: {e}", a.scenario.display())))?;
         }
     }
@@ -119,7 +119,7 @@ fn holds_integer(s: &Scenario, key: &str) -> bool {
 /// `--plan-only`: one JSON line per sample of the shard.
 fn print_plan(s: &Scenario, plan: &Plan, shard: Option<Shard>) -> CliResult {
     use std::io::Write as _;
-    let interrupt = crate::signals::install();
+    let interrupt = tiltsim_master::signals::install();
     let mut out = std::io::stdout().lock();
     for j in shard
         .unwrap_or(Shard { index: 0, count: 1 })
@@ -129,14 +129,15 @@ fn print_plan(s: &Scenario, plan: &Plan, shard: Option<Shard>) -> CliResult {
             let _ = out.flush();
             return Err(CliError::Interrupted(format!(
                 "interrupted by {}: the plan printed up to sample {j}",
-                crate::signals::describe()
+                tiltsim_master::signals::describe()
             )));
         }
-        let set: serde_json::Map<String, serde_json::Value> = crate::sweep::overrides(s, plan, j)
-            .map_err(|e| CliError::Invalid(e.to_string()))?
-            .into_iter()
-            .map(|(k, v)| (k, serde_json::to_value(v).unwrap_or_default()))
-            .collect();
+        let set: serde_json::Map<String, serde_json::Value> =
+            tiltsim_studies::sweep::overrides(s, plan, j)
+                .map_err(|e| CliError::Invalid(e.to_string()))?
+                .into_iter()
+                .map(|(k, v)| (k, serde_json::to_value(v).unwrap_or_default()))
+                .collect();
         let line = serde_json::json!({ "sample": j, "seed": s.run.seed, "set": set });
         match writeln!(out, "{line}") {
             Ok(()) => {}
@@ -184,23 +185,23 @@ pub fn exec(a: SweepArgs) -> CliResult {
         progress: !a.quiet,
     };
     // Held until the sweep ends: one sweep (or shard) per directory.
-    let _lock = crate::outdir::claim(&out, crate::outdir::Kind::Sweep, "sweep")
+    let _lock = tiltsim_master::outdir::claim(&out, tiltsim_master::outdir::Kind::Sweep, "sweep")
         .map_err(|e| CliError::Invalid(e.to_string()))?;
     let started = std::time::Instant::now();
-    let swept = crate::sweep::run(&s, &plan, shard, &ex).map_err(|e| match e {
-        crate::sweep::SweepError::Files(m) => CliError::Failed(m),
+    let swept = tiltsim_studies::sweep::run(&s, &plan, shard, &ex).map_err(|e| match e {
+        tiltsim_studies::sweep::SweepError::Files(m) => CliError::Failed(m),
         e => CliError::Invalid(e.to_string()),
     })?;
     let rows = swept.rows;
     let wall = started.elapsed().as_secs_f64();
-    let build = crate::sweep::identity::build();
-    crate::sweep::write_outputs(&out, &s, &plan, shard, &rows, swept.interrupted, build)
+    let build = tiltsim_studies::sweep::identity::build();
+    tiltsim_studies::sweep::write_outputs(&out, &s, &plan, shard, &rows, swept.interrupted, build)
         .map_err(|e| CliError::Failed(format!("{}: {e}", out.display())))?;
     if swept.interrupted {
         // What finished stays on disk, marked as such in sweep.json.
         return Err(CliError::Interrupted(format!(
             "interrupted by {}: the {} samples that had finished are written to {} (sweep.json: \"interrupted\": true)",
-            crate::signals::describe(),
+            tiltsim_master::signals::describe(),
             rows.len(),
             out.display()
         )));

@@ -21,7 +21,7 @@ pub fn exec(a: SweepMergeArgs) -> CliResult {
     let out_real = std::fs::canonicalize(&a.out).ok();
     for d in &a.shards {
         // A shard still running has not written its results.
-        if let Some(h) = crate::outdir::live_holder(d) {
+        if let Some(h) = tiltsim_master::outdir::live_holder(d) {
             return Err(invalid(format!(
                 "{}: in use by {h}: a shard still running cannot be merged",
                 d.display()
@@ -35,12 +35,13 @@ pub fn exec(a: SweepMergeArgs) -> CliResult {
         }
     }
     let (base, plan, build, rows) =
-        crate::sweep::merge(&a.shards).map_err(|e| invalid(e.to_string()))?;
+        tiltsim_studies::sweep::merge(&a.shards).map_err(|e| invalid(e.to_string()))?;
     // Checked whole before the output directory is touched.
-    let _lock = crate::outdir::claim(&a.out, crate::outdir::Kind::Sweep, "sweep-merge")
-        .map_err(|e| invalid(e.to_string()))?;
-    crate::sweep::clear_for_merge(&a.out).map_err(|e| invalid(e.to_string()))?;
-    crate::sweep::write_outputs(&a.out, &base, &plan, None, &rows, false, &build)
+    let _lock =
+        tiltsim_master::outdir::claim(&a.out, tiltsim_master::outdir::Kind::Sweep, "sweep-merge")
+            .map_err(|e| invalid(e.to_string()))?;
+    tiltsim_studies::sweep::clear_for_merge(&a.out).map_err(|e| invalid(e.to_string()))?;
+    tiltsim_studies::sweep::write_outputs(&a.out, &base, &plan, None, &rows, false, &build)
         .map_err(|e| CliError::Failed(format!("{}: {e}", a.out.display())))?;
     println!(
         "merged {} samples from {} shards into {}",

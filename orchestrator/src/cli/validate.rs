@@ -26,20 +26,20 @@ pub fn exec(a: ValidateArgs) -> CliResult {
         s.actuator.model
     );
     let out = std::path::Path::new("out").join(&s.name);
-    let e = crate::budget::estimate(&s, crate::budget::Extras::default());
+    let e = tiltsim_studies::budget::estimate(&s, tiltsim_studies::budget::Extras::default());
     println!(
         "outputs: about {} ({} rows); default directory {}",
-        crate::budget::human(e.bytes),
+        tiltsim_studies::budget::human(e.bytes),
         e.rows,
         out.display()
     );
-    match crate::budget::check(&s, &out, crate::budget::Extras::default()) {
-        crate::budget::Verdict::Fits => Ok(()),
-        crate::budget::Verdict::Warn(m) => {
+    match tiltsim_studies::budget::check(&s, &out, tiltsim_studies::budget::Extras::default()) {
+        tiltsim_studies::budget::Verdict::Fits => Ok(()),
+        tiltsim_studies::budget::Verdict::Warn(m) => {
             eprintln!("warning: {}: {m}", a.scenario.display());
             Ok(())
         }
-        crate::budget::Verdict::Refuse(m) => {
+        tiltsim_studies::budget::Verdict::Refuse(m) => {
             Err(CliError::Invalid(format!("{}: {m}", a.scenario.display())))
         }
     }

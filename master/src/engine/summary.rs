@@ -1,0 +1,321 @@
+//! The schema of `summary.json`: what a run reports about itself. The engine fills the run's
+//! own part (participants, steps, timing, latency, pacing, solver); the caller's analysis step
+//! fills `results`, `comfort` and `flags` from the recorded series (`tiltsim_report::analysis`).
+
+use cosim::endpoint::ExitReport;
+use cosim::stats::Percentiles;
+use cosim::wait::WaitStrategy;
+use cosim::Role;
+use serde::Serialize;
+
+use super::Status;
+use crate::scenario::{Master, Transport};
+
+/// One participant in the summary.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParticipantReport {
+    /// Role.
+    pub role: Role,
+    /// Process name.
+    pub process: &'static str,
+    /// Process id.
+    pub pid: u32,
+    /// Period (s).
+    pub period_s: f64,
+    /// How it ended.
+    pub exit: ExitReport,
+    /// Wall time spent inside its model's step per call (µs), as it reports.
+    pub compute_us: Percentiles,
+    /// Replies that came after `run.deadline_ms` from a participant that was running (starved
+    /// of CPU by other load, not hung) and were waited for.
+    pub starved_waits: u64,
+    /// Requests re-sent and repeats discarded: what lost samples cost.
+    pub lost_samples: LostSamples,
+}
+
+/// How lost samples were repaired for one participant (docs/architecture.md, "Lost samples").
+#[derive(Debug, Clone, Copy, Default, Serialize, PartialEq, Eq)]
+pub struct LostSamples {
+    /// Requests re-sent because their exchange went silent.
+    pub resends: u64,
+    /// Requests found lost (the participant polled on and never took it).
+    pub lost_requests: u64,
+    /// Replies found lost (the participant had published it; it never came).
+    pub lost_replies: u64,
+    /// Repeated requests the participant answered from its last reply, without stepping.
+    pub repeats_answered: u64,
+    /// Answers to repeats that came besides the one taken, discarded.
+    pub repeats_discarded: u64,
+    /// Requests whose sending reached no subscriber (sent again at once).
+    pub undelivered_requests: u64,
+    /// Replies whose sending reached no subscriber (sent again at once by the participant).
+    pub undelivered_replies: u64,
+}
+
+impl From<cosim::endpoint::ExchangeCounts> for LostSamples {
+    fn from(c: cosim::endpoint::ExchangeCounts) -> Self {
+        LostSamples {
+            resends: c.resends,
+            lost_requests: c.lost_requests,
+            lost_replies: c.lost_replies,
+            repeats_answered: c.repeats_answered,
+            repeats_discarded: c.repeats_discarded,
+            undelivered_requests: c.undelivered_requests,
+            undelivered_replies: c.undelivered_replies,
+        }
+    }
+}
+
+/// Timing of the run.
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct Timing {
+    /// Per-tick coordination overhead (µs): tick wall time minus the participants' compute
+    /// time on the critical path (the sum for Gauss-Seidel, the largest for Jacobi).
+    pub p50: f64,
+    /// 99th percentile of the overhead (µs).
+    pub p99: f64,
+    /// Largest overhead (µs).
+    pub max: f64,
+    /// Mean overhead (µs).
+    pub mean: f64,
+    /// Whole tick wall time (µs).
+    pub tick_us: Percentiles,
+    /// Orchestrator CPU time, user + system (s), and the participants' (s), when measurable.
+    pub cpu_s: CpuTime,
+    /// The CPU plan chosen from the participants' measured compute (Jacobi over IPC).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cpu_plan: Option<super::cpu_plan::CpuPlanReport>,
+}
+
+/// CPU time spent.
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct CpuTime {
+    /// The orchestrator process (s).
+    pub orchestrator: f64,
+    /// All participant processes together (s); 0 in-process.
+    pub participants: f64,
+}
+
+/// Result of a run, written as `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    /// tiltsim version.
+    pub tiltsim_version: &'static str,
+    /// Scenario name.
+    pub scenario: String,
+    /// Scenario file.
+    pub scenario_file: String,
+    /// Seed.
+    pub seed: u64,
+    /// Transport.
+    pub transport: Transport,
+    /// Master algorithm.
+    pub master_algorithm: Master,
+    /// Wait strategy.
+    pub wait_strategy: WaitStrategy,
+    /// Outcome.
+    pub status: Status,
+    /// The failure, naming participant and step.
+    pub error: Option<String>,
+    /// Participants.
+    pub participants: Vec<ParticipantReport>,
+    /// Base tick (s).
+    pub dt_s: f64,
+    /// Steps planned.
+    pub steps_planned: u64,
+    /// Steps completed (= rows in timeseries.csv).
+    pub steps_completed: u64,
+    /// Simulated time covered (s).
+    pub simulated_time_s: f64,
+    /// Wall time of the lock-step loop (s).
+    pub wall_time_s: f64,
+    /// Simulated seconds per wall second.
+    pub realtime_factor: f64,
+    /// Coordination overhead and CPU use.
+    pub timing: Timing,
+    /// A quick look at the results.
+    pub results: QuickLook,
+    /// Wall-clock latency of each participant's exchanges (request, reply, round trip; µs).
+    pub link_latency: Vec<LinkLatency>,
+    /// Real-time pacing (`--pace`), every tick counted.
+    pub pacing: Option<PacingReport>,
+    /// The MPC's QP solver (absent for controllers without one).
+    pub controller_solver: Option<SolverReport>,
+    /// Ride comfort (Table 4 rows), from the recorded series.
+    pub comfort: tiltsim_assessment::comfort::Comfort,
+    /// Whether the numbers are valid: oscillation, bump stop, drive limits, chopper, P_CT range.
+    pub flags: tiltsim_assessment::validity::Flags,
+    /// Why `results`, `comfort` and `flags` were not computed (an interrupted run ends at once;
+    /// `tiltsim plot DIR` draws its figures later). Absent when they were.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub analysis_skipped: Option<String>,
+    /// iceoryx2 prefix of the run ("" in-process).
+    pub ipc_prefix: String,
+    /// Files of the run still present after clean-up (must be empty).
+    pub leftover_ipc_files: Vec<String>,
+    /// The fields above measured on the wall clock, which differ between repeats of the same
+    /// run; everything else repeats exactly. The same values are in `perf.json`.
+    pub wall_clock_fields: &'static [&'static str],
+}
+
+/// The fields of `summary.json` that are measured on the wall clock (or name a process or a
+/// run's files), as dotted paths; `participants.*` applies to every participant.
+pub const WALL_CLOCK_FIELDS: &[&str] = &[
+    "participants.pid",
+    "participants.exit.cpu_s",
+    "participants.compute_us",
+    "participants.starved_waits",
+    "participants.lost_samples",
+    "wall_time_s",
+    "realtime_factor",
+    "timing",
+    "link_latency",
+    "pacing",
+    "ipc_prefix",
+];
+
+/// A summary's JSON without its wall-clock fields
+/// ([`WALL_CLOCK_FIELDS`]).
+pub fn deterministic(mut det: serde_json::Value) -> serde_json::Value {
+    for f in WALL_CLOCK_FIELDS {
+        match f.split_once('.') {
+            Some(("participants", rest)) => {
+                if let Some(ps) = det["participants"].as_array_mut() {
+                    for p in ps {
+                        let (parents, last) = rest.rsplit_once('.').unwrap_or(("", rest));
+                        let mut node = &mut *p;
+                        for k in parents.split('.').filter(|k| !k.is_empty()) {
+                            node = &mut node[k];
+                        }
+                        if let Some(o) = node.as_object_mut() {
+                            o.remove(last);
+                        }
+                    }
+                }
+            }
+            _ => {
+                if let Some(o) = det.as_object_mut() {
+                    o.remove(*f);
+                }
+            }
+        }
+    }
+    det
+}
+
+impl Summary {
+    /// The wall-clock part of the summary, for `perf.json`: the fields of
+    /// [`WALL_CLOCK_FIELDS`], participants by role.
+    pub fn perf(&self) -> serde_json::Value {
+        let participants: serde_json::Map<String, serde_json::Value> = self
+            .participants
+            .iter()
+            .map(|p| {
+                (
+                    p.role.name().to_string(),
+                    serde_json::json!({
+                        "process": p.process,
+                        "pid": p.pid,
+                        "cpu_s": p.exit.cpu_s,
+                        "compute_us": p.compute_us,
+                        "starved_waits": p.starved_waits,
+                        "lost_samples": p.lost_samples,
+                    }),
+                )
+            })
+            .collect();
+        serde_json::json!({
+            "scenario": self.scenario,
+            "transport": self.transport,
+            "master_algorithm": self.master_algorithm,
+            "wait_strategy": self.wait_strategy,
+            "steps_completed": self.steps_completed,
+            "wall_time_s": self.wall_time_s,
+            "realtime_factor": self.realtime_factor,
+            "timing": self.timing,
+            "link_latency": self.link_latency,
+            "pacing": self.pacing,
+            "participants": participants,
+            "ipc_prefix": self.ipc_prefix,
+        })
+    }
+}
+
+/// The controller's QP solves over the run.
+#[derive(Debug, Clone, Serialize)]
+pub struct SolverReport {
+    /// QPs solved or attempted.
+    pub solves: u64,
+    /// Solves that did not end `Solved`/`AlmostSolved`; the previous command was held.
+    pub failures: u64,
+    /// Clarabel iterations per solve.
+    pub iterations: Percentiles,
+}
+
+/// Headline numbers of a run (the full comfort assessment is separate).
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct QuickLook {
+    /// Largest |passenger lateral acceleration| (m/s²).
+    pub lat_acc_peak: f64,
+    /// Lateral acceleration at the middle of the steady curve (m/s²).
+    pub lat_acc_mid_curve: f64,
+    /// Body roll θ_v at the middle of the steady curve (rad).
+    pub theta_v_mid_curve: f64,
+    /// Largest |δ_a| (rad).
+    pub delta_a_peak: f64,
+}
+
+/// What `--pace` achieved, every tick counted.
+#[derive(Debug, Clone, Serialize)]
+pub struct PacingReport {
+    /// Requested simulated seconds per wall second.
+    pub factor: f64,
+    /// Ticks that finished after their wall-clock deadline.
+    pub overruns: u64,
+    /// Ticks paced.
+    pub ticks: u64,
+    /// How late the late ticks were (µs).
+    pub lateness_us: Percentiles,
+    /// Simulated time over wall time of the whole loop.
+    pub achieved_realtime_factor: f64,
+    /// Why the late ticks were late.
+    pub causes: OverrunCauses,
+    /// Whether the processes ran under SCHED_FIFO with memory locked (`--realtime`).
+    pub realtime: bool,
+}
+
+/// The late ticks of a paced run by cause. A tick's wall time from its scheduled start is its
+/// start delay (the orchestrator woke late, or the previous tick ran over) plus the
+/// participants' compute on the critical path plus the coordination (the exchanges'
+/// latency); each late tick is counted under the largest of them.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct OverrunCauses {
+    /// Late because the previous tick ended late.
+    pub carried_over: u64,
+    /// Late because the orchestrator started the tick late (woke late from its pacing sleep,
+    /// or spent long between ticks).
+    pub orchestrator: u64,
+    /// Late because the participants computed long.
+    pub compute: u64,
+    /// Late because the exchanges took long (a participant woke late, or was not scheduled).
+    pub coordination: u64,
+    /// Of the late ticks: start delay (µs).
+    pub start_delay_us: Percentiles,
+    /// Of the late ticks: critical-path compute (µs).
+    pub compute_us: Percentiles,
+    /// Of the late ticks: coordination (µs).
+    pub coordination_us: Percentiles,
+}
+
+/// Per-link wall-clock latency (µs) of one participant's exchanges.
+#[derive(Debug, Clone, Serialize)]
+pub struct LinkLatency {
+    /// Participant.
+    pub participant: Role,
+    /// Request: orchestrator sent → participant received.
+    pub request_us: Percentiles,
+    /// Reply: participant sent → orchestrator received.
+    pub reply_us: Percentiles,
+    /// Whole exchange seen by the orchestrator.
+    pub round_trip_us: Percentiles,
+}

@@ -1,0 +1,40 @@
+//! `tiltsim-master`: the co-simulation master. It reads a scenario, starts the plant, actuator
+//! and controller (as processes over iceoryx2 or in this process), steps them in lock-step,
+//! carries their samples through the links and the scheduled faults, and records what they
+//! exchanged.
+//!
+//! A caller runs a scenario with:
+//! * [`Scenario::load`] (the file, validated: every error names the field and what is
+//!   allowed);
+//! * [`engine::run`] (or [`engine::run_recorded`], which also hands back the open `run.mcap`
+//!   recording and, with `--trace`, the binned request latency) with [`RunOptions`];
+//! * the [`Summary`] it returns (the schema of `summary.json`), and the recorded series read
+//!   back as typed rows: [`record::each_row`], [`record::Rows`].
+//!
+//! Modules: [`scenario`] (the file and its validation), [`links`] (link effects),
+//! [`faults`] (process faults), [`events`] (`events.csv`), [`degraded`] (stand-ins for a
+//! lost participant), [`roles`] (a value per role), [`engine`] (launch, lock-step, team,
+//! manipulators, algorithms, observers, summary), [`record`] (`timeseries.csv`),
+//! [`export_mcap`] (`run.mcap` from a finished run), [`replay`] (one participant against its
+//! recorded inputs), [`outdir`] (one run per output directory), [`export_fmu`] (a scenario's
+//! participant as an FMU), [`files`] and [`signals`] (atomic writes, interrupting signals).
+//! The comfort and validity results the summary carries come from `tiltsim-assessment`;
+//! filling them, and drawing figures, is the caller's step (`tiltsim-report`).
+
+pub mod degraded;
+pub mod engine;
+pub mod events;
+pub mod export_fmu;
+pub mod export_mcap;
+pub mod faults;
+pub mod files;
+pub mod links;
+pub mod outdir;
+pub mod record;
+pub mod replay;
+pub mod roles;
+pub mod scenario;
+pub mod signals;
+
+pub use engine::{run, RunOptions, Summary};
+pub use scenario::{Master, Scenario, Transport};

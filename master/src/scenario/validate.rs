@@ -1,0 +1,165 @@
+//! Every rule of a scenario, with the field's dotted path: the name, the timeline, each
+//! section's ranges, the FMUs against their descriptions.
+
+use cosim::settings::{Checker, FieldError};
+use cosim::Role;
+
+use super::*;
+
+impl Scenario {
+    /// The name becomes the default output directory `out/<name>`: one path component, no
+    /// way out of `out/` (`--out` is the only way to choose where results go).
+    pub(super) fn validate_name(&self) -> Checker {
+        let mut c = Checker::new("");
+        let n = &self.name;
+        let ok = n.chars().count() <= 100
+            && n != "."
+            && n != ".."
+            && !n.contains(['/', '\\', '\0'])
+            && !n.chars().any(char::is_control);
+        let shown: String = n.chars().take(100).collect();
+        c.require(
+            ok,
+            "name",
+            format!("{shown:?}"),
+            "at most 100 characters, not `.` or `..`, without `/`, `\\` or control characters",
+        );
+        c
+    }
+
+    /// What can never take effect: a run shorter than one step, faults scheduled after the
+    /// end of the run, a stall length on a fault that is not a stall, two faults of the same
+    /// participant at the same tick.
+    pub(super) fn validate_timeline(&self) -> Checker {
+        let mut c = Checker::new("");
+        let (dt, end) = (self.run.dt_s, self.duration());
+        c.require(
+            dt.is_nan() || dt <= 0.0 || self.steps() >= 1,
+            "run.duration_s",
+            end,
+            &format!("at least one step of run.dt_s = {dt} s"),
+        );
+        let mut seen = Vec::new();
+        for (i, f) in self.faults.schedule.iter().enumerate() {
+            let field = format!("faults.schedule[{i}]");
+            c.require(
+                f.at_s < end,
+                &format!("{field}.at_s"),
+                f.at_s,
+                &format!("a time before the end of the run, {end} s"),
+            );
+            c.require(
+                f.action == crate::faults::FaultAction::Stall || f.stall_s == 0.0,
+                &format!("{field}.stall_s"),
+                f.stall_s,
+                "only with action = \"stall\"",
+            );
+            let tick = (f.at_s / dt).round() as i64;
+            c.require(
+                !seen.contains(&(f.participant, tick)),
+                &format!("{field}.at_s"),
+                f.at_s,
+                "a tick with no other fault of the same participant",
+            );
+            seen.push((f.participant, tick));
+        }
+        c
+    }
+
+    /// Every rule, with the field's dotted path.
+    pub fn validate(&self) -> Vec<FieldError> {
+        let mut c = Checker::new("run");
+        let r = &self.run;
+        c.range("dt_s", r.dt_s, 1e-5, 0.01, "s");
+        if let Some(d) = r.duration_s {
+            c.positive("duration_s", d, 3600.0, "s");
+        }
+        c.require(
+            (1..=60_000).contains(&r.deadline_ms),
+            "deadline_ms",
+            r.deadline_ms,
+            "an integer in [1, 60000] ms",
+        );
+        c.require(
+            r.hang_ceiling_ms >= r.deadline_ms && r.hang_ceiling_ms <= 3_600_000,
+            "hang_ceiling_ms",
+            r.hang_ceiling_ms,
+            &format!(
+                "an integer in [run.deadline_ms = {}, 3600000] ms",
+                r.deadline_ms
+            ),
+        );
+        c.require(
+            (100..=120_000).contains(&r.startup_ms),
+            "startup_ms",
+            r.startup_ms,
+            "an integer in [100, 120000] ms",
+        );
+        let mut all = c;
+        all.merge(self.validate_name());
+        all.merge(self.validate_timeline());
+        all.merge(self.vehicle.validate("vehicle"));
+        all.merge(self.track.validate("track"));
+        all.merge(self.sensor.validate("sensor"));
+        all.merge(self.actuator.validate("actuator"));
+        all.merge(self.controller.validate("controller"));
+        all.merge(self.comfort.validate("comfort"));
+        all.merge(self.links.validate("links"));
+        all.merge(self.faults.validate("faults"));
+        if let Some(v) = &self.design_vehicle {
+            all.merge(v.validate("design_vehicle"));
+        }
+        all.errors.extend(self.validate_fmus());
+        let mut c = Checker::new("controller");
+        let ratio = self.controller.period_s / r.dt_s;
+        c.require(
+            (ratio - ratio.round()).abs() < 1e-9 && ratio.round() >= 1.0,
+            "period_s",
+            self.controller.period_s,
+            &format!("a whole multiple of run.dt_s = {} s", r.dt_s),
+        );
+        all.merge(c);
+        if all.errors.is_empty() {
+            // The LQG and MPC designs solve Riccati equations and set up the QP: a setting
+            // for which they have no solution is a scenario error, reported before any start.
+            let init = self.controller_init();
+            if let Err(e) = controller_proc::Controller::new(&init) {
+                // The design's own settings are what to change: the LQG's and MPC's weights
+                // and Kalman values, the PI's gains.
+                let mut c = Checker::new("controller");
+                let section = match self.controller.mode {
+                    controller_proc::Mode::Lqg => "lqg, controller.kalman",
+                    controller_proc::Mode::Mpc => "mpc, controller.kalman",
+                    _ => "mode",
+                };
+                c.require(
+                    false,
+                    section,
+                    format!("{:?} design failed: {e}", self.controller.mode),
+                    "settings for which the controller design exists",
+                );
+                all.merge(c);
+            }
+        }
+        all.errors
+    }
+
+    /// Every FMU checked against its description: the file, the library for this platform,
+    /// the mapping's names, causalities and types, the parameters and the step size.
+    pub(super) fn validate_fmus(&self) -> Vec<FieldError> {
+        let mut errors = Vec::new();
+        for role in Role::ALL {
+            let Some(init) = self.fmu_init(role) else {
+                continue;
+            };
+            if let Err(e) = tiltsim_fmi::import::check(&init) {
+                errors.push(FieldError {
+                    field: format!("participants.{role}.{}", e.field),
+                    value: e.value,
+                    allowed: e.allowed,
+                });
+            }
+        }
+        errors
+    }
+}

@@ -1,0 +1,410 @@
+//! Analysis of a run, composed by the caller after the engine has run (or on a finished run's
+//! directory): the quick look, ride comfort, validity flags and figures, all read back from
+//! `timeseries.csv` as typed rows (or from the rows a sweep's sample kept in memory).
+
+use std::path::{Path, PathBuf};
+
+use tiltsim_master::engine::{
+    LatencyHistogram, QuickLook, Ran, RunError, RunOptions, Status, Summary,
+};
+use tiltsim_master::record::{Row, Rows};
+use tiltsim_master::scenario::Scenario;
+
+/// Runs `s` with the engine, then completes its summary with the analysis of what it recorded
+/// and, when `opts.plots`, draws its figures (see [`run_then`]).
+pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summary, RunError> {
+    run_then(s, scenario_file, opts, |_| {})
+}
+
+/// [`run`] with the rows kept in memory (`opts.keep_rows` must be set; no `timeseries.csv`, no
+/// figures): the summary and the rows. A sweep's samples run this way.
+pub fn run_keeping_rows(
+    s: &Scenario,
+    scenario_file: &str,
+    opts: &RunOptions,
+) -> Result<(Summary, Vec<Row>), RunError> {
+    debug_assert!(opts.keep_rows);
+    run_inner(s, scenario_file, opts, |_| {})
+}
+
+/// [`run`], calling `keep` with the analysed summary before the figures are drawn: the
+/// caller writes `summary.json` there, so that on a nearly full disk the summary takes the
+/// space before the figures do.
+pub fn run_then(
+    s: &Scenario,
+    scenario_file: &str,
+    opts: &RunOptions,
+    keep: impl FnOnce(&Summary),
+) -> Result<Summary, RunError> {
+    Ok(run_inner(s, scenario_file, opts, keep)?.0)
+}
+
+/// [`run_then`], also returning the rows kept in memory (empty when they went to a file).
+fn run_inner(
+    s: &Scenario,
+    scenario_file: &str,
+    opts: &RunOptions,
+    keep: impl FnOnce(&Summary),
+) -> Result<(Summary, Vec<Row>), RunError> {
+    let Ran {
+        mut summary,
+        recording,
+        rows,
+        latency_histogram: latency,
+    } = tiltsim_master::engine::run_recorded(s, scenario_file, opts)?;
+    // With `--trace`: a figure that cannot be written fails the run, as the trace would.
+    if let Some(h) = latency {
+        if let Err(e) = latency_histogram(&opts.out_dir, &h) {
+            if summary.error.is_none() {
+                summary.status = Status::Failed;
+                summary.error = Some(format!("cannot write {e}"));
+            }
+        }
+    }
+    let kept = rows.unwrap_or_default();
+    // The recording closes with the summary as the caller keeps it (analysed or not).
+    let keep = |sm: &Summary| {
+        keep(sm);
+        if let Some(r) = recording {
+            match r.finish(sm) {
+                Ok(p) => tracing::info!("recorded {}", p.display()),
+                Err(e) => tracing::warn!("recording not completed: {e}"),
+            }
+        }
+    };
+    // An interrupted run ends at once: an hour's series takes tens of seconds to analyse.
+    // `tiltsim plot DIR` draws it later; the summary says the analysis was skipped.
+    if opts.interrupt.load(std::sync::atomic::Ordering::Relaxed) {
+        summary.analysis_skipped = Some(format!(
+            "interrupted by {}: comfort, flags and figures not computed",
+            tiltsim_master::signals::describe()
+        ));
+        keep(&summary);
+        return Ok((summary, kept));
+    }
+    let source = if opts.keep_rows {
+        Rows::Kept(&kept)
+    } else {
+        Rows::File(&opts.out_dir)
+    };
+    analyse(s, source, &mut summary);
+    if tiltsim_master::signals::received() {
+        summary.analysis_skipped = Some(format!(
+            "interrupted by {} during the analysis: comfort and flags incomplete, figures not drawn",
+            tiltsim_master::signals::describe()
+        ));
+        keep(&summary);
+        return Ok((summary, kept));
+    }
+    keep(&summary);
+    if opts.plots && !opts.keep_rows {
+        if let Err(e) = write_plots(s, &opts.out_dir) {
+            tracing::warn!("plots not written: {e}");
+        }
+    }
+    Ok((summary, kept))
+}
+
+/// Fills `results`, `comfort` and `flags` of `summary` from the series recorded in `rows`
+/// (works on partial runs too), in one pass over them with one row in memory at a time (from a
+/// file), so the analysis of an hour-long run needs no more memory than that of a short one.
+pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
+    let mut look = QuickLooker::new(s);
+    let mut comfort =
+        tiltsim_assessment::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort);
+    let mut flags = tiltsim_assessment::validity::Flagger::new(s.run.dt_s, s.comfort.bump_stop_m);
+    let scanned = scan(s, rows, |r, x| {
+        look.push(r);
+        comfort.push(x);
+        flags.push(&tiltsim_assessment::validity::FlagSample {
+            roll_error: r.theta_v - r.theta_ref,
+            reference: r.theta_ref,
+            deflection: x.deflection,
+            limits: r.actuator_limits,
+            phase_current_peak: r.phase_current_peak,
+            torque: r.motor_torque,
+            dc_power: r.dc_power,
+            chopper_power: r.chopper_power,
+            v_dc: r.v_dc,
+        });
+    });
+    if let Err(e) = scanned {
+        // Results from part of a series would read as the run's: none are given.
+        tracing::warn!("comfort, flags and results not computed: {e}");
+        return;
+    }
+    summary.results = look.q;
+    summary.comfort = comfort.finish();
+    summary.flags = flags.finish(&summary.comfort);
+}
+
+/// The comfort of the ideal tilt on the track of a recorded run: the body follows eq 18
+/// exactly (see [`tiltsim_assessment::comfort::Sample::ideal`]).
+pub fn ideal_tilt(s: &Scenario, dir: &Path) -> tiltsim_assessment::comfort::Comfort {
+    let mut a = tiltsim_assessment::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort);
+    let _ = scan(s, Rows::File(dir), |_, x| a.push(&x.ideal()));
+    a.finish()
+}
+
+/// The histogram of every participant's request latency, `plots/latency_histogram.{svg,png}`
+/// (binned by the engine, [`LatencyHistogram`]).
+pub fn latency_histogram(dir: &Path, h: &LatencyHistogram) -> std::io::Result<()> {
+    let lines = h
+        .counts
+        .iter()
+        .enumerate()
+        .map(|(k, (role, counts))| crate::plot::Line {
+            label: role.name(),
+            y: counts.clone(),
+            colour: crate::plot::PALETTE[k],
+            dashed: false,
+        })
+        .collect();
+    let chart = crate::plot::Chart {
+        title: "Request latency: orchestrator sent → participant received",
+        x_label: "latency (µs)",
+        y_label: "exchanges per bin",
+        lines,
+        bands: Vec::new(),
+        note: "",
+    };
+    let plots = dir.join("plots");
+    std::fs::create_dir_all(&plots)?;
+    crate::plot::write_chart(&plots, "latency_histogram", &chart, &h.centres_us)?;
+    Ok(())
+}
+
+/// Times (s) at which the vehicle enters the first transition, the steady curve, the second
+/// transition and the final straight.
+fn section_times(tp: &vehicle_model::TrackParams) -> [f64; 4] {
+    let v = tp.speed();
+    let t1 = tp.straight_before_m / v;
+    let t2 = t1 + tp.transition_m / v;
+    let t3 = t2 + tp.curve_m / v;
+    [t1, t2, t3, t3 + tp.transition_m / v]
+}
+
+/// The curve transitions of the scenario's track as (start, end) times (s).
+fn transitions(s: &Scenario) -> [(f64, f64); 2] {
+    let [t1, t2, t3, t4] = section_times(&s.track);
+    [(t1, t2), (t3, t4)]
+}
+
+/// One recorded row with its quantities derived for comfort, as [`scan`] hands them over.
+struct Derived {
+    row: tiltsim_master::record::Row,
+    /// θ_v^d at the row's position, continuous (rad).
+    reference: f64,
+}
+
+/// Reads a run's recorded series (`dir/timeseries.csv`) and hands each row, in order, to
+/// `visit` with its comfort sample. The reference of eq 18 is taken at each row's own
+/// position, continuous: the recorded θ_ref is the controller's, held over its period (50 ms
+/// for the MPC), whose steps would read as roll-speed spikes of the reference. The roll speed
+/// is the recorded θ̇_v plus the track model's cant rate at the row's time, on the same side
+/// of a ramp corner as the recorded state ([`vehicle_model::Track::cant_rate_at_time`]): a
+/// difference of the recorded cant would mix the slopes before and after the corner with a
+/// θ̇_v taken after its jump. The reference's roll speed is a central difference of the cant
+/// plus θ_v^d (one-sided at the ends), so a row is handed over when the next one has been
+/// read: three rows are in memory at most.
+pub fn scan(
+    s: &Scenario,
+    rows: Rows,
+    mut visit: impl FnMut(&tiltsim_master::record::Row, &tiltsim_assessment::comfort::Sample),
+) -> std::io::Result<u64> {
+    let controller = controller_proc::Controller::new(&s.controller_init()).ok();
+    let veh = vehicle_model::Vehicle::new(s.vehicle.clone(), s.track.speed());
+    let track = vehicle_model::Track::new(&s.track, s.run.seed);
+    let v = s.track.speed();
+    let dt = s.run.dt_s;
+    let (h1, h2) = (s.vehicle.h1, s.vehicle.h2);
+    let p = &s.vehicle;
+    let form = s.comfort.lateral_acceleration;
+    let sample = |x: &Derived, before: &Derived, after: &Derived, steps: f64| {
+        let r = &x.row;
+        // Eq 13 as recorded, and with the body's sway acceleration ÿ_v + h_gv·θ̈_o, which eq 9
+        // gives as −2 f_s/m_v − v²κ + g·θ_o without the ramp corners' impulses
+        // (comfort::LateralAcceleration).
+        let ds = r.y_v - h1 * r.theta_v - r.y_b - h2 * r.theta_b;
+        let dds = r.dy_v - h1 * r.dtheta_v - r.dy_b - h2 * r.dtheta_b;
+        let f_s = p.k_sy * ds + p.c_sy * dds;
+        let sway = -2.0 * f_s / p.m_v - v * v * r.curvature + vehicle_model::G * r.cant;
+        let (eq13, with_sway) = (r.lat_acc, r.lat_acc + sway);
+        let (lat_acc, lat_acc_other) = match form {
+            tiltsim_assessment::comfort::LateralAcceleration::Eq13 => (eq13, with_sway),
+            tiltsim_assessment::comfort::LateralAcceleration::WithSway => (with_sway, eq13),
+        };
+        let deriv = |f: &dyn Fn(&Derived) -> f64| {
+            if steps == 0.0 {
+                0.0
+            } else {
+                (f(after) - f(before)) / (steps * dt)
+            }
+        };
+        tiltsim_assessment::comfort::Sample {
+            t: r.t,
+            lat_acc,
+            lat_acc_ref: veh.lateral_acceleration(x.reference, r.curvature, r.cant),
+            roll_speed: r.dtheta_v + track.cant_rate_at_time(r.t, v),
+            roll_speed_ref: deriv(&|d| d.row.cant + d.reference),
+            deflection: ds,
+            lat_acc_other,
+            tilt_error: r.theta_v - x.reference,
+        }
+    };
+    // rows k−1 and k, waiting for k+1.
+    let mut prev: Option<Derived> = None;
+    let mut cur: Option<Derived> = None;
+    let n = rows.each(|r| {
+        if r.step % 4096 == 0 && tiltsim_master::signals::received() {
+            return false;
+        }
+        let next = Derived {
+            row: *r,
+            reference: controller
+                .as_ref()
+                .map_or(r.theta_ref, |c| c.reference_at(r.s)),
+        };
+        if let Some(c) = &cur {
+            let (before, steps) = match &prev {
+                Some(p) => (p, 2.0),
+                None => (c, 1.0),
+            };
+            visit(&c.row, &sample(c, before, &next, steps));
+        }
+        prev = cur.take();
+        cur = Some(next);
+        true
+    })?;
+    if let Some(c) = &cur {
+        let (before, steps) = match &prev {
+            Some(p) => (p, 1.0),
+            None => (c, 0.0),
+        };
+        visit(&c.row, &sample(c, before, c, steps));
+    }
+    Ok(n)
+}
+
+pub fn bands(s: &Scenario) -> Vec<(f64, f64, bool)> {
+    let [t1, t2, t3, t4] = section_times(&s.track);
+    vec![(t1, t2, false), (t2, t3, true), (t3, t4, false)]
+}
+
+/// Most points per line of a figure: a paper run's 20,000 rows are drawn whole, an hour-long
+/// run as a min/max envelope.
+const PLOT_POINTS: usize = 40_000;
+
+/// Writes `dir/plots/*.svg` and `*.png` from `dir/timeseries.csv`.
+pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<PathBuf>> {
+    let rows = tiltsim_master::record::rows_to_plot(dir, PLOT_POINTS)?;
+    crate::plot::write_run_plots(dir, &rows, &bands(s), s.controller.u_max_deg)
+}
+
+/// Writes the figures that put several runs side by side (`out/plots/compare_*`): lateral
+/// acceleration, body roll and bar angle of every run on one time axis. `runs` are (label,
+/// scenario, run directory); the shaded sections are the first run's.
+pub fn write_compare_plots(
+    runs: &[(String, Scenario, PathBuf)],
+    out: &std::path::Path,
+) -> std::io::Result<Vec<PathBuf>> {
+    use crate::plot::{Chart, Line, PALETTE};
+    use tiltsim_master::record::Row;
+    let mut data = Vec::new();
+    for (label, _, dir) in runs {
+        data.push((
+            label.as_str(),
+            tiltsim_master::record::rows_to_plot(dir, PLOT_POINTS)?,
+        ));
+    }
+    let n = data.iter().map(|(_, r)| r.len()).min().unwrap_or(0);
+    let t: Vec<f64> = data
+        .first()
+        .map(|(_, r)| r[..n].iter().map(|x| x.t).collect())
+        .unwrap_or_default();
+    let plots = out.join("plots");
+    std::fs::create_dir_all(&plots)?;
+    let bands = runs.first().map(|r| bands(&r.1)).unwrap_or_default();
+    let mut files = Vec::new();
+    /// (file name, title, y label, column, scale).
+    type Figure = (
+        &'static str,
+        &'static str,
+        &'static str,
+        fn(&Row) -> f64,
+        f64,
+    );
+    let figures: [Figure; 3] = [
+        (
+            "compare_lateral_acceleration",
+            "Passenger lateral acceleration of each run (Figs 14-15)",
+            "lateral acceleration (m/s²)",
+            |r| r.lat_acc,
+            1.0,
+        ),
+        (
+            "compare_body_roll",
+            "Carbody roll of each run (Fig. 16)",
+            "roll θ_v (deg)",
+            |r| r.theta_v,
+            1f64.to_degrees(),
+        ),
+        (
+            "compare_control",
+            "Achieved anti-roll-bar angle of each run (Fig. 17)",
+            "bar angle δ_a (deg)",
+            |r| r.delta_a,
+            1f64.to_degrees(),
+        ),
+    ];
+    for (name, title, y_label, column, scale) in figures {
+        let chart = Chart {
+            title,
+            x_label: "time (s)",
+            y_label,
+            lines: data
+                .iter()
+                .enumerate()
+                .map(|(k, (label, rows))| Line {
+                    label,
+                    y: rows[..n].iter().map(|r| column(r) * scale).collect(),
+                    colour: PALETTE[k % PALETTE.len()],
+                    dashed: false,
+                })
+                .collect(),
+            bands: bands.clone(),
+            note: crate::plot::SECTION_NOTE,
+        };
+        files.extend(crate::plot::write_chart(&plots, name, &chart, &t)?);
+    }
+    Ok(files)
+}
+
+/// The headline numbers, row by row.
+struct QuickLooker {
+    t_mid: f64,
+    best: f64,
+    q: QuickLook,
+}
+
+impl QuickLooker {
+    fn new(s: &Scenario) -> Self {
+        let tp = &s.track;
+        QuickLooker {
+            t_mid: (tp.straight_before_m + tp.transition_m + tp.curve_m / 2.0) / tp.speed(),
+            best: f64::INFINITY,
+            q: QuickLook::default(),
+        }
+    }
+
+    fn push(&mut self, r: &tiltsim_master::record::Row) {
+        let q = &mut self.q;
+        q.lat_acc_peak = q.lat_acc_peak.max(r.lat_acc.abs());
+        q.delta_a_peak = q.delta_a_peak.max(r.delta_a.abs());
+        if (r.t - self.t_mid).abs() < self.best {
+            self.best = (r.t - self.t_mid).abs();
+            q.lat_acc_mid_curve = r.lat_acc;
+            q.theta_v_mid_curve = r.theta_v;
+        }
+    }
+}

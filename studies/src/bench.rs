@@ -1,0 +1,517 @@
+//! `tiltsim bench`: the machine's numbers for the co-simulation, measured in one run.
+//!
+//! 1. The iceoryx2 round-trip floor: orchestrator → participant → orchestrator through shared
+//!    memory for the plant, whose step takes about 0.1 µs, minus that step (p50, p99).
+//! 2. The per-tick coordination overhead (tick wall time minus the participants' compute on
+//!    the critical path) of every master algorithm and wait strategy over IPC.
+//! 3. The wall time of the same scenario in-process and across processes, and their ratio.
+//!
+//! Each configuration is a real `engine::run` of the scenario for `duration` simulated
+//! seconds; nothing is modelled. Results print as a table and go to JSON.
+
+use std::path::{Path, PathBuf};
+
+use cosim::wait::WaitStrategy;
+use serde::Serialize;
+
+use tiltsim_master::engine::{self, RunOptions, Status, Summary};
+use tiltsim_master::scenario::{Master, Scenario, Transport};
+
+/// One measured configuration.
+#[derive(Debug, Clone, Serialize)]
+pub struct Config {
+    /// Transport.
+    pub transport: &'static str,
+    /// Master algorithm.
+    pub master: &'static str,
+    /// Wait strategy.
+    pub wait: &'static str,
+    /// Ticks run.
+    pub ticks: u64,
+    /// Coordination overhead per tick, p50 (µs).
+    pub overhead_p50_us: f64,
+    /// Coordination overhead per tick, p99 (µs).
+    pub overhead_p99_us: f64,
+    /// Plant round trip minus its compute, p50 (µs).
+    pub plant_round_trip_p50_us: f64,
+    /// Plant round trip, p99 (µs).
+    pub plant_round_trip_p99_us: f64,
+    /// Wall time of the loop (s).
+    pub wall_s: f64,
+    /// CPU seconds, orchestrator + participants.
+    pub cpu_s: f64,
+    /// The transport's floor for one tick (µs): the sum of the round-trip floors of the
+    /// exchanges the tick needs (plant, actuator, and the controller
+    /// when its period comes up: on average 2 + 1/period_ticks round trips), under either
+    /// master. `None` in-process.
+    pub floor_per_tick_us: Option<f64>,
+    /// `overhead_p50_us / floor_per_tick_us`.
+    pub overhead_over_floor: Option<f64>,
+    /// A stricter floor (µs): the round trips the tick waits for one after the other, which
+    /// is [`Config::floor_per_tick_us`] under Gauss-Seidel and one round trip under Jacobi
+    /// (every request in flight at once, as if no two participants shared a CPU).
+    pub critical_floor_per_tick_us: Option<f64>,
+    /// `overhead_p50_us / critical_floor_per_tick_us`.
+    pub overhead_over_critical_floor: Option<f64>,
+}
+
+/// The whole report.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// Scenario measured.
+    pub scenario: String,
+    /// Simulated seconds per configuration.
+    pub duration_s: f64,
+    /// CPUs available.
+    pub cpus: usize,
+    /// The machine measured on, so figures from different machines can be set side by side.
+    pub machine: Machine,
+    /// iceoryx2 round-trip floor: the smallest plant round-trip p50 over the IPC
+    /// configurations, minus the plant's compute (µs).
+    pub ipc_round_trip_floor_us: f64,
+    /// Every configuration.
+    pub configs: Vec<Config>,
+    /// Wall time in-process (s), Gauss-Seidel: the median of its rounds.
+    pub wall_in_process_s: f64,
+    /// Wall time across processes (s), Gauss-Seidel, adaptive wait: the median of its rounds.
+    pub wall_ipc_s: f64,
+    /// `wall_ipc_s / wall_in_process_s`.
+    pub ipc_over_in_process: f64,
+    /// Wall time across processes (s), Jacobi (pipelined, measured CPU plan), adaptive wait:
+    /// the median of its rounds.
+    pub wall_ipc_jacobi_s: f64,
+    /// `wall_ipc_jacobi_s / wall_in_process_s`.
+    pub jacobi_ipc_over_in_process: f64,
+    /// Every round's wall time of the three configurations the ratios compare.
+    pub wall_rounds: WallRounds,
+    /// The machine's ping-pong floors, measured after the configurations (`tiltsim bench`).
+    pub machine_floors: Option<MachineFloors>,
+}
+
+/// The wall times (s) of each round of the configurations the ratios compare, in run order.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct WallRounds {
+    /// In-process, Gauss-Seidel.
+    pub in_process_s: Vec<f64>,
+    /// IPC, Gauss-Seidel, adaptive wait.
+    pub ipc_gauss_seidel_s: Vec<f64>,
+    /// IPC, Jacobi, adaptive wait.
+    pub ipc_jacobi_s: Vec<f64>,
+}
+
+impl WallRounds {
+    fn add(&mut self, t: Transport, m: Master, w: WaitStrategy, wall_s: f64) {
+        let list = match (t, m, w) {
+            (Transport::InProcess, _, _) => &mut self.in_process_s,
+            (Transport::Ipc, Master::GaussSeidel, WaitStrategy::Adaptive) => {
+                &mut self.ipc_gauss_seidel_s
+            }
+            (Transport::Ipc, Master::Jacobi, WaitStrategy::Adaptive) => &mut self.ipc_jacobi_s,
+            _ => return,
+        };
+        list.push(wall_s);
+    }
+}
+
+/// The median of `v` (the lower of the middle two), NaN when empty.
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    v.get((v.len().max(1) - 1) / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// The machine's iceoryx2 floors beside a scenario's figures (`tiltsim bench --ping-pong`).
+#[derive(Debug, Clone, Serialize)]
+pub struct MachineFloors {
+    /// Payload measured (bytes).
+    pub payload_bytes: usize,
+    /// One-way p50 between two processes busy-waiting on their own CPUs (µs).
+    pub one_way_cross_cpu_us: f64,
+    /// One-way p50 between two processes on one CPU, yielding it while they wait (µs): the
+    /// cost of handing a CPU from one process to another, which every tick pays where more
+    /// processes than CPUs take part.
+    pub one_way_same_cpu_us: f64,
+}
+
+/// Why a configuration could not be measured.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    /// The run could not start.
+    #[error("{config}: {source}")]
+    Start {
+        /// Transport, master and wait.
+        config: String,
+        /// Why.
+        source: tiltsim_master::engine::RunError,
+    },
+    /// The run did not complete.
+    #[error("{config}: {why}")]
+    Run {
+        /// Transport, master and wait.
+        config: String,
+        /// The run's error.
+        why: String,
+    },
+}
+
+fn measure(s: &Scenario, exe: &Path, dir: &Path, config: &str) -> Result<Summary, BenchError> {
+    let mut opts = RunOptions::new(dir.to_path_buf(), exe.to_path_buf());
+    opts.plots = false;
+    let sum = engine::run(s, &s.name, &opts).map_err(|source| BenchError::Start {
+        config: config.to_string(),
+        source,
+    })?;
+    let _ = std::fs::remove_dir_all(dir);
+    if sum.status != Status::Completed {
+        return Err(BenchError::Run {
+            config: config.to_string(),
+            why: sum.error.unwrap_or_else(|| "run failed".into()),
+        });
+    }
+    Ok(sum)
+}
+
+/// Runs every configuration once, then `rounds − 1` more rounds of the three that the wall-time
+/// ratios compare (in-process, IPC Gauss-Seidel and IPC Jacobi, adaptive wait), one after the
+/// other, so that a shared machine's drift falls on all three alike; the ratios are those of
+/// the median walls. `progress` is told each run's name.
+pub fn run(
+    base: &Scenario,
+    duration: f64,
+    rounds: usize,
+    exe: &Path,
+    scratch: &Path,
+    mut progress: impl FnMut(&str),
+) -> Result<Report, BenchError> {
+    let mut plan: Vec<(Transport, Master, WaitStrategy)> = vec![(
+        Transport::InProcess,
+        Master::GaussSeidel,
+        WaitStrategy::Adaptive,
+    )];
+    for m in [Master::GaussSeidel, Master::Jacobi] {
+        for w in [
+            WaitStrategy::Adaptive,
+            WaitStrategy::Spin,
+            WaitStrategy::Sleep,
+        ] {
+            plan.push((Transport::Ipc, m, w));
+        }
+    }
+    let mut configs = Vec::new();
+    let mut walls = WallRounds::default();
+    for (i, (t, m, w)) in plan.into_iter().enumerate() {
+        let mut s = base.clone();
+        // Spinning waiters on a 2-CPU machine starve each other (a tick costs whole
+        // scheduler slices), so spin gets a tenth of the ticks; the table shows how many.
+        s.run.duration_s = Some(if w == WaitStrategy::Spin && t == Transport::Ipc {
+            (duration / 10.0).max(s.run.dt_s * 100.0)
+        } else {
+            duration
+        });
+        s.run.transport = t;
+        s.run.master = m;
+        s.run.wait = w;
+        let name = format!("{} {} {}", t.name(), m.name(), w.name());
+        progress(&name);
+        let sum = measure(&s, exe, &scratch.join(format!("config-{i}")), &name)?;
+        let plant = &sum.link_latency[0];
+        let compute = sum.participants[0].compute_us.p50;
+        walls.add(t, m, w, sum.wall_time_s);
+        configs.push(Config {
+            transport: t.name(),
+            master: m.name(),
+            wait: if t == Transport::InProcess {
+                "-"
+            } else {
+                w.name()
+            },
+            ticks: sum.steps_completed,
+            overhead_p50_us: sum.timing.p50,
+            overhead_p99_us: sum.timing.p99,
+            plant_round_trip_p50_us: (plant.round_trip_us.p50 - compute).max(0.0),
+            plant_round_trip_p99_us: plant.round_trip_us.p99,
+            wall_s: sum.wall_time_s,
+            cpu_s: sum.timing.cpu_s.orchestrator + sum.timing.cpu_s.participants,
+            floor_per_tick_us: None,
+            overhead_over_floor: None,
+            critical_floor_per_tick_us: None,
+            overhead_over_critical_floor: None,
+        });
+    }
+    for round in 1..rounds {
+        for (t, m) in [
+            (Transport::InProcess, Master::GaussSeidel),
+            (Transport::Ipc, Master::GaussSeidel),
+            (Transport::Ipc, Master::Jacobi),
+        ] {
+            let mut s = base.clone();
+            s.run.duration_s = Some(duration);
+            s.run.transport = t;
+            s.run.master = m;
+            s.run.wait = WaitStrategy::Adaptive;
+            let name = format!("{} {} adaptive, round {}", t.name(), m.name(), round + 1);
+            progress(&name);
+            let dir = scratch.join(format!("round-{round}-{}-{}", t.name(), m.name()));
+            let sum = measure(&s, exe, &dir, &name)?;
+            walls.add(t, m, WaitStrategy::Adaptive, sum.wall_time_s);
+        }
+    }
+    let (wall_local, wall_ipc, wall_jacobi) = (
+        median(&walls.in_process_s),
+        median(&walls.ipc_gauss_seidel_s),
+        median(&walls.ipc_jacobi_s),
+    );
+    let floor = configs
+        .iter()
+        .filter(|c| c.transport == "ipc")
+        .map(|c| c.plant_round_trip_p50_us)
+        .fold(f64::INFINITY, f64::min);
+    let needed = 2.0 + 1.0 / base.controller_period_ticks() as f64;
+    for c in configs.iter_mut().filter(|c| c.transport == "ipc") {
+        let in_turn = if c.master == Master::Jacobi.name() {
+            1.0
+        } else {
+            needed
+        };
+        let (f, critical) = (needed * floor, in_turn * floor);
+        c.floor_per_tick_us = Some(f);
+        c.overhead_over_floor = (f > 0.0).then(|| c.overhead_p50_us / f);
+        c.critical_floor_per_tick_us = Some(critical);
+        c.overhead_over_critical_floor = (critical > 0.0).then(|| c.overhead_p50_us / critical);
+    }
+    Ok(Report {
+        scenario: base.name.clone(),
+        duration_s: duration,
+        cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        machine: Machine::this(),
+        ipc_round_trip_floor_us: floor,
+        configs,
+        wall_in_process_s: wall_local,
+        wall_ipc_s: wall_ipc,
+        ipc_over_in_process: if wall_local > 0.0 {
+            wall_ipc / wall_local
+        } else {
+            f64::NAN
+        },
+        wall_ipc_jacobi_s: wall_jacobi,
+        jacobi_ipc_over_in_process: if wall_local > 0.0 {
+            wall_jacobi / wall_local
+        } else {
+            f64::NAN
+        },
+        wall_rounds: walls,
+        machine_floors: None,
+    })
+}
+
+/// CPU model, logical CPUs and kernel, as Linux reports them.
+#[derive(Debug, Clone, Serialize)]
+pub struct Machine {
+    /// `model name` of `/proc/cpuinfo`.
+    pub cpu_model: String,
+    /// Logical CPUs online (`/proc/cpuinfo` processors).
+    pub logical_cpus: usize,
+    /// `/proc/sys/kernel/osrelease`.
+    pub kernel: String,
+}
+
+impl Machine {
+    /// This machine ("unknown" where Linux's files are not readable).
+    pub fn this() -> Machine {
+        let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+        let model = info
+            .lines()
+            .find_map(|l| {
+                l.strip_prefix("model name")?
+                    .split_once(':')
+                    .map(|x| x.1.trim())
+            })
+            .unwrap_or("unknown");
+        Machine {
+            cpu_model: model.to_string(),
+            logical_cpus: info.lines().filter(|l| l.starts_with("processor")).count(),
+            kernel: std::fs::read_to_string("/proc/sys/kernel/osrelease")
+                .map_or_else(|_| "unknown".into(), |k| k.trim().to_string()),
+        }
+    }
+}
+
+/// The report as a Markdown table.
+pub fn table(r: &Report) -> String {
+    use std::fmt::Write as _;
+    let mut s = format!(
+        "tiltsim bench: {} for {} s simulated per configuration on {} CPUs\n\
+         machine: {}, {} logical CPUs, Linux {}\n\n\
+         | transport | master | wait | ticks | overhead p50 (µs) | p99 (µs) | floor per tick (µs) | overhead / floor | critical-path floor (µs) | overhead / it | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        r.scenario, r.duration_s, r.cpus, r.machine.cpu_model, r.machine.logical_cpus, r.machine.kernel
+    );
+    for c in &r.configs {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {} | {} | {:.2} | {:.2} | {:.3} | {:.2} |",
+            c.transport,
+            c.master,
+            c.wait,
+            c.ticks,
+            c.overhead_p50_us,
+            c.overhead_p99_us,
+            c.floor_per_tick_us
+                .map_or("-".into(), |f| format!("{f:.2}")),
+            c.overhead_over_floor
+                .map_or("-".into(), |f| format!("{f:.2}")),
+            c.critical_floor_per_tick_us
+                .map_or("-".into(), |f| format!("{f:.2}")),
+            c.overhead_over_critical_floor
+                .map_or("-".into(), |f| format!("{f:.2}")),
+            c.plant_round_trip_p50_us,
+            c.plant_round_trip_p99_us,
+            c.wall_s,
+            c.cpu_s
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\niceoryx2 round-trip floor (best p50 over the IPC configurations): {:.2} µs\n\
+         wall time, median of {} round(s): in-process {:.3} s, IPC (gauss-seidel, adaptive) {:.3} s, ratio {:.2}; \
+         IPC (jacobi, adaptive) {:.3} s, ratio {:.2}",
+        r.ipc_round_trip_floor_us,
+        r.wall_rounds.in_process_s.len(),
+        r.wall_in_process_s,
+        r.wall_ipc_s,
+        r.ipc_over_in_process,
+        r.wall_ipc_jacobi_s,
+        r.jacobi_ipc_over_in_process
+    );
+    if let Some(f) = &r.machine_floors {
+        let _ = writeln!(
+            s,
+            "machine floors (iceoryx2 ping-pong, {} B, one way p50): {:.2} µs between processes \
+             busy-waiting on their own CPUs, {:.2} µs handing one CPU from one process to another",
+            f.payload_bytes, f.one_way_cross_cpu_us, f.one_way_same_cpu_us
+        );
+    }
+    s
+}
+
+/// Where the scratch runs go.
+pub fn scratch_dir(out: &Path) -> PathBuf {
+    out.with_extension("runs")
+}
+
+/// The cost of one participant as an FMU against the native participant.
+#[derive(Debug, Clone, Serialize)]
+pub struct FmuCost {
+    /// The role replaced by its exported FMU.
+    pub role: &'static str,
+    /// Median wall time per tick with the native participant (µs).
+    pub native_us_per_tick: f64,
+    /// Median wall time per tick with the FMU (µs).
+    pub fmu_us_per_tick: f64,
+    /// `fmu_us_per_tick / native_us_per_tick`.
+    pub ratio: f64,
+    /// The participant's own compute per step, p50 (µs): native, FMU (load, FMI calls and
+    /// model).
+    pub native_compute_p50_us: f64,
+    /// See `native_compute_p50_us`.
+    pub fmu_compute_p50_us: f64,
+    /// Every run's wall time per tick (µs), native and FMU alternating.
+    pub native_runs_us: Vec<f64>,
+    /// See `native_runs_us`.
+    pub fmu_runs_us: Vec<f64>,
+}
+
+/// `tiltsim bench --fmu`: each role of `base` in turn as its own exported FMU (FMI 3.0, in
+/// its own process over the scenario's transport) against the native participant, `rounds`
+/// runs of each, alternating so that the machine's drift hits both alike.
+pub fn fmu(
+    base: &Scenario,
+    duration: f64,
+    rounds: usize,
+    exe: &Path,
+    scratch: &Path,
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<FmuCost>, BenchError> {
+    let mut s = base.clone();
+    s.run.duration_s = Some(duration);
+    let _ = std::fs::create_dir_all(scratch);
+    let median = |v: &[f64]| {
+        let mut w = v.to_vec();
+        w.sort_by(f64::total_cmp);
+        w[w.len() / 2]
+    };
+    let mut out = Vec::new();
+    for role in cosim::Role::ALL {
+        let path = scratch.join(format!("{}.fmu", role.name()));
+        tiltsim_master::export_fmu::export(
+            &s,
+            role,
+            tiltsim_fmi::description::FmiVersion::V3,
+            &path,
+            None,
+        )
+        .map_err(|e| BenchError::Run {
+            config: format!("export {role}"),
+            why: e.to_string(),
+        })?;
+        let mut with = s.clone();
+        let settings = tiltsim_fmi::FmuSettings {
+            fmu: path,
+            inputs: Default::default(),
+            outputs: Default::default(),
+            parameters: Default::default(),
+            preload: Vec::new(),
+        };
+        match role {
+            cosim::Role::Plant => with.participants.plant = Some(settings),
+            cosim::Role::Actuator => with.participants.actuator = Some(settings),
+            cosim::Role::Controller => with.participants.controller = Some(settings),
+        }
+        let (mut nat, mut fmu, mut nat_c, mut fmu_c) = (vec![], vec![], vec![], vec![]);
+        for r in 0..rounds {
+            for (label, sc, walls, comp) in [
+                ("native", &s, &mut nat, &mut nat_c),
+                ("fmu", &with, &mut fmu, &mut fmu_c),
+            ] {
+                let name = format!("{role} {label} run {}", r + 1);
+                progress(&name);
+                let sum = measure(sc, exe, &scratch.join(format!("{role}-{label}-{r}")), &name)?;
+                walls.push(sum.wall_time_s / sum.steps_completed.max(1) as f64 * 1e6);
+                comp.push(sum.participants[role as usize].compute_us.p50);
+            }
+        }
+        let (n, f) = (median(&nat), median(&fmu));
+        out.push(FmuCost {
+            role: role.name(),
+            native_us_per_tick: n,
+            fmu_us_per_tick: f,
+            ratio: f / n,
+            native_compute_p50_us: median(&nat_c),
+            fmu_compute_p50_us: median(&fmu_c),
+            native_runs_us: nat,
+            fmu_runs_us: fmu,
+        });
+    }
+    Ok(out)
+}
+
+/// The `--fmu` table.
+pub fn fmu_table(scenario: &str, transport: &str, rows: &[FmuCost]) -> String {
+    let mut t = format!(
+        "each participant of {scenario} as its exported FMU vs native ({transport}; medians of alternating runs)\n\n\
+         | role | native (us/tick) | FMU (us/tick) | FMU / native | compute p50 native (us) | compute p50 FMU (us) |\n\
+         |---|---|---|---|---|---|\n"
+    );
+    for r in rows {
+        t.push_str(&format!(
+            "| {} | {:.2} | {:.2} | {:.3} | {:.2} | {:.2} |\n",
+            r.role,
+            r.native_us_per_tick,
+            r.fmu_us_per_tick,
+            r.ratio,
+            r.native_compute_p50_us,
+            r.fmu_compute_p50_us
+        ));
+    }
+    t
+}

@@ -1,0 +1,12 @@
+//! `tiltsim-studies`: studies over many runs of one scenario.
+//!
+//! * [`sweep`]: Monte Carlo and grid plans ([`sweep::Plan`], [`sweep::parse_grid`]), the
+//!   samples run in parallel ([`sweep::run`]), shards and their merge ([`sweep::merge`]), and
+//!   what the comfort metrics do across them ([`sweep::write_outputs`]);
+//! * [`bench`]: the machine's numbers for the co-simulation, measured in one run
+//!   ([`bench::run`], [`bench::table`]);
+//! * [`budget`]: what a run will write, estimated before it starts ([`budget::check`]).
+
+pub mod bench;
+pub mod budget;
+pub mod sweep;

@@ -1,0 +1,306 @@
+//! The sweep's files read back, and shards joined into the unsharded sweep's files.
+
+use std::path::{Path, PathBuf};
+
+use tiltsim_assessment::comfort::METRICS;
+use tiltsim_master::scenario::Scenario;
+
+use super::*;
+
+pub(super) fn parse_f64s<'a>(
+    fields: impl Iterator<Item = &'a str>,
+    what: &str,
+) -> Result<Vec<f64>, String> {
+    fields
+        .map(|x| {
+            x.parse::<f64>()
+                .map_err(|_| format!("{what}: `{x}` is not a number"))
+        })
+        .collect()
+}
+
+/// The records of CSV `bytes` read from `path`, each with where it is (file and line).
+pub(super) fn records(
+    path: &Path,
+    bytes: &[u8],
+) -> Result<Vec<(String, csv::StringRecord)>, String> {
+    let mut rd = csv::ReaderBuilder::new().flexible(true).from_reader(bytes);
+    rd.records()
+        .enumerate()
+        .map(|(i, r)| {
+            let at = format!("{} line {}", path.display(), i + 2);
+            r.map(|r| (at.clone(), r)).map_err(|e| format!("{at}: {e}"))
+        })
+        .collect()
+}
+
+/// One record of `samples.csv`.
+pub(super) fn sample_row(at: &str, f: &csv::StringRecord, ncol: usize) -> Result<Row, String> {
+    let want = 3 + ncol + METRICS.len();
+    if f.len() != want {
+        return Err(format!("{at}: {} fields, expected {want}", f.len()));
+    }
+    let status = &f[1 + ncol];
+    Ok(Row {
+        sample: f[0]
+            .parse()
+            .map_err(|_| format!("{at}: bad sample index `{}`", &f[0]))?,
+        params: parse_f64s(f.iter().skip(1).take(ncol), at)?,
+        status: SampleStatus::parse(status)
+            .ok_or_else(|| format!("{at}: status `{status}` is neither completed nor failed"))?,
+        metrics: parse_f64s(f.iter().skip(2 + ncol).take(METRICS.len()), at)?,
+        flags: f[want - 1]
+            .split("; ")
+            .filter(|x| !x.is_empty())
+            .map(str::to_string)
+            .collect(),
+        series: Vec::new(),
+    })
+}
+
+/// A sweep's (or shard's) outputs as read back and verified: its meta, base scenario and rows,
+/// each row with where it is in `samples.csv`.
+pub struct Outputs {
+    /// The directory.
+    pub dir: PathBuf,
+    /// `sweep.json`.
+    pub meta: SweepFile,
+    /// `scenario.toml`.
+    pub base: Scenario,
+    /// The rows with their place (`DIR/samples.csv line N`).
+    pub rows: Vec<(String, Row)>,
+    /// The samples `series.csv` has a line for.
+    pub series: std::collections::BTreeSet<usize>,
+    /// Lines of `series.csv` for samples not in `samples.csv`, each as its error.
+    pub orphans: Vec<String>,
+}
+
+/// Reads a sweep's (or shard's) outputs back, each file checked against the checksum
+/// `sweep.json` holds for it and the fingerprint against the scenario, plan and build.
+pub fn read_outputs(dir: &Path) -> Result<Outputs, SweepError> {
+    outputs(dir).map_err(SweepError::Files)
+}
+
+pub(super) fn outputs(dir: &Path) -> Result<Outputs, String> {
+    let meta_path = dir.join("sweep.json");
+    let text =
+        std::fs::read_to_string(&meta_path).map_err(|e| format!("{}: {e}", meta_path.display()))?;
+    let meta: SweepFile = serde_json::from_str(&text).map_err(|e| {
+        format!(
+            "{}: {e} (not the sweep.json of a sweep of this version of tiltsim: run the sweep again)",
+            meta_path.display()
+        )
+    })?;
+    let verified = |name: &str| -> Result<Vec<u8>, String> {
+        let p = dir.join(name);
+        let bytes = std::fs::read(&p).map_err(|e| format!("{}: {e}", p.display()))?;
+        let want = meta
+            .sha256
+            .get(name)
+            .ok_or_else(|| format!("{}: no checksum of {name}", meta_path.display()))?;
+        if identity::sha256(&bytes) != *want {
+            return Err(format!(
+                "{}: changed since the sweep wrote it (its SHA-256 is not the one {} records)",
+                p.display(),
+                meta_path.display()
+            ));
+        }
+        Ok(bytes)
+    };
+    let scenario_path = dir.join("scenario.toml");
+    let scenario = String::from_utf8(verified("scenario.toml")?)
+        .map_err(|e| format!("{}: {e}", scenario_path.display()))?;
+    if identity::fingerprint(&scenario, &meta.plan, &meta.build) != meta.fingerprint {
+        return Err(format!(
+            "{}: its fingerprint is not that of its scenario.toml, plan and build",
+            meta_path.display()
+        ));
+    }
+    let base = Scenario::parse(&scenario, &scenario_path).map_err(|e| e.to_string())?;
+    let ncol = meta.plan.columns().len();
+    let samples_path = dir.join("samples.csv");
+    let mut rows = records(&samples_path, &verified("samples.csv")?)?
+        .iter()
+        .map(|(at, f)| sample_row(at, f, ncol).map(|r| (at.clone(), r)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let series_path = dir.join("series.csv");
+    let mut seen = std::collections::BTreeSet::new();
+    let mut orphans = Vec::new();
+    for (at, f) in records(&series_path, &verified("series.csv")?)? {
+        let j: usize = f
+            .get(0)
+            .and_then(|x| x.parse().ok())
+            .ok_or_else(|| format!("{at}: bad sample index"))?;
+        if !seen.insert(j) {
+            return Err(format!("{at}: sample {j} appears twice"));
+        }
+        let series = parse_f64s(f.iter().skip(1), &at)?;
+        match rows.iter_mut().find(|(_, r)| r.sample == j) {
+            Some(row) => row.1.series = series,
+            None => orphans.push(format!("{at}: sample {j} is not in samples.csv")),
+        }
+    }
+    Ok(Outputs {
+        dir: dir.to_path_buf(),
+        meta,
+        base,
+        rows,
+        series: seen,
+        orphans,
+    })
+}
+
+/// Joins shard outputs: each verified ([`read_outputs`]), all of one sweep (fingerprint:
+/// scenario, plan, build), each shard of one split once, every sample of the plan exactly once
+/// with the plan's parameters. Errors name the directory or the file and line.
+pub fn merge(dirs: &[PathBuf]) -> Result<(Scenario, Plan, String, Vec<Row>), SweepError> {
+    let mut all = Vec::new();
+    for d in dirs {
+        all.push(read_outputs(d)?);
+    }
+    join(all).map_err(SweepError::Merge)
+}
+
+pub(super) fn join(shards: Vec<Outputs>) -> Result<(Scenario, Plan, String, Vec<Row>), String> {
+    let first = shards.first().ok_or("no shard directories given")?;
+    let (d0, m0) = (first.dir.clone(), first.meta.clone());
+    let (base, plan) = (first.base.clone(), m0.plan.clone());
+    let n = plan.len();
+    let shard_of = |o: &Outputs| match &o.meta.shard {
+        None => Ok(Shard { index: 0, count: 1 }),
+        Some(t) => Shard::parse(t).map_err(|_| {
+            format!(
+                "{}: shard `{t}` is not I/N",
+                o.dir.join("sweep.json").display()
+            )
+        }),
+    };
+    let split = shard_of(first)?.count;
+    let mut taken: Vec<Option<PathBuf>> = vec![None; split];
+    let mut rows: Vec<Row> = Vec::new();
+    for o in &shards {
+        let (d, m) = (&o.dir, &o.meta);
+        if m.interrupted {
+            return Err(format!(
+                "{}: the sweep there was interrupted (sweep.json: \"interrupted\": true): start it again with the same arguments to finish it, then merge",
+                d.display()
+            ));
+        }
+        if m.plan != m0.plan {
+            return Err(format!(
+                "{}: a different sweep plan than {}",
+                d.display(),
+                d0.display()
+            ));
+        }
+        if o.base != base {
+            return Err(format!(
+                "{}: a different base scenario than {}",
+                d.display(),
+                d0.display()
+            ));
+        }
+        if m.build != m0.build {
+            return Err(format!(
+                "{}: computed by another build of tiltsim ({}) than {} ({}): run the shards with one build",
+                d.display(),
+                m.build,
+                d0.display(),
+                m0.build
+            ));
+        }
+        if m.fingerprint != m0.fingerprint {
+            return Err(format!(
+                "{}: another sweep than {} (fingerprint differs)",
+                d.display(),
+                d0.display()
+            ));
+        }
+        let sh = shard_of(o)?;
+        let name = format!("{}/{}", sh.index, sh.count);
+        if sh.count != split {
+            return Err(format!(
+                "{} is shard {name}, {} is shard {}: shards of different splits",
+                d.display(),
+                d0.display(),
+                shard_name(first)
+            ));
+        }
+        if let Some(other) = &taken[sh.index] {
+            return Err(format!(
+                "{} and {} are both shard {name}",
+                other.display(),
+                d.display()
+            ));
+        }
+        taken[sh.index] = Some(d.clone());
+        let mine = sh.samples(n);
+        let mut seen = std::collections::BTreeSet::new();
+        for (at, r) in &o.rows {
+            if r.sample >= n {
+                return Err(format!(
+                    "{at}: sample {} is not in the plan ({n} samples)",
+                    r.sample
+                ));
+            }
+            if mine.binary_search(&r.sample).is_err() {
+                return Err(format!("{at}: sample {} is not in shard {name}", r.sample));
+            }
+            if !seen.insert(r.sample) {
+                return Err(format!("{at}: sample {} appears twice", r.sample));
+            }
+            check_params(&base, &plan, r).map_err(|e| format!("{at}: {e}"))?;
+            if !o.series.contains(&r.sample) {
+                return Err(format!(
+                    "{at}: sample {} has no line in {}",
+                    r.sample,
+                    d.join("series.csv").display()
+                ));
+            }
+        }
+        let absent: Vec<usize> = mine.iter().filter(|j| !seen.contains(j)).copied().collect();
+        if !absent.is_empty() {
+            return Err(format!(
+                "{}: {} of the {} samples of shard {name} missing (first: {:?})",
+                d.join("samples.csv").display(),
+                absent.len(),
+                mine.len(),
+                &absent[..absent.len().min(5)]
+            ));
+        }
+        if let Some(e) = o.orphans.first() {
+            return Err(e.clone());
+        }
+        if m.samples != seen.iter().copied().collect::<Vec<_>>() {
+            return Err(format!(
+                "{}: its list of samples is not that of samples.csv",
+                d.join("sweep.json").display()
+            ));
+        }
+        rows.extend(o.rows.iter().map(|(_, r)| r.clone()));
+    }
+    rows.sort_by_key(|r| r.sample);
+    let missing: Vec<usize> = (0..n)
+        .filter(|j| rows.binary_search_by_key(j, |r| r.sample).is_err())
+        .collect();
+    if !missing.is_empty() {
+        let absent: Vec<String> = (0..split)
+            .filter(|i| taken[*i].is_none())
+            .map(|i| format!("{i}/{split}"))
+            .collect();
+        return Err(format!(
+            "{} of {n} samples missing (first: {:?}): shard {} absent",
+            missing.len(),
+            &missing[..missing.len().min(5)],
+            absent.join(", ")
+        ));
+    }
+    Ok((base, plan, m0.build, rows))
+}
+
+pub(super) fn shard_name(o: &Outputs) -> String {
+    o.meta
+        .shard
+        .clone()
+        .unwrap_or_else(|| "0/1 (a whole sweep)".into())
+}

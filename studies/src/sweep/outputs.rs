@@ -1,0 +1,461 @@
+//! The sweep's files (`samples.csv`, `series.csv`, `table.md`/`table.csv`, `sweep.json`,
+//! `plots/`), each written by one function from the rows alone.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use tiltsim_assessment::comfort::{metric, METRICS};
+use tiltsim_master::scenario::Scenario;
+use tiltsim_report::compare::fmt;
+use tiltsim_report::plot::{Chart, Line, PALETTE};
+
+use super::*;
+
+/// What `sweep.json` holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepFile {
+    /// Scenario name.
+    pub scenario: String,
+    /// The plan.
+    pub plan: Plan,
+    /// `i/n` for a shard's output, absent for a whole (or merged) sweep.
+    pub shard: Option<String>,
+    /// Samples in this output.
+    pub samples: Vec<usize>,
+    /// The sweep was interrupted: `samples` are those that had finished (present only then).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub interrupted: bool,
+    /// The build of tiltsim that computed the samples ([`identity::build`]).
+    pub build: String,
+    /// The fingerprint of base scenario, plan and build ([`identity::fingerprint`]), the same
+    /// for every shard of one sweep.
+    pub fingerprint: String,
+    /// SHA-256 of each result file as written, checked by `sweep-merge` before it reads one.
+    pub sha256: std::collections::BTreeMap<String, String>,
+}
+
+/// Checks rows before they are written: each sample of the plan and the shard at most once,
+/// every metric there, and (unless interrupted) every sample of the shard present.
+pub(super) fn check_rows(
+    plan: &Plan,
+    shard: Option<Shard>,
+    rows: &[Row],
+    interrupted: bool,
+) -> std::io::Result<()> {
+    let bad = |m: String| Err(std::io::Error::other(m));
+    let mine = shard
+        .unwrap_or(Shard { index: 0, count: 1 })
+        .samples(plan.len());
+    for (k, r) in rows.iter().enumerate() {
+        if mine.binary_search(&r.sample).is_err() {
+            return bad(format!("sample {} is not in this sweep's plan", r.sample));
+        }
+        if k > 0 && rows[k - 1].sample >= r.sample {
+            return bad(format!("sample {} twice or out of order", r.sample));
+        }
+        if r.metrics.len() != METRICS.len() {
+            return bad(format!("sample {}: {} metrics", r.sample, r.metrics.len()));
+        }
+    }
+    if !interrupted && rows.len() != mine.len() {
+        return bad(format!("{} of {} samples finished", rows.len(), mine.len()));
+    }
+    Ok(())
+}
+
+/// Linear-interpolation percentile (type 7) of sorted values.
+pub fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let h = (sorted.len() - 1) as f64 * p;
+    let (lo, hi) = (h.floor() as usize, h.ceil() as usize);
+    sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
+}
+
+/// A CSV file in memory, written by the `csv` crate.
+pub(super) fn csv_text(records: impl IntoIterator<Item = Vec<String>>) -> String {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for r in records {
+        // Writing into memory cannot fail.
+        let _ = w.write_record(&r);
+    }
+    w.into_inner()
+        .map(|b| String::from_utf8_lossy(&b).into_owned())
+        .unwrap_or_default()
+}
+
+pub(super) fn numbers(v: &[f64]) -> impl Iterator<Item = String> + '_ {
+    v.iter().map(|x| x.to_string())
+}
+
+/// `samples.csv`: each sample's parameters, status and metrics.
+pub(super) fn samples_csv(plan: &Plan, rows: &[Row]) -> String {
+    let cols = plan.columns();
+    let head = std::iter::once("sample".to_string())
+        .chain(cols.iter().map(|c| c.to_string()))
+        .chain(std::iter::once("status".to_string()))
+        .chain(METRICS.iter().map(|m| m.key.to_string()))
+        .chain(std::iter::once("flags".to_string()))
+        .collect();
+    let body = rows.iter().map(|r| {
+        let params = (0..cols.len()).map(|k| r.params.get(k).copied().unwrap_or(f64::NAN));
+        std::iter::once(r.sample.to_string())
+            .chain(params.map(|v| v.to_string()))
+            .chain(std::iter::once(r.status.to_string()))
+            .chain(numbers(&r.metrics))
+            .chain(std::iter::once(r.flags.join("; ")))
+            .collect()
+    });
+    csv_text(std::iter::once(head).chain(body))
+}
+
+/// `series.csv`: each sample's lateral acceleration every [`SERIES_DT`].
+pub(super) fn series_csv(rows: &[Row]) -> String {
+    let longest = rows.iter().map(|r| r.series.len()).max().unwrap_or(0);
+    let head = std::iter::once("sample".to_string())
+        .chain((0..longest).map(|i| ((i + 1) as f64 * SERIES_DT).to_string()))
+        .collect();
+    let body = rows.iter().map(|r| {
+        std::iter::once(r.sample.to_string())
+            .chain(numbers(&r.series))
+            .collect()
+    });
+    // Series of failed samples are shorter: the csv crate needs flexible records.
+    let mut w = csv::WriterBuilder::new()
+        .flexible(true)
+        .from_writer(Vec::new());
+    for r in std::iter::once(head).chain(body) {
+        let _ = w.write_record::<&Vec<String>, &String>(&r);
+    }
+    w.into_inner()
+        .map(|b| String::from_utf8_lossy(&b).into_owned())
+        .unwrap_or_default()
+}
+
+/// `table.md` and `table.csv` of a Monte Carlo sweep: each metric's distribution.
+pub(super) fn monte_carlo_tables(
+    base: &Scenario,
+    spread: f64,
+    seed: u64,
+    rows: &[Row],
+) -> (String, String) {
+    let ok: Vec<&Row> = rows.iter().filter(|r| r.status.completed()).collect();
+    let mut md = format!(
+        "# Robustness sweep of `{}`\n\nMonte Carlo over the true vehicle: {} masses, \
+         inertias and suspension parameters each scaled by U(1 − {s}, 1 + {s}) (seed \
+         {seed}); the controller keeps the nominal design. {} of {} samples completed.\n\n\
+         | metric | median | p5 | p95 | min | max |\n|---|---|---|---|---|---|\n",
+        base.name,
+        PERTURBED.len(),
+        ok.len(),
+        rows.len(),
+        s = spread
+    );
+    let mut records = vec![["metric", "n", "median", "p5", "p95", "min", "max"]
+        .map(String::from)
+        .to_vec()];
+    for (m, metric) in METRICS.iter().enumerate() {
+        let mut v: Vec<f64> = ok
+            .iter()
+            .filter_map(|r| r.metrics.get(m).copied())
+            .collect();
+        v.sort_by(|a, b| a.total_cmp(b));
+        let q = [0.5, 0.05, 0.95, 0.0, 1.0].map(|p| percentile(&v, p));
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} | {} |",
+            metric.label,
+            fmt(q[0]),
+            fmt(q[1]),
+            fmt(q[2]),
+            fmt(q[3]),
+            fmt(q[4])
+        );
+        let mut rec = vec![metric.key.to_string(), v.len().to_string()];
+        rec.extend(numbers(&q));
+        records.push(rec);
+    }
+    let flagged = rows.iter().filter(|r| !r.flags.is_empty()).count();
+    if flagged > 0 {
+        let mut kinds: Vec<&str> = rows
+            .iter()
+            .flat_map(|r| r.flags.iter().map(String::as_str))
+            .collect();
+        kinds.sort_unstable();
+        kinds.dedup();
+        let counts: Vec<String> = kinds
+            .iter()
+            .map(|k| {
+                let n = rows
+                    .iter()
+                    .filter(|r| r.flags.iter().any(|f| f == k))
+                    .count();
+                format!("{k} {n}")
+            })
+            .collect();
+        let _ = writeln!(
+            md,
+            "\n{flagged} of {} samples raised a validity flag ({}; samples.csv names them).\n",
+            rows.len(),
+            counts.join(", ")
+        );
+    }
+    (md, csv_text(records))
+}
+
+/// `table.md` and `table.csv` of a grid sweep: the metrics at each value.
+pub(super) fn grid_tables(base: &Scenario, key: &str, rows: &[Row]) -> (String, String) {
+    let mut md = format!(
+        "# Sweep of `{}` over `{key}`\n\n| {key} | status | lat. acc. peak (%g) | \
+         P_CT standing (%) | P_CT seated (%) | P_CT EN 12299 standing (%) | roll speed \
+         peak (rad/s) | jerk peak (%g/s) |\n|---|---|---|---|---|---|---|---|\n",
+        base.name
+    );
+    let shown = [
+        "lat_acc_peak_pct_g",
+        "p_ct_standing",
+        "p_ct_seated",
+        "p_ct_en12299_standing",
+        "roll_speed_peak_rad_s",
+        "jerk_peak_pct_g_s",
+    ];
+    let head = [key.to_string(), "status".to_string()]
+        .into_iter()
+        .chain(METRICS.iter().map(|m| m.key.to_string()))
+        .collect();
+    let mut records = vec![head];
+    for r in rows {
+        let value = r.params.first().copied().unwrap_or(f64::NAN);
+        let _ = write!(md, "| {value} | {} |", r.status);
+        for k in shown {
+            let v = r.metrics.get(metric(k)).copied().unwrap_or(f64::NAN);
+            let _ = write!(md, " {} |", fmt(v));
+        }
+        md.push('\n');
+        let mut rec = vec![value.to_string(), r.status.to_string()];
+        rec.extend(numbers(&r.metrics));
+        records.push(rec);
+    }
+    (md, csv_text(records))
+}
+
+/// Writes every output file of a sweep (or shard) from its rows, computed by `build`. The rows
+/// are checked first and every file is made in memory before any is written, so an earlier
+/// complete table is never replaced by a truncated one; `sweep.json`, which holds the others'
+/// checksums, is written last.
+pub fn write_outputs(
+    out: &Path,
+    base: &Scenario,
+    plan: &Plan,
+    shard: Option<Shard>,
+    rows: &[Row],
+    interrupted: bool,
+    build: &str,
+) -> std::io::Result<Vec<PathBuf>> {
+    check_rows(plan, shard, rows, interrupted)?;
+    let scenario = toml::to_string(base).unwrap_or_default();
+    let (md, tcsv) = match plan {
+        Plan::MonteCarlo { spread, seed, .. } => monte_carlo_tables(base, *spread, *seed, rows),
+        Plan::Grid { key, .. } => grid_tables(base, key, rows),
+    };
+    let texts = [
+        ("scenario.toml", scenario.clone()),
+        ("samples.csv", samples_csv(plan, rows)),
+        ("series.csv", series_csv(rows)),
+        ("table.md", md),
+        ("table.csv", tcsv),
+    ];
+    let meta = SweepFile {
+        scenario: base.name.clone(),
+        plan: plan.clone(),
+        shard: shard.map(|s| format!("{}/{}", s.index, s.count)),
+        samples: rows.iter().map(|r| r.sample).collect(),
+        interrupted,
+        build: build.to_string(),
+        fingerprint: identity::fingerprint(&scenario, plan, build),
+        sha256: texts
+            .iter()
+            .map(|(n, t)| (n.to_string(), identity::sha256(t.as_bytes())))
+            .collect(),
+    };
+    std::fs::create_dir_all(out)?;
+    let mut files = Vec::new();
+    let mut put = |name: &str, text: &str| -> std::io::Result<()> {
+        let p = out.join(name);
+        tiltsim_master::files::write_atomic(&p, text)?;
+        files.push(p);
+        Ok(())
+    };
+    for (name, text) in &texts {
+        put(name, text)?;
+    }
+    put(
+        "sweep.json",
+        &(serde_json::to_string_pretty(&meta).unwrap_or_default() + "\n"),
+    )?;
+    files.extend(write_plots(out, base, plan, rows)?);
+    Ok(files)
+}
+
+pub(super) fn line<'a>(
+    label: &'a str,
+    y: Vec<f64>,
+    colour: &'static str,
+    dashed: bool,
+) -> Line<'a> {
+    Line {
+        label,
+        y,
+        colour,
+        dashed,
+    }
+}
+
+pub(super) fn column(ok: &[&Row], key: &str) -> Vec<f64> {
+    let m = metric(key);
+    ok.iter()
+        .map(|r| r.metrics.get(m).copied().unwrap_or(f64::NAN))
+        .collect()
+}
+
+/// The lateral-acceleration envelope (5th, 50th, 95th percentile at each time) and the
+/// empirical distribution of P_CT.
+pub(super) fn monte_carlo_plots(
+    dir: &Path,
+    ok: &[&Row],
+    t: &[f64],
+    bands: Vec<(f64, f64, bool)>,
+) -> std::io::Result<Vec<PathBuf>> {
+    let mut env = [Vec::new(), Vec::new(), Vec::new()];
+    for i in 0..t.len() {
+        let mut v: Vec<f64> = ok.iter().map(|r| r.series[i]).collect();
+        v.sort_by(|a, b| a.total_cmp(b));
+        for (k, p) in [0.05, 0.5, 0.95].iter().enumerate() {
+            env[k].push(percentile(&v, *p));
+        }
+    }
+    let [p5, p50, p95] = env;
+    let chart = Chart {
+        title: "Lateral acceleration across the perturbed vehicles (Fig. 21)",
+        x_label: "time (s)",
+        y_label: "lateral acceleration (m/s²)",
+        lines: vec![
+            line("95th percentile", p95, "#d62728", true),
+            line("median", p50, "#1f77b4", false),
+            line("5th percentile", p5, "#2ca02c", true),
+        ],
+        bands,
+        note: tiltsim_report::plot::SECTION_NOTE,
+    };
+    let mut files =
+        tiltsim_report::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)?.to_vec();
+    let mut p = column(ok, "p_ct_standing");
+    p.sort_by(|a, b| a.total_cmp(b));
+    let frac: Vec<f64> = (1..=p.len()).map(|i| i as f64 / p.len() as f64).collect();
+    let chart = Chart {
+        title: "Distribution of P_CT (standing, whole-run peaks) over the samples",
+        x_label: "P_CT standing (%)",
+        y_label: "fraction of samples ≤ P_CT",
+        lines: vec![line("empirical CDF", frac, "#1f77b4", false)],
+        bands: Vec::new(),
+        note: "",
+    };
+    files.extend(tiltsim_report::plot::write_chart(
+        dir,
+        "sweep_p_ct",
+        &chart,
+        &p,
+    )?);
+    Ok(files)
+}
+
+/// The lateral acceleration for each swept value, and comfort against the value.
+pub(super) fn grid_plots(
+    dir: &Path,
+    key: &str,
+    ok: &[&Row],
+    t: &[f64],
+    bands: Vec<(f64, f64, bool)>,
+) -> std::io::Result<Vec<PathBuf>> {
+    let labels: Vec<String> = ok
+        .iter()
+        .map(|r| format!("{key} = {}", r.params.first().copied().unwrap_or(f64::NAN)))
+        .collect();
+    let chart = Chart {
+        title: "Lateral acceleration for each swept value",
+        x_label: "time (s)",
+        y_label: "lateral acceleration (m/s²)",
+        lines: ok
+            .iter()
+            .zip(&labels)
+            .enumerate()
+            .map(|(k, (r, label))| {
+                line(
+                    label,
+                    r.series[..t.len()].to_vec(),
+                    PALETTE[k % PALETTE.len()],
+                    false,
+                )
+            })
+            .collect(),
+        bands,
+        note: tiltsim_report::plot::SECTION_NOTE,
+    };
+    let mut files =
+        tiltsim_report::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)?.to_vec();
+    let x: Vec<f64> = ok
+        .iter()
+        .map(|r| r.params.first().copied().unwrap_or(f64::NAN))
+        .collect();
+    let title = format!("Comfort against {key}");
+    let chart = Chart {
+        title: &title,
+        x_label: key,
+        y_label: "P_CT (%), peak lateral acceleration (%g)",
+        lines: vec![
+            line(
+                "P_CT standing",
+                column(ok, "p_ct_standing"),
+                "#1f77b4",
+                false,
+            ),
+            line("P_CT seated", column(ok, "p_ct_seated"), "#2ca02c", false),
+            line(
+                "lat. acc. peak (%g)",
+                column(ok, "lat_acc_peak_pct_g"),
+                "#d62728",
+                true,
+            ),
+        ],
+        bands: Vec::new(),
+        note: "",
+    };
+    files.extend(tiltsim_report::plot::write_chart(
+        dir,
+        "sweep_comfort",
+        &chart,
+        &x,
+    )?);
+    Ok(files)
+}
+
+pub(super) fn write_plots(
+    out: &Path,
+    base: &Scenario,
+    plan: &Plan,
+    rows: &[Row],
+) -> std::io::Result<Vec<PathBuf>> {
+    let dir = out.join("plots");
+    std::fs::create_dir_all(&dir)?;
+    let ok: Vec<&Row> = rows.iter().filter(|r| r.status.completed()).collect();
+    let n = ok.iter().map(|r| r.series.len()).min().unwrap_or(0);
+    let t: Vec<f64> = (0..n).map(|i| (i + 1) as f64 * SERIES_DT).collect();
+    let bands = tiltsim_report::analysis::bands(base);
+    match plan {
+        Plan::MonteCarlo { .. } => monte_carlo_plots(&dir, &ok, &t, bands),
+        Plan::Grid { key, .. } => grid_plots(&dir, key, &ok, &t, bands),
+    }
+}
