@@ -17,6 +17,17 @@ use super::{RunError, RunOptions};
 use crate::roles::RoleMap;
 use crate::scenario::{Scenario, Transport};
 
+/// The held (latest) outputs of every participant.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Held {
+    /// Plant.
+    pub p: FromPlant,
+    /// Actuator.
+    pub a: FromActuator,
+    /// Controller.
+    pub c: FromController,
+}
+
 /// The plant's endpoint.
 pub(crate) type PlantEp = Box<dyn Endpoint<ToPlant, FromPlant>>;
 /// The actuator's endpoint.

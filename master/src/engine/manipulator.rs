@@ -8,8 +8,7 @@ use cosim::endpoint::ExitReport;
 use cosim::msg::FLAG_CRASH;
 use cosim::{Endpoint, InProcess, LinkError, Message, ProcessFault, Role};
 
-use super::launch::Participants;
-use super::team::Held;
+use super::launch::{Held, Participants};
 use crate::degraded::{FallbackController, NeutralBar};
 use crate::events::{EventKind, EventLog};
 use crate::faults::{Fallback, FaultAction, Faults, OnFailure, ScheduledFault};

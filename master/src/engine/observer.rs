@@ -10,8 +10,9 @@ use actuator_proc::bldc::limit;
 use cosim::stats::{Percentiles, Timings};
 use cosim::Role;
 
+use super::launch::Held;
 use super::summary::{LinkLatency, PacingReport, SolverReport};
-use super::team::{Exchange, Held};
+use super::team::Exchange;
 use crate::events::{EventKind, EventLog};
 use crate::record::{Recorder, Row};
 use crate::roles::RoleMap;

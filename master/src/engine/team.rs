@@ -8,24 +8,13 @@ use cosim::msg::{clock_ns, FromActuator, FromController, FromPlant, Header, Mess
 use cosim::msg::{ToActuator, ToController, ToPlant, FLAG_HELD, FLAG_HOLD_BAD_INPUT};
 use cosim::{Endpoint, Kind, LinkError, Role};
 
-use super::launch::Participants;
+use super::launch::{Held, Participants};
 use super::manipulator::{Degrader, FaultSchedule};
 use crate::events::{EventKind, EventLog};
 use crate::faults::OnBadData;
 use crate::links::{LinkId, LinkSet};
 use crate::roles::RoleMap;
 use crate::scenario::Scenario;
-
-/// The held (latest) outputs of every participant.
-#[derive(Debug, Clone, Copy, Default)]
-pub(crate) struct Held {
-    /// Plant.
-    pub p: FromPlant,
-    /// Actuator.
-    pub a: FromActuator,
-    /// Controller.
-    pub c: FromController,
-}
 
 /// One request and its reply, as the observers see it (monotonic ns).
 #[derive(Debug, Clone, Copy)]

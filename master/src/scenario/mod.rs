@@ -363,6 +363,8 @@ impl Scenario {
 
 #[cfg(test)]
 mod tests {
+    use std::path::Path;
+
     use super::*;
 
     fn parse(t: &str) -> Result<Scenario, ScenarioError> {

@@ -394,6 +394,7 @@ pub const PALETTE: [&str; 8] = [
 
 #[cfg(test)]
 mod tests {
+    use super::png::PNG_SCALE;
     use super::*;
 
     fn demo() -> (Chart<'static>, Vec<f64>) {

@@ -5,7 +5,7 @@ use std::path::Path;
 use super::{to_svg, Scene};
 
 /// The PNG is drawn at this many pixels per SVG unit.
-const PNG_SCALE: f32 = 2.0;
+pub(super) const PNG_SCALE: f32 = 2.0;
 
 /// The font database: DejaVu Sans, regular and bold, from the `dejavu` crate.
 fn fonts() -> std::sync::Arc<resvg::usvg::fontdb::Database> {

@@ -100,6 +100,8 @@ pub struct Row {
 
 #[cfg(test)]
 mod tests {
+    use tiltsim_master::scenario::Scenario;
+
     use super::*;
 
     #[test]
