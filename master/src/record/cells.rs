@@ -39,7 +39,7 @@ pub fn fmt_f64(x: f64) -> String {
 ///
 /// The bytes are those of `std`'s `{x}` and `{x:e}` (test
 /// `every_float_is_written_as_std_writes_it`); the shortest digits come from `ryu`, which makes
-/// writing a row 1.6-1.8 times faster (`cargo bench -p tiltsim-master --bench record`).
+/// writing a row 1.6-1.8 times faster (`cargo bench -p orchestrator --bench record`).
 pub fn put_f64(x: f64, out: &mut String) {
     let a = x.abs();
     if a == 0.0 || !a.is_finite() {
