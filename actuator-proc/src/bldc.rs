@@ -110,6 +110,16 @@ pub struct BldcParams {
     pub switched_integration: SwitchedIntegration,
     /// Integration step of the averaged model (s).
     pub dt_averaged_s: f64,
+    /// Efficiency η of the harmonic gearbox, applied in both directions: driving, the motor
+    /// supplies the bar's power over η; back-driven, the motor receives η of it (D21).
+    /// 1 is the paper's lossless gear.
+    pub gear_efficiency: f64,
+    /// Motor speed over which the gear's loss builds up from zero to its full value (rad/s),
+    /// so that it is continuous through zero speed (D21).
+    pub gear_loss_speed_rad_s: f64,
+    /// Continuous (thermal) torque rating of the motor (N·m); the run's RMS torque is checked
+    /// against it (`flags.thermal`, D32).
+    pub continuous_torque_nm: f64,
 }
 
 impl Default for BldcParams {
@@ -137,9 +147,16 @@ impl Default for BldcParams {
             dt_switched_s: 1e-6,
             dt_averaged_s: 2e-5,
             switched_integration: SwitchedIntegration::Event,
+            gear_efficiency: GEAR_EFFICIENCY,
+            gear_loss_speed_rad_s: 1.0,
+            continuous_torque_nm: 200.0,
         }
     }
 }
+
+/// The harmonic gearbox's efficiency by default (docs/model.md D21: Harmonic Drive catalogue
+/// values for a high-ratio unit at the drive's speeds).
+pub const GEAR_EFFICIENCY: f64 = 0.7;
 
 impl BldcParams {
     /// Checks every field.
@@ -174,6 +191,25 @@ impl BldcParams {
         c.positive("bldc.stroke_deg", self.stroke_deg, 45.0, "deg");
         c.range("bldc.dt_switched_s", self.dt_switched_s, 1e-8, 1e-4, "s");
         c.range("bldc.dt_averaged_s", self.dt_averaged_s, 1e-6, 1e-3, "s");
+        c.require(
+            self.gear_efficiency > 0.3 && self.gear_efficiency <= 1.0,
+            "bldc.gear_efficiency",
+            self.gear_efficiency,
+            "an efficiency in (0.3, 1]",
+        );
+        c.range(
+            "bldc.gear_loss_speed_rad_s",
+            self.gear_loss_speed_rad_s,
+            0.1,
+            100.0,
+            "rad/s",
+        );
+        c.positive(
+            "bldc.continuous_torque_nm",
+            self.continuous_torque_nm,
+            1e5,
+            "N·m",
+        );
         c.range(
             "bldc.control_period_s",
             self.control_period_s,
@@ -192,6 +228,59 @@ impl BldcParams {
     /// k_t i = B ω, i.e. ω = V/(k_t + 2R B/k_t) (rad/s).
     pub fn no_load_speed(&self) -> f64 {
         self.v_dc / (self.k_t + 2.0 * self.r_s * self.b_f / self.k_t)
+    }
+}
+
+/// The harmonic gearbox's loss (docs/model.md D21). The bar's torque reflected to the motor
+/// shaft, T_b = k_vr (δ_a − ψ)/G, is what an ideal gear would load the motor with. With
+/// efficiency η the motor sees T_l = T_b/η when it drives the bar (T_b ω > 0: the loss adds to
+/// the motor's torque) and T_l = η T_b when the bar drives it (T_b ω < 0: the loss takes from
+/// the torque the bar delivers). Near zero speed the loss builds up linearly over
+/// |ω| < ω_ε: T_l = T_b (1 + μ |s|), s = sat(ω/ω_ε), μ = 1/η − 1 driving and −(1 − η)
+/// back-driven, so T_l is continuous in ω (no chattering at a reversal), equals T_b at rest,
+/// and the loss (T_l − T_b) ω is never negative.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GearLoss {
+    /// 1/η − 1.
+    mu_drive: f64,
+    /// 1 − η.
+    mu_back: f64,
+    /// 1/ω_ε (s/rad).
+    inv_w_eps: f64,
+}
+
+impl GearLoss {
+    /// The loss of a gear of efficiency `eta` building up over `w_eps` (rad/s).
+    pub fn new(eta: f64, w_eps: f64) -> Self {
+        GearLoss {
+            mu_drive: 1.0 / eta - 1.0,
+            mu_back: 1.0 - eta,
+            inv_w_eps: 1.0 / w_eps,
+        }
+    }
+
+    /// Whether the gear is lossless (η = 1).
+    #[inline]
+    pub fn lossless(&self) -> bool {
+        self.mu_drive == 0.0
+    }
+
+    /// The signed coefficient μ for bar torque `t_b` and direction `dir` of the rotor's motion.
+    #[inline]
+    fn mu(&self, t_b: f64, dir: f64) -> f64 {
+        if t_b * dir >= 0.0 {
+            self.mu_drive
+        } else {
+            -self.mu_back
+        }
+    }
+
+    /// The load torque on the motor, T_l, for bar torque `t_b` (N·m, motor side) at rotor
+    /// speed `w` (rad/s).
+    #[inline]
+    pub fn load(&self, t_b: f64, w: f64) -> f64 {
+        let s = (w * self.inv_w_eps).clamp(-1.0, 1.0);
+        t_b * (1.0 + self.mu(t_b, s) * s.abs())
     }
 }
 
@@ -328,8 +417,10 @@ pub struct Energy {
     pub copper: f64,
     /// Friction ∫ B ω² dt.
     pub friction: f64,
-    /// Work done on the bar ∫ T_l ω dt.
+    /// Work done on the bar ∫ T_b ω dt (T_b the bar's torque at the motor shaft).
     pub load: f64,
+    /// Loss in the gearbox ∫ (T_l − T_b) ω dt (never negative).
+    pub gear: f64,
 }
 
 /// Telemetry of one exchange interval.
@@ -368,6 +459,8 @@ pub struct Bldc {
     /// Bar stiffness k_vr (N·m/rad), from the vehicle (one source of truth).
     k_vr: f64,
     gear: f64,
+    /// The gearbox's loss.
+    gear_loss: GearLoss,
     lambda: f64,
     dt: f64,
     sub_per_control: u32,
@@ -429,6 +522,7 @@ impl Bldc {
             kind,
             k_vr,
             gear: p.gear(),
+            gear_loss: GearLoss::new(p.gear_efficiency, p.gear_loss_speed_rad_s),
             lambda: p.k_t / 2.0,
             dt,
             sub_per_control,
@@ -561,7 +655,8 @@ impl Bldc {
         self.blocked_steps = self.steps_per_period;
     }
 
-    /// Load torque on the motor from the bar twist, T_l = k_vr (δ_a − ψ)/G (N·m).
+    /// The bar's torque at the motor shaft, T_b = k_vr (δ_a − ψ)/G (N·m), the load of an
+    /// ideal gear (the motor sees [`GearLoss::load`] of it).
     pub fn load_torque(&self, psi: f64) -> f64 {
         self.k_vr * (self.delta_a() - psi) / self.gear
     }
@@ -605,9 +700,10 @@ impl Bldc {
             Electrics::Switched => self.switched(i_ref, dt),
         };
         let p_chop = self.link.step(dt, p_in);
-        // Rotor mechanics (eq 4) and the bar.
-        let tl = self.load_torque(psi);
+        // Rotor mechanics (eq 4), the gearbox and the bar.
         let w = self.omega;
+        let tb = self.load_torque(psi);
+        let tl = self.gear_loss.load(tb, w);
         self.omega += dt * (te - self.p.b_f * w - tl) / self.p.j_rot;
         self.theta_m += dt * w;
         let tau = std::f64::consts::TAU;
@@ -628,7 +724,8 @@ impl Bldc {
         self.energy.electrical_in += dt * p_in;
         self.energy.copper += dt * cu;
         self.energy.friction += dt * self.p.b_f * w * w;
-        self.energy.load += dt * tl * w;
+        self.energy.load += dt * tb * w;
+        self.energy.gear += dt * (tl - tb) * w;
         (te, p_in, p_chop)
     }
 
@@ -1072,7 +1169,7 @@ mod tests {
             }
             let e = m.energy;
             let stored = m.magnetic_energy() + m.kinetic_energy();
-            let out = e.copper + e.friction + e.load + stored;
+            let out = e.copper + e.friction + e.gear + e.load + stored;
             // Switched, 1 µs: the electrical account closes exactly (mean-current
             // bookkeeping); forward Euler on the rotor leaves T_e·Δω/2 per step, ~1e-4 of the
             // energy drawn: 0.1 %. Averaged, 20 µs: the same terms at 20 times the step, plus
@@ -1089,6 +1186,9 @@ mod tests {
                 out
             );
             assert!(e.copper > 0.0 && e.load.abs() > 0.0);
+            // The gear's loss is a loss (never negative by construction) and of the size its
+            // efficiency gives: between (1 − η) and (1/η − 1) of the bar's positive work.
+            assert!(e.gear > 0.0, "{kind:?} {integration:?}: gear {} J", e.gear);
             // The DC link closes too: what the rectifier delivered went to the inverter, the
             // chopper or the capacitor (exact on the link's own booking), and what the link
             // booked as drawn by the inverter (on each step's mean link voltage) is what the
@@ -1098,7 +1198,7 @@ mod tests {
             // series' end value, the flows from the quadrature): measured 1.3e-7, bound 1e-6.
             let l = m.link.energy;
             let c0 = 0.5 * DcLinkParams::default().capacitance_f * p.v_dc * p.v_dc;
-            let link_out = l.inverter + l.chopper + (m.link.stored() - c0);
+            let link_out = l.inverter + l.chopper + l.aux + (m.link.stored() - c0);
             let link_tol = match (kind, integration) {
                 (Electrics::Switched, SwitchedIntegration::Event) => 1e-6,
                 _ => 1e-9,
