@@ -101,7 +101,14 @@ fn run_inner(
 pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
     let mut look = QuickLooker::new(s);
     let mut comfort = crate::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort);
-    let mut flags = crate::validity::Flagger::new(s.run.dt_s, s.comfort.bump_stop_m);
+    let b = &s.actuator.bldc;
+    let rating = crate::validity::DriveRating {
+        continuous_torque_nm: b.continuous_torque_nm,
+        k_t: b.k_t,
+        k_vr: s.vehicle.k_vr,
+        gear_efficiency: b.gear_efficiency,
+    };
+    let mut flags = crate::validity::Flagger::new(s.run.dt_s, s.comfort.bump_stop_m, rating);
     let scanned = scan(s, rows, |r, x| {
         look.push(r);
         comfort.push(x);
@@ -115,6 +122,7 @@ pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
             dc_power: r.dc_power,
             chopper_power: r.chopper_power,
             v_dc: r.v_dc,
+            bar_twist: r.delta_a - r.psi,
         });
     });
     if scanned.is_err() {
