@@ -123,6 +123,7 @@ pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
             chopper_power: r.chopper_power,
             v_dc: r.v_dc,
             bar_twist: r.delta_a - r.psi,
+            delta_a: r.delta_a,
         });
     });
     if scanned.is_err() {

@@ -1,5 +1,5 @@
 //! `tiltsim compare SCENARIO...`: several runs laid out like the paper's Table 4, with the
-//! ideal-tilt floor and the validity flags.
+//! ideal-tilt reference and the validity flags.
 
 use std::path::{Path, PathBuf};
 
