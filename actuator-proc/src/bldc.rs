@@ -1196,7 +1196,12 @@ mod tests {
             };
             // Relative to the account's largest term (the energy drawn can be a small difference
             // of large flows).
-            let scale = e.electrical_in.abs().max(e.copper).max(e.gear).max(e.load.abs());
+            let scale = e
+                .electrical_in
+                .abs()
+                .max(e.copper)
+                .max(e.gear)
+                .max(e.load.abs());
             let rel = (e.electrical_in - out).abs() / scale;
             eprintln!(
                 "{kind:?} {integration:?} η {eta}: in {:.3} J = copper {:.3} + friction {:.4} + gear {:.3} + bar {:.3} + stored {:.4} J, residual {rel:.2e}",
@@ -1256,8 +1261,14 @@ mod tests {
             for w in [1.0, 3.0, 90.0] {
                 let drive = g.load(tb, w * f64::signum(tb + 1e-300));
                 let back = g.load(tb, -w * f64::signum(tb + 1e-300));
-                assert!((drive - tb / eta).abs() <= 1e-12 * tb.abs(), "{tb} {w}: {drive}");
-                assert!((back - eta * tb).abs() <= 1e-12 * tb.abs(), "{tb} {w}: {back}");
+                assert!(
+                    (drive - tb / eta).abs() <= 1e-12 * tb.abs(),
+                    "{tb} {w}: {drive}"
+                );
+                assert!(
+                    (back - eta * tb).abs() <= 1e-12 * tb.abs(),
+                    "{tb} {w}: {back}"
+                );
             }
             assert_eq!(g.load(tb, 0.0), tb);
             let mut prev = g.load(tb, -2.0);
