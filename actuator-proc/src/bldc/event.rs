@@ -80,7 +80,7 @@ pub struct EventStats {
     pub link_events: u64,
     /// Fixed steps taken outside the usual state.
     pub fixed_steps: u64,
-    /// Edges of the gear's loss law crossed (speed ±ω_ε or 0, bar torque 0).
+    /// Edges of the gear's loss law crossed (speed ±ω_ε, bar torque 0).
     pub gear_events: u64,
 }
 
@@ -294,8 +294,8 @@ enum Event {
     DiodeOff,
     /// During a commutation: a phase current reached the over-current trip level.
     Trip,
-    /// The rotor's speed reached an edge of the gear's loss law (±ω_ε, or 0 inside them); the
-    /// speed to put it at, a hair past the edge.
+    /// The rotor's speed reached an edge of the gear's loss law (±ω_ε); the speed to put it
+    /// at, a hair past the edge.
     GearSpeed(f64),
     /// The bar's torque reached zero (the gear's power flow reverses); the Δθ_m to put the
     /// rotor at, a hair past it.
@@ -304,8 +304,11 @@ enum Event {
 
 /// The gearbox's load on the rotor over one segment in the linear form T_l = c T_b + d ω
 /// ([`super::GearLoss`], docs/model.md D21): away from zero speed c = 1/η (driving) or η
-/// (back-driven) and d = 0; within ±ω_ε, c = 1 and d = |μ T_b|/ω_ε with T_b taken at the
-/// segment's start (it moves by less than 1e-5 of itself over a segment at such speeds).
+/// (back-driven) and d = 0; within ±ω_ε, c = 1 and d = |μ T_b|/ω_ε with T_b and the branch of
+/// μ (driving or back-driven) taken at the segment's start (T_b moves by less than 1e-5 of
+/// itself over a segment at such speeds; a reversal within a segment keeps the branch it
+/// started with: the loss d ω² stays dissipative, only its coefficient is the other
+/// direction's until the segment ends, at most 50 µs).
 /// Carried into the rotor equation as k_vr c/(G² J) and (B_f + d)/J.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Rotor {
@@ -929,35 +932,38 @@ impl Bldc {
     }
 
     /// Offers `first` the edges of the gear's loss law that the speed series `cw` and the
-    /// angle series `cth` reach within `h`: ±ω_ε, zero speed inside them, zero bar torque.
+    /// angle series `cth` reach within `h`: ±ω_ε and zero bar torque.
     fn gear_events(&self, psi: f64, cw: &Poly, cth: &Poly, h: f64, first: &mut First) {
         let gl = self.gear_loss;
         if gl.lossless() {
             return;
         }
+        // How far each series can move within h: edges further away are not looked for.
+        let (mut w_reach, mut th_reach) = (0.0, 0.0);
+        for k in (1..=ORDER).rev() {
+            w_reach = (w_reach + cw[k].abs()) * h;
+            th_reach = (th_reach + cth[k].abs()) * h;
+        }
         let w0 = cw[0];
         let w_eps = 1.0 / gl.inv_w_eps;
-        if w0.abs() * gl.inv_w_eps >= 1.0 {
+        if (w0.abs() - w_eps).abs() > w_reach {
+            // Neither +ω_ε nor −ω_ε within reach.
+        } else if w0.abs() * gl.inv_w_eps >= 1.0 {
             let dir = w0.signum();
             first.offer(
                 reach(cw, dir * w_eps, -dir, h),
                 Event::GearSpeed(dir * w_eps * (1.0 - GEAR_NUDGE)),
             );
         } else {
+            // Zero speed is not an edge: within ±ω_ε the loss is d ω, d from the direction at
+            // the segment's start, which stays dissipative (d ω² ≥ 0) through a reversal.
             let out = w_eps * (1.0 + GEAR_NUDGE);
             first.offer(reach(cw, w_eps, 1.0, h), Event::GearSpeed(out));
             first.offer(reach(cw, -w_eps, -1.0, h), Event::GearSpeed(-out));
-            if w0 != 0.0 {
-                let dir = w0.signum();
-                first.offer(
-                    reach(cw, 0.0, -dir, h),
-                    Event::GearSpeed(-dir * w_eps * GEAR_NUDGE),
-                );
-            }
         }
         // The bar's torque is zero where θ_m = G ψ.
         let target = self.gear * psi - self.theta_m;
-        if target != 0.0 {
+        if target != 0.0 && target.abs() <= th_reach {
             let dir = target.signum();
             first.offer(
                 reach(cth, target, dir, h),
