@@ -183,3 +183,89 @@ fn rk4_at_one_millisecond_agrees_with_a_four_times_finer_step() {
     // noise (measured: 7e-7 rad on a 0.04 rad peak).
     assert!(err < 1e-5, "max |Δθ_v| = {err} rad (peak {peak})");
 }
+
+/// The spectrum track's alignment and cross-level, sampled through `Track::at` as the plant
+/// sees them, have the ERRI B176 spectrum they were drawn from. Estimator: Welch's averaged
+/// periodogram, Hann window, 512 m segments without overlap, 8 seeds of a 60 km straight
+/// (936 segments). Each segment's periodogram at one frequency is S·χ²₂/2 (mean S, standard
+/// deviation S) for a Gaussian process, so the average of K independent ones has a relative
+/// standard deviation 1/√K = 3.3 %; the tolerance is 5 of those plus 2 % for the Hann
+/// window's smoothing of a spectrum falling as Ω⁻² to Ω⁻⁴ over its ±2-bin main lobe
+/// (relative bias ≈ p(p+1)/2·(σ_W/Ω)² with σ_W ≈ 0.6 bin: below 1.5 % at the longest
+/// wavelength tested). Outside the band [3, 150] m the estimate is below 1 % of the formula.
+#[test]
+fn spectrum_track_has_the_erri_spectrum_it_was_drawn_from() {
+    use vehicle_model::spectrum::{alignment_psd, cross_level_psd, Level};
+    use vehicle_model::{IrregularityModel, Track};
+    let mut p = TrackParams {
+        straight_before_m: 60_000.0,
+        cant_deg: 0.0,
+        ..Default::default()
+    };
+    p.irregularity.model = IrregularityModel::Spectrum;
+    p.irregularity.level = Some(Level::High);
+    assert!(p.validate("track").errors.is_empty());
+    let (seg, ds) = (2048usize, 0.25);
+    let wavelengths = [2.0, 4.0, 8.0, 16.0, 32.0, 64.0];
+    let omegas: Vec<f64> = wavelengths
+        .iter()
+        .map(|l| std::f64::consts::TAU / l)
+        .collect();
+    let win: Vec<f64> = (0..seg)
+        .map(|n| 0.5 * (1.0 - (std::f64::consts::TAU * n as f64 / seg as f64).cos()))
+        .collect();
+    let w2: f64 = win.iter().map(|w| w * w).sum();
+    let mut sum = vec![[0.0f64; 2]; omegas.len()];
+    let mut k = 0usize;
+    for seed in 1..=8 {
+        let t = Track::new(&p, seed);
+        let n_seg = (p.straight_before_m / ds) as usize / seg;
+        for j in 0..n_seg {
+            let x: Vec<(f64, f64)> = (0..seg)
+                .map(|n| {
+                    let pt = t.at((j * seg + n) as f64 * ds);
+                    (pt.y_o, pt.cant)
+                })
+                .collect();
+            for (i, &om) in omegas.iter().enumerate() {
+                let (mut ar, mut ai, mut cr, mut ci) = (0.0, 0.0, 0.0, 0.0);
+                for (n, (&(y, c), w)) in x.iter().zip(&win).enumerate() {
+                    let ph = om * n as f64 * ds;
+                    let (s, co) = ph.sin_cos();
+                    ar += w * y * co;
+                    ai -= w * y * s;
+                    cr += w * c * co;
+                    ci -= w * c * s;
+                }
+                // One-sided density in rad/m: S(Ω) = G(f)/π with G the two-sided density in
+                // cycles per metre, G = Δs·|X|²/Σw².
+                sum[i][0] += ds * (ar * ar + ai * ai) / (std::f64::consts::PI * w2);
+                sum[i][1] += ds * (cr * cr + ci * ci) / (std::f64::consts::PI * w2);
+            }
+            k += 1;
+        }
+    }
+    assert_eq!(k, 936);
+    let tol = 5.0 / (k as f64).sqrt() + 0.02;
+    for (i, (&om, &l)) in omegas.iter().zip(&wavelengths).enumerate() {
+        let est = [sum[i][0] / k as f64, sum[i][1] / k as f64];
+        let formula = [
+            alignment_psd(Level::High, om),
+            cross_level_psd(Level::High, om),
+        ];
+        for c in 0..2 {
+            let ratio = est[c] / formula[c];
+            if l < 3.0 {
+                assert!(ratio < 0.01, "λ = {l} m outside the band: ratio {ratio}");
+            } else {
+                assert!(
+                    (ratio - 1.0).abs() < tol,
+                    "λ = {l} m, {}: estimate {:.4e}, formula {:.4e} (ratio {ratio:.3}, tol {tol:.3})",
+                    ["alignment", "cross-level"][c],
+                    est[c],
+                    formula[c]
+                );
+            }
+        }
+    }
+}

@@ -111,14 +111,14 @@ pub struct BldcParams {
     /// Integration step of the averaged model (s).
     pub dt_averaged_s: f64,
     /// Efficiency η of the harmonic gearbox, applied in both directions: driving, the motor
-    /// supplies the bar's power over η; back-driven, the motor receives η of it (D21).
+    /// supplies the bar's power over η; back-driven, the motor receives η of it (D45).
     /// 1 is the paper's lossless gear.
     pub gear_efficiency: f64,
     /// Motor speed over which the gear's loss builds up from zero to its full value (rad/s),
-    /// so that it is continuous through zero speed (D21).
+    /// so that it is continuous through zero speed (D45).
     pub gear_loss_speed_rad_s: f64,
     /// Continuous (thermal) torque rating of the motor (N·m); the run's RMS torque is checked
-    /// against it (`flags.thermal`, D32).
+    /// against it (`flags.thermal`, D48).
     pub continuous_torque_nm: f64,
 }
 
@@ -154,7 +154,7 @@ impl Default for BldcParams {
     }
 }
 
-/// The harmonic gearbox's efficiency by default (docs/model.md D21: Harmonic Drive catalogue
+/// The harmonic gearbox's efficiency by default (docs/model.md D45: Harmonic Drive catalogue
 /// values for a high-ratio unit at the drive's speeds).
 pub const GEAR_EFFICIENCY: f64 = 0.7;
 
@@ -231,7 +231,7 @@ impl BldcParams {
     }
 }
 
-/// The harmonic gearbox's loss (docs/model.md D21). The bar's torque reflected to the motor
+/// The harmonic gearbox's loss (docs/model.md D45). The bar's torque reflected to the motor
 /// shaft, T_b = k_vr (δ_a − ψ)/G, is what an ideal gear would load the motor with. With
 /// efficiency η the motor sees T_l = T_b/η when it drives the bar (T_b ω > 0: the loss adds to
 /// the motor's torque) and T_l = η T_b when the bar drives it (T_b ω < 0: the loss takes from
@@ -1251,7 +1251,7 @@ mod tests {
 
     #[test]
     fn the_gear_law_is_continuous_dissipative_and_reaches_its_efficiency() {
-        // T_l(T_b, ω) of docs/model.md D21 against its definition: T_b/η driving and η·T_b
+        // T_l(T_b, ω) of docs/model.md D45 against its definition: T_b/η driving and η·T_b
         // back-driven at and beyond ω_ε, T_b at rest, continuous in ω (the largest jump
         // between neighbouring speeds 1e-4·ω_ε apart is the slope's 1e-4·μ·T_b), and the loss
         // (T_l − T_b)·ω never negative.

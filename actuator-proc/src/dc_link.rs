@@ -10,7 +10,7 @@
 //!   `i_ch = v/R_ch` while on. Braking energy charges the capacitor and is dumped in R_ch.
 //! * Auxiliary load: the drive's own consumers on the link (control electronics, gate drivers,
 //!   fan, the capacitor's discharge resistor) as a resistance that draws `aux_power_w` at the
-//!   supply voltage, `i_aux = g_aux v` with g_aux = P_aux/V_app² (docs/model.md D28).
+//!   supply voltage, `i_aux = g_aux v` with g_aux = P_aux/V_app² (docs/model.md D46).
 //! * Over-voltage trip: above `overvoltage_trip_v` the inverter's gates are blocked (the drive
 //!   in `bldc.rs` acts on [`DcLink::overvoltage`]).
 
@@ -54,7 +54,7 @@ impl Default for DcLinkParams {
     }
 }
 
-/// The auxiliary load by default (W at 780 V; docs/model.md D28).
+/// The auxiliary load by default (W at 780 V; docs/model.md D46).
 pub const AUX_POWER_W: f64 = 100.0;
 
 impl DcLinkParams {

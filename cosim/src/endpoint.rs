@@ -174,6 +174,30 @@ pub struct ExitReport {
     pub cpu_s: Option<f64>,
 }
 
+/// What the exchanges with one participant cost beyond the normal path: waits for a starved
+/// participant and the repair of lost samples. Wall-clock facts (they differ between repeats
+/// of a run); they never change a value.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct ExchangeCounts {
+    /// Looks past the deadline at a participant that was running (starved of CPU by other
+    /// load, or computing) and was waited for.
+    pub starved_waits: u64,
+    /// Requests re-sent because their exchange went silent.
+    pub resends: u64,
+    /// Of those, requests found lost: the participant kept polling and never took it.
+    pub lost_requests: u64,
+    /// Of those, replies found lost: the participant had published it, it never came.
+    pub lost_replies: u64,
+    /// Repeated requests the participant answered from its last reply (the model not stepped).
+    pub repeats_answered: u64,
+    /// Answers to repeated requests that came besides the one taken, discarded.
+    pub repeats_discarded: u64,
+    /// Requests whose sending reached no subscriber and was sent again at once.
+    pub undelivered_requests: u64,
+    /// Replies whose sending reached no subscriber and was sent again at once.
+    pub undelivered_replies: u64,
+}
+
 /// A process fault injected on purpose (scheduled in the scenario).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ProcessFault {
@@ -198,10 +222,9 @@ pub trait Endpoint<I: Message, O: Message> {
     fn inject(&mut self, fault: ProcessFault);
     /// Asks the participant to end, waits for it (bounded), reports how it ended.
     fn shutdown(&mut self) -> ExitReport;
-    /// Times a reply came after the deadline from a participant that was running (starved by
-    /// other load, not hung) and was waited for.
-    fn starved_waits(&self) -> u64 {
-        0
+    /// Starved waits, re-sent requests and discarded repeats so far ([`ExchangeCounts`]).
+    fn counts(&self) -> ExchangeCounts {
+        ExchangeCounts::default()
     }
     /// Tells the endpoint whether its participant now runs on the orchestrator's CPU. A
     /// waiter that shares a CPU with the process it waits for yields at once, since spinning

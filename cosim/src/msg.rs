@@ -1,8 +1,10 @@
 //! Samples exchanged between the orchestrator and the participants, one type per direction.
 //!
 //! Every sample starts with a [`Header`] carrying the global step index (tick) it belongs to,
-//! its [`Kind`] and the protocol version. The receiving side checks all three; a missing,
-//! stale, duplicated or foreign sample is an error, never silently reused.
+//! its [`Kind`], the protocol version and the attempt (a repeat of a request that went
+//! unanswered). The receiving side checks them; a stale, duplicated or foreign sample is an
+//! error, never silently reused; only the expected answer to a repeated request is discarded
+//! (and counted).
 //!
 //! Timing semantics (see `docs/architecture.md`): a request for step `k` carries inputs valid
 //! over `[t_k, t_{k+1})`; the reply for step `k` carries the participant's outputs at
@@ -11,7 +13,7 @@
 use iceoryx2::prelude::ZeroCopySend;
 
 /// Version of the sample layouts below. Bumped whenever a field changes.
-pub const PROTOCOL_VERSION: u32 = 4;
+pub const PROTOCOL_VERSION: u32 = 5;
 
 /// What a sample asks for or answers.
 #[repr(u32)]
@@ -61,6 +63,16 @@ pub fn now_ns() -> u64 {
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
+/// The order of a request or reply within a run, from its header: `Init` (step 0) first,
+/// then step `k` as `2k + 1`; increasing through a run. `None` for `Stop` and unknown kinds.
+pub fn exchange_key(h: &Header) -> Option<u64> {
+    match Kind::from_raw(h.kind)? {
+        Kind::Init => Some(h.step.saturating_mul(2)),
+        Kind::Step => Some(h.step.saturating_mul(2).saturating_add(1)),
+        Kind::Stop => None,
+    }
+}
+
 /// [`now_ns`] where wall-clock times are wanted (`timed`), else 0 without reading the clock
 /// (runs that report no timing, such as a sweep's discarded samples).
 pub fn clock_ns(timed: bool) -> u64 {
@@ -87,8 +99,10 @@ pub struct Header {
     pub flags: u32,
     /// With [`FLAG_REJECTED`] or [`FLAG_HELD`]: 1 + index of the offending request field.
     pub field: u32,
-    /// Reserved (keeps the timestamps 8-byte aligned).
-    pub reserved: u32,
+    /// Which sending of this step's request this is: 0 the first, 1 and more a repeat sent
+    /// because the exchange went silent (docs/architecture.md, "Lost samples"). A reply
+    /// carries the attempt of the request it answers. Also keeps the timestamps 8-byte aligned.
+    pub attempt: u32,
     /// Monotonic time the sender published the sample (ns, [`now_ns`]).
     pub sent_ns: u64,
     /// Replies: monotonic time the participant took the request (ns).

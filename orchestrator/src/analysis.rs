@@ -126,7 +126,9 @@ pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
             delta_a: r.delta_a,
         });
     });
-    if scanned.is_err() {
+    if let Err(e) = scanned {
+        // Results from part of a series would read as the run's: none are given.
+        tracing::warn!("comfort, flags and results not computed: {e}");
         return;
     }
     summary.results = look.q;
@@ -213,9 +215,13 @@ struct Derived {
 /// Reads a run's recorded series (`dir/timeseries.csv`) and hands each row, in order, to
 /// `visit` with its comfort sample. The reference of eq 18 is taken at each row's own
 /// position, continuous: the recorded θ_ref is the controller's, held over its period (50 ms
-/// for the MPC), whose steps would read as roll-speed spikes of the reference. Roll speeds
-/// use a central difference of the cant (one-sided at the ends), so a row is handed over when
-/// the next one has been read: three rows are in memory at most.
+/// for the MPC), whose steps would read as roll-speed spikes of the reference. The roll speed
+/// is the recorded θ̇_v plus the track model's cant rate at the row's time, on the same side
+/// of a ramp corner as the recorded state ([`vehicle_model::Track::cant_rate_at_time`]): a
+/// difference of the recorded cant would mix the slopes before and after the corner with a
+/// θ̇_v taken after its jump. The reference's roll speed is a central difference of the cant
+/// plus θ_v^d (one-sided at the ends), so a row is handed over when the next one has been
+/// read: three rows are in memory at most.
 pub fn scan(
     s: &Scenario,
     rows: Rows,
@@ -223,10 +229,26 @@ pub fn scan(
 ) -> std::io::Result<u64> {
     let controller = controller_proc::Controller::new(&s.controller_init()).ok();
     let veh = vehicle_model::Vehicle::new(s.vehicle.clone(), s.track.speed());
+    let track = vehicle_model::Track::new(&s.track, s.run.seed);
+    let v = s.track.speed();
     let dt = s.run.dt_s;
     let (h1, h2) = (s.vehicle.h1, s.vehicle.h2);
+    let p = &s.vehicle;
+    let form = s.comfort.lateral_acceleration;
     let sample = |x: &Derived, before: &Derived, after: &Derived, steps: f64| {
         let r = &x.row;
+        // Eq 13 as recorded, and with the body's sway acceleration ÿ_v + h_gv·θ̈_o, which eq 9
+        // gives as −2 f_s/m_v − v²κ + g·θ_o without the ramp corners' impulses
+        // (comfort::LateralAcceleration).
+        let ds = r.y_v - h1 * r.theta_v - r.y_b - h2 * r.theta_b;
+        let dds = r.dy_v - h1 * r.dtheta_v - r.dy_b - h2 * r.dtheta_b;
+        let f_s = p.k_sy * ds + p.c_sy * dds;
+        let sway = -2.0 * f_s / p.m_v - v * v * r.curvature + vehicle_model::G * r.cant;
+        let (eq13, with_sway) = (r.lat_acc, r.lat_acc + sway);
+        let (lat_acc, lat_acc_other) = match form {
+            crate::comfort::LateralAcceleration::Eq13 => (eq13, with_sway),
+            crate::comfort::LateralAcceleration::WithSway => (with_sway, eq13),
+        };
         let deriv = |f: &dyn Fn(&Derived) -> f64| {
             if steps == 0.0 {
                 0.0
@@ -236,11 +258,13 @@ pub fn scan(
         };
         crate::comfort::Sample {
             t: r.t,
-            lat_acc: r.lat_acc,
+            lat_acc,
             lat_acc_ref: veh.lateral_acceleration(x.reference, r.curvature, r.cant),
-            roll_speed: r.dtheta_v + deriv(&|d| d.row.cant),
+            roll_speed: r.dtheta_v + track.cant_rate_at_time(r.t, v),
             roll_speed_ref: deriv(&|d| d.row.cant + d.reference),
-            deflection: r.y_v - h1 * r.theta_v - r.y_b - h2 * r.theta_b,
+            deflection: ds,
+            lat_acc_other,
+            tilt_error: r.theta_v - x.reference,
         }
     };
     // rows k−1 and k, waiting for k+1.

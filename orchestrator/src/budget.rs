@@ -7,15 +7,45 @@ use std::path::Path;
 
 use crate::scenario::Scenario;
 
-/// Bytes per row of `timeseries.csv` used for the estimate: 35 columns, most of them of 17
-/// significant digits once the run is under way (measured 380-405 B on paper-passive from 20 s
-/// to 600 s, 300-330 B on the controlled scenarios); the largest possible row is
-/// 35 × 24 + 34 = 874 B.
-pub const ROW_BYTES: u64 = 420;
-/// Bytes per tick of `trace.csv` (two or three exchanges of about 90 B each).
-pub const TRACE_BYTES_PER_TICK: u64 = 270;
+/// Bytes per row of `timeseries.csv` with the ideal actuator: its drive columns stay 0, the
+/// other 25 hold up to 17 significant digits once the run is under way (measured 373 B on
+/// paper-passive's whole run, 300-330 B on controlled ones); 10 % above the largest measured.
+pub const ROW_BYTES_IDEAL: u64 = 410;
+/// Bytes per row with a modelled drive (`bldc`, the switched one, or `bldc-averaged`): its
+/// torque, speed, current, power and voltage columns are full-width too (measured 599-608 B
+/// on paper-lqg, paper-mpc, paper-pi and pi-drive); 10 % above the largest measured. The
+/// largest possible row is 35 × 24 + 34 = 874 B.
+pub const ROW_BYTES_DRIVE: u64 = 670;
+/// Bytes per tick of `trace.csv` (`--trace`: two or three exchanges of about 90 B each;
+/// measured 168-264 B on the paper's scenarios, in-process and over IPC).
+pub const TRACE_BYTES_PER_TICK: u64 = 300;
+/// Bytes per tick of `run.mcap` (`--record`: every participant's inputs and outputs and every
+/// link; measured 1529 B on paper-passive, 1552-1845 B on the controlled scenarios).
+pub const RECORD_BYTES_PER_TICK: u64 = 2050;
+/// What every run writes whatever its length: figures (about 1 MB), summary, perf, events,
+/// scenario.
+pub const FIXED_BYTES: u64 = 2 << 20;
+
+/// Bytes per row of `timeseries.csv` for the actuator model of `s`.
+pub fn row_bytes(s: &Scenario) -> u64 {
+    match s.actuator.model {
+        actuator_proc::ActuatorModel::Ideal => ROW_BYTES_IDEAL,
+        actuator_proc::ActuatorModel::Bldc | actuator_proc::ActuatorModel::BldcAveraged => {
+            ROW_BYTES_DRIVE
+        }
+    }
+}
 /// Above this share of the free space a run is warned about.
 const WARN_SHARE: f64 = 0.25;
+
+/// The optional outputs a run writes (`tiltsim run --trace`, `--record`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Extras {
+    /// `--trace`: `trace.csv`.
+    pub trace: bool,
+    /// `--record`: `run.mcap`.
+    pub record: bool,
+}
 
 /// The estimated size of a run's outputs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -26,13 +56,23 @@ pub struct Estimate {
     pub bytes: u64,
 }
 
-/// What a run of `s` writes (`trace`: with `--trace`).
-pub fn estimate(s: &Scenario, trace: bool) -> Estimate {
+/// What a run of `s` writes, with the optional outputs of `extras`.
+pub fn estimate(s: &Scenario, extras: Extras) -> Estimate {
     let rows = s.steps();
-    let per_row = ROW_BYTES + if trace { TRACE_BYTES_PER_TICK } else { 0 };
+    let per_row = row_bytes(s)
+        + if extras.trace {
+            TRACE_BYTES_PER_TICK
+        } else {
+            0
+        }
+        + if extras.record {
+            RECORD_BYTES_PER_TICK
+        } else {
+            0
+        };
     Estimate {
         rows,
-        bytes: rows.saturating_mul(per_row).saturating_add(64 * 1024),
+        bytes: rows.saturating_mul(per_row).saturating_add(FIXED_BYTES),
     }
 }
 
@@ -75,17 +115,22 @@ pub enum Verdict {
 }
 
 /// Checks a run of `s` into `dir` against the free space there.
-pub fn check(s: &Scenario, dir: &Path, trace: bool) -> Verdict {
-    let e = estimate(s, trace);
+pub fn check(s: &Scenario, dir: &Path, extras: Extras) -> Verdict {
+    let e = estimate(s, extras);
     let Some(free) = free_bytes(dir) else {
         return Verdict::Fits;
     };
+    let with = match (extras.trace, extras.record) {
+        (false, false) => "",
+        (true, false) => ", with the trace",
+        (false, true) => ", with the recording",
+        (true, true) => ", with the trace and the recording",
+    };
     let what = format!(
-        "{} steps (run.duration_s / run.dt_s) write about {} ({} B per row{})",
+        "{} steps (run.duration_s / run.dt_s) write about {} ({} B per row of timeseries.csv for actuator.model{with})",
         e.rows,
         human(e.bytes),
-        ROW_BYTES,
-        if trace { ", with the trace" } else { "" }
+        row_bytes(s),
     );
     if e.bytes > free {
         Verdict::Refuse(format!(
@@ -112,24 +157,25 @@ mod tests {
     #[test]
     fn an_hour_at_ten_microseconds_is_refused_on_any_ordinary_disk_and_a_paper_run_fits() {
         let mut s = Scenario::default();
-        let paper = estimate(&s, false);
+        let none = Extras::default();
+        let paper = estimate(&s, none);
         assert_eq!(paper.rows, s.steps());
         assert!(matches!(
-            check(&s, &std::env::temp_dir(), false),
+            check(&s, &std::env::temp_dir(), none),
             Verdict::Fits
         ));
         s.run.dt_s = 1e-5;
         s.run.duration_s = Some(3600.0);
-        // 3.6e8 rows of 420 B: 151 GB.
-        let e = estimate(&s, false);
+        // 3.6e8 rows of 670 B (the default actuator is the switched drive): 241 GB.
+        let e = estimate(&s, none);
         assert_eq!(e.rows, 360_000_000);
-        assert_eq!(e.bytes, 360_000_000 * 420 + 65536);
+        assert_eq!(e.bytes, 360_000_000 * 670 + (2 << 20));
         let free = free_bytes(&std::env::temp_dir()).unwrap();
-        match check(&s, &std::env::temp_dir(), false) {
+        match check(&s, &std::env::temp_dir(), none) {
             Verdict::Refuse(m) if free < e.bytes => {
-                assert!(m.contains("151.2 GB") && m.contains("run.dt_s"), "{m}")
+                assert!(m.contains("241.2 GB") && m.contains("run.dt_s"), "{m}")
             }
-            Verdict::Warn(m) if free >= e.bytes => assert!(m.contains("151.2 GB"), "{m}"),
+            Verdict::Warn(m) if free >= e.bytes => assert!(m.contains("241.2 GB"), "{m}"),
             Verdict::Fits if free / 4 >= e.bytes => {}
             v => panic!("{v:?} with {free} B free"),
         }

@@ -14,7 +14,7 @@ use crate::scenario::Scenario;
 fn paper_column(s: &Scenario) -> Option<[f64; 7]> {
     let c = &s.controller;
     // The paper's Table 4 is for its deterministic track at ρ = 0.30.
-    if (c.rho - 0.30).abs() > 1e-9 || s.track.irregularity.amplitude_deg > 0.0 {
+    if (c.rho - 0.30).abs() > 1e-9 || s.track.irregularity.is_on() {
         return None;
     }
     let paper_pi = controller_proc::PiGains::default();
@@ -81,11 +81,19 @@ fn ideal_columns(entries: &[Entry]) -> (Vec<(String, &Comfort)>, Vec<usize>) {
         format!(
             "ρ = {:.2}{}",
             e.scenario.controller.rho,
-            if e.scenario.track.irregularity.amplitude_deg > 0.0 {
-                format!(
-                    ", irregular track ±{}°, seed {}",
-                    e.scenario.track.irregularity.amplitude_deg, e.scenario.run.seed
-                )
+            if e.scenario.track.irregularity.is_on() {
+                let irr = &e.scenario.track.irregularity;
+                match (irr.model, irr.level) {
+                    (vehicle_model::IrregularityModel::Spectrum, Some(l)) => format!(
+                        ", ERRI B176 {} track, seed {}",
+                        l.name(),
+                        e.scenario.run.seed
+                    ),
+                    _ => format!(
+                        ", irregular track ±{}°, seed {}",
+                        irr.amplitude_deg, e.scenario.run.seed
+                    ),
+                }
             } else {
                 String::new()
             }
@@ -179,6 +187,7 @@ pub fn tables(entries: &[Entry]) -> (String, String) {
     ideal_differences(&mut md, &mut csv, &ideal, &of, entries);
     flag_rows(&mut md, &mut csv, ideal.len(), entries);
     run_table(&mut md, entries);
+    trade_off(&mut md, &mut csv, &ideal, &of, entries);
     (md, csv.finish())
 }
 
@@ -203,11 +212,18 @@ fn metric_rows(
     ideal: &[(String, &Comfort)],
     entries: &[Entry],
 ) {
-    let deflection = metric("deflection_peak_mm");
+    // Rows the ideal tilt has no value for: it simulates no suspension, no sway, no ride.
+    let not_ideal = [
+        metric("deflection_peak_mm"),
+        metric("p_ct_other_form_standing"),
+        metric("n_mv_lateral"),
+        metric("a_y_rms_wd_m_s2"),
+        metric("roll_acc_rms_rad_s2"),
+    ];
     for (r, m) in METRICS.iter().enumerate() {
         let _ = write!(md, "| {} |", m.label);
         for (k, c) in ideal {
-            if r == deflection {
+            if not_ideal.contains(&r) {
                 let _ = write!(md, " — |");
             } else {
                 let v = (m.get)(c);
@@ -382,6 +398,221 @@ fn run_table(md: &mut String, entries: &[Entry]) {
                 .get(2)
                 .map(|p| p.compute_us.p99)
                 .unwrap_or(0.0)
+        );
+    }
+}
+
+/// `compare.json`: the runs of a compare, each in `DIR/<dir>`, written before they start so
+/// that the next compare into the directory knows which subdirectories were this one's.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Manifest {
+    /// The runs in order.
+    pub runs: Vec<ManifestRun>,
+}
+
+/// One run of a compare.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ManifestRun {
+    /// Its subdirectory and label (the scenario's name, made distinct).
+    pub dir: String,
+    /// The scenario file.
+    pub scenario: String,
+}
+
+impl Manifest {
+    /// The manifest of the compare in `dir`, if it has a readable one.
+    pub fn read(dir: &std::path::Path) -> Option<Manifest> {
+        let text = std::fs::read_to_string(dir.join("compare.json")).ok()?;
+        serde_json::from_str(&text).ok()
+    }
+}
+
+/// Names a compare's own files and figures take in its directory: no run is put there.
+const RESERVED: [&str; 5] = [
+    "plots",
+    "compare.json",
+    "table.md",
+    "table.csv",
+    crate::outdir::LOCK_FILE,
+];
+
+/// Distinct subdirectory names for runs of scenarios named `names`, in order: a name already
+/// taken (by an earlier scenario or by the compare's own files) gets the first free `-2`,
+/// `-3`, ... suffix.
+pub fn distinct_names(names: &[String]) -> Vec<String> {
+    let mut taken: Vec<String> = Vec::new();
+    for n in names {
+        let free = |c: &String| !taken.contains(c) && !RESERVED.contains(&c.as_str());
+        let mut c = n.clone();
+        let mut k = 2;
+        while !free(&c) {
+            c = format!("{n}-{k}");
+            k += 1;
+        }
+        taken.push(c);
+    }
+    taken
+}
+
+/// Whether the run ends before its track's first transition: straight track only.
+pub fn straight_only(s: &Scenario) -> bool {
+    let end = s
+        .run
+        .duration_s
+        .unwrap_or(s.track.length() / s.track.speed());
+    end * s.track.speed() <= s.track.straight_before_m
+}
+
+/// One controller's curving comfort against its straight-track ride: the curve run and the
+/// straight run of the same controller and actuator settings, with the curve run's ideal
+/// tilt.
+pub struct TradeOff<'a> {
+    /// Controller label (without the scenario).
+    pub controller: String,
+    /// The curve run and its ideal-tilt column.
+    pub curve: (&'a Entry, &'a Comfort),
+    /// The straight run.
+    pub straight: &'a Entry,
+}
+
+/// Pairs each curve run with the first straight-only run of the same controller and actuator.
+pub fn trade_offs<'a>(entries: &'a [Entry], ideal_of: &[&'a Comfort]) -> Vec<TradeOff<'a>> {
+    let mut out = Vec::new();
+    for (e, ideal) in entries.iter().zip(ideal_of) {
+        if straight_only(&e.scenario) {
+            continue;
+        }
+        let twin = entries.iter().find(|o| {
+            straight_only(&o.scenario)
+                && o.scenario.controller == e.scenario.controller
+                && o.scenario.actuator == e.scenario.actuator
+        });
+        if let Some(st) = twin {
+            let controller = e.label.split(" [").next().unwrap_or(&e.label).to_string();
+            out.push(TradeOff {
+                controller,
+                curve: (e, ideal),
+                straight: st,
+            });
+        }
+    }
+    out
+}
+
+/// The curving-against-straight table: P_CT and the peak lateral acceleration over the ideal
+/// tilt on the curve, EN 12299's lateral mean comfort and the roll measures on the straight.
+fn trade_off(
+    md: &mut String,
+    csv: &mut CsvTable,
+    ideal: &[(String, &Comfort)],
+    of: &[usize],
+    entries: &[Entry],
+) {
+    let ideal_of: Vec<&Comfort> = of.iter().map(|i| ideal[*i].1).collect();
+    let pairs = trade_offs(entries, &ideal_of);
+    if pairs.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "\n## Curving comfort against straight-track ride\n\nEach controller on the curve \
+         (P_CT standing from whole-run peaks; peak lateral acceleration over the ideal tilt) \
+         and on the straight irregular track (EN 12299 mean comfort, lateral part \
+         6·a_YP95^Wd; tilt error and roll acceleration RMS). Lower is better in every \
+         column.\n\n| controller | curve run | P_CT standing (%) | lateral acceleration \
+         peak over ideal tilt (%g) | straight run | N_MV lateral part | tilt error RMS (deg) \
+         | roll acceleration RMS (rad/s²) |\n|---|---|---|---|---|---|---|---|"
+    );
+    for t in pairs {
+        let (c, i) = (&t.curve.0.summary.comfort, t.curve.1);
+        let r = &t.straight.summary.comfort.ride;
+        let over = c.lat_acc_peak_pct_g - i.lat_acc_peak_pct_g;
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:+.3} | {} | {} | {} | {} |",
+            t.controller,
+            t.curve.0.scenario.name,
+            fmt(c.p_ct.standing),
+            over,
+            t.straight.scenario.name,
+            fmt(r.n_mv_lateral),
+            fmt(r.tilt_error_rms_deg),
+            fmt(r.roll_acc_rms_rad_s2)
+        );
+        for (name, v) in [
+            ("Trade-off: P_CT standing on the curve (%)", c.p_ct.standing),
+            (
+                "Trade-off: lateral acceleration peak over ideal tilt (%g)",
+                over,
+            ),
+            (
+                "Trade-off: N_MV lateral part on the straight",
+                r.n_mv_lateral,
+            ),
+            (
+                "Trade-off: tilt error RMS on the straight (deg)",
+                r.tilt_error_rms_deg,
+            ),
+            (
+                "Trade-off: roll acceleration RMS on the straight (rad/s²)",
+                r.roll_acc_rms_rad_s2,
+            ),
+        ] {
+            let pair = format!("{}+{}", t.curve.0.scenario.name, t.straight.scenario.name);
+            csv.cell([name, &t.controller, &pair, &v.to_string(), "", "", ""]);
+        }
+    }
+}
+
+/// `out/plots/trade_off.{svg,png}`: each controller's P_CT on the curve against its lateral
+/// mean comfort on the straight (nothing when no curve run has a straight twin).
+pub fn write_trade_off_plot(
+    entries: &[Entry],
+    out: &std::path::Path,
+) -> std::io::Result<Vec<std::path::PathBuf>> {
+    let (ideal, of) = ideal_columns(entries);
+    let ideal_of: Vec<&Comfort> = of.iter().map(|i| ideal[*i].1).collect();
+    let pairs = trade_offs(entries, &ideal_of);
+    if pairs.is_empty() {
+        return Ok(Vec::new());
+    }
+    let series: Vec<crate::plot::Series> = pairs
+        .iter()
+        .enumerate()
+        .map(|(k, t)| crate::plot::Series {
+            label: &t.controller,
+            colour: crate::plot::PALETTE[k % crate::plot::PALETTE.len()],
+            points: vec![(
+                t.curve.0.summary.comfort.p_ct.standing,
+                t.straight.summary.comfort.ride.n_mv_lateral,
+            )],
+            labels: vec![t.controller.clone()],
+            joined: false,
+        })
+        .collect();
+    let plots = out.join("plots");
+    std::fs::create_dir_all(&plots)?;
+    Ok(crate::plot::write_scatter(
+        &plots,
+        "trade_off",
+        "Curving comfort against straight-track ride, per controller",
+        "P_CT standing on the curve, whole-run peaks (%)",
+        "N_MV lateral part on the straight (6·a_YP95^Wd)",
+        &series,
+    )?
+    .to_vec())
+}
+
+#[cfg(test)]
+mod names_tests {
+    use super::*;
+
+    #[test]
+    fn same_named_scenarios_get_distinct_directories() {
+        let v = |x: &[&str]| x.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(
+            distinct_names(&v(&["a", "b", "a", "a-2", "a", "plots"])),
+            v(&["a", "b", "a-2", "a-2-2", "a-3", "plots-2"])
         );
     }
 }

@@ -79,14 +79,21 @@ fn outputs(r: &Row) -> (FromPlant, FromActuator, FromController) {
 /// Wall-clock (request sent, reply received) ns per (step, role).
 type WallTimes = HashMap<(u64, Role), (u64, u64)>;
 
-/// The wall-clock times of `trace.csv` (empty when the run was not traced).
+/// The line of a record, for messages (the header is line 1).
+fn line_of(rec: &csv::StringRecord, index: usize) -> u64 {
+    rec.position().map_or(index as u64 + 2, |p| p.line())
+}
+
+/// The wall-clock times of `trace.csv` (empty when the run was not traced). A damaged row is
+/// an error naming the file and its line.
 fn trace(dir: &Path) -> Result<WallTimes, ExportError> {
     let path = dir.join("trace.csv");
     let mut out = HashMap::new();
-    let Ok(mut rd) = csv::Reader::from_path(&path) else {
+    if !path.exists() {
         return Ok(out);
-    };
-    for rec in rd.records() {
+    }
+    let mut rd = crate::record::whole_lines(&path).map_err(|e| err(&path, e))?;
+    for (i, rec) in rd.records().enumerate() {
         let rec = rec.map_err(|e| err(&path, e))?;
         let num = |i: usize| rec.get(i).and_then(|v| v.parse::<u64>().ok());
         let (Some(step), Some(role), Some(sent), Some(got)) =
@@ -94,7 +101,10 @@ fn trace(dir: &Path) -> Result<WallTimes, ExportError> {
         else {
             return Err(err(
                 &path,
-                "a row that is not step,t,participant,… of tiltsim",
+                format!(
+                    "line {}: not a row of tiltsim's trace (step,t,participant,… with whole-number times)",
+                    line_of(&rec, i)
+                ),
             ));
         };
         // The last exchange of a (step, role) is the step's (tick 0 also has the Init one).
@@ -103,28 +113,65 @@ fn trace(dir: &Path) -> Result<WallTimes, ExportError> {
     Ok(out)
 }
 
-/// The events of `events.csv`.
+/// The events of `events.csv`; a damaged row is an error naming the file and its line.
 fn events(dir: &Path) -> Result<Vec<EventMessage>, ExportError> {
     let path = dir.join("events.csv");
-    let mut rd = csv::Reader::from_path(&path).map_err(|e| err(&path, e))?;
+    let mut rd = crate::record::whole_lines(&path).map_err(|e| err(&path, e))?;
     let mut out = Vec::new();
-    for rec in rd.records() {
+    for (i, rec) in rd.records().enumerate() {
         let rec = rec.map_err(|e| err(&path, e))?;
+        let line = line_of(&rec, i);
+        if rec.len() != 6 {
+            return Err(err(
+                &path,
+                format!(
+                    "line {line}: {} fields, not the 6 of step,t,source,kind,value,detail",
+                    rec.len()
+                ),
+            ));
+        }
         let f = |i: usize| rec.get(i).unwrap_or("").to_string();
+        let bad = |what: &str| err(&path, format!("line {line}: {what}"));
         out.push(EventMessage {
             step: f(0)
                 .parse()
-                .map_err(|_| err(&path, "a step that is not a number"))?,
+                .map_err(|_| bad("a step that is not a whole number"))?,
             t: f(1)
                 .parse()
-                .map_err(|_| err(&path, "a time that is not a number"))?,
+                .map_err(|_| bad("a time that is not a number"))?,
             source: f(2),
             kind: f(3),
-            value: f(4).parse().unwrap_or(f64::NAN),
+            // An event without a value leaves the field empty.
+            value: if f(4).is_empty() {
+                f64::NAN
+            } else {
+                f(4).parse()
+                    .map_err(|_| bad("a value that is not a number"))?
+            },
             detail: f(5),
         });
     }
     Ok(out)
+}
+
+/// The most a run's JSON file (`summary.json`, `perf.json`) may hold when read back.
+const MAX_JSON_BYTES: u64 = 16 << 20;
+
+/// Reads a run's JSON file, at most [`MAX_JSON_BYTES`] of it.
+fn read_json(path: &Path) -> Result<serde_json::Value, ExportError> {
+    use std::io::Read as _;
+    let f = std::fs::File::open(path).map_err(|e| err(path, e))?;
+    let mut text = String::new();
+    f.take(MAX_JSON_BYTES + 1)
+        .read_to_string(&mut text)
+        .map_err(|e| err(path, e))?;
+    if text.len() as u64 > MAX_JSON_BYTES {
+        return Err(err(
+            path,
+            format!("larger than {} MiB: not a run's file", MAX_JSON_BYTES >> 20),
+        ));
+    }
+    serde_json::from_str(&text).map_err(|e| err(path, e))
 }
 
 /// Writes `dir/run.mcap` from the run's files; returns its path.
@@ -132,13 +179,12 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
     let sc = dir.join("scenario.toml");
     let s = Scenario::load(&sc).map_err(|e| err(&sc, e))?;
     let sp = dir.join("summary.json");
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&sp).map_err(|e| err(&sp, e))?)
-            .map_err(|e| err(&sp, e))?;
+    let summary = read_json(&sp)?;
     let pp = dir.join("perf.json");
-    let perf: serde_json::Value = match std::fs::read_to_string(&pp) {
-        Ok(t) => serde_json::from_str(&t).map_err(|e| err(&pp, e))?,
-        Err(_) => serde_json::Value::Null,
+    let perf = if pp.exists() {
+        read_json(&pp)?
+    } else {
+        serde_json::Value::Null
     };
     let events = events(dir)?;
     let wall = trace(dir)?;
@@ -202,7 +248,13 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
             }
         }
     })
-    .map_err(|e| err(&dir.join("timeseries.csv"), e))?;
+    .map_err(|e| {
+        // The reader's message names the file already.
+        let p = dir.join("timeseries.csv");
+        let m = e.to_string();
+        let what = m.strip_prefix(&format!("{}: ", p.display())).unwrap_or(&m);
+        err(&p, what)
+    })?;
     if let Some(e) = failed {
         return Err(err(&path, e));
     }

@@ -16,6 +16,7 @@ pub mod faults;
 pub mod files;
 pub mod linearize;
 pub mod links;
+pub mod outdir;
 pub mod plot;
 pub mod record;
 pub mod replay;

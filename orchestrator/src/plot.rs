@@ -530,6 +530,120 @@ pub fn write_chart(
     Ok([svg, png])
 }
 
+/// One series of a scatter chart: points (x, y), drawn as squares, joined in order when
+/// `joined` (a front along a swept parameter), each labelled when `labels` are given.
+pub struct Series<'a> {
+    /// Legend label.
+    pub label: &'a str,
+    /// Colour as `#rrggbb`.
+    pub colour: &'a str,
+    /// The points.
+    pub points: Vec<(f64, f64)>,
+    /// Text next to each point (empty: none).
+    pub labels: Vec<String>,
+    /// Join the points in order.
+    pub joined: bool,
+}
+
+/// Writes `dir/NAME.svg|png`: a scatter chart of `series` over their common ranges.
+pub fn write_scatter(
+    dir: &Path,
+    name: &str,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+) -> std::io::Result<[PathBuf; 2]> {
+    let pts = series.iter().flat_map(|s| s.points.iter().copied());
+    let (mut x0, mut x1) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut ys = Vec::new();
+    for (x, y) in pts.filter(|(x, y)| x.is_finite() && y.is_finite()) {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        ys.push(y);
+    }
+    if !x0.is_finite() {
+        (x0, x1) = (0.0, 1.0);
+    }
+    let pad = 0.08 * (x1 - x0).max(1e-6);
+    let range = Chart {
+        title,
+        x_label,
+        y_label,
+        lines: vec![Line {
+            label: "",
+            y: ys,
+            colour: "#000000",
+            dashed: false,
+        }],
+        bands: Vec::new(),
+        note: "",
+    };
+    let xr = [x0 - pad, x1 + pad];
+    let f = Frame::new(&range, &xr);
+    let mut p = vec![Prim::Rect {
+        x: 0.0,
+        y: 0.0,
+        w: W,
+        h: H,
+        fill: Some(Rgb(255, 255, 255)),
+        stroke: None,
+    }];
+    f.x_axis(&mut p);
+    f.y_axis(&mut p);
+    labels(&mut p, &range);
+    for (k, se) in series.iter().enumerate() {
+        let colour = Rgb::hex(se.colour);
+        let xy: Vec<(f64, f64)> = se
+            .points
+            .iter()
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .map(|&(x, y)| (f.xs(x), f.ys(y)))
+            .collect();
+        if se.joined && xy.len() > 1 {
+            p.push(Prim::Path {
+                pts: xy.clone(),
+                colour,
+                width: 1.3,
+                dash: None,
+            });
+        }
+        for (i, &(x, y)) in xy.iter().enumerate() {
+            p.push(Prim::Rect {
+                x: x - 3.5,
+                y: y - 3.5,
+                w: 7.0,
+                h: 7.0,
+                fill: Some(colour),
+                stroke: None,
+            });
+            if let Some(t) = se.labels.get(i).filter(|t| !t.is_empty()) {
+                p.push(text(x + 6.0, y - 6.0, t.clone(), Anchor::Start));
+            }
+        }
+        let ly = T + 14.0 + 16.0 * k as f64;
+        p.push(Prim::Rect {
+            x: W - R - 222.0,
+            y: ly - 3.5,
+            w: 7.0,
+            h: 7.0,
+            fill: Some(colour),
+            stroke: None,
+        });
+        p.push(text(W - R - 200.0, ly + 4.0, se.label, Anchor::Start));
+    }
+    let sc = Scene {
+        w: W,
+        h: H,
+        prims: p,
+    };
+    let svg = dir.join(format!("{name}.svg"));
+    crate::files::write_atomic(&svg, to_svg(&sc))?;
+    let png = dir.join(format!("{name}.png"));
+    write_png(&sc, &png)?;
+    Ok([svg, png])
+}
+
 /// What the shaded bands of a run's charts mean.
 pub const SECTION_NOTE: &str = "shaded: transitions (light), steady curve (dark)";
 
@@ -629,7 +743,8 @@ pub fn write_run_plots(
 ) -> std::io::Result<Vec<PathBuf>> {
     let t: Vec<f64> = rows.iter().map(|r| r.t).collect();
     let out = dir.join("plots");
-    std::fs::create_dir_all(&out)?;
+    std::fs::create_dir_all(&out)
+        .map_err(|e| std::io::Error::new(e.kind(), format!("{}: {e}", out.display())))?;
     let mut files = Vec::new();
     for (name, title, y_label, lines) in run_charts(u_max) {
         let chart = Chart {

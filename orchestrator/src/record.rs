@@ -1,5 +1,5 @@
 //! The run's time series, one typed [`Row`] per plant step, defined once: the recorder streams
-//! it to `timeseries.csv` with the `csv` crate as the run goes (flushed every 1000 rows, so a
+//! it to `timeseries.csv` with the `csv` crate as the run goes (one write per 1000 rows, so a
 //! run that fails keeps what it recorded and memory does not grow with run length), and
 //! [`read_rows`] reads the file back into the same type for plots, comfort, flags, `compare`
 //! and sweeps.
@@ -340,43 +340,34 @@ impl Row {
     }
 }
 
-/// The file under the csv writer: counts the bytes the system accepted and, after its first
-/// error, refuses every later write (so nothing lands after the recorder has cut the file
-/// back to its last complete row, not even from the csv writer's flush on drop).
-struct Sink {
-    file: File,
-    written: u64,
-    broken: bool,
-}
+/// Rows per batch: each batch is one `write` of whole rows ending on a newline.
+const BATCH_ROWS: u64 = 1000;
 
-impl std::io::Write for Sink {
+/// The batch being formatted, in memory under the csv writer (which hands it over in pieces as
+/// its own buffer fills; the file gets it whole at [`Recorder::commit`]).
+struct Batch(std::cell::RefCell<Vec<u8>>);
+
+impl std::io::Write for Batch {
     fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
-        if self.broken {
-            return Err(std::io::Error::other("closed after an earlier error"));
-        }
-        match self.file.write(b) {
-            Ok(n) => {
-                self.written += n as u64;
-                Ok(n)
-            }
-            Err(e) => {
-                self.broken = true;
-                Err(e)
-            }
-        }
+        self.0.get_mut().extend_from_slice(b);
+        Ok(b.len())
     }
     fn flush(&mut self) -> std::io::Result<()> {
         Ok(())
     }
 }
 
-/// Streams rows to `timeseries.csv`: the header at once, then rows in batches of 1000 (and at
-/// [`Recorder::finish`]). The file only ever holds the header and complete rows, and
-/// [`Recorder::rows_on_disk`] counts exactly those: a write that fails (a full disk, a file-size
-/// limit) cuts the file back to the end of the last batch that was written whole, and every
-/// error names the file and what the system said.
+/// Streams rows to `timeseries.csv`: the header at once, then rows in batches of
+/// [`BATCH_ROWS`] (and at [`Recorder::finish`]), each batch formatted in memory and handed to
+/// the system in one write that ends on a newline. The file only ever holds the header and
+/// complete rows (a process killed in the middle of that one write may leave part of it: a
+/// last line without its newline, which the readers drop with a warning), and
+/// [`Recorder::rows_on_disk`] counts exactly those: a write that fails (a full disk, a
+/// file-size limit) cuts the file back to the end of the last batch that was written whole,
+/// and every error names the file and what the system said.
 pub struct Recorder {
-    out: csv::Writer<Sink>,
+    out: csv::Writer<Batch>,
+    file: File,
     path: PathBuf,
     rows: u64,
     on_disk_rows: u64,
@@ -387,7 +378,7 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// Creates `path` and writes the header (flushed at once: a run killed at any point
+    /// Creates `path` and writes the header (written at once: a run killed at any point
     /// leaves a valid header).
     pub fn create(path: &Path) -> std::io::Result<Self> {
         let named =
@@ -395,14 +386,10 @@ impl Recorder {
         let file = File::create(path).map_err(named)?;
         let out = csv::WriterBuilder::new()
             .has_headers(false)
-            .buffer_capacity(1 << 16)
-            .from_writer(Sink {
-                file,
-                written: 0,
-                broken: false,
-            });
+            .from_writer(Batch(std::cell::RefCell::new(Vec::with_capacity(1 << 20))));
         let mut r = Recorder {
             out,
+            file,
             path: path.to_path_buf(),
             rows: 0,
             on_disk_rows: 0,
@@ -426,17 +413,23 @@ impl Recorder {
             return Err(self.fail(csv_io(e)));
         }
         self.rows += 1;
-        if self.rows.is_multiple_of(1000) {
+        if self.rows.is_multiple_of(BATCH_ROWS) {
             self.commit().map_err(|e| self.fail(e))?;
         }
         Ok(())
     }
 
-    /// Writes what is buffered; the file then ends with the last row.
+    /// Writes the batch held in memory in one write; the file then ends with the last row.
     fn commit(&mut self) -> std::io::Result<()> {
+        use std::io::Write as _;
+        // Into the batch buffer (memory: cannot fail short), then to the file at once.
         self.out.flush()?;
+        let mut batch = self.out.get_ref().0.borrow_mut();
+        self.file.write_all(&batch)?;
+        self.on_disk_bytes += batch.len() as u64;
+        batch.clear();
+        drop(batch);
         self.on_disk_rows = self.rows;
-        self.on_disk_bytes = self.out.get_ref().written;
         Ok(())
     }
 
@@ -444,18 +437,8 @@ impl Recorder {
     /// write and returns the error, naming the file.
     fn fail(&mut self, e: std::io::Error) -> std::io::Error {
         if self.failed.is_none() {
-            // Swap in a writer whose sink refuses everything; the old writer's flush on drop
-            // may still land, so the file is cut afterwards.
-            if let Ok(file) = self.out.get_ref().file.try_clone() {
-                self.out = csv::WriterBuilder::new()
-                    .has_headers(false)
-                    .from_writer(Sink {
-                        file,
-                        written: self.on_disk_bytes,
-                        broken: true,
-                    });
-            }
-            let _ = self.out.get_ref().file.set_len(self.on_disk_bytes);
+            self.out.get_ref().0.borrow_mut().clear();
+            let _ = self.file.set_len(self.on_disk_bytes);
             self.failed = Some((e.kind(), format!("{}: {e}", self.path.display())));
         }
         let (kind, msg) = self.failed.clone().unwrap_or((e.kind(), e.to_string()));
@@ -467,7 +450,7 @@ impl Recorder {
         self.on_disk_rows
     }
 
-    /// Writes the rows still buffered. On error the file keeps its header and every complete
+    /// Writes the rows still held. On error the file keeps its header and every complete
     /// row of the batches written before, and the error names the file.
     pub fn finish(&mut self) -> std::io::Result<()> {
         if let Some((kind, msg)) = &self.failed {
@@ -515,27 +498,118 @@ impl Rows<'_> {
     }
 }
 
+/// The length of the file's whole lines: the offset just past its last newline. What follows
+/// it is a partial row (a run killed in the middle of a write), never read as a row.
+fn whole_lines_len(file: &mut File) -> std::io::Result<u64> {
+    use std::io::{Read as _, Seek as _, SeekFrom};
+    let len = file.metadata()?.len();
+    let mut end = len;
+    let mut buf = vec![0u8; 1 << 16];
+    while end > 0 {
+        let from = end.saturating_sub(buf.len() as u64);
+        file.seek(SeekFrom::Start(from))?;
+        let chunk = &mut buf[..(end - from) as usize];
+        file.read_exact(chunk)?;
+        if let Some(i) = chunk.iter().rposition(|&b| b == b'\n') {
+            file.seek(SeekFrom::Start(0))?;
+            return Ok(from + i as u64 + 1);
+        }
+        end = from;
+    }
+    file.seek(SeekFrom::Start(0))?;
+    Ok(0)
+}
+
+/// Files whose partial last row was already reported (the analysis reads a file several
+/// times: once is enough to say so).
+static PARTIAL_TOLD: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// A csv reader over the whole lines of the file at `path`: a last line without its newline
+/// (a partial row, as a process killed while writing leaves it) is dropped with a warning
+/// that gives its size, once per file. Errors name the file.
+pub fn whole_lines(path: &Path) -> std::io::Result<csv::Reader<std::io::Take<File>>> {
+    use std::io::Read as _;
+    let named =
+        |e: std::io::Error| std::io::Error::new(e.kind(), format!("{}: {e}", path.display()));
+    let mut file = File::open(path).map_err(named)?;
+    let whole = whole_lines_len(&mut file).map_err(named)?;
+    let len = file.metadata().map_err(named)?.len();
+    if len > whole {
+        let mut told = PARTIAL_TOLD.lock().unwrap_or_else(|p| p.into_inner());
+        if !told.iter().any(|p| p == path) {
+            told.push(path.to_path_buf());
+            tracing::warn!(
+                "{}: the last line ({} bytes) has no newline: a partial row, as a run killed while writing leaves it; dropped",
+                path.display(),
+                len - whole
+            );
+        }
+    }
+    Ok(csv::ReaderBuilder::new().from_reader(file.take(whole)))
+}
+
 /// Reads `dir/timeseries.csv` back, handing each row to `visit` in order, one row in memory
-/// at a time, until `visit` returns false; returns the number of rows read. A run that was
-/// cut short may end in a partial line: reading stops at the first row that is not complete.
+/// at a time, until `visit` returns false; returns the number of rows read.
+///
+/// A damaged file is an error naming the file and the line: a row that is not one of this
+/// version's (wrong field count, a field that is not a number), or whose step does not follow
+/// the one before (rows lost or repeated). The one thing read past is a last line without its
+/// newline, as a run killed in the middle of a write leaves it: it is dropped, with a warning
+/// that gives its size, since the row it began cannot be known whole.
 pub fn each_row(dir: &Path, mut visit: impl FnMut(&Row) -> bool) -> std::io::Result<u64> {
     let path = dir.join("timeseries.csv");
-    let named = |e: csv::Error| std::io::Error::other(format!("{}: {e}", path.display()));
-    let mut rd = csv::Reader::from_path(&path).map_err(named)?;
-    let header = rd.byte_headers().map_err(named)?;
+    let named = |what: String| std::io::Error::other(format!("{}: {what}", path.display()));
+    let mut rd = whole_lines(&path)?;
+    let header = rd.byte_headers().map_err(|e| named(e.to_string()))?;
     if header.iter().ne(COLUMNS.iter().map(|c| c.as_bytes())) {
-        return Err(std::io::Error::other(format!(
-            "{}: the header is not that of this tiltsim version (columns {})",
-            path.display(),
+        return Err(named(format!(
+            "the header is not that of this tiltsim version (columns {})",
             COLUMNS.join(",")
         )));
     }
     let mut record = csv::ByteRecord::new();
-    let mut n = 0;
-    while rd.read_byte_record(&mut record).unwrap_or(false) {
+    let mut n = 0u64;
+    let mut previous: Option<u64> = None;
+    loop {
+        match rd.read_byte_record(&mut record) {
+            Ok(false) => break,
+            Ok(true) => {}
+            Err(e) => {
+                let line = e.position().map_or(n + 2, |p| p.line());
+                return Err(named(format!("line {line}: {e}")));
+            }
+        }
+        let line = record.position().map_or(n + 2, |p| p.line());
         let Some(row) = Row::read_from(&record) else {
-            break;
+            let what = if record.len() != COLUMNS.len() {
+                format!(
+                    "{} fields, not the {} of this version",
+                    record.len(),
+                    COLUMNS.len()
+                )
+            } else {
+                let bad = record
+                    .iter()
+                    .position(|f| {
+                        std::str::from_utf8(f)
+                            .ok()
+                            .and_then(|t| t.parse::<f64>().ok())
+                            .is_none()
+                    })
+                    .map_or("a field", |i| COLUMNS[i]);
+                format!("`{bad}` does not hold a number of its column's type")
+            };
+            return Err(named(format!("line {line}: {what}")));
         };
+        if let Some(p) = previous {
+            if p.checked_add(1) != Some(row.step) {
+                return Err(named(format!(
+                    "line {line}: step {} follows step {p} (rows lost, repeated or out of order)",
+                    row.step
+                )));
+            }
+        }
+        previous = Some(row.step);
         n += 1;
         if !visit(&row) {
             break;
@@ -666,6 +740,30 @@ mod tests {
         let cut = &text[..text.len() - 20];
         std::fs::write(dir.join("timeseries.csv"), cut).unwrap();
         assert_eq!(read_rows(&dir).unwrap().len(), 2);
+        // A damaged row inside the file is an error naming the file and its line, whether
+        // it is cut short, holds a word, or its step does not follow (a row lost); none is
+        // read as the end of the run.
+        let lines: Vec<&str> = text.lines().collect();
+        let damaged = [
+            format!("{}\n{}\n1,2,3\n{}\n", lines[0], lines[1], lines[3]),
+            format!(
+                "{}\n{}\n{}\n{}\n",
+                lines[0],
+                lines[1],
+                lines[2].replacen(",0.2,", ",x,", 1),
+                lines[3]
+            ),
+            format!("{}\n{}\n{}\n", lines[0], lines[1], lines[3]),
+        ];
+        for (bad, want) in
+            damaged
+                .iter()
+                .zip(["line 3:", "line 3:", "line 3: step 2 follows step 0"])
+        {
+            std::fs::write(dir.join("timeseries.csv"), bad).unwrap();
+            let e = read_rows(&dir).unwrap_err().to_string();
+            assert!(e.contains("timeseries.csv: ") && e.contains(want), "{e}");
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 

@@ -197,6 +197,9 @@ pub enum ScenarioError {
         file: PathBuf,
         source: std::io::Error,
     },
+    /// Larger than any scenario ([`MAX_SCENARIO_BYTES`]): not read further.
+    #[error("{file}: larger than {} MiB, the most a scenario file may hold (is it a scenario?)", MAX_SCENARIO_BYTES >> 20)]
+    TooLarge { file: PathBuf },
     /// Syntax, wrong type or unknown key (toml's message names the key and line).
     #[error("{file}: {message}")]
     Parse { file: PathBuf, message: String },
@@ -206,6 +209,34 @@ pub enum ScenarioError {
         file: PathBuf,
         errors: Vec<FieldError>,
     },
+}
+
+/// The most a scenario file may hold: the largest shipped scenario is a few kB, so 4 MiB is
+/// room for any hand-written or generated one, and a device or a wrong file (`/dev/zero`, a
+/// recording) is refused after reading at most this much.
+pub const MAX_SCENARIO_BYTES: u64 = 4 << 20;
+
+/// Reads a scenario file, at most [`MAX_SCENARIO_BYTES`] of it.
+fn read_limited(path: &Path) -> Result<String, ScenarioError> {
+    use std::io::Read as _;
+    let read = |source| ScenarioError::Read {
+        file: path.into(),
+        source,
+    };
+    let f = std::fs::File::open(path).map_err(read)?;
+    let mut bytes = Vec::new();
+    f.take(MAX_SCENARIO_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(read)?;
+    if bytes.len() as u64 > MAX_SCENARIO_BYTES {
+        return Err(ScenarioError::TooLarge { file: path.into() });
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        read(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
+        ))
+    })
 }
 
 /// A parser message cut to 600 characters: a hostile file cannot flood the terminal with
@@ -277,10 +308,7 @@ fn hint(text: &str, path: &str, inner: &str) -> Option<String> {
 impl Scenario {
     /// Reads, parses and validates a scenario file.
     pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Read {
-            file: path.into(),
-            source,
-        })?;
+        let text = read_limited(path)?;
         let mut s = Scenario::parse(&text, path)?;
         if s.name.is_empty() {
             s.name = path
@@ -526,6 +554,93 @@ impl Scenario {
     /// Controller period in ticks.
     pub fn controller_period_ticks(&self) -> u64 {
         (self.controller.period_s / self.run.dt_s).round().max(1.0) as u64
+    }
+
+    /// The scenario with the setting at dotted `key` (`vehicle.m_v`, `run.seed`) set to the
+    /// number written `text` (`tiltsim run --set KEY=VALUE`). A key that holds a whole number
+    /// takes whole numbers only, parsed as integers, so every `u64` (a seed of 2^63 or
+    /// more included) arrives exactly; any other key takes a decimal number. Not
+    /// re-validated: the caller validates once after all settings. Errors name the key.
+    pub fn with_setting(&self, key: &str, text: &str) -> Result<Scenario, String> {
+        use serde_json::Value;
+        // JSON numbers hold u64, i64 and f64 exactly, unlike a TOML value (i64 or f64).
+        let mut doc = serde_json::to_value(self).map_err(|e| e.to_string())?;
+        let text = text.trim();
+        let parts: Vec<&str> = key.split('.').collect();
+        if parts.iter().any(|p| p.is_empty()) {
+            return Err(format!(
+                "key `{key}`: expected a dotted path such as `vehicle.m_v`"
+            ));
+        }
+        let mut node = &mut doc;
+        for p in &parts[..parts.len() - 1] {
+            let table = node
+                .as_object_mut()
+                .ok_or_else(|| format!("key `{key}`: `{p}` is not inside a table"))?;
+            let child = table
+                .entry(p.to_string())
+                .or_insert_with(|| Value::Object(Default::default()));
+            if child.is_null() {
+                *child = Value::Object(Default::default());
+            }
+            node = child;
+        }
+        let last = parts[parts.len() - 1];
+        let table = node
+            .as_object_mut()
+            .ok_or_else(|| format!("key `{key}`: not inside a table"))?;
+        let whole = |t: &str| -> Option<Value> {
+            t.parse::<u64>()
+                .map(Value::from)
+                .or_else(|_| t.parse::<i64>().map(Value::from))
+                .ok()
+        };
+        let value = match table.get(last) {
+            Some(Value::Number(n)) if n.is_u64() || n.is_i64() => whole(text).ok_or_else(|| {
+                let digits = text.strip_prefix(['-', '+']).unwrap_or(text);
+                if !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()) {
+                    format!(
+                        "key `{key}` = {text}: allowed a whole number from {} to {}",
+                        i64::MIN,
+                        u64::MAX
+                    )
+                } else {
+                    format!("key `{key}` takes a whole number written in digits, not `{text}`")
+                }
+            })?,
+            Some(Value::Number(_)) | Some(Value::Null) | None => {
+                match whole(text) {
+                    // A key with no value yet (an option, `design_vehicle.*`): an integer as
+                    // written, which a decimal setting takes as well.
+                    Some(v) if !matches!(table.get(last), Some(Value::Number(_))) => v,
+                    _ => {
+                        let v: f64 = text
+                            .parse()
+                            .map_err(|_| format!("key `{key}`: `{text}` is not a number"))?;
+                        serde_json::Number::from_f64(v)
+                            .map(Value::Number)
+                            .ok_or_else(|| {
+                                format!("key `{key}` = {text}: allowed a finite number")
+                            })?
+                    }
+                }
+            }
+            Some(_) => {
+                return Err(format!(
+                    "key `{key}` is not a numeric setting (`--set` takes numbers only)"
+                ))
+            }
+        };
+        table.insert(last.to_string(), value);
+        let mut s = serde_path_to_error::deserialize::<_, Scenario>(doc).map_err(|e| {
+            format!(
+                "key `{key}`: {} (at `{}`); keys are the scenario's settings as dotted paths, e.g. `vehicle.m_v`, `controller.rho`",
+                e.inner().to_string().trim_end(),
+                e.path()
+            )
+        })?;
+        s.name.clone_from(&self.name);
+        Ok(s)
     }
 }
 

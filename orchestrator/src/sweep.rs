@@ -20,6 +20,7 @@
 //! by one function from the rows alone, and numbers are written in Rust's shortest
 //! round-trip form, so reading a shard back loses nothing.
 
+pub mod identity;
 mod resume;
 
 use std::fmt::Write as _;
@@ -112,8 +113,17 @@ fn grid_plan(arg: &str) -> Result<Plan, String> {
         .split_once('=')
         .ok_or_else(|| format!("--grid `{arg}`: expected KEY=START:STOP:STEP or KEY=V1,V2,..."))?;
     let num = |x: &str| {
-        x.trim()
-            .parse::<f64>()
+        let x = x.trim();
+        // A value is held as f64: a whole number written in digits must be one that f64
+        // holds exactly, or it would arrive as its neighbour (2^53 + 1 as 2^53).
+        if let Ok(n) = x.parse::<i128>() {
+            if n.unsigned_abs() > 1u128 << 53 {
+                return Err(format!(
+                    "--grid `{arg}`: `{x}` is a whole number beyond 2^53 = 9007199254740992, which a grid value cannot hold exactly; set it with `tiltsim run --set KEY={x}` (or `--seed`)"
+                ));
+            }
+        }
+        x.parse::<f64>()
             .ok()
             .filter(|v| v.is_finite())
             .ok_or_else(|| format!("--grid `{arg}`: `{x}` is not a finite number"))
@@ -384,13 +394,7 @@ impl Shard {
         if let (Some(id), Some(count)) =
             (num("SLURM_ARRAY_TASK_ID")?, num("SLURM_ARRAY_TASK_COUNT")?)
         {
-            let min = num("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
-            let index = id.checked_sub(min).ok_or_else(|| {
-                SweepError::Argument(format!(
-                    "--shard auto: SLURM_ARRAY_TASK_ID {id} is below SLURM_ARRAY_TASK_MIN {min}"
-                ))
-            })?;
-            return check(index, count, "Slurm");
+            return Shard::slurm(id, count, |n| num(n));
         }
         if let (Some(index), Some(count)) = (
             num("AWS_BATCH_JOB_ARRAY_INDEX")?,
@@ -409,6 +413,56 @@ impl Shard {
         Err(SweepError::Argument(
             "--shard auto: no array-task index found; set by Slurm (SLURM_ARRAY_TASK_ID and SLURM_ARRAY_TASK_COUNT), AWS Batch (AWS_BATCH_JOB_ARRAY_INDEX and AWS_BATCH_JOB_ARRAY_SIZE) or a Kubernetes indexed job (JOB_COMPLETION_INDEX, with --shards N); or give --shard I/N".into(),
         ))
+    }
+
+    /// The shard of a Slurm array task: task `id` of `count`, its index counted from
+    /// `SLURM_ARRAY_TASK_MIN` in steps of `SLURM_ARRAY_TASK_STEP` (`--array=0-6:2` gives tasks
+    /// 0, 2, 4, 6 the shards 0/4 .. 3/4). Refused, with how to resubmit: a task run as an array
+    /// of one with an index other than 0 (`sbatch --array=2`, a resubmitted task of a larger
+    /// array, whose shard Slurm no longer tells), and indices that are not an evenly spaced
+    /// range (`--array=1,2,5`).
+    fn slurm(
+        id: usize,
+        count: usize,
+        num: impl Fn(&str) -> Result<Option<usize>, SweepError>,
+    ) -> Result<Shard, SweepError> {
+        let bad = |m: String| Err(SweepError::Argument(format!("--shard auto: {m}")));
+        let min = num("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
+        let max = num("SLURM_ARRAY_TASK_MAX")?;
+        let step = num("SLURM_ARRAY_TASK_STEP")?.unwrap_or(1);
+        if count == 1 && id != 0 {
+            return bad(format!(
+                "Slurm runs task {id} as an array of one task (SLURM_ARRAY_TASK_COUNT=1), as `sbatch --array={id}` does when one task of a larger array is submitted again: its shard cannot be told from Slurm. Submit it with its shard given, `--shard I/N` in place of `--shard auto` (I its place in the original array, N that array's task count: task {id} of `--array=0-7` is `--shard {id}/8`)"
+            ));
+        }
+        if step == 0 || count == 0 {
+            return bad(format!(
+                "Slurm gives SLURM_ARRAY_TASK_STEP={step}, SLURM_ARRAY_TASK_COUNT={count}"
+            ));
+        }
+        let spaced = max.is_none_or(|max| {
+            (count - 1)
+                .checked_mul(step)
+                .and_then(|d| d.checked_add(min))
+                == Some(max)
+        });
+        let offset = id.checked_sub(min);
+        match offset {
+            Some(o) if spaced && o % step == 0 => {}
+            _ => {
+                return bad(format!(
+                    "Slurm's array indices are not an evenly spaced range holding this task (SLURM_ARRAY_TASK_ID={id}, _MIN={min}, _MAX={}, _STEP={step}, _COUNT={count}), so its shard cannot be told: give each task `--shard I/N`, I from 0 to N-1",
+                    max.map_or("unset".to_string(), |m| m.to_string())
+                ))
+            }
+        }
+        let index = offset.unwrap_or(0) / step;
+        if index >= count {
+            return bad(format!(
+                "Slurm gives index {index} of {count}; need 0 <= index < count"
+            ));
+        }
+        Ok(Shard { index, count })
     }
 
     /// Samples of this shard out of `n`.
@@ -508,16 +562,33 @@ pub struct Swept {
 }
 
 /// Runs the samples of `shard` (all when `None`) in parallel and returns the rows of those
-/// that finished, in sample order.
-pub fn run(base: &Scenario, plan: &Plan, shard: Option<Shard>, ex: &Exec) -> Swept {
+/// that finished, in sample order. Samples kept in `ex.out/done` by an earlier invocation of
+/// the same sweep (same scenario, plan, shard and build) are checked and reused, damaged ones
+/// run again; a directory kept for another shard is refused before anything runs. Starting
+/// afresh, the results of an earlier sweep in `ex.out` are removed first.
+pub fn run(
+    base: &Scenario,
+    plan: &Plan,
+    shard: Option<Shard>,
+    ex: &Exec,
+) -> Result<Swept, SweepError> {
     let mine = shard
         .unwrap_or(Shard { index: 0, count: 1 })
         .samples(plan.len());
     // Samples finished by an earlier, interrupted invocation with the same arguments.
-    let done = resume::Done::open(&ex.out, base, plan)
-        .inspect_err(|e| tracing::warn!("{}: not resumable: {e}", ex.out.display()))
-        .ok();
-    let kept: Vec<Row> = mine.iter().filter_map(|j| done.as_ref()?.get(*j)).collect();
+    let (done, resumed) = resume::Done::open(&ex.out, base, plan, shard, identity::build())?;
+    if !resumed {
+        clear_results(&ex.out).map_err(|e| SweepError::Files(e.to_string()))?;
+    }
+    let mut kept: Vec<Row> = Vec::new();
+    for j in &mine {
+        match done.get(*j, plan) {
+            Ok(Some(r)) => kept.push(r),
+            Ok(None) => {}
+            // Said even under -q: a result is recomputed.
+            Err(why) => eprintln!("warning: {why}; sample {j} is run again"),
+        }
+    }
     if !kept.is_empty() {
         eprintln!(
             "resuming: {} of {} samples already finished in {}",
@@ -562,10 +633,8 @@ pub fn run(base: &Scenario, plan: &Plan, shard: Option<Shard>, ex: &Exec) -> Swe
                 if !row.status.completed() {
                     bar.set_message(format!("(sample {} failed)", row.sample));
                 }
-                if let Some(d) = &done {
-                    if let Err(e) = d.put(&row) {
-                        tracing::warn!("sample {} not kept for resuming: {e}", row.sample);
-                    }
+                if let Err(e) = done.put(&row) {
+                    tracing::warn!("sample {} not kept for resuming: {e}", row.sample);
                 }
                 if let Ok(mut r) = rows.lock() {
                     r[i] = Some(row);
@@ -584,10 +653,71 @@ pub fn run(base: &Scenario, plan: &Plan, shard: Option<Shard>, ex: &Exec) -> Swe
         .chain(kept)
         .collect();
     all.sort_by_key(|r| r.sample);
-    Swept {
+    Ok(Swept {
         rows: all,
         interrupted: ex.interrupt.load(Ordering::Relaxed),
+    })
+}
+
+/// Removes an earlier sweep's results from `out`: its tables, figures and kept sample runs
+/// (`runs/sample-NNNN`, each cleared as a run), never files the program does not write.
+fn clear_results(out: &Path) -> Result<(), crate::outdir::OutDirError> {
+    crate::outdir::clear_sweep_results(out)?;
+    let runs = out.join("runs");
+    if let Ok(entries) = std::fs::read_dir(&runs) {
+        for e in entries.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            if name.starts_with("sample-") && e.path().is_dir() {
+                crate::outdir::clear_run(&e.path())?;
+                crate::outdir::remove_if_empty(&e.path());
+            }
+        }
+        crate::outdir::remove_if_empty(&runs);
     }
+    Ok(())
+}
+
+/// Clears `out` for a merged sweep: an earlier sweep's results and kept samples.
+pub fn clear_for_merge(out: &Path) -> Result<(), crate::outdir::OutDirError> {
+    clear_results(out)?;
+    resume::clear(out);
+    Ok(())
+}
+
+/// Checks that `row`'s parameters are those the plan gives sample `row.sample` (bit for bit;
+/// none for a sample that could not be set up).
+pub(crate) fn check_params(base: &Scenario, plan: &Plan, row: &Row) -> Result<(), String> {
+    let want = sample(base, plan, row.sample)
+        .map(|(_, p)| p)
+        .unwrap_or_default();
+    let cols = plan.columns();
+    if want.is_empty() {
+        return if row.params.iter().all(|p| p.is_nan()) {
+            Ok(())
+        } else {
+            Err(format!(
+                "sample {} has parameters where the plan gives none",
+                row.sample
+            ))
+        };
+    }
+    if row.params.len() != want.len() {
+        return Err(format!(
+            "sample {}: {} parameters, the plan gives {}",
+            row.sample,
+            row.params.len(),
+            want.len()
+        ));
+    }
+    for ((got, w), col) in row.params.iter().zip(&want).zip(&cols) {
+        if got.to_bits() != w.to_bits() {
+            return Err(format!(
+                "the parameters of sample {} are not the plan's ({col} = {got}, the plan gives {w})",
+                row.sample
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// What `sweep.json` holds.
@@ -604,6 +734,42 @@ pub struct SweepFile {
     /// The sweep was interrupted: `samples` are those that had finished (present only then).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub interrupted: bool,
+    /// The build of tiltsim that computed the samples ([`identity::build`]).
+    pub build: String,
+    /// The fingerprint of base scenario, plan and build ([`identity::fingerprint`]), the same
+    /// for every shard of one sweep.
+    pub fingerprint: String,
+    /// SHA-256 of each result file as written, checked by `sweep-merge` before it reads one.
+    pub sha256: std::collections::BTreeMap<String, String>,
+}
+
+/// Checks rows before they are written: each sample of the plan and the shard at most once,
+/// every metric there, and (unless interrupted) every sample of the shard present.
+fn check_rows(
+    plan: &Plan,
+    shard: Option<Shard>,
+    rows: &[Row],
+    interrupted: bool,
+) -> std::io::Result<()> {
+    let bad = |m: String| Err(std::io::Error::other(m));
+    let mine = shard
+        .unwrap_or(Shard { index: 0, count: 1 })
+        .samples(plan.len());
+    for (k, r) in rows.iter().enumerate() {
+        if mine.binary_search(&r.sample).is_err() {
+            return bad(format!("sample {} is not in this sweep's plan", r.sample));
+        }
+        if k > 0 && rows[k - 1].sample >= r.sample {
+            return bad(format!("sample {} twice or out of order", r.sample));
+        }
+        if r.metrics.len() != METRICS.len() {
+            return bad(format!("sample {}: {} metrics", r.sample, r.metrics.len()));
+        }
+    }
+    if !interrupted && rows.len() != mine.len() {
+        return bad(format!("{} of {} samples finished", rows.len(), mine.len()));
+    }
+    Ok(())
 }
 
 /// Linear-interpolation percentile (type 7) of sorted values.
@@ -694,7 +860,10 @@ fn monte_carlo_tables(base: &Scenario, spread: f64, seed: u64, rows: &[Row]) -> 
         .map(String::from)
         .to_vec()];
     for (m, metric) in METRICS.iter().enumerate() {
-        let mut v: Vec<f64> = ok.iter().map(|r| r.metrics[m]).collect();
+        let mut v: Vec<f64> = ok
+            .iter()
+            .filter_map(|r| r.metrics.get(m).copied())
+            .collect();
         v.sort_by(|a, b| a.total_cmp(b));
         let q = [0.5, 0.05, 0.95, 0.0, 1.0].map(|p| percentile(&v, p));
         let _ = writeln!(
@@ -761,19 +930,24 @@ fn grid_tables(base: &Scenario, key: &str, rows: &[Row]) -> (String, String) {
         .collect();
     let mut records = vec![head];
     for r in rows {
-        let _ = write!(md, "| {} | {} |", r.params[0], r.status);
+        let value = r.params.first().copied().unwrap_or(f64::NAN);
+        let _ = write!(md, "| {value} | {} |", r.status);
         for k in shown {
-            let _ = write!(md, " {} |", fmt(r.metrics[metric(k)]));
+            let v = r.metrics.get(metric(k)).copied().unwrap_or(f64::NAN);
+            let _ = write!(md, " {} |", fmt(v));
         }
         md.push('\n');
-        let mut rec = vec![r.params[0].to_string(), r.status.to_string()];
+        let mut rec = vec![value.to_string(), r.status.to_string()];
         rec.extend(numbers(&r.metrics));
         records.push(rec);
     }
     (md, csv_text(records))
 }
 
-/// Writes every output file of a sweep (or shard) from its rows.
+/// Writes every output file of a sweep (or shard) from its rows, computed by `build`. The rows
+/// are checked first and every file is made in memory before any is written, so an earlier
+/// complete table is never replaced by a truncated one; `sweep.json`, which holds the others'
+/// checksums, is written last.
 pub fn write_outputs(
     out: &Path,
     base: &Scenario,
@@ -781,35 +955,49 @@ pub fn write_outputs(
     shard: Option<Shard>,
     rows: &[Row],
     interrupted: bool,
+    build: &str,
 ) -> std::io::Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(out)?;
-    let mut files = Vec::new();
-    let mut put = |name: &str, text: String| -> std::io::Result<()> {
-        let p = out.join(name);
-        crate::files::write_atomic(&p, text)?;
-        files.push(p);
-        Ok(())
+    check_rows(plan, shard, rows, interrupted)?;
+    let scenario = toml::to_string(base).unwrap_or_default();
+    let (md, tcsv) = match plan {
+        Plan::MonteCarlo { spread, seed, .. } => monte_carlo_tables(base, *spread, *seed, rows),
+        Plan::Grid { key, .. } => grid_tables(base, key, rows),
     };
+    let texts = [
+        ("scenario.toml", scenario.clone()),
+        ("samples.csv", samples_csv(plan, rows)),
+        ("series.csv", series_csv(rows)),
+        ("table.md", md),
+        ("table.csv", tcsv),
+    ];
     let meta = SweepFile {
         scenario: base.name.clone(),
         plan: plan.clone(),
         shard: shard.map(|s| format!("{}/{}", s.index, s.count)),
         samples: rows.iter().map(|r| r.sample).collect(),
         interrupted,
+        build: build.to_string(),
+        fingerprint: identity::fingerprint(&scenario, plan, build),
+        sha256: texts
+            .iter()
+            .map(|(n, t)| (n.to_string(), identity::sha256(t.as_bytes())))
+            .collect(),
     };
+    std::fs::create_dir_all(out)?;
+    let mut files = Vec::new();
+    let mut put = |name: &str, text: &str| -> std::io::Result<()> {
+        let p = out.join(name);
+        crate::files::write_atomic(&p, text)?;
+        files.push(p);
+        Ok(())
+    };
+    for (name, text) in &texts {
+        put(name, text)?;
+    }
     put(
         "sweep.json",
-        serde_json::to_string_pretty(&meta).unwrap_or_default() + "\n",
+        &(serde_json::to_string_pretty(&meta).unwrap_or_default() + "\n"),
     )?;
-    put("scenario.toml", toml::to_string(base).unwrap_or_default())?;
-    put("samples.csv", samples_csv(plan, rows))?;
-    put("series.csv", series_csv(rows))?;
-    let (md, tcsv) = match plan {
-        Plan::MonteCarlo { spread, seed, .. } => monte_carlo_tables(base, *spread, *seed, rows),
-        Plan::Grid { key, .. } => grid_tables(base, key, rows),
-    };
-    put("table.md", md)?;
-    put("table.csv", tcsv)?;
     files.extend(write_plots(out, base, plan, rows)?);
     Ok(files)
 }
@@ -825,7 +1013,9 @@ fn line<'a>(label: &'a str, y: Vec<f64>, colour: &'static str, dashed: bool) -> 
 
 fn column(ok: &[&Row], key: &str) -> Vec<f64> {
     let m = metric(key);
-    ok.iter().map(|r| r.metrics[m]).collect()
+    ok.iter()
+        .map(|r| r.metrics.get(m).copied().unwrap_or(f64::NAN))
+        .collect()
 }
 
 /// The lateral-acceleration envelope (5th, 50th, 95th percentile at each time) and the
@@ -884,7 +1074,7 @@ fn grid_plots(
 ) -> std::io::Result<Vec<PathBuf>> {
     let labels: Vec<String> = ok
         .iter()
-        .map(|r| format!("{key} = {}", r.params[0]))
+        .map(|r| format!("{key} = {}", r.params.first().copied().unwrap_or(f64::NAN)))
         .collect();
     let chart = Chart {
         title: "Lateral acceleration for each swept value",
@@ -908,7 +1098,10 @@ fn grid_plots(
     };
     let mut files =
         crate::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)?.to_vec();
-    let x: Vec<f64> = ok.iter().map(|r| r.params[0]).collect();
+    let x: Vec<f64> = ok
+        .iter()
+        .map(|r| r.params.first().copied().unwrap_or(f64::NAN))
+        .collect();
     let title = format!("Comfort against {key}");
     let chart = Chart {
         title: &title,
@@ -963,17 +1156,13 @@ fn parse_f64s<'a>(fields: impl Iterator<Item = &'a str>, what: &str) -> Result<V
         .collect()
 }
 
-/// The records of a CSV file of a sweep's directory, each with its line number.
-fn records(dir: &Path, name: &str) -> Result<Vec<(String, csv::StringRecord)>, String> {
-    let p = dir.join(name);
-    let mut rd = csv::ReaderBuilder::new()
-        .flexible(true)
-        .from_path(&p)
-        .map_err(|e| format!("{}: {e}", p.display()))?;
+/// The records of CSV `bytes` read from `path`, each with where it is (file and line).
+fn records(path: &Path, bytes: &[u8]) -> Result<Vec<(String, csv::StringRecord)>, String> {
+    let mut rd = csv::ReaderBuilder::new().flexible(true).from_reader(bytes);
     rd.records()
         .enumerate()
         .map(|(i, r)| {
-            let at = format!("{} line {}", p.display(), i + 2);
+            let at = format!("{} line {}", path.display(), i + 2);
             r.map(|r| (at.clone(), r)).map_err(|e| format!("{at}: {e}"))
         })
         .collect()
@@ -1003,97 +1192,251 @@ fn sample_row(at: &str, f: &csv::StringRecord, ncol: usize) -> Result<Row, Strin
     })
 }
 
-/// Reads a sweep's (or shard's) outputs back: its meta, base scenario and rows.
-pub fn read_outputs(dir: &Path) -> Result<(SweepFile, Scenario, Vec<Row>), SweepError> {
+/// A sweep's (or shard's) outputs as read back and verified: its meta, base scenario and rows,
+/// each row with where it is in `samples.csv`.
+pub struct Outputs {
+    /// The directory.
+    pub dir: PathBuf,
+    /// `sweep.json`.
+    pub meta: SweepFile,
+    /// `scenario.toml`.
+    pub base: Scenario,
+    /// The rows with their place (`DIR/samples.csv line N`).
+    pub rows: Vec<(String, Row)>,
+    /// The samples `series.csv` has a line for.
+    pub series: std::collections::BTreeSet<usize>,
+    /// Lines of `series.csv` for samples not in `samples.csv`, each as its error.
+    pub orphans: Vec<String>,
+}
+
+/// Reads a sweep's (or shard's) outputs back, each file checked against the checksum
+/// `sweep.json` holds for it and the fingerprint against the scenario, plan and build.
+pub fn read_outputs(dir: &Path) -> Result<Outputs, SweepError> {
     outputs(dir).map_err(SweepError::Files)
 }
 
-fn outputs(dir: &Path) -> Result<(SweepFile, Scenario, Vec<Row>), String> {
-    let read = |name: &str| {
+fn outputs(dir: &Path) -> Result<Outputs, String> {
+    let meta_path = dir.join("sweep.json");
+    let text =
+        std::fs::read_to_string(&meta_path).map_err(|e| format!("{}: {e}", meta_path.display()))?;
+    let meta: SweepFile = serde_json::from_str(&text).map_err(|e| {
+        format!(
+            "{}: {e} (not the sweep.json of a sweep of this version of tiltsim: run the sweep again)",
+            meta_path.display()
+        )
+    })?;
+    let verified = |name: &str| -> Result<Vec<u8>, String> {
         let p = dir.join(name);
-        std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))
+        let bytes = std::fs::read(&p).map_err(|e| format!("{}: {e}", p.display()))?;
+        let want = meta
+            .sha256
+            .get(name)
+            .ok_or_else(|| format!("{}: no checksum of {name}", meta_path.display()))?;
+        if identity::sha256(&bytes) != *want {
+            return Err(format!(
+                "{}: changed since the sweep wrote it (its SHA-256 is not the one {} records)",
+                p.display(),
+                meta_path.display()
+            ));
+        }
+        Ok(bytes)
     };
-    let meta: SweepFile = serde_json::from_str(&read("sweep.json")?)
-        .map_err(|e| format!("{}: {e}", dir.join("sweep.json").display()))?;
-    let base = Scenario::parse(&read("scenario.toml")?, &dir.join("scenario.toml"))
-        .map_err(|e| e.to_string())?;
+    let scenario_path = dir.join("scenario.toml");
+    let scenario = String::from_utf8(verified("scenario.toml")?)
+        .map_err(|e| format!("{}: {e}", scenario_path.display()))?;
+    if identity::fingerprint(&scenario, &meta.plan, &meta.build) != meta.fingerprint {
+        return Err(format!(
+            "{}: its fingerprint is not that of its scenario.toml, plan and build",
+            meta_path.display()
+        ));
+    }
+    let base = Scenario::parse(&scenario, &scenario_path).map_err(|e| e.to_string())?;
     let ncol = meta.plan.columns().len();
-    let mut rows = records(dir, "samples.csv")?
+    let samples_path = dir.join("samples.csv");
+    let mut rows = records(&samples_path, &verified("samples.csv")?)?
         .iter()
-        .map(|(at, f)| sample_row(at, f, ncol))
+        .map(|(at, f)| sample_row(at, f, ncol).map(|r| (at.clone(), r)))
         .collect::<Result<Vec<_>, _>>()?;
-    for (at, f) in records(dir, "series.csv")? {
+    let series_path = dir.join("series.csv");
+    let mut seen = std::collections::BTreeSet::new();
+    let mut orphans = Vec::new();
+    for (at, f) in records(&series_path, &verified("series.csv")?)? {
         let j: usize = f
             .get(0)
             .and_then(|x| x.parse().ok())
             .ok_or_else(|| format!("{at}: bad sample index"))?;
-        let row = rows
-            .iter_mut()
-            .find(|r| r.sample == j)
-            .ok_or_else(|| format!("{at}: sample {j} is not in samples.csv"))?;
-        row.series = parse_f64s(f.iter().skip(1), &at)?;
+        if !seen.insert(j) {
+            return Err(format!("{at}: sample {j} appears twice"));
+        }
+        let series = parse_f64s(f.iter().skip(1), &at)?;
+        match rows.iter_mut().find(|(_, r)| r.sample == j) {
+            Some(row) => row.1.series = series,
+            None => orphans.push(format!("{at}: sample {j} is not in samples.csv")),
+        }
     }
-    Ok((meta, base, rows))
+    Ok(Outputs {
+        dir: dir.to_path_buf(),
+        meta,
+        base,
+        rows,
+        series: seen,
+        orphans,
+    })
 }
 
-/// Joins shard outputs: same plan and base scenario, every sample exactly once.
-pub fn merge(dirs: &[PathBuf]) -> Result<(Scenario, Plan, Vec<Row>), SweepError> {
+/// Joins shard outputs: each verified ([`read_outputs`]), all of one sweep (fingerprint:
+/// scenario, plan, build), each shard of one split once, every sample of the plan exactly once
+/// with the plan's parameters. Errors name the directory or the file and line.
+pub fn merge(dirs: &[PathBuf]) -> Result<(Scenario, Plan, String, Vec<Row>), SweepError> {
     let mut all = Vec::new();
     for d in dirs {
-        all.push((d.clone(), read_outputs(d)?));
+        all.push(read_outputs(d)?);
     }
-    join(dirs, all).map_err(SweepError::Merge)
+    join(all).map_err(SweepError::Merge)
 }
 
-type ShardFiles = (PathBuf, (SweepFile, Scenario, Vec<Row>));
-
-fn join(dirs: &[PathBuf], shards: Vec<ShardFiles>) -> Result<(Scenario, Plan, Vec<Row>), String> {
-    let mut first: Option<(Scenario, Plan)> = None;
+fn join(shards: Vec<Outputs>) -> Result<(Scenario, Plan, String, Vec<Row>), String> {
+    let first = shards.first().ok_or("no shard directories given")?;
+    let (d0, m0) = (first.dir.clone(), first.meta.clone());
+    let (base, plan) = (first.base.clone(), m0.plan.clone());
+    let n = plan.len();
+    let shard_of = |o: &Outputs| match &o.meta.shard {
+        None => Ok(Shard { index: 0, count: 1 }),
+        Some(t) => Shard::parse(t).map_err(|_| {
+            format!(
+                "{}: shard `{t}` is not I/N",
+                o.dir.join("sweep.json").display()
+            )
+        }),
+    };
+    let split = shard_of(first)?.count;
+    let mut taken: Vec<Option<PathBuf>> = vec![None; split];
     let mut rows: Vec<Row> = Vec::new();
-    for (d, (meta, base, r)) in shards {
-        match &first {
-            None => first = Some((base, meta.plan)),
-            Some((b, p)) => {
-                if *p != meta.plan {
-                    return Err(format!(
-                        "{}: a different sweep plan than {}",
-                        d.display(),
-                        dirs[0].display()
-                    ));
-                }
-                if *b != base {
-                    return Err(format!(
-                        "{}: a different base scenario than {}",
-                        d.display(),
-                        dirs[0].display()
-                    ));
-                }
-            }
-        }
-        rows.extend(r);
-    }
-    let (base, plan) = first.ok_or("no shard directories given")?;
-    rows.sort_by_key(|r| r.sample);
-    for w in rows.windows(2) {
-        if w[0].sample == w[1].sample {
+    for o in &shards {
+        let (d, m) = (&o.dir, &o.meta);
+        if m.interrupted {
             return Err(format!(
-                "sample {} appears in more than one shard",
-                w[0].sample
+                "{}: the sweep there was interrupted (sweep.json: \"interrupted\": true): start it again with the same arguments to finish it, then merge",
+                d.display()
             ));
         }
+        if m.plan != m0.plan {
+            return Err(format!(
+                "{}: a different sweep plan than {}",
+                d.display(),
+                d0.display()
+            ));
+        }
+        if o.base != base {
+            return Err(format!(
+                "{}: a different base scenario than {}",
+                d.display(),
+                d0.display()
+            ));
+        }
+        if m.build != m0.build {
+            return Err(format!(
+                "{}: computed by another build of tiltsim ({}) than {} ({}): run the shards with one build",
+                d.display(),
+                m.build,
+                d0.display(),
+                m0.build
+            ));
+        }
+        if m.fingerprint != m0.fingerprint {
+            return Err(format!(
+                "{}: another sweep than {} (fingerprint differs)",
+                d.display(),
+                d0.display()
+            ));
+        }
+        let sh = shard_of(o)?;
+        let name = format!("{}/{}", sh.index, sh.count);
+        if sh.count != split {
+            return Err(format!(
+                "{} is shard {name}, {} is shard {}: shards of different splits",
+                d.display(),
+                d0.display(),
+                shard_name(first)
+            ));
+        }
+        if let Some(other) = &taken[sh.index] {
+            return Err(format!(
+                "{} and {} are both shard {name}",
+                other.display(),
+                d.display()
+            ));
+        }
+        taken[sh.index] = Some(d.clone());
+        let mine = sh.samples(n);
+        let mut seen = std::collections::BTreeSet::new();
+        for (at, r) in &o.rows {
+            if r.sample >= n {
+                return Err(format!(
+                    "{at}: sample {} is not in the plan ({n} samples)",
+                    r.sample
+                ));
+            }
+            if mine.binary_search(&r.sample).is_err() {
+                return Err(format!("{at}: sample {} is not in shard {name}", r.sample));
+            }
+            if !seen.insert(r.sample) {
+                return Err(format!("{at}: sample {} appears twice", r.sample));
+            }
+            check_params(&base, &plan, r).map_err(|e| format!("{at}: {e}"))?;
+            if !o.series.contains(&r.sample) {
+                return Err(format!(
+                    "{at}: sample {} has no line in {}",
+                    r.sample,
+                    d.join("series.csv").display()
+                ));
+            }
+        }
+        let absent: Vec<usize> = mine.iter().filter(|j| !seen.contains(j)).copied().collect();
+        if !absent.is_empty() {
+            return Err(format!(
+                "{}: {} of the {} samples of shard {name} missing (first: {:?})",
+                d.join("samples.csv").display(),
+                absent.len(),
+                mine.len(),
+                &absent[..absent.len().min(5)]
+            ));
+        }
+        if let Some(e) = o.orphans.first() {
+            return Err(e.clone());
+        }
+        if m.samples != seen.iter().copied().collect::<Vec<_>>() {
+            return Err(format!(
+                "{}: its list of samples is not that of samples.csv",
+                d.join("sweep.json").display()
+            ));
+        }
+        rows.extend(o.rows.iter().map(|(_, r)| r.clone()));
     }
-    let missing: Vec<usize> = (0..plan.len())
+    rows.sort_by_key(|r| r.sample);
+    let missing: Vec<usize> = (0..n)
         .filter(|j| rows.binary_search_by_key(j, |r| r.sample).is_err())
         .collect();
     if !missing.is_empty() {
+        let absent: Vec<String> = (0..split)
+            .filter(|i| taken[*i].is_none())
+            .map(|i| format!("{i}/{split}"))
+            .collect();
         return Err(format!(
-            "{} of {} samples missing (first: {:?}); is a shard absent?",
+            "{} of {n} samples missing (first: {:?}): shard {} absent",
             missing.len(),
-            plan.len(),
-            &missing[..missing.len().min(5)]
+            &missing[..missing.len().min(5)],
+            absent.join(", ")
         ));
     }
-    Ok((base, plan, rows))
+    Ok((base, plan, m0.build, rows))
+}
+
+fn shard_name(o: &Outputs) -> String {
+    o.meta
+        .shard
+        .clone()
+        .unwrap_or_else(|| "0/1 (a whole sweep)".into())
 }
 
 #[cfg(test)]
@@ -1136,6 +1479,52 @@ mod tests {
         assert_eq!(
             Shard::auto(None, slurm).unwrap(),
             Shard { index: 4, count: 8 }
+        );
+        // `--array=0-6:2`: tasks 0, 2, 4, 6 are shards 0..3 of 4.
+        for (id, index) in [("0", 0), ("2", 1), ("4", 2), ("6", 3)] {
+            let vars: Vec<(&str, &str)> = vec![
+                ("SLURM_ARRAY_TASK_ID", id),
+                ("SLURM_ARRAY_TASK_MIN", "0"),
+                ("SLURM_ARRAY_TASK_MAX", "6"),
+                ("SLURM_ARRAY_TASK_STEP", "2"),
+                ("SLURM_ARRAY_TASK_COUNT", "4"),
+            ];
+            let var = |k: &str| {
+                vars.iter()
+                    .find(|(n, _)| *n == k)
+                    .map(|(_, v)| v.to_string())
+            };
+            assert_eq!(Shard::auto(None, var).unwrap(), Shard { index, count: 4 });
+        }
+        // `sbatch --array=2`, task 2 of a larger array submitted again: refused, saying how.
+        let single = env(&[
+            ("SLURM_ARRAY_TASK_ID", "2"),
+            ("SLURM_ARRAY_TASK_MIN", "2"),
+            ("SLURM_ARRAY_TASK_MAX", "2"),
+            ("SLURM_ARRAY_TASK_COUNT", "1"),
+        ]);
+        let e = Shard::auto(None, single).unwrap_err().to_string();
+        assert!(e.contains("--shard 2/8") && e.contains("--array=2"), "{e}");
+        // An array of one task numbered 0 is a sweep of one shard.
+        let one = env(&[
+            ("SLURM_ARRAY_TASK_ID", "0"),
+            ("SLURM_ARRAY_TASK_COUNT", "1"),
+        ]);
+        assert_eq!(
+            Shard::auto(None, one).unwrap(),
+            Shard { index: 0, count: 1 }
+        );
+        // `--array=1,2,5`: not evenly spaced, refused.
+        let uneven = env(&[
+            ("SLURM_ARRAY_TASK_ID", "5"),
+            ("SLURM_ARRAY_TASK_MIN", "1"),
+            ("SLURM_ARRAY_TASK_MAX", "5"),
+            ("SLURM_ARRAY_TASK_COUNT", "3"),
+        ]);
+        let e = Shard::auto(None, uneven).unwrap_err().to_string();
+        assert!(
+            e.contains("evenly spaced") && e.contains("--shard I/N"),
+            "{e}"
         );
         let aws = env(&[
             ("AWS_BATCH_JOB_ARRAY_INDEX", "2"),

@@ -20,7 +20,7 @@
 //!   gates.
 //! * `chopper`: energy dumped in the braking chopper; raised above `threshold_j`, the energy
 //!   one tilt gives back through the gear: η·max ½M δ_a over the run, M = k_vr(δ_a − ψ) the
-//!   bar's moment (docs/model.md D30). Tilting the vehicle to δ_a against the moment M, which
+//!   bar's moment (docs/model.md D47). Tilting the vehicle to δ_a against the moment M, which
 //!   grows with it from zero, takes about ½M δ_a (bar, airsprings and the body's weight
 //!   together); tilting back returns it, and the back-driven gear passes η of it to the motor
 //!   (less its copper loss, and the capacitor's 125 J between 780 and 850 V and the auxiliary
@@ -29,7 +29,7 @@
 //! * `thermal`: the motor's RMS torque over the run (equivalently its RMS current, T/k_t)
 //!   against its continuous rating `bldc.continuous_torque_nm`: the servo sizing rule that a
 //!   duty repeated for longer than the motor's thermal time constant must keep the RMS torque
-//!   within the continuous torque (docs/model.md D32).
+//!   within the continuous torque (docs/model.md D48).
 //! * `p_ct_range`: a P_CT above 100 % (the formula gives the percentage of passengers
 //!   uncomfortable; past 100 % it is extrapolated and says only "worse than the scale").
 

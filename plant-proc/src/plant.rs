@@ -82,8 +82,8 @@ impl Plant {
             cant: p.cant,
             cant_rate: v * p.dcant_ds,
             cant_acc: v * v * p.d2cant_ds2,
-            y_o: 0.0,
-            dy_o: 0.0,
+            y_o: p.y_o,
+            dy_o: v * p.dy_o_ds,
         }
     }
 

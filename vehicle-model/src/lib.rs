@@ -4,14 +4,16 @@
 //!
 //! * [`params`]: vehicle and track settings with the paper's values as defaults.
 //! * [`track`]: deterministic curve (straight, transition, steady curve, transition, straight)
-//!   and the seeded, band-limited cant irregularity.
+//!   and the seeded, band-limited irregularity (the paper's random cant, or alignment and
+//!   cross-level drawn from the ERRI B176 spectra of [`spectrum`]).
 //! * [`vehicle`]: the 9-state model of paper eqs 9-13 and A.2, read as `model-notes.md` says.
 
 pub mod params;
+pub mod spectrum;
 pub mod track;
 pub mod vehicle;
 
-pub use params::{IrregularityParams, TrackParams, VehicleParams};
+pub use params::{IrregularityModel, IrregularityParams, TrackParams, VehicleParams};
 pub use track::Track;
 pub use vehicle::{TrackInput, Vehicle};
 

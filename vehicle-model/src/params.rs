@@ -164,22 +164,140 @@ impl Default for TrackParams {
     }
 }
 
-/// Cant irregularity: uniform random values within ±amplitude at knots `knot_spacing_m` apart,
-/// joined by a quintic blend so the cant rate and acceleration stay finite (model-notes 6).
+/// Which irregularity the track carries (`[track.irregularity] model`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum IrregularityModel {
+    /// The paper's random cant: uniform values within ±`amplitude_deg` at knots
+    /// `knot_spacing_m` apart, joined by a quintic blend (model-notes 6). Cant only.
+    #[default]
+    Knots,
+    /// Lateral alignment y_o and cross-level drawn from the ERRI B176 spectra at `level`
+    /// (`spectrum.rs`), band-limited to [`min_wavelength_m`, `max_wavelength_m`].
+    Spectrum,
+}
+
+/// Track irregularity (`[track.irregularity]`): the knot model of the paper (default) or a
+/// published track-geometry spectrum.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct IrregularityParams {
-    /// Amplitude bound (deg); 0 switches it off. The paper uses 0.6.
+    /// `knots` (default) or `spectrum`.
+    pub model: IrregularityModel,
+    /// Knots: amplitude bound (deg); 0 switches it off. The paper uses 0.6.
     pub amplitude_deg: f64,
-    /// Distance between random knots (m); sets the bandwidth (about v / spacing Hz).
+    /// Knots: distance between random knots (m); sets the bandwidth (about v / spacing Hz).
     pub knot_spacing_m: f64,
+    /// Spectrum: ERRI B176 level, `low` or `high` (required with `model = "spectrum"`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub level: Option<crate::spectrum::Level>,
+    /// Spectrum: shortest wavelength drawn (m); default 3 (EN 13848-1's D1 band starts there).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub min_wavelength_m: Option<f64>,
+    /// Spectrum: longest wavelength drawn (m); default 150 (the end of EN 13848-1's D3 band).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_wavelength_m: Option<f64>,
+    /// Spectrum: draw the lateral alignment y_o (default true).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub alignment: Option<bool>,
+    /// Spectrum: draw the cross-level, added to the cant (default true).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cross_level: Option<bool>,
 }
 
 impl Default for IrregularityParams {
     fn default() -> Self {
         IrregularityParams {
+            model: IrregularityModel::Knots,
             amplitude_deg: 0.0,
             knot_spacing_m: 10.0,
+            level: None,
+            min_wavelength_m: None,
+            max_wavelength_m: None,
+            alignment: None,
+            cross_level: None,
+        }
+    }
+}
+
+impl IrregularityParams {
+    /// Spectrum: the band [shortest, longest] wavelength (m), defaults filled in.
+    pub fn band_m(&self) -> (f64, f64) {
+        (
+            self.min_wavelength_m.unwrap_or(3.0),
+            self.max_wavelength_m.unwrap_or(150.0),
+        )
+    }
+
+    /// Whether any irregularity is drawn.
+    pub fn is_on(&self) -> bool {
+        match self.model {
+            IrregularityModel::Knots => self.amplitude_deg > 0.0,
+            IrregularityModel::Spectrum => true,
+        }
+    }
+
+    fn validate(&self, c: &mut Checker) {
+        c.range(
+            "irregularity.amplitude_deg",
+            self.amplitude_deg,
+            0.0,
+            3.0,
+            "deg",
+        );
+        c.range(
+            "irregularity.knot_spacing_m",
+            self.knot_spacing_m,
+            1.0,
+            1000.0,
+            "m",
+        );
+        match self.model {
+            IrregularityModel::Knots => {
+                for (f, set) in [
+                    ("level", self.level.is_some()),
+                    ("min_wavelength_m", self.min_wavelength_m.is_some()),
+                    ("max_wavelength_m", self.max_wavelength_m.is_some()),
+                    ("alignment", self.alignment.is_some()),
+                    ("cross_level", self.cross_level.is_some()),
+                ] {
+                    c.require(
+                        !set,
+                        &format!("irregularity.{f}"),
+                        "set",
+                        "only with model = \"spectrum\" (model is \"knots\")",
+                    );
+                }
+            }
+            IrregularityModel::Spectrum => {
+                c.require(
+                    self.level.is_some(),
+                    "irregularity.level",
+                    "missing",
+                    "\"low\" or \"high\" (ERRI B176) with model = \"spectrum\"",
+                );
+                c.require(
+                    self.amplitude_deg == 0.0,
+                    "irregularity.amplitude_deg",
+                    self.amplitude_deg,
+                    "0 with model = \"spectrum\" (the knot model's amplitude; the level sets the spectrum's)",
+                );
+                let (lo, hi) = self.band_m();
+                c.range("irregularity.min_wavelength_m", lo, 0.5, 100.0, "m");
+                c.range("irregularity.max_wavelength_m", hi, 1.0, 1000.0, "m");
+                c.require(
+                    hi > lo,
+                    "irregularity.max_wavelength_m",
+                    hi,
+                    "longer than min_wavelength_m",
+                );
+                c.require(
+                    self.alignment.unwrap_or(true) || self.cross_level.unwrap_or(true),
+                    "irregularity.cross_level",
+                    false,
+                    "true when alignment is false (one component at least)",
+                );
+            }
         }
     }
 }
@@ -200,20 +318,7 @@ impl TrackParams {
         c.positive("transition_m", self.transition_m, 1e4, "m");
         c.range("curve_m", self.curve_m, 0.0, 1e5, "m");
         c.range("straight_after_m", self.straight_after_m, 0.0, 1e5, "m");
-        c.range(
-            "irregularity.amplitude_deg",
-            self.irregularity.amplitude_deg,
-            0.0,
-            3.0,
-            "deg",
-        );
-        c.range(
-            "irregularity.knot_spacing_m",
-            self.irregularity.knot_spacing_m,
-            1.0,
-            1000.0,
-            "m",
-        );
+        self.irregularity.validate(&mut c);
         c
     }
     /// Speed v (m/s).

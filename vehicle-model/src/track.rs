@@ -1,4 +1,6 @@
-//! The track: deterministic curve geometry plus the seeded cant irregularity.
+//! The track: deterministic curve geometry plus the seeded irregularity: the paper's random
+//! cant on knots, or lateral alignment and cross-level drawn from the ERRI B176 spectra
+//! ([`crate::spectrum`]).
 //!
 //! Curvature κ = 1/R and cant θ_o ramp linearly in the transitions (paper section 2.3), so the
 //! cant rate θ̇_o jumps at the four corners of the ramps and θ̈_o is a Dirac impulse there.
@@ -8,7 +10,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::params::TrackParams;
+use crate::params::{IrregularityModel, TrackParams};
 
 /// Track values at one position.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -23,6 +25,10 @@ pub struct TrackPoint {
     pub dcant_ds: f64,
     /// Smooth part of d²θ_o/ds² (irregularity only; the ramp corners are impulses) (rad/m²).
     pub d2cant_ds2: f64,
+    /// Lateral alignment irregularity y_o (m), the track's lateral input of eq 11.
+    pub y_o: f64,
+    /// dy_o/ds (rad, i.e. m/m).
+    pub dy_o_ds: f64,
 }
 
 /// A corner of a linear ramp: the cant slope changes by `dslope` (rad/m) at `s` (m).
@@ -45,6 +51,9 @@ pub struct Track {
     kappa: f64,
     cant: f64,
     knots: Vec<f64>,
+    /// Spectrum model: alignment y_o (m) and cross-level angle (rad).
+    alignment: Option<crate::spectrum::Profile>,
+    cross_level: Option<crate::spectrum::Profile>,
 }
 
 /// Quintic blend S(u) = 10u³ − 15u⁴ + 6u⁵ and its first two derivatives: S(0)=0, S(1)=1,
@@ -66,7 +75,11 @@ impl Track {
         let s2 = s1 + p.transition_m;
         let s3 = s2 + p.curve_m;
         let s4 = s3 + p.transition_m;
-        let amp = p.irregularity.amplitude_deg.to_radians();
+        let irr = &p.irregularity;
+        let amp = match irr.model {
+            IrregularityModel::Knots => irr.amplitude_deg.to_radians(),
+            IrregularityModel::Spectrum => 0.0,
+        };
         // Knots cover the track plus margin; a dedicated stream keeps them independent of the
         // sensor noise drawn from the same seed.
         let n = (p.length() / p.irregularity.knot_spacing_m).ceil() as usize + 3;
@@ -85,6 +98,23 @@ impl Track {
         } else {
             Vec::new()
         };
+        let (mut alignment, mut cross_level) = (None, None);
+        if let (IrregularityModel::Spectrum, Some(level)) = (irr.model, irr.level) {
+            use crate::spectrum::{alignment_psd, cross_level_psd, Profile};
+            let (lo, hi) = irr.band_m();
+            // Streams 3 and 4 of the seed: independent of the knots and the sensor noise.
+            let draw = |stream: u64, psd: fn(crate::spectrum::Level, f64) -> f64| {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                rng.set_stream(stream);
+                Profile::generate(|w| psd(level, w), p.length(), lo, hi, &mut rng)
+            };
+            if irr.alignment.unwrap_or(true) {
+                alignment = Some(draw(3, alignment_psd));
+            }
+            if irr.cross_level.unwrap_or(true) {
+                cross_level = Some(draw(4, cross_level_psd));
+            }
+        }
         Track {
             p: p.clone(),
             s1,
@@ -94,6 +124,8 @@ impl Track {
             kappa: 1.0 / p.radius_m,
             cant: p.cant_deg.to_radians(),
             knots,
+            alignment,
+            cross_level,
         }
     }
 
@@ -118,6 +150,9 @@ impl Track {
 
     /// Irregularity and its first two derivatives with respect to s.
     fn irregularity(&self, s: f64) -> (f64, f64, f64) {
+        if let Some(c) = &self.cross_level {
+            return c.at(s);
+        }
         if self.knots.is_empty() || s <= 0.0 {
             return (0.0, 0.0, 0.0);
         }
@@ -140,13 +175,33 @@ impl Track {
     pub fn at(&self, s: f64) -> TrackPoint {
         let (r, dr) = self.ramp(s);
         let (e, de, d2e) = self.irregularity(s);
+        let (y_o, dy_o_ds, _) = self.alignment.as_ref().map_or((0.0, 0.0, 0.0), |a| a.at(s));
         TrackPoint {
             curvature: self.kappa * r,
             cant_design: self.cant * r,
             cant: self.cant * r + e,
             dcant_ds: self.cant * dr + de,
             d2cant_ds2: d2e,
+            y_o,
+            dy_o_ds,
         }
+    }
+
+    /// The cant rate θ̇_o (rad/s) at time `t` of a vehicle running at `v` (m/s) from s = 0,
+    /// with the ramp corners on the plant's side of the jump: a corner reached at or before
+    /// `t` (s_c/v ≤ t) has been passed, because the plant applies its velocity jump in the
+    /// step that ends at it (`plant-proc`'s `advance`), so the θ̇_v recorded at `t` is already
+    /// the one after the jump. θ̇_v + this value is then the body's absolute roll rate,
+    /// continuous across every corner. Between corners it equals `v·at(v·t).dcant_ds`.
+    pub fn cant_rate_at_time(&self, t: f64, v: f64) -> f64 {
+        let slope: f64 = self
+            .corners()
+            .iter()
+            .filter(|c| c.s / v <= t)
+            .map(|c| c.dslope)
+            .sum();
+        let (_, de, _) = self.irregularity(v * t);
+        v * (slope + de)
     }
 
     /// The four ramp corners with their slope jumps.
@@ -232,6 +287,29 @@ mod tests {
             prev = pa;
         }
         assert!(differs, "a different seed gives a different track");
+    }
+
+    #[test]
+    fn cant_rate_at_time_takes_the_slope_after_a_corner_reached() {
+        let mut p = TrackParams::default();
+        p.irregularity.amplitude_deg = 0.6;
+        let t = Track::new(&p, 3);
+        let v = p.speed();
+        let ramp = v * p.cant_deg.to_radians() / p.transition_m;
+        // Between corners: v·dθ_o/ds of the track point.
+        for s in [50.0, 200.0, 400.0, 560.0, 700.0] {
+            let r = t.cant_rate_at_time(s / v, v);
+            assert!((r - v * t.at(s).dcant_ds).abs() < 1e-12, "s = {s}");
+        }
+        // At each corner's instant the slope after it (the plant has applied the jump), and
+        // the one before it a hair earlier.
+        let flat = Track::new(&TrackParams::default(), 3);
+        for (c, after) in flat.corners().iter().zip([ramp, 0.0, -ramp, 0.0]) {
+            let tc = c.s / v;
+            assert!((flat.cant_rate_at_time(tc, v) - after).abs() < 1e-15);
+            let before = after - v * c.dslope;
+            assert!((flat.cant_rate_at_time(tc - 1e-9, v) - before).abs() < 1e-15);
+        }
     }
 
     #[test]

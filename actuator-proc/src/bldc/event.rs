@@ -303,7 +303,7 @@ enum Event {
 }
 
 /// The gearbox's load on the rotor over one segment in the linear form T_l = c T_b + d ω
-/// ([`super::GearLoss`], docs/model.md D21): away from zero speed c = 1/η (driving) or η
+/// ([`super::GearLoss`], docs/model.md D45): away from zero speed c = 1/η (driving) or η
 /// (back-driven) and d = 0; within ±ω_ε, c = 1 and d = |μ T_b|/ω_ε with T_b and the branch of
 /// μ (driving or back-driven) taken at the segment's start (T_b moves by less than 1e-5 of
 /// itself over a segment at such speeds; a reversal within a segment keeps the branch it

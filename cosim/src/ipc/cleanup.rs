@@ -39,10 +39,12 @@ pub fn leftover_files(prefix: &str) -> Vec<PathBuf> {
     out
 }
 
-/// Removes every file this run's prefix left in the iceoryx2 directories and in `/dev/shm`.
-/// Returns how many were removed. Called last, after every node is gone.
+/// Removes every file this run's prefix left in the iceoryx2 directories and in `/dev/shm`,
+/// and a node directory (`nodes/<node id>/`) that this leaves empty. Returns how many files
+/// were removed. Called last, after every node is gone.
 pub fn remove_run_files(prefix: &str) -> usize {
-    leftover_files(prefix)
+    let files = leftover_files(prefix);
+    let removed = files
         .iter()
         .filter(|p| {
             if p.is_dir() {
@@ -51,7 +53,20 @@ pub fn remove_run_files(prefix: &str) -> usize {
                 std::fs::remove_file(p).is_ok()
             }
         })
-        .count()
+        .count();
+    for p in &files {
+        if let Some(node_dir) = p.parent() {
+            let in_nodes = node_dir
+                .parent()
+                .and_then(|d| d.file_name())
+                .is_some_and(|n| n == "nodes");
+            if in_nodes {
+                // Fails, and leaves it, if anything of another node is in it.
+                let _ = std::fs::remove_dir(node_dir);
+            }
+        }
+    }
+    removed
 }
 
 /// The owner's pid of a default run prefix `tiltsim_<pid>_<nonce>_<n>_` at the start of `name`
@@ -91,7 +106,46 @@ pub fn remove_dead_runs() -> Vec<String> {
     for p in &dead {
         remove_run_files(p);
     }
+    if let Ok(cfg) = config("tiltsim_") {
+        remove_abandoned_node_dirs(Path::new(&cfg.global.root_path().to_string()));
+    }
     dead
+}
+
+/// How long a node directory must have been empty before it counts as abandoned. A live node
+/// keeps its `node.details` file in it from its first microseconds to its last; only a node
+/// whose process was killed between removing its files and its directory leaves it empty.
+const ABANDONED_AFTER: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// Removes the empty node directories (`<root>/nodes/<node id>/`) unchanged for
+/// [`ABANDONED_AFTER`]: what remains of a participant whose files were removed (by itself or
+/// by [`remove_dead_runs`]) but not its directory. A directory with anything in it is never
+/// touched (`remove_dir` refuses it too). Returns how many were removed.
+fn remove_abandoned_node_dirs(root: &Path) -> usize {
+    let Ok(entries) = std::fs::read_dir(root.join("nodes")) else {
+        return 0;
+    };
+    let mut removed = 0;
+    for e in entries.flatten() {
+        let path = e.path();
+        let numeric = e
+            .file_name()
+            .to_str()
+            .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()));
+        let Ok(meta) = std::fs::symlink_metadata(&path) else {
+            continue;
+        };
+        let old = meta
+            .modified()
+            .ok()
+            .and_then(|m| m.elapsed().ok())
+            .is_some_and(|age| age >= ABANDONED_AFTER);
+        let empty = std::fs::read_dir(&path).is_ok_and(|mut d| d.next().is_none());
+        if numeric && meta.is_dir() && old && empty && std::fs::remove_dir(&path).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
 }
 
 /// The names of every entry under `dir`, down to `depth` more levels.
@@ -111,6 +165,33 @@ fn walk_names(dir: &Path, depth: u32, out: &mut Vec<String>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_empty_node_directory_is_removed_once_abandoned_and_a_full_or_new_one_never() {
+        let root = std::env::temp_dir().join(format!("tiltsim-nodes-{}", std::process::id()));
+        let nodes = root.join("nodes");
+        let (empty_old, full_old, empty_new, named) = (
+            nodes.join("111"),
+            nodes.join("222"),
+            nodes.join("333"),
+            nodes.join("not-a-node"),
+        );
+        for d in [&empty_old, &full_old, &empty_new, &named] {
+            std::fs::create_dir_all(d).unwrap();
+        }
+        std::fs::write(full_old.join("x_node.details"), b"").unwrap();
+        let long_ago = std::time::SystemTime::now() - 2 * ABANDONED_AFTER;
+        for d in [&empty_old, &full_old, &named] {
+            std::fs::File::open(d)
+                .unwrap()
+                .set_modified(long_ago)
+                .unwrap();
+        }
+        assert_eq!(remove_abandoned_node_dirs(&root), 1);
+        assert!(!empty_old.exists());
+        assert!(full_old.exists() && empty_new.exists() && named.exists());
+        std::fs::remove_dir_all(&root).unwrap();
+    }
 
     #[test]
     fn only_default_prefixes_name_an_owner() {

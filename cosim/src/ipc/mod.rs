@@ -36,7 +36,7 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 
 use crate::endpoint::LinkError;
-use crate::msg::Message;
+use crate::msg::{Header, Kind, Message};
 use crate::participant::Role;
 use crate::wait::WaitStrategy;
 
@@ -141,26 +141,126 @@ fn reply_service(role: Role) -> String {
     format!("tiltsim/{}/reply", role.name())
 }
 
+/// Sendings of one sample that may reach no subscriber before [`publish`] leaves it to the
+/// exchange's repair of lost samples.
+const UNDELIVERED_RETRIES: u32 = 3;
+
 /// Publishes `v` zero-copy: the sample is written into memory loaned from the shared segment
 /// (`loan_uninit`, `write_payload`) and sent from there; the subscriber reads it in place.
+///
+/// iceoryx2's `send` skips, without an error, a subscriber whose connection the publisher
+/// does not hold (not yet set up, or being set up again) and reports it only through the
+/// number of recipients it returns. Every service here has exactly one subscriber, so 0
+/// recipients is a sample lost at the source: the publisher's connections are brought up to
+/// date and the sample sent again, up to [`UNDELIVERED_RETRIES`] times. Returns how many
+/// sendings reached nobody (0 on the normal path; the caller counts them). A sample that
+/// still reached nobody (a subscriber that has gone, as at shut-down) is left to the
+/// exchange's repair of lost samples.
 fn publish<T: Message>(
     p: &iceoryx2::port::publisher::Publisher<ipc::Service, T, ()>,
     v: T,
-) -> Result<(), String> {
-    let sample = p.loan_uninit().map_err(|e| format!("loan: {e:?}"))?;
-    sample
-        .write_payload(v)
-        .send()
-        .map(|_| ())
-        .map_err(|e| format!("send: {e:?}"))
+) -> Result<u64, String> {
+    let mut undelivered = 0;
+    loop {
+        let sample = p.loan_uninit().map_err(|e| format!("loan: {e:?}"))?;
+        let recipients = sample
+            .write_payload(v)
+            .send()
+            .map_err(|e| format!("send: {e:?}"))?;
+        if recipients > 0 || undelivered >= u64::from(UNDELIVERED_RETRIES) {
+            return Ok(undelivered);
+        }
+        undelivered += 1;
+        use iceoryx2::port::update_connections::UpdateConnections;
+        p.update_connections()
+            .map_err(|e| format!("update connections: {e:?}"))?;
+    }
 }
 
-/// Drains `sub` and returns the one sample for `step`, or an error for any other sample.
+/// Samples to drop on purpose, for tests of lost samples: `TILTSIM_DROP_SAMPLES` holds
+/// `ROLE:request:STEP` or `ROLE:reply:STEP` items, comma-separated. The first sending of
+/// that step's request (by the orchestrator) or reply (by the participant) is not published,
+/// as if the transport had lost it; a repeat goes through. Unset in every ordinary run.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct DropPlan {
+    steps: Vec<(Role, bool, u64)>,
+}
+
+impl DropPlan {
+    /// The variable's name.
+    pub(crate) const VAR: &'static str = "TILTSIM_DROP_SAMPLES";
+
+    /// The plan of `role` from the environment (empty when unset or unreadable).
+    pub(crate) fn from_env(role: Role) -> Self {
+        let Some(v) = std::env::var_os(Self::VAR) else {
+            return DropPlan::default();
+        };
+        let steps = v
+            .to_string_lossy()
+            .split(',')
+            .filter_map(|item| {
+                let mut it = item.trim().splitn(3, ':');
+                let r = Role::parse(it.next()?)?;
+                let request = match it.next()? {
+                    "request" => true,
+                    "reply" => false,
+                    _ => return None,
+                };
+                let step = it.next()?.parse().ok()?;
+                (r == role).then_some((r, request, step))
+            })
+            .collect();
+        DropPlan { steps }
+    }
+
+    /// A plan of `(role, request, step)` items.
+    #[cfg(test)]
+    pub(crate) fn new(steps: Vec<(Role, bool, u64)>) -> Self {
+        DropPlan { steps }
+    }
+
+    /// Whether the first sending of a step request (`request`) or reply for `h` is dropped.
+    pub(crate) fn drops(&self, request: bool, h: &Header) -> bool {
+        !self.steps.is_empty()
+            && h.attempt == 0
+            && h.kind == Kind::Step as u32
+            && self
+                .steps
+                .iter()
+                .any(|&(_, q, s)| q == request && s == h.step)
+    }
+}
+
+/// The request last re-sent to a participant: the answers to its repeats that still come are
+/// expected and discarded.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Resent {
+    /// [`crate::msg::exchange_key`] of the request.
+    pub key: u64,
+    /// Its highest attempt sent.
+    pub attempts: u32,
+}
+
+impl Resent {
+    /// Whether reply header `h` answers a repeat of the request re-sent.
+    fn answers_repeat(&self, h: &Header) -> bool {
+        h.attempt >= 1
+            && h.attempt <= self.attempts
+            && crate::msg::exchange_key(h) == Some(self.key)
+    }
+}
+
+/// Drains `sub` and returns the one sample for `step`, or an error for any other sample. The
+/// answer to a repeated request ([`Resent`]) that comes besides the one taken is discarded and
+/// counted in `discarded`; any other extra, stale or early sample stays an error.
 fn drain<T: Message>(
     role: Role,
     sub: &Subscriber<ipc::Service, T, ()>,
     step: u64,
+    kind: Kind,
     found: &mut Option<T>,
+    resent: Option<Resent>,
+    discarded: &mut u64,
 ) -> Result<(), LinkError> {
     loop {
         let sample = sub.receive().map_err(|e| LinkError::Transport {
@@ -169,7 +269,20 @@ fn drain<T: Message>(
         })?;
         let Some(sample) = sample else { return Ok(()) };
         let value: T = *sample;
-        let got = value.header().step;
+        drop(sample);
+        let h = value.header();
+        if resent.is_some_and(|r| r.answers_repeat(h)) {
+            // The answer to a repeat is taken only as the first answer to the pending request
+            // (the original request or reply was lost); any other is an expected extra.
+            let pending = Header::new(step, kind);
+            let first_for_pending = found.is_none()
+                && crate::msg::exchange_key(h) == crate::msg::exchange_key(&pending);
+            if !first_for_pending {
+                *discarded += 1;
+                continue;
+            }
+        }
+        let got = h.step;
         if got < step {
             return Err(LinkError::Stale {
                 role,
@@ -188,5 +301,44 @@ fn drain<T: Message>(
             return Err(LinkError::Duplicate { role, step });
         }
         *found = Some(value);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_the_answers_to_repeats_of_the_request_re_sent_are_expected() {
+        let r = Resent {
+            key: crate::msg::exchange_key(&Header::new(7, Kind::Step)).unwrap(),
+            attempts: 2,
+        };
+        let h = |step, kind, attempt| Header {
+            attempt,
+            ..Header::new(step, kind)
+        };
+        assert!(r.answers_repeat(&h(7, Kind::Step, 1)));
+        assert!(r.answers_repeat(&h(7, Kind::Step, 2)));
+        // The original answer, an attempt never sent, another step or kind: not repeats.
+        assert!(!r.answers_repeat(&h(7, Kind::Step, 0)));
+        assert!(!r.answers_repeat(&h(7, Kind::Step, 3)));
+        assert!(!r.answers_repeat(&h(6, Kind::Step, 1)));
+        assert!(!r.answers_repeat(&h(7, Kind::Init, 1)));
+    }
+
+    #[test]
+    fn a_drop_plan_drops_first_sendings_of_its_own_steps_only() {
+        let plan = DropPlan::new(vec![(Role::Plant, true, 5), (Role::Plant, false, 9)]);
+        let h = |step, attempt| Header {
+            attempt,
+            ..Header::new(step, Kind::Step)
+        };
+        assert!(plan.drops(true, &h(5, 0)));
+        assert!(!plan.drops(true, &h(5, 1)), "a repeat goes through");
+        assert!(!plan.drops(false, &h(5, 0)));
+        assert!(plan.drops(false, &h(9, 0)));
+        assert!(!plan.drops(true, &Header::new(5, Kind::Init)));
+        assert!(!DropPlan::default().drops(true, &h(5, 0)));
     }
 }

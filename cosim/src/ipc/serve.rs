@@ -3,13 +3,16 @@
 use std::time::Duration;
 
 use crate::endpoint::LinkError;
-use crate::msg::{Kind, Message, FLAG_CRASH};
+use std::sync::atomic::Ordering;
+
+use crate::msg::{exchange_key, now_ns, Header, Kind, Message, FLAG_CRASH};
 use crate::participant::{Participant, Served};
 use crate::wait::{sleep_until_ns, Backoff, Cadence, WaitStrategy};
 
+use super::supervise::Status;
 use super::{
     config, iox, node, pin_to_cpu, quiet_iceoryx_logs, reply_service, request_service, service,
-    IpcError,
+    DropPlan, IpcError,
 };
 
 /// Participant side: serves requests for model `p` until asked to stop.
@@ -34,7 +37,21 @@ pub fn serve_with<P: Participant>(
     wait: WaitStrategy,
     spin_polls: u32,
     idle_limit: Duration,
+    tamper: impl FnMut(&mut P::Output),
+) -> Result<(), IpcError> {
+    let drops = DropPlan::from_env(P::ROLE);
+    serve_dropping(p, prefix, wait, spin_polls, idle_limit, tamper, drops)
+}
+
+/// [`serve_with`] with the samples to drop given (tests of lost samples).
+pub(crate) fn serve_dropping<P: Participant>(
+    p: P,
+    prefix: &str,
+    wait: WaitStrategy,
+    spin_polls: u32,
+    idle_limit: Duration,
     mut tamper: impl FnMut(&mut P::Output),
+    drops: DropPlan,
 ) -> Result<(), IpcError> {
     quiet_iceoryx_logs();
     let role = P::ROLE;
@@ -58,6 +75,10 @@ pub fn serve_with<P: Participant>(
     let mut last_step: Option<u64> = None;
     let mut served = Served::new(p);
     let mut cadence = Cadence::default();
+    let status = Status::open(prefix, role);
+    let words = status.words();
+    let mut repeat = Repeat::default();
+    let mut empty_polls = 0u64;
     loop {
         let mut backoff = Backoff::with_spin(wait, spin_polls);
         let mut sleep = if wait == WaitStrategy::Adaptive {
@@ -70,6 +91,9 @@ pub fn serve_with<P: Participant>(
             if let Some(s) = sample {
                 break *s;
             }
+            // Plain stores of a counter only this process writes: no cost worth naming.
+            empty_polls += 1;
+            words.empty_polls.store(empty_polls, Ordering::Release);
             if let Some(until) = sleep.take() {
                 sleep_until_ns(until);
                 continue;
@@ -80,6 +104,19 @@ pub fn serve_with<P: Participant>(
             backoff.pause();
         };
         let h = *request.header();
+        let key = exchange_key(&h);
+        if let Some(k) = key {
+            words.taken.store(k + 1, Ordering::Release);
+        }
+        // A repeat of the request last answered: its reply again, the model not stepped.
+        if let Some(again) = repeat.answer(&h) {
+            let undelivered = super::publish(&publisher, again).map_err(IpcError::Iceoryx)?;
+            words.undelivered.fetch_add(undelivered, Ordering::Relaxed);
+            // Counted once sent: the orchestrator re-sends again only for a repeat that was
+            // answered and still did not come.
+            words.repeats.fetch_add(1, Ordering::Release);
+            continue;
+        }
         match Kind::from_raw(h.kind) {
             Some(Kind::Stop) => return Ok(()),
             Some(Kind::Init) => {
@@ -117,7 +154,51 @@ pub fn serve_with<P: Participant>(
             return Err(IpcError::Model(why));
         }
         tamper(&mut reply);
-        super::publish(&publisher, reply).map_err(IpcError::Iceoryx)?;
+        reply.header_mut().attempt = h.attempt;
+        repeat.keep(&h, &reply);
+        if !drops.drops(false, reply.header()) {
+            let undelivered = super::publish(&publisher, reply).map_err(IpcError::Iceoryx)?;
+            if undelivered > 0 {
+                words.undelivered.fetch_add(undelivered, Ordering::Relaxed);
+            }
+        }
+        if let Some(k) = key {
+            words.answered.store(k + 1, Ordering::Release);
+        }
+    }
+}
+
+/// The participant's memory of the request it last answered, to answer a repeat of it (the
+/// orchestrator re-sends a request whose reply it has not seen) with the same reply, without
+/// stepping the model again.
+#[derive(Debug, Default)]
+pub(crate) struct Repeat<O: Message> {
+    last: Option<(u64, O)>,
+}
+
+impl<O: Message> Repeat<O> {
+    /// Keeps `reply`, the answer to request `h`.
+    pub(crate) fn keep(&mut self, h: &Header, reply: &O) {
+        self.last = exchange_key(h).map(|k| (k, *reply));
+    }
+
+    /// The reply to send again if `h` repeats the request last answered: the same values,
+    /// carrying the repeat's attempt, stamped anew. `None` for anything else (a new request,
+    /// or a first sending that repeats a step, which stays a protocol error).
+    pub(crate) fn answer(&self, h: &Header) -> Option<O> {
+        let (k, reply) = self.last?;
+        if h.attempt == 0 || exchange_key(h) != Some(k) {
+            return None;
+        }
+        let mut again = reply;
+        again.header_mut().attempt = h.attempt;
+        let sent = if again.header().sent_ns == 0 {
+            0
+        } else {
+            now_ns()
+        };
+        again.stamp_at(sent);
+        Some(again)
     }
 }
 
@@ -313,4 +394,48 @@ where
     };
     serve_with(model, &a.prefix, a.wait, spin, IDLE_LIMIT, tamper)
         .map_err(|source| ServeError::Link { process, source })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::FromController;
+
+    fn header(step: u64, kind: Kind, attempt: u32) -> Header {
+        Header {
+            attempt,
+            ..Header::new(step, kind)
+        }
+    }
+
+    #[test]
+    fn a_repeated_request_is_answered_with_the_last_reply_and_anything_else_is_not() {
+        let mut r = Repeat::<FromController>::default();
+        assert!(
+            r.answer(&header(7, Kind::Step, 1)).is_none(),
+            "nothing answered yet"
+        );
+        let reply = FromController {
+            header: header(7, Kind::Step, 0),
+            delta_a_cmd: 0.125,
+            theta_ref: -0.5,
+            ..Default::default()
+        };
+        r.keep(&header(7, Kind::Step, 0), &reply);
+        let again = r
+            .answer(&header(7, Kind::Step, 2))
+            .expect("a repeat of step 7");
+        assert_eq!((again.delta_a_cmd, again.theta_ref), (0.125, -0.5));
+        assert_eq!((again.header.step, again.header.attempt), (7, 2));
+        assert_eq!(
+            again.header.size as usize,
+            core::mem::size_of::<FromController>()
+        );
+        // A first sending of the same step again is a protocol error for the caller, not a
+        // repeat; another step, or the Init of the same index, is a new request.
+        assert!(r.answer(&header(7, Kind::Step, 0)).is_none());
+        assert!(r.answer(&header(8, Kind::Step, 1)).is_none());
+        assert!(r.answer(&header(7, Kind::Init, 1)).is_none());
+        assert!(r.answer(&header(u64::MAX, Kind::Stop, 1)).is_none());
+    }
 }

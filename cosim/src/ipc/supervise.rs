@@ -1,6 +1,9 @@
 //! Supervision of participant processes: reaping them and reporting how they ended.
 
+use std::sync::atomic::AtomicU64;
+
 use crate::endpoint::ExitReport;
+use crate::participant::Role;
 
 /// Reaps child `pid` if it has ended (or waits for it when `block`), reporting its status and
 /// the CPU time it used (from `wait4`'s resource usage).
@@ -26,4 +29,154 @@ pub(crate) fn try_reap(pid: u32, block: bool) -> Option<ExitReport> {
         status,
         cpu_s: Some(tv(usage.ru_utime) + tv(usage.ru_stime)),
     })
+}
+
+/// What a participant tells its orchestrator about its side of the exchange, in a few words
+/// of shared memory (`/dev/shm/<prefix>status_<role>`, removed with the run's files): the
+/// request it last took, the reply it last published, and how many times it polled and found
+/// nothing. Written by the participant only (plain stores, no waiting), read by the
+/// orchestrator only when an exchange has gone silent, so it costs nothing on the normal path.
+/// With it a silent exchange is told apart: the reply was sent but not seen (lost reply), the
+/// participant polls but never took the request (lost request), it took the request and
+/// computes, or it does nothing at all (stalled).
+#[repr(C, align(64))]
+#[derive(Default)]
+pub(crate) struct StatusWords {
+    /// 1 + [`crate::msg::exchange_key`] of the request last taken (0: none yet).
+    pub taken: AtomicU64,
+    /// 1 + the key of the reply last published.
+    pub answered: AtomicU64,
+    /// Polls that found no request.
+    pub empty_polls: AtomicU64,
+    /// Repeated requests answered from the last reply.
+    pub repeats: AtomicU64,
+    /// Replies whose sending reached no subscriber and were sent again.
+    pub undelivered: AtomicU64,
+}
+
+/// A participant's status words, mapped from shared memory (or private when the orchestrator
+/// made none, e.g. a participant started by hand).
+pub(crate) struct Status {
+    words: *const StatusWords,
+    /// Name to unlink on drop (the orchestrator's side owns the file).
+    owned: Option<std::ffi::CString>,
+    /// Private words when there is no shared memory.
+    _private: Option<Box<StatusWords>>,
+}
+
+// SAFETY: the mapping lives as long as the value; the words are atomics.
+unsafe impl Send for Status {}
+
+const STATUS_BYTES: usize = 4096;
+
+fn status_name(prefix: &str, role: Role) -> Option<std::ffi::CString> {
+    std::ffi::CString::new(format!("/{prefix}status_{}", role.name())).ok()
+}
+
+impl Status {
+    /// The orchestrator's side: creates the participant's status (zeroed).
+    pub(crate) fn create(prefix: &str, role: Role) -> std::io::Result<Status> {
+        let name = status_name(prefix, role).ok_or(std::io::ErrorKind::InvalidInput)?;
+        // SAFETY: a NUL-terminated name; flags and mode are plain integers.
+        let fd = unsafe {
+            libc::shm_open(
+                name.as_ptr(),
+                libc::O_CREAT | libc::O_RDWR | libc::O_TRUNC,
+                0o600,
+            )
+        };
+        if fd < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        let status = Self::map(fd, Some(name.clone()));
+        if status.is_err() {
+            // SAFETY: as above.
+            unsafe { libc::shm_unlink(name.as_ptr()) };
+        }
+        status
+    }
+
+    /// The participant's side: opens the status its orchestrator created, or private words.
+    pub(crate) fn open(prefix: &str, role: Role) -> Status {
+        let fd = status_name(prefix, role)
+            // SAFETY: a NUL-terminated name.
+            .map(|n| unsafe { libc::shm_open(n.as_ptr(), libc::O_RDWR, 0) })
+            .unwrap_or(-1);
+        if fd >= 0 {
+            if let Ok(s) = Self::map(fd, None) {
+                return s;
+            }
+        }
+        let private = Box::<StatusWords>::default();
+        Status {
+            words: &*private,
+            owned: None,
+            _private: Some(private),
+        }
+    }
+
+    fn map(fd: libc::c_int, owned: Option<std::ffi::CString>) -> std::io::Result<Status> {
+        // SAFETY: `fd` is an open shared-memory object; the mapping is checked before use and
+        // the descriptor is closed once mapped (the mapping keeps the object).
+        unsafe {
+            if owned.is_some() && libc::ftruncate(fd, STATUS_BYTES as libc::off_t) != 0 {
+                let e = std::io::Error::last_os_error();
+                libc::close(fd);
+                return Err(e);
+            }
+            let p = libc::mmap(
+                core::ptr::null_mut(),
+                STATUS_BYTES,
+                libc::PROT_READ | libc::PROT_WRITE,
+                libc::MAP_SHARED,
+                fd,
+                0,
+            );
+            let e = std::io::Error::last_os_error();
+            libc::close(fd);
+            if p == libc::MAP_FAILED {
+                return Err(e);
+            }
+            Ok(Status {
+                words: p as *const StatusWords,
+                owned,
+                _private: None,
+            })
+        }
+    }
+
+    /// The words.
+    pub(crate) fn words(&self) -> &StatusWords {
+        // SAFETY: `words` points at a live mapping (or the private box) for `self`'s lifetime.
+        unsafe { &*self.words }
+    }
+}
+
+impl Drop for Status {
+    fn drop(&mut self) {
+        if self._private.is_none() {
+            // SAFETY: the mapping made in `map`, of STATUS_BYTES, unmapped once.
+            unsafe { libc::munmap(self.words as *mut libc::c_void, STATUS_BYTES) };
+        }
+        if let Some(name) = &self.owned {
+            // SAFETY: a NUL-terminated name.
+            unsafe { libc::shm_unlink(name.as_ptr()) };
+        }
+    }
+}
+
+/// Scheduler state and CPU time (ns, from `/proc/<pid>/schedstat`, else from the clock ticks
+/// of `/proc/<pid>/stat`) of process `pid`; `None` once it is gone.
+pub(crate) fn proc_state(pid: u32) -> Option<(char, u64)> {
+    let s = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // Fields after the command name, which is in parentheses and may hold spaces.
+    let rest = s.get(s.rfind(')')? + 2..)?;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let state = f.first()?.chars().next()?;
+    let ticks = f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?;
+    let ns = std::fs::read_to_string(format!("/proc/{pid}/schedstat"))
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse::<u64>().ok())
+        .unwrap_or(ticks.saturating_mul(10_000_000));
+    Some((state, ns))
 }

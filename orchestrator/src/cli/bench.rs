@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use cosim::ipc::pingpong::Waiting;
 
+use super::bounds::{self, End};
 use super::common::{load, write_json};
 use super::error::{CliError, CliResult};
 
@@ -14,11 +15,12 @@ pub struct BenchArgs {
     #[arg(default_value = "scenarios/paper-passive.toml")]
     scenario: PathBuf,
     /// Simulated seconds per configuration.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0,
+          value_parser = bounds::real((0.01, End::Closed), (600.0, End::Closed), " s"))]
     duration: f64,
     /// Rounds of the three runs the wall-time ratios compare (in-process, IPC Gauss-Seidel, IPC
     /// Jacobi), run one after the other; the ratios are those of the median walls.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = bounds::int(1..=100usize, ""))]
     repeat: usize,
     /// JSON report.
     #[arg(long, default_value = "out/bench.json")]
@@ -32,14 +34,14 @@ pub struct BenchArgs {
     #[arg(long, requires = "ping_pong")]
     same_cpu: bool,
     /// Round trips per size with --ping-pong.
-    #[arg(long, default_value_t = 100_000)]
+    #[arg(long, default_value_t = 100_000, value_parser = bounds::int(100..=10_000_000usize, ""))]
     rounds: usize,
     /// Measure each participant as its exported FMU (FMI 3.0, its own process) against the
     /// native participant: wall time per tick, medians of --fmu-runs alternating runs.
     #[arg(long)]
     fmu: bool,
     /// Runs of each with --fmu.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = bounds::int(1..=100usize, ""))]
     fmu_runs: usize,
 }
 
@@ -50,7 +52,7 @@ pub struct EchoArgs {
     #[arg(long)]
     prefix: String,
     /// CPU to pin to.
-    #[arg(long)]
+    #[arg(long, value_parser = bounds::int(0..=4095usize, ""))]
     cpu: Option<usize>,
     /// Yield between polls instead of spinning (`bench --ping-pong --same-cpu`).
     #[arg(long = "yield")]

@@ -26,6 +26,9 @@ pub struct CompareArgs {
 /// Runs one scenario into `out/<name>`; its table entry.
 fn one(file: &Path, s: Scenario, out: &Path, base: &RunOptions) -> Result<Entry, CliError> {
     let dir = out.join(&s.name);
+    // Each run of a compare is a run: its own lock, an earlier run's files removed.
+    let _lock =
+        crate::outdir::claim_run(&dir, "compare").map_err(|e| CliError::Invalid(e.to_string()))?;
     let mut opts = base.clone();
     opts.out_dir = dir.clone();
     let summary = crate::analysis::run(&s, &file.display().to_string(), &opts)
@@ -57,6 +60,47 @@ pub fn exec(a: CompareArgs) -> CliResult {
         }
         loaded.push((f.clone(), s));
     }
+    // Scenarios of one name get distinct directories and labels: `name`, `name-2`, ...
+    let names: Vec<String> = loaded.iter().map(|(_, s)| s.name.clone()).collect();
+    for ((file, s), name) in loaded
+        .iter_mut()
+        .zip(crate::compare::distinct_names(&names))
+    {
+        if name != s.name {
+            eprintln!(
+                "note: {}: `{}` is also the name of another scenario compared (or of a file of the compare): this one runs in {} and is labelled {name}",
+                file.display(),
+                s.name,
+                a.out.join(&name).display()
+            );
+            s.name = name;
+        }
+    }
+    let invalid = |e: crate::outdir::OutDirError| CliError::Invalid(e.to_string());
+    // The compare holds its directory; an earlier compare's runs and tables there go first.
+    let _lock =
+        crate::outdir::claim(&a.out, crate::outdir::Kind::Compare, "compare").map_err(invalid)?;
+    if let Some(old) = crate::compare::Manifest::read(&a.out) {
+        for r in old.runs {
+            let dir = a.out.join(&r.dir);
+            if r.dir.contains(['/', '\\']) || r.dir.starts_with('.') || !dir.is_dir() {
+                continue;
+            }
+            drop(crate::outdir::claim_run(&dir, "compare").map_err(invalid)?);
+            crate::outdir::remove_if_empty(&dir);
+        }
+    }
+    crate::outdir::clear_compare_results(&a.out).map_err(invalid)?;
+    let manifest = crate::compare::Manifest {
+        runs: loaded
+            .iter()
+            .map(|(f, s)| crate::compare::ManifestRun {
+                dir: s.name.clone(),
+                scenario: f.display().to_string(),
+            })
+            .collect(),
+    };
+    write_json(&a.out.join("compare.json"), &manifest)?;
     let (interrupt, exe) = interrupt_and_exe()?;
     let mut base = RunOptions::new(a.out.clone(), exe);
     base.interrupt = interrupt;
@@ -80,6 +124,8 @@ pub fn exec(a: CompareArgs) -> CliResult {
         })
         .collect();
     crate::analysis::write_compare_plots(&runs, &a.out)
+        .map_err(|e| CliError::Failed(format!("{}: {e}", a.out.join("plots").display())))?;
+    crate::compare::write_trade_off_plot(&entries, &a.out)
         .map_err(|e| CliError::Failed(format!("{}: {e}", a.out.join("plots").display())))?;
     println!(
         "wrote {0}/table.md, {0}/table.csv and {0}/plots/compare_*.svg|png",

@@ -16,7 +16,7 @@ pub struct ExportFmuArgs {
     #[arg(long)]
     out: PathBuf,
     /// FMI version: 3 (FMI 3.0) or 2 (FMI 2.0, for importers that do not read 3.0).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = super::bounds::int(2..=3u8, ""))]
     fmi_version: u8,
     /// The FMU library to package (default: libtiltsim_fmu.so beside this program, as cargo
     /// builds it; or the TILTSIM_FMU_LIBRARY environment variable).

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use super::bounds::{self, End};
 use super::common::load;
 use super::error::{CliError, CliResult};
 use crate::linearize::PiTargets;
@@ -20,13 +21,16 @@ pub struct LinearizeArgs {
     #[arg(long)]
     design_pi: bool,
     /// Phase-margin target of --design-pi (deg).
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0,
+          value_parser = bounds::real((0.0, End::Closed), (89.0, End::Closed), " deg"))]
     phase_margin: f64,
     /// Gain-margin target of --design-pi (dB).
-    #[arg(long, default_value_t = 6.0)]
+    #[arg(long, default_value_t = 6.0,
+          value_parser = bounds::real((0.0, End::Closed), (40.0, End::Closed), " dB"))]
     gain_margin: f64,
     /// Integral time K_p/K_i of --design-pi (s).
-    #[arg(long, default_value_t = 0.25)]
+    #[arg(long, default_value_t = 0.25,
+          value_parser = bounds::real((1e-3, End::Closed), (100.0, End::Closed), " s"))]
     ti: f64,
 }
 

@@ -5,6 +5,7 @@
 //! 2 invalid input (command line or scenario file); 130 interrupted (Ctrl-C, SIGTERM, SIGHUP).
 
 mod bench;
+mod bounds;
 mod clean;
 mod common;
 mod compare;

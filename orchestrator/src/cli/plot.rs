@@ -15,9 +15,9 @@ pub struct PlotArgs {
 /// Runs the command.
 pub fn exec(a: PlotArgs) -> CliResult {
     let s = load(&a.dir.join("scenario.toml"))?;
-    let files = crate::analysis::write_plots(&s, &a.dir).map_err(|e| {
-        CliError::Invalid(format!("{}: {e}", a.dir.join("timeseries.csv").display()))
-    })?;
+    // Every error names its file: timeseries.csv and its line, or the figure not written.
+    let files =
+        crate::analysis::write_plots(&s, &a.dir).map_err(|e| CliError::Invalid(e.to_string()))?;
     for f in files {
         println!("wrote {}", f.display());
     }

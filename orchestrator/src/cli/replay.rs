@@ -34,6 +34,13 @@ pub fn exec(a: ReplayArgs) -> CliResult {
             a.participant
         ))
     })?;
+    // A run still writing its recording there is not replayed.
+    if let Some(h) = crate::outdir::live_holder(&a.run_dir) {
+        return Err(CliError::Invalid(format!(
+            "{}: in use by {h}: its recording is not finished",
+            a.run_dir.display()
+        )));
+    }
     let file = a
         .scenario
         .clone()

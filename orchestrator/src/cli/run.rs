@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use super::bounds::{self, End};
 use super::common::{interrupt_and_exe, load, write_json, MasterArg, TransportArg, WaitArg};
 use super::error::{CliError, CliResult};
 use crate::engine::{RunOptions, Status, Summary};
@@ -19,7 +20,7 @@ pub struct RunArgs {
     #[arg(long, value_enum)]
     transport: Option<TransportArg>,
     /// Seed, overriding run.seed.
-    #[arg(long)]
+    #[arg(long, value_parser = bounds::int(0..=u64::MAX, ""))]
     seed: Option<u64>,
     /// Master algorithm, overriding run.master.
     #[arg(long, value_enum)]
@@ -28,10 +29,10 @@ pub struct RunArgs {
     #[arg(long, value_enum)]
     wait: Option<WaitArg>,
     /// Stall deadline in ms, overriding run.deadline_ms.
-    #[arg(long)]
+    #[arg(long, value_parser = bounds::int(1..=60_000u64, " ms"))]
     deadline_ms: Option<u64>,
     /// Simulated duration in s, overriding run.duration_s.
-    #[arg(long)]
+    #[arg(long, value_parser = bounds::real((1e-5, End::Closed), (3600.0, End::Closed), " s"))]
     duration: Option<f64>,
     /// Set a numeric setting, KEY=VALUE with KEY a dotted path (`vehicle.m_v=21000`);
     /// repeatable. The lines of `tiltsim sweep --plan-only` give a sample's settings.
@@ -46,7 +47,7 @@ pub struct RunArgs {
     trace: bool,
     /// Run at FACTOR simulated seconds per wall second (1.0 = real time) and report every
     /// tick that finished late.
-    #[arg(long, value_name = "FACTOR")]
+    #[arg(long, value_name = "FACTOR", value_parser = bounds::real((1e-6, End::Closed), (1000.0, End::Closed), ""))]
     pace: Option<f64>,
     /// With --pace: run the orchestrator and every participant under the SCHED_FIFO
     /// real-time policy with memory locked (root, CAP_SYS_NICE and CAP_IPC_LOCK, or the
@@ -100,8 +101,8 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
     for kv in &a.set {
         let bad = || CliError::Invalid(format!("command line: --set {kv}: expected KEY=NUMBER"));
         let (k, v) = kv.split_once('=').ok_or_else(bad)?;
-        let v: f64 = v.trim().parse().map_err(|_| bad())?;
-        s = crate::sweep::with_key(&s, k.trim(), v)
+        s = s
+            .with_setting(k.trim(), v)
             .map_err(|e| CliError::Invalid(format!("command line: --set {kv}: {e}")))?;
     }
     let errors = s.validate();
@@ -112,12 +113,7 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
             .collect();
         return Err(CliError::Invalid(lines.join("\nerror: ")));
     }
-    if let Some(p) = a.pace {
-        if !(p.is_finite() && p > 0.0 && p <= 1000.0) {
-            return Err(CliError::Invalid(format!(
-                "command line: --pace {p}: allowed a factor in (0, 1000]"
-            )));
-        }
+    if a.pace.is_some() {
         // Between paced ticks the participants nap instead of keeping the cores busy.
         if a.wait.is_none() && s.run.wait == cosim::wait::WaitStrategy::Adaptive {
             s.run.wait = cosim::wait::WaitStrategy::Paced;
@@ -155,13 +151,21 @@ pub fn exec(a: RunArgs) -> CliResult {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("out").join(&s.name));
-    match crate::budget::check(&s, &out, a.trace) {
+    let extras = crate::budget::Extras {
+        trace: a.trace,
+        record: a.record,
+    };
+    match crate::budget::check(&s, &out, extras) {
         crate::budget::Verdict::Fits => {}
         crate::budget::Verdict::Warn(m) => eprintln!("warning: {}: {m}", a.scenario.display()),
         crate::budget::Verdict::Refuse(m) => {
             return Err(CliError::Invalid(format!("{}: {m}", a.scenario.display())))
         }
     }
+    // Held until the run ends, taken before anything is written there; an earlier run's files
+    // go (what this run does not write again must not stay beside its own).
+    let _lock =
+        crate::outdir::claim_run(&out, "run").map_err(|e| CliError::Invalid(e.to_string()))?;
     let (interrupt, exe) = interrupt_and_exe()?;
     let realtime = if a.realtime {
         cosim::realtime::enter(cosim::realtime::PRIORITY)

@@ -3,10 +3,14 @@
 
 use std::path::PathBuf;
 
+use super::bounds::{self, End};
 use super::common::{interrupt_and_exe, load, TransportArg};
 use super::error::{CliError, CliResult};
 use crate::scenario::{Scenario, Transport};
 use crate::sweep::{Exec, Plan, Shard};
+
+/// The most samples of a Monte Carlo sweep (`--samples`).
+pub const MAX_SAMPLES: usize = 100_000;
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -14,13 +18,18 @@ pub struct SweepArgs {
     /// Scenario file (TOML).
     scenario: PathBuf,
     /// Monte Carlo samples (uniform factors on masses, inertias and suspension).
-    #[arg(long, conflicts_with = "grid", required_unless_present = "grid")]
+    /// At most 100000: a sample's outputs (its row of samples.csv and its lateral
+    /// acceleration in series.csv) are held until the tables are written, about 14 kB each
+    /// on the paper's track; more samples are a sweep of sweeps (`--seed`).
+    #[arg(long, conflicts_with = "grid", required_unless_present = "grid",
+          value_parser = bounds::int(1..=MAX_SAMPLES, ""))]
     samples: Option<usize>,
     /// Relative half-width of the Monte Carlo factors.
-    #[arg(long, default_value_t = 0.22)]
+    #[arg(long, default_value_t = 0.22,
+          value_parser = bounds::real((0.0, End::Closed), (1.0, End::Open), ""))]
     spread: f64,
     /// Seed of the Monte Carlo draws.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = bounds::int(0..=u64::MAX, ""))]
     seed: u64,
     /// Vary one scenario key instead: KEY=START:STOP:STEP or KEY=V1,V2,...
     /// (e.g. links.actuator_command.delay_ticks=0:100:10).
@@ -32,14 +41,14 @@ pub struct SweepArgs {
     #[arg(long, value_name = "I/N|auto")]
     shard: Option<String>,
     /// With --shard auto in a Kubernetes indexed job: the number of completions.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = bounds::int(1..=MAX_SAMPLES, ""))]
     shards: Option<usize>,
     /// Print the plan as JSON lines (sample, seed, the settings it changes) and run nothing;
     /// `tiltsim run SCENARIO --set KEY=VALUE ...` with a line's settings runs that sample.
     #[arg(long)]
     plan_only: bool,
     /// Parallel runs [default: the number of CPUs].
-    #[arg(long)]
+    #[arg(long, value_parser = bounds::int(1..=256usize, ""))]
     jobs: Option<usize>,
     /// Transport of every run [default: in-process].
     #[arg(long, value_enum)]
@@ -61,18 +70,11 @@ fn plan(a: &SweepArgs, s: &Scenario) -> Result<Plan, CliError> {
         (Some(g), _) => {
             crate::sweep::parse_grid(g).map_err(|e| CliError::Invalid(e.to_string()))?
         }
-        (None, Some(n)) => {
-            if n == 0 || !(0.0..1.0).contains(&a.spread) {
-                return Err(CliError::Invalid(
-                    "--samples must be at least 1 and --spread in [0, 1)".into(),
-                ));
-            }
-            Plan::MonteCarlo {
-                samples: n,
-                spread: a.spread,
-                seed: a.seed,
-            }
-        }
+        (None, Some(n)) => Plan::MonteCarlo {
+            samples: n,
+            spread: a.spread,
+            seed: a.seed,
+        },
         (None, None) => {
             return Err(CliError::Invalid(
                 "give --samples N or --grid KEY=START:STOP:STEP".into(),
@@ -80,6 +82,18 @@ fn plan(a: &SweepArgs, s: &Scenario) -> Result<Plan, CliError> {
         }
     };
     if let Plan::Grid { key, values } = &plan {
+        // A key that holds a whole number takes whole numbers that a grid value (f64) holds
+        // exactly: at most 2^53 in magnitude.
+        if holds_integer(s, key) {
+            if let Some(v) = values
+                .iter()
+                .find(|v| v.fract() != 0.0 || v.abs() > 9_007_199_254_740_992.0)
+            {
+                return Err(CliError::Invalid(format!(
+                    "--grid {key}: {v}: allowed whole numbers from -9007199254740992 to 9007199254740992 for this key"
+                )));
+            }
+        }
         for v in values {
             crate::sweep::with_key(s, key, *v)
                 .map_err(|e| CliError::Invalid(format!("{}: {e}", a.scenario.display())))?;
@@ -88,14 +102,36 @@ fn plan(a: &SweepArgs, s: &Scenario) -> Result<Plan, CliError> {
     Ok(plan)
 }
 
+/// Whether the dotted `key` of `s` holds a whole number (a count, a seed).
+fn holds_integer(s: &Scenario, key: &str) -> bool {
+    let Ok(mut node) = serde_json::to_value(s) else {
+        return false;
+    };
+    for p in key.split('.') {
+        match node.get_mut(p) {
+            Some(v) => node = v.take(),
+            None => return false,
+        }
+    }
+    node.is_u64() || node.is_i64()
+}
+
 /// `--plan-only`: one JSON line per sample of the shard.
 fn print_plan(s: &Scenario, plan: &Plan, shard: Option<Shard>) -> CliResult {
     use std::io::Write as _;
+    let interrupt = crate::signals::install();
     let mut out = std::io::stdout().lock();
     for j in shard
         .unwrap_or(Shard { index: 0, count: 1 })
         .samples(plan.len())
     {
+        if interrupt.load(std::sync::atomic::Ordering::Relaxed) {
+            let _ = out.flush();
+            return Err(CliError::Interrupted(format!(
+                "interrupted by {}: the plan printed up to sample {j}",
+                crate::signals::describe()
+            )));
+        }
         let set: serde_json::Map<String, serde_json::Value> = crate::sweep::overrides(s, plan, j)
             .map_err(|e| CliError::Invalid(e.to_string()))?
             .into_iter()
@@ -147,11 +183,18 @@ pub fn exec(a: SweepArgs) -> CliResult {
         interrupt,
         progress: !a.quiet,
     };
+    // Held until the sweep ends: one sweep (or shard) per directory.
+    let _lock = crate::outdir::claim(&out, crate::outdir::Kind::Sweep, "sweep")
+        .map_err(|e| CliError::Invalid(e.to_string()))?;
     let started = std::time::Instant::now();
-    let swept = crate::sweep::run(&s, &plan, shard, &ex);
+    let swept = crate::sweep::run(&s, &plan, shard, &ex).map_err(|e| match e {
+        crate::sweep::SweepError::Files(m) => CliError::Failed(m),
+        e => CliError::Invalid(e.to_string()),
+    })?;
     let rows = swept.rows;
     let wall = started.elapsed().as_secs_f64();
-    crate::sweep::write_outputs(&out, &s, &plan, shard, &rows, swept.interrupted)
+    let build = crate::sweep::identity::build();
+    crate::sweep::write_outputs(&out, &s, &plan, shard, &rows, swept.interrupted, build)
         .map_err(|e| CliError::Failed(format!("{}: {e}", out.display())))?;
     if swept.interrupted {
         // What finished stays on disk, marked as such in sweep.json.

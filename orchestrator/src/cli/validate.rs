@@ -26,14 +26,14 @@ pub fn exec(a: ValidateArgs) -> CliResult {
         s.actuator.model
     );
     let out = std::path::Path::new("out").join(&s.name);
-    let e = crate::budget::estimate(&s, false);
+    let e = crate::budget::estimate(&s, crate::budget::Extras::default());
     println!(
         "outputs: about {} ({} rows); default directory {}",
         crate::budget::human(e.bytes),
         e.rows,
         out.display()
     );
-    match crate::budget::check(&s, &out, false) {
+    match crate::budget::check(&s, &out, crate::budget::Extras::default()) {
         crate::budget::Verdict::Fits => Ok(()),
         crate::budget::Verdict::Warn(m) => {
             eprintln!("warning: {}: {m}", a.scenario.display());

@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use actuator_proc::{Actuator, ActuatorInit};
 use controller_proc::{Controller, ControllerInit};
-use cosim::endpoint::ExitReport;
+use cosim::endpoint::{ExchangeCounts, ExitReport};
 use cosim::ipc::{IpcHub, IpcSettings, Launch};
 use cosim::msg::{FromActuator, FromController, FromPlant, ToActuator, ToController, ToPlant};
 use cosim::{Endpoint, InProcess, Participant, Role};
@@ -99,12 +99,12 @@ impl Participants {
         }
     }
 
-    /// Late replies waited for because the participant was running, per role.
-    pub fn starved_waits(&self) -> RoleMap<u64> {
+    /// Starved waits, re-sent requests and discarded repeats, per role.
+    pub fn counts(&self) -> RoleMap<ExchangeCounts> {
         RoleMap::new([
-            self.plant.starved_waits(),
-            self.actuator.starved_waits(),
-            self.controller.starved_waits(),
+            self.plant.counts(),
+            self.actuator.counts(),
+            self.controller.counts(),
         ])
     }
 

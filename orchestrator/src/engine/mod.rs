@@ -314,7 +314,7 @@ struct Ended {
     cpu_orchestrator: f64,
     exits: RoleMap<cosim::endpoint::ExitReport>,
     pids: RoleMap<u32>,
-    starved: RoleMap<u64>,
+    counts: RoleMap<cosim::endpoint::ExchangeCounts>,
     leftover: Vec<String>,
     degraded: bool,
 }
@@ -330,7 +330,7 @@ fn shut_down(
     cpu0: f64,
 ) -> Ended {
     let pids = team.ps.pids();
-    let starved = team.ps.starved_waits();
+    let counts = team.ps.counts();
     let lost = team.take_lost();
     let exits = team.ps.shut_down(lost);
     // FMUs unpacked by participant processes that were killed.
@@ -358,7 +358,7 @@ fn shut_down(
         cpu_orchestrator: launch::cpu_self() - cpu0,
         exits,
         pids,
-        starved,
+        counts,
         leftover,
         degraded,
     }
@@ -497,6 +497,16 @@ fn report(
             Some("a participant was lost; the run continued degraded (events.csv)".into()),
         ),
         Ok(_) => (Status::Completed, None),
+        // A signal to the whole process group (systemd, Slurm's scancel, a container
+        // runtime) reaches the participants too, and they end first: the run was
+        // interrupted, not failed by them.
+        Err(err) if opts.interrupt.load(Ordering::Relaxed) => (
+            Status::Interrupted,
+            Some(format!(
+                "interrupted by {} ({err})",
+                crate::signals::describe()
+            )),
+        ),
         Err(err) => (Status::Failed, Some(err.to_string())),
     };
     let periods = RoleMap::new([s.run.dt_s, s.run.dt_s, s.controller.period_s]);
@@ -510,7 +520,8 @@ fn report(
             period_s: periods[role],
             exit: e.exits[role].clone(),
             compute_us: compute[role],
-            starved_waits: e.starved[role],
+            starved_waits: e.counts[role].starved_waits,
+            lost_samples: e.counts[role].into(),
         })
         .collect();
     let simulated = rows as f64 * s.run.dt_s;

@@ -321,8 +321,11 @@ impl Pacing {
         }
     }
 
-    fn deadline(&self, k: u64) -> Instant {
-        self.start + Duration::from_secs_f64(k as f64 * self.dt / self.factor)
+    /// Tick k's wall-clock start; `None` beyond what the clock can express (never for the
+    /// factors `--pace` allows, but no factor can make it panic).
+    fn deadline(&self, k: u64) -> Option<Instant> {
+        let after = Duration::try_from_secs_f64(k as f64 * self.dt / self.factor).ok()?;
+        self.start.checked_add(after)
     }
 
     /// The report over `ticks` ticks and `wall` seconds.
@@ -351,17 +354,27 @@ impl Pacing {
     }
 }
 
-/// Sleeps until the monotonic instant `target`, spinning the last 100 µs (the sleep's own
-/// wake-up latency; under SCHED_FIFO it is a few µs, otherwise up to the scheduler's slack).
-fn wait_until(target: Instant) {
+/// The longest single sleep of a paced wait: an interrupting signal (Ctrl-C, SIGTERM,
+/// SIGHUP) ends the wait within this, however slow the pace.
+const SIGNAL_POLL: Duration = Duration::from_millis(50);
+
+/// Sleeps until the monotonic instant `target` (`None`: until a signal), spinning the last
+/// 100 µs (the sleep's own wake-up latency; under SCHED_FIFO it is a few µs, otherwise up to
+/// the scheduler's slack). Returns early once an interrupting signal has arrived; the loop
+/// then stops before the next tick.
+fn wait_until(target: Option<Instant>) {
     loop {
-        let now = Instant::now();
-        if now >= target {
+        if crate::signals::received() {
             return;
         }
-        let left = target - now;
+        let now = Instant::now();
+        let left = match target {
+            Some(t) if now >= t => return,
+            Some(t) => t - now,
+            None => SIGNAL_POLL,
+        };
         if left > Duration::from_micros(200) {
-            std::thread::sleep(left - Duration::from_micros(100));
+            std::thread::sleep((left - Duration::from_micros(100)).min(SIGNAL_POLL));
         } else {
             std::hint::spin_loop();
         }
@@ -376,14 +389,17 @@ impl Observer for Pacing {
         wait_until(self.deadline(k));
     }
     fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
-        let deadline = self.deadline(t.k + 1);
         let now = Instant::now();
+        // A deadline beyond the clock's reach is never missed.
+        let deadline = self.deadline(t.k + 1).unwrap_or(now);
         let late = now > deadline;
         if late {
             self.overruns += 1;
             self.late_us.record((now - deadline).as_secs_f64() * 1e6);
             let us = |d: Duration| d.as_secs_f64() * 1e6;
-            let start_delay = us(t.started.saturating_duration_since(self.deadline(t.k)));
+            let start_delay = us(t
+                .started
+                .saturating_duration_since(self.deadline(t.k).unwrap_or(t.started)));
             let compute = t.critical_us;
             let coordination = (us(now - t.started) - compute).max(0.0);
             self.start_delay.record(start_delay);
