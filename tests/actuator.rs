@@ -1,4 +1,4 @@
-//! The BLDC actuator inside the co-simulation (issue 3): telemetry in `timeseries.csv`, the
+//! The BLDC actuator inside the co-simulation: telemetry in `timeseries.csv`, the
 //! averaged drive against the switched one on the same run, and the stroke limit recorded.
 
 use std::path::{Path, PathBuf};

@@ -217,7 +217,7 @@ pub struct IpcEndpoint<I: Message, O: Message> {
 
 /// Silence after which a pending exchange is looked into (the participant's status read) and
 /// a request or reply found lost is re-sent. Ten times the 99th percentile of a round trip
-/// measured on a quiet machine (under 50 µs, README), so the normal path never reaches it;
+/// measured on a quiet machine (under 50 µs, `tiltsim bench`), so the normal path never reaches it;
 /// short enough that a loss costs well under a millisecond or two. Looking costs three loads
 /// from shared memory, and a re-send happens only when the status shows a loss, so a long
 /// wait (a starved participant) costs nothing either.
