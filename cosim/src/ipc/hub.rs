@@ -10,7 +10,8 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use crate::endpoint::{check_reply, Endpoint, ExchangeCounts, ExitReport, LinkError, ProcessFault};
 use crate::msg::{exchange_key, Header, Kind, Message};
@@ -28,6 +29,7 @@ pub struct IpcHub {
     settings: IpcSettings,
     cfg: Config,
     node: Node<ipc::Service>,
+    interrupt: Option<Arc<AtomicBool>>,
 }
 
 /// How to start a participant's process.
@@ -44,12 +46,24 @@ impl IpcHub {
     pub fn new(settings: IpcSettings) -> Result<Self, IpcError> {
         quiet_iceoryx_logs();
         let cfg = config(&settings.prefix)?;
+        // Whatever the prefix, a run whose orchestrator is killed has its files removed by
+        // the next run or `tiltsim clean`.
+        super::claim_prefix(&settings.prefix)
+            .map_err(|e| IpcError::Iceoryx(format!("owner file of {}: {e}", settings.prefix)))?;
         let node = node(&cfg, "orchestrator")?;
         Ok(IpcHub {
             settings,
             cfg,
             node,
+            interrupt: None,
         })
+    }
+
+    /// Makes [`IpcHub::spawn`] stop waiting for a participant to connect, and stop it, once
+    /// `flag` is set (the program's interrupt flag: Ctrl-C during a long start-up).
+    pub fn interrupted_by(mut self, flag: Arc<AtomicBool>) -> Self {
+        self.interrupt = Some(flag);
+        self
     }
 
     /// The run's settings.
@@ -127,7 +141,10 @@ impl IpcHub {
             resent: None,
             drops: DropPlan::from_env(role),
         };
-        ep.await_connection(startup)?;
+        if !ep.await_connection(startup, self.interrupt.as_deref())? {
+            // Dropping the endpoint stops the process.
+            return Err(IpcError::Interrupted { role });
+        }
         Ok(ep)
     }
 
@@ -313,7 +330,12 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
     /// Waits until the participant's ports are connected. The liveness rule of every exchange
     /// applies from `startup` on: a participant that is runnable or uses CPU (starting under
     /// load) is waited for, counted, up to the ceiling; a stopped, gone or idle one fails.
-    fn await_connection(&mut self, startup: Duration) -> Result<(), LinkError> {
+    /// Returns `false`, not connected, once `interrupt` is set.
+    fn await_connection(
+        &mut self,
+        startup: Duration,
+        interrupt: Option<&AtomicBool>,
+    ) -> Result<bool, LinkError> {
         let started = Instant::now();
         let mut look_at = startup;
         let mut previous = None;
@@ -322,7 +344,10 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
             let subs = self.req.dynamic_config().number_of_subscribers();
             let pubs = self.rep.dynamic_config().number_of_publishers();
             if subs >= 1 && pubs >= 1 {
-                return Ok(());
+                return Ok(true);
+            }
+            if interrupt.is_some_and(|f| f.load(Ordering::Relaxed)) {
+                return Ok(false);
             }
             if let Some(status) = self.exited() {
                 return Err(LinkError::Exited {
@@ -722,7 +747,7 @@ mod tests {
                 DropPlan::new(vec![(Role::Controller, false, 5)]),
             )
         });
-        ep.await_connection(Duration::from_secs(600)).unwrap();
+        assert!(ep.await_connection(Duration::from_secs(600), None).unwrap());
         for k in 0..8u64 {
             let req = ToController {
                 header: Header::new(k, Kind::Step),
