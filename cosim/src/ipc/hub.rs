@@ -250,6 +250,27 @@ struct Look {
     empty_polls: u64,
 }
 
+/// How many ceilings of wall time a running participant is waited for at most, whatever CPU
+/// time it got: the bound on one that never gets going (in an uninterruptible wait for ever).
+const WALL_CEILINGS: u32 = 10;
+
+/// Whether a participant judged running has gone past the ceiling: it used more CPU time than
+/// the ceiling since the first look (it computes for ever), or [`WALL_CEILINGS`] ceilings of
+/// wall time have passed. CPU time, not wall time, is what the ceiling counts: a participant
+/// starved by other load gets little of it, so load alone never makes it fail.
+fn past_ceiling(
+    ceiling: Duration,
+    elapsed: Duration,
+    first: Option<Look>,
+    now: Option<Look>,
+) -> bool {
+    let cpu_ns = match (first, now) {
+        (Some(f), Some(n)) => n.cpu_ns.saturating_sub(f.cpu_ns),
+        _ => 0,
+    };
+    Duration::from_nanos(cpu_ns) > ceiling || elapsed > ceiling * WALL_CEILINGS
+}
+
 /// Whether a participant that has not answered by the deadline is hung or only slow.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Liveness {
@@ -339,6 +360,7 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
         let started = Instant::now();
         let mut look_at = startup;
         let mut previous = None;
+        let mut first = None;
         let mut idle_looks = 0;
         loop {
             let subs = self.req.dynamic_config().number_of_subscribers();
@@ -362,9 +384,12 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
                 // Not connected yet: never "computing", never polling.
                 let (verdict, look) = judge(self.pid, false, 0, previous, &mut idle_looks);
                 previous = look;
+                first = first.or(look);
                 let limit = match verdict {
                     Liveness::Hung | Liveness::Idle => Some(startup),
-                    Liveness::Running if elapsed > self.ceiling => Some(self.ceiling),
+                    Liveness::Running if past_ceiling(self.ceiling, elapsed, first, look) => {
+                        Some(self.ceiling)
+                    }
                     Liveness::Running => None,
                 };
                 if let Some(limit) = limit {
@@ -502,6 +527,7 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         let mut silence = Silence::default();
         let mut look_at = self.deadline;
         let mut previous: Option<Look> = None;
+        let mut first: Option<Look> = None;
         let mut idle_looks = 0;
         if let Some(r) = &self.exit {
             // Already known to be gone (a kill fault reaps at once).
@@ -530,7 +556,7 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
             // tells whether the request or its reply was lost (then it is re-sent). At the
             // deadline a stopped, idle or sleeping process is declared stalled; one that runs
             // (starved by other load, or computing) is waited for, looked at again every
-            // 100 ms, up to the ceiling.
+            // 100 ms, until it has used the ceiling in CPU time (`past_ceiling`).
             let elapsed = backoff.elapsed();
             if backoff.polls() % 1024 == 1023 || elapsed > check_at {
                 if let Some(status) = self.exited() {
@@ -568,9 +594,10 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
                     let (verdict, look) =
                         judge(self.pid, computing, polls, previous, &mut idle_looks);
                     previous = look;
+                    first = first.or(look);
                     let limit = match verdict {
                         Liveness::Hung => Some(self.deadline),
-                        _ if elapsed > self.ceiling => Some(self.ceiling),
+                        _ if past_ceiling(self.ceiling, elapsed, first, look) => Some(self.ceiling),
                         Liveness::Idle => {
                             // Polling, yet the request is not taken: send it once more.
                             self.resend(key)?;
@@ -715,6 +742,45 @@ mod tests {
                 ..Default::default()
             }
         }
+    }
+
+    #[test]
+    fn the_ceiling_counts_cpu_time_so_a_starved_participant_is_waited_for() {
+        let c = Duration::from_secs(60);
+        let look = |cpu_s: f64| {
+            Some(Look {
+                cpu_ns: (cpu_s * 1e9) as u64,
+                empty_polls: 0,
+            })
+        };
+        // Starved: five minutes of wall time, one second of CPU.
+        assert!(!past_ceiling(
+            c,
+            Duration::from_secs(300),
+            look(2.0),
+            look(3.0)
+        ));
+        // Computing for ever: more CPU than the ceiling since the first look.
+        assert!(past_ceiling(
+            c,
+            Duration::from_secs(70),
+            look(2.0),
+            look(62.5)
+        ));
+        assert!(!past_ceiling(
+            c,
+            Duration::from_secs(70),
+            look(2.0),
+            look(61.5)
+        ));
+        // Never getting going: ten ceilings of wall time, whatever the CPU.
+        assert!(past_ceiling(
+            c,
+            Duration::from_secs(601),
+            look(2.0),
+            look(2.0)
+        ));
+        assert!(!past_ceiling(c, Duration::from_secs(599), None, None));
     }
 
     #[test]
