@@ -1,4 +1,4 @@
-//! `tiltsim bench` (issue 6, item 7): every configuration measured, one JSON report.
+//! `tiltsim bench`: every configuration measured, one JSON report.
 
 use tiltsim_suite::{run, scenario, temp_dir};
 

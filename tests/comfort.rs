@@ -1,4 +1,4 @@
-//! Comfort assessment in `summary.json` and `tiltsim compare` (issue 5).
+//! Comfort assessment in `summary.json` and `tiltsim compare`.
 
 use tiltsim_suite::{run, run_in_process, scenario, summary, temp_dir};
 

@@ -1,4 +1,4 @@
-//! The tilt controllers in closed loop (issue 4): tracking on the steady curve, the MPC's
+//! The tilt controllers in closed loop: tracking on the steady curve, the MPC's
 //! constraints at ρ = 0.50 against an unconstrained LQG, solver reporting, the `linearize`
 //! export, and byte-identical MPC runs over both transports.
 

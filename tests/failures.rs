@@ -216,3 +216,124 @@ fn a_killed_orchestrator_leaves_a_readable_series_and_its_files_are_removed_by_t
     assert_eq!(code, 0);
     assert!(!out.contains(&pfx), "{out}");
 }
+
+#[test]
+fn a_run_killed_whole_under_a_prefix_of_its_own_is_removed_by_tiltsim_clean() {
+    // A prefix that names no pid: only the run's owner file tells that its owner is gone.
+    let (child, kids, _dir, pfx) = start_long_run("killed-whole", &[]);
+    let mut all: Vec<u32> = kids.iter().map(|k| k.0).collect();
+    all.push(child.id());
+    for p in &all {
+        unsafe { libc::kill(*p as i32, libc::SIGKILL) };
+    }
+    let (code, _, _) = wait_with_limit(child, Duration::from_secs(120));
+    assert_ne!(code, 0);
+    for (p, comm) in &kids {
+        let gone = wait_for(Duration::from_secs(120), || {
+            (!std::path::Path::new(&format!("/proc/{p}")).exists()).then_some(())
+        });
+        assert!(gone.is_some(), "{comm} ({p}) still runs");
+    }
+    // No one cleaned up; `tiltsim clean` (or another test's IPC run starting meanwhile)
+    // removes every file of the prefix.
+    let (code, out, err) = tiltsim_suite::run(&["clean"]);
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(leftovers(&pfx).is_empty(), "{:?}", leftovers(&pfx));
+}
+
+/// `paper-passive` with its plant played by an exported FMU that carries `bytes` of zeros as
+/// a resource (deflated, so the archive stays small while its unpacking writes them all).
+fn scenario_with_a_large_fmu(dir: &std::path::Path, bytes: u64) -> std::path::PathBuf {
+    use std::io::Write;
+    let sc = scenario("paper-passive.toml");
+    let fmu = dir.join("plant.fmu");
+    let (code, _, err) = tiltsim_suite::run(&[
+        "export-fmu",
+        "plant",
+        sc.to_str().unwrap(),
+        "--out",
+        fmu.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&fmu)
+        .unwrap();
+    let mut z = zip::ZipWriter::new_append(file).unwrap();
+    let o = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated)
+        .compression_level(Some(1))
+        .large_file(true);
+    z.start_file("resources/zeros.bin", o).unwrap();
+    let chunk = vec![0u8; 1 << 24];
+    for _ in 0..bytes / chunk.len() as u64 {
+        z.write_all(&chunk).unwrap();
+    }
+    z.finish().unwrap();
+    let text =
+        std::fs::read_to_string(&sc).unwrap() + "\n[participants.plant]\nfmu = \"plant.fmu\"\n";
+    let path = dir.join("large-fmu.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// The directories FMUs are being unpacked into by `pids`.
+fn unpacking_by(pids: &[u32]) -> Vec<std::path::PathBuf> {
+    std::fs::read_dir(std::env::temp_dir())
+        .unwrap()
+        .flatten()
+        .filter(|e| {
+            let n = e.file_name().to_string_lossy().into_owned();
+            n.strip_prefix("tiltsim-fmu-")
+                .and_then(|r| r.split('-').next()?.parse::<u32>().ok())
+                .is_some_and(|p| pids.contains(&p))
+        })
+        .map(|e| e.path())
+        .collect()
+}
+
+#[test]
+fn ctrl_c_while_an_fmu_unpacks_stops_it_and_leaves_nothing_unpacked() {
+    let dir = temp_dir("unpack-interrupt");
+    // 4 GiB to write: seconds even on a fast disk, so the unpacking is under way when the
+    // signal comes (the test waits for it to start, however slow the machine).
+    let sc = scenario_with_a_large_fmu(&dir, 4 << 30);
+    for transport in ["in-process", "ipc"] {
+        let out = dir.join(transport);
+        let child = spawn(&[
+            "run",
+            sc.to_str().unwrap(),
+            "--transport",
+            transport,
+            "--out",
+            out.to_str().unwrap(),
+            "--duration",
+            "1",
+        ]);
+        let pid = child.id();
+        // In process the orchestrator unpacks; over IPC the plant's process does.
+        let started = wait_for(Duration::from_secs(600), || {
+            let mut pids: Vec<u32> = children_of(pid).iter().map(|k| k.0).collect();
+            pids.push(pid);
+            let dirs = unpacking_by(&pids);
+            (!dirs.is_empty()).then_some((pids, dirs))
+        });
+        let Some((pids, dirs)) = started else {
+            let _ = wait_with_limit(child, Duration::from_secs(1));
+            panic!("{transport}: the FMU's unpacking never started");
+        };
+        unsafe { libc::kill(pid as i32, libc::SIGINT) };
+        let (code, _, err) = wait_with_limit(child, Duration::from_secs(300));
+        assert_eq!(code, 130, "{transport}: {err}");
+        assert!(
+            err.contains("interrupted by Ctrl-C (SIGINT) while participant plant was starting"),
+            "{transport}: {err}"
+        );
+        assert!(
+            dirs.iter().all(|d| !d.exists()),
+            "{transport}: {dirs:?} left"
+        );
+        assert!(unpacking_by(&pids).is_empty(), "{transport}");
+    }
+}

@@ -1,4 +1,4 @@
-//! Link effects, process faults, bad data, tracing and pacing (issue 6).
+//! Link effects, process faults, bad data, tracing and pacing.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

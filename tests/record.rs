@@ -1,4 +1,4 @@
-//! MCAP recordings and replay of one participant (issue 15): a recorded fault run replays
+//! MCAP recordings and replay of one participant: a recorded fault run replays
 //! byte for byte for every participant, a changed setting is found where it first acts, and
 //! the recording's messages repeat across transports.
 

@@ -1,4 +1,4 @@
-//! Bounded resources and honest outputs (issue 13): rows that stay short over any run length,
+//! Bounded resources and honest outputs: rows that stay short over any run length,
 //! a full disk named as such with the summary's counts equal to what is on disk and nothing
 //! left in shared memory, and runs whose outputs cannot fit refused before they start.
 

@@ -1,4 +1,4 @@
-//! `tiltsim sweep` and `tiltsim sweep-merge` (issue 5, item 4).
+//! `tiltsim sweep` and `tiltsim sweep-merge`.
 
 use tiltsim_suite::{csv_table, run, scenario, scenario_with, summary, temp_dir};
 

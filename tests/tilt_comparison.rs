@@ -1,5 +1,5 @@
 //! A drive that keeps its own limits and a controller comparison that says when it is not
-//! valid (issue 11): phase currents and torque over whole paper runs, command shaping, the PI
+//! valid: phase currents and torque over whole paper runs, command shaping, the PI
 //! designed for the drive against the paper's PI, validity flags and the ideal-tilt floor.
 
 use std::path::PathBuf;

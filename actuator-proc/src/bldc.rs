@@ -110,6 +110,16 @@ pub struct BldcParams {
     pub switched_integration: SwitchedIntegration,
     /// Integration step of the averaged model (s).
     pub dt_averaged_s: f64,
+    /// Efficiency η of the harmonic gearbox, applied in both directions: driving, the motor
+    /// supplies the bar's power over η; back-driven, the motor receives η of it (D45).
+    /// 1 is the paper's lossless gear.
+    pub gear_efficiency: f64,
+    /// Motor speed over which the gear's loss builds up from zero to its full value (rad/s),
+    /// so that it is continuous through zero speed (D45).
+    pub gear_loss_speed_rad_s: f64,
+    /// Continuous (thermal) torque rating of the motor (N·m); the run's RMS torque is checked
+    /// against it (`flags.thermal`, D48).
+    pub continuous_torque_nm: f64,
 }
 
 impl Default for BldcParams {
@@ -137,9 +147,16 @@ impl Default for BldcParams {
             dt_switched_s: 1e-6,
             dt_averaged_s: 2e-5,
             switched_integration: SwitchedIntegration::Event,
+            gear_efficiency: GEAR_EFFICIENCY,
+            gear_loss_speed_rad_s: 1.0,
+            continuous_torque_nm: 200.0,
         }
     }
 }
+
+/// The harmonic gearbox's efficiency by default (docs/model.md D45: Harmonic Drive catalogue
+/// values for a high-ratio unit at the drive's speeds).
+pub const GEAR_EFFICIENCY: f64 = 0.7;
 
 impl BldcParams {
     /// Checks every field.
@@ -174,6 +191,25 @@ impl BldcParams {
         c.positive("bldc.stroke_deg", self.stroke_deg, 45.0, "deg");
         c.range("bldc.dt_switched_s", self.dt_switched_s, 1e-8, 1e-4, "s");
         c.range("bldc.dt_averaged_s", self.dt_averaged_s, 1e-6, 1e-3, "s");
+        c.require(
+            self.gear_efficiency > 0.3 && self.gear_efficiency <= 1.0,
+            "bldc.gear_efficiency",
+            self.gear_efficiency,
+            "an efficiency in (0.3, 1]",
+        );
+        c.range(
+            "bldc.gear_loss_speed_rad_s",
+            self.gear_loss_speed_rad_s,
+            0.1,
+            100.0,
+            "rad/s",
+        );
+        c.positive(
+            "bldc.continuous_torque_nm",
+            self.continuous_torque_nm,
+            1e5,
+            "N·m",
+        );
         c.range(
             "bldc.control_period_s",
             self.control_period_s,
@@ -192,6 +228,59 @@ impl BldcParams {
     /// k_t i = B ω, i.e. ω = V/(k_t + 2R B/k_t) (rad/s).
     pub fn no_load_speed(&self) -> f64 {
         self.v_dc / (self.k_t + 2.0 * self.r_s * self.b_f / self.k_t)
+    }
+}
+
+/// The harmonic gearbox's loss (docs/model.md D45). The bar's torque reflected to the motor
+/// shaft, T_b = k_vr (δ_a − ψ)/G, is what an ideal gear would load the motor with. With
+/// efficiency η the motor sees T_l = T_b/η when it drives the bar (T_b ω > 0: the loss adds to
+/// the motor's torque) and T_l = η T_b when the bar drives it (T_b ω < 0: the loss takes from
+/// the torque the bar delivers). Near zero speed the loss builds up linearly over
+/// |ω| < ω_ε: T_l = T_b (1 + μ |s|), s = sat(ω/ω_ε), μ = 1/η − 1 driving and −(1 − η)
+/// back-driven, so T_l is continuous in ω (no chattering at a reversal), equals T_b at rest,
+/// and the loss (T_l − T_b) ω is never negative.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GearLoss {
+    /// 1/η − 1.
+    mu_drive: f64,
+    /// 1 − η.
+    mu_back: f64,
+    /// 1/ω_ε (s/rad).
+    inv_w_eps: f64,
+}
+
+impl GearLoss {
+    /// The loss of a gear of efficiency `eta` building up over `w_eps` (rad/s).
+    pub fn new(eta: f64, w_eps: f64) -> Self {
+        GearLoss {
+            mu_drive: 1.0 / eta - 1.0,
+            mu_back: 1.0 - eta,
+            inv_w_eps: 1.0 / w_eps,
+        }
+    }
+
+    /// Whether the gear is lossless (η = 1).
+    #[inline]
+    pub fn lossless(&self) -> bool {
+        self.mu_drive == 0.0
+    }
+
+    /// The signed coefficient μ for bar torque `t_b` and direction `dir` of the rotor's motion.
+    #[inline]
+    fn mu(&self, t_b: f64, dir: f64) -> f64 {
+        if t_b * dir >= 0.0 {
+            self.mu_drive
+        } else {
+            -self.mu_back
+        }
+    }
+
+    /// The load torque on the motor, T_l, for bar torque `t_b` (N·m, motor side) at rotor
+    /// speed `w` (rad/s).
+    #[inline]
+    pub fn load(&self, t_b: f64, w: f64) -> f64 {
+        let s = (w * self.inv_w_eps).clamp(-1.0, 1.0);
+        t_b * (1.0 + self.mu(t_b, s) * s.abs())
     }
 }
 
@@ -328,8 +417,10 @@ pub struct Energy {
     pub copper: f64,
     /// Friction ∫ B ω² dt.
     pub friction: f64,
-    /// Work done on the bar ∫ T_l ω dt.
+    /// Work done on the bar ∫ T_b ω dt (T_b the bar's torque at the motor shaft).
     pub load: f64,
+    /// Loss in the gearbox ∫ (T_l − T_b) ω dt (never negative).
+    pub gear: f64,
 }
 
 /// Telemetry of one exchange interval.
@@ -368,6 +459,8 @@ pub struct Bldc {
     /// Bar stiffness k_vr (N·m/rad), from the vehicle (one source of truth).
     k_vr: f64,
     gear: f64,
+    /// The gearbox's loss.
+    gear_loss: GearLoss,
     lambda: f64,
     dt: f64,
     sub_per_control: u32,
@@ -429,6 +522,7 @@ impl Bldc {
             kind,
             k_vr,
             gear: p.gear(),
+            gear_loss: GearLoss::new(p.gear_efficiency, p.gear_loss_speed_rad_s),
             lambda: p.k_t / 2.0,
             dt,
             sub_per_control,
@@ -561,7 +655,8 @@ impl Bldc {
         self.blocked_steps = self.steps_per_period;
     }
 
-    /// Load torque on the motor from the bar twist, T_l = k_vr (δ_a − ψ)/G (N·m).
+    /// The bar's torque at the motor shaft, T_b = k_vr (δ_a − ψ)/G (N·m), the load of an
+    /// ideal gear (the motor sees [`GearLoss::load`] of it).
     pub fn load_torque(&self, psi: f64) -> f64 {
         self.k_vr * (self.delta_a() - psi) / self.gear
     }
@@ -605,9 +700,10 @@ impl Bldc {
             Electrics::Switched => self.switched(i_ref, dt),
         };
         let p_chop = self.link.step(dt, p_in);
-        // Rotor mechanics (eq 4) and the bar.
-        let tl = self.load_torque(psi);
+        // Rotor mechanics (eq 4), the gearbox and the bar.
         let w = self.omega;
+        let tb = self.load_torque(psi);
+        let tl = self.gear_loss.load(tb, w);
         self.omega += dt * (te - self.p.b_f * w - tl) / self.p.j_rot;
         self.theta_m += dt * w;
         let tau = std::f64::consts::TAU;
@@ -628,7 +724,8 @@ impl Bldc {
         self.energy.electrical_in += dt * p_in;
         self.energy.copper += dt * cu;
         self.energy.friction += dt * self.p.b_f * w * w;
-        self.energy.load += dt * tl * w;
+        self.energy.load += dt * tb * w;
+        self.energy.gear += dt * (tl - tb) * w;
         (te, p_in, p_chop)
     }
 
@@ -1059,9 +1156,25 @@ mod tests {
 
     #[test]
     fn energy_balances_over_a_run() {
-        for (kind, integration) in MODELS {
-            let p = params(integration);
-            let mut m = Bldc::new(&p, &DcLinkParams::default(), kind, K_VR);
+        // Both the paper's lossless gear on an unloaded link and the default gear efficiency
+        // with the auxiliary load: the account closes with the gear's loss and the auxiliary
+        // load as terms of their own.
+        let cases = MODELS.iter().flat_map(|&m| [(m, true), (m, false)]);
+        for ((kind, integration), lossless) in cases {
+            let (eta, aux) = if lossless {
+                (1.0, 0.0)
+            } else {
+                (GEAR_EFFICIENCY, crate::dc_link::AUX_POWER_W)
+            };
+            let p = BldcParams {
+                gear_efficiency: eta,
+                ..params(integration)
+            };
+            let link = DcLinkParams {
+                aux_power_w: aux,
+                ..Default::default()
+            };
+            let mut m = Bldc::new(&p, &link, kind, K_VR);
             for k in 0..800 {
                 let cmd = if k < 400 {
                     2.0f64.to_radians()
@@ -1072,7 +1185,7 @@ mod tests {
             }
             let e = m.energy;
             let stored = m.magnetic_energy() + m.kinetic_energy();
-            let out = e.copper + e.friction + e.load + stored;
+            let out = e.copper + e.friction + e.gear + e.load + stored;
             // Switched, 1 µs: the electrical account closes exactly (mean-current
             // bookkeeping); forward Euler on the rotor leaves T_e·Δω/2 per step, ~1e-4 of the
             // energy drawn: 0.1 %. Averaged, 20 µs: the same terms at 20 times the step, plus
@@ -1081,7 +1194,19 @@ mod tests {
                 Electrics::Switched => 1e-3,
                 Electrics::Averaged => 1e-2,
             };
-            let rel = (e.electrical_in - out).abs() / e.electrical_in.abs().max(e.copper);
+            // Relative to the account's largest term (the energy drawn can be a small difference
+            // of large flows).
+            let scale = e
+                .electrical_in
+                .abs()
+                .max(e.copper)
+                .max(e.gear)
+                .max(e.load.abs());
+            let rel = (e.electrical_in - out).abs() / scale;
+            eprintln!(
+                "{kind:?} {integration:?} η {eta}: in {:.3} J = copper {:.3} + friction {:.4} + gear {:.3} + bar {:.3} + stored {:.4} J, residual {rel:.2e}",
+                e.electrical_in, e.copper, e.friction, e.gear, e.load, stored
+            );
             assert!(
                 rel < tol,
                 "{kind:?} {integration:?}: in {} J, out {} J",
@@ -1089,6 +1214,13 @@ mod tests {
                 out
             );
             assert!(e.copper > 0.0 && e.load.abs() > 0.0);
+            // The gear's loss is a loss (never negative by construction) and of the size its
+            // efficiency gives: between (1 − η) and (1/η − 1) of the bar's positive work.
+            if lossless {
+                assert_eq!(e.gear, 0.0);
+            } else {
+                assert!(e.gear > 0.0, "{kind:?} {integration:?}: gear {} J", e.gear);
+            }
             // The DC link closes too: what the rectifier delivered went to the inverter, the
             // chopper or the capacitor (exact on the link's own booking), and what the link
             // booked as drawn by the inverter (on each step's mean link voltage) is what the
@@ -1097,8 +1229,8 @@ mod tests {
             // 2-point Gauss quadrature of each segment (the capacitor's energy comes from the
             // series' end value, the flows from the quadrature): measured 1.3e-7, bound 1e-6.
             let l = m.link.energy;
-            let c0 = 0.5 * DcLinkParams::default().capacitance_f * p.v_dc * p.v_dc;
-            let link_out = l.inverter + l.chopper + (m.link.stored() - c0);
+            let c0 = 0.5 * link.capacitance_f * p.v_dc * p.v_dc;
+            let link_out = l.inverter + l.chopper + l.aux + (m.link.stored() - c0);
             let link_tol = match (kind, integration) {
                 (Electrics::Switched, SwitchedIntegration::Event) => 1e-6,
                 _ => 1e-9,
@@ -1114,6 +1246,83 @@ mod tests {
                 l.inverter,
                 e.electrical_in
             );
+        }
+    }
+
+    #[test]
+    fn the_gear_law_is_continuous_dissipative_and_reaches_its_efficiency() {
+        // T_l(T_b, ω) of docs/model.md D45 against its definition: T_b/η driving and η·T_b
+        // back-driven at and beyond ω_ε, T_b at rest, continuous in ω (the largest jump
+        // between neighbouring speeds 1e-4·ω_ε apart is the slope's 1e-4·μ·T_b), and the loss
+        // (T_l − T_b)·ω never negative.
+        let eta = 0.7;
+        let g = GearLoss::new(eta, 1.0);
+        for tb in [-300.0, -1.0, 0.0, 2.0, 450.0] {
+            for w in [1.0, 3.0, 90.0] {
+                let drive = g.load(tb, w * f64::signum(tb + 1e-300));
+                let back = g.load(tb, -w * f64::signum(tb + 1e-300));
+                assert!(
+                    (drive - tb / eta).abs() <= 1e-12 * tb.abs(),
+                    "{tb} {w}: {drive}"
+                );
+                assert!(
+                    (back - eta * tb).abs() <= 1e-12 * tb.abs(),
+                    "{tb} {w}: {back}"
+                );
+            }
+            assert_eq!(g.load(tb, 0.0), tb);
+            let mut prev = g.load(tb, -2.0);
+            for k in -20_000..=20_000 {
+                let w = k as f64 * 1e-4;
+                let tl = g.load(tb, w);
+                assert!((tl - prev).abs() <= 1e-4 * (1.0 / eta - 1.0) * tb.abs() + 1e-12);
+                assert!((tl - tb) * w >= 0.0, "{tb} at {w}: loss {}", (tl - tb) * w);
+                prev = tl;
+            }
+        }
+        assert!(GearLoss::new(1.0, 1.0).lossless());
+    }
+
+    #[test]
+    fn the_gear_efficiency_scales_the_motor_torque_by_the_direction_of_power_flow() {
+        // A slow tilt out to 3° and back over 0.6 s each way against the bar (ψ = 0): the
+        // motor turns at about 25 rad/s, far beyond ω_ε = 1 rad/s, and accelerates little,
+        // so its mean torque is T_b/η + B_f ω driving out and η·T_b + B_f ω back-driven on
+        // the way back (eq 4 with the gear's definition of efficiency), with T_b =
+        // k_vr δ_a/G. Compared over 100 ms windows in the middle of each ramp, where the
+        // inertia torque J ω̇ is below 0.1 N·m: within 1 % (the hysteresis ripple averages
+        // out to well below that over 100 ms).
+        for (kind, integration) in MODELS {
+            let p = BldcParams {
+                gear_efficiency: 0.7,
+                ..params(integration)
+            };
+            let eta = p.gear_efficiency;
+            let mut m = Bldc::new(&p, &DcLinkParams::default(), kind, K_VR);
+            let top = 3f64.to_radians();
+            let mut rows = Vec::new();
+            for k in 0..1400 {
+                let t = k as f64 * 1e-3;
+                let cmd = top * ((t / 0.6).min(1.0) - ((t - 0.7) / 0.6).clamp(0.0, 1.0));
+                let tel = m.advance(cmd, 0.0, 1e-3);
+                rows.push((tel.torque, tel.delta_a, tel.speed));
+            }
+            for (range, factor) in [(250..350, 1.0 / eta), (950..1050, eta)] {
+                let n = range.len() as f64;
+                let te: f64 = rows[range.clone()].iter().map(|r| r.0).sum::<f64>() / n;
+                let want: f64 = rows[range.clone()]
+                    .iter()
+                    .map(|r| factor * K_VR * r.1 / m.gear + p.b_f * r.2)
+                    .sum::<f64>()
+                    / n;
+                let w = rows[range.start].2;
+                assert!(w.abs() > 10.0, "{kind:?}: the rotor turns at {w} rad/s");
+                assert!(
+                    (te - want).abs() < 0.01 * want.abs(),
+                    "{kind:?} {integration:?}: mean torque {te} N·m, the gear's law gives {want}"
+                );
+            }
+            assert!(m.energy.gear > 0.0);
         }
     }
 

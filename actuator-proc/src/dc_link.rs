@@ -8,6 +8,9 @@
 //! * Capacitor: `C dv/dt = i_r − i_inv − i_ch`, `i_inv` the inverter's input current.
 //! * Chopper: on when `v ≥ chopper_on_v`, off when `v ≤ chopper_off_v` (hysteresis);
 //!   `i_ch = v/R_ch` while on. Braking energy charges the capacitor and is dumped in R_ch.
+//! * Auxiliary load: the drive's own consumers on the link (control electronics, gate drivers,
+//!   fan, the capacitor's discharge resistor) as a resistance that draws `aux_power_w` at the
+//!   supply voltage, `i_aux = g_aux v` with g_aux = P_aux/V_app² (docs/model.md D46).
 //! * Over-voltage trip: above `overvoltage_trip_v` the inverter's gates are blocked (the drive
 //!   in `bldc.rs` acts on [`DcLink::overvoltage`]).
 
@@ -32,6 +35,9 @@ pub struct DcLinkParams {
     pub chopper_resistance_ohm: f64,
     /// Link voltage above which the inverter's gates are blocked (V).
     pub overvoltage_trip_v: f64,
+    /// Power the auxiliary load draws at the supply voltage `bldc.v_dc` (W); a resistance,
+    /// so it draws P_aux (v/V_app)² at link voltage v. 0: none.
+    pub aux_power_w: f64,
 }
 
 impl Default for DcLinkParams {
@@ -43,11 +49,20 @@ impl Default for DcLinkParams {
             chopper_off_v: 830.0,
             chopper_resistance_ohm: 10.0,
             overvoltage_trip_v: 950.0,
+            aux_power_w: AUX_POWER_W,
         }
     }
 }
 
+/// The auxiliary load by default (W at 780 V; docs/model.md D46).
+pub const AUX_POWER_W: f64 = 100.0;
+
 impl DcLinkParams {
+    /// The auxiliary load's conductance g_aux = P_aux/V_app² (S) on a supply of `v_supply`.
+    pub fn aux_conductance(&self, v_supply: f64) -> f64 {
+        self.aux_power_w / (v_supply * v_supply)
+    }
+
     /// Checks every field against the supply's no-load voltage `v_supply` (V).
     pub fn validate(&self, c: &mut Checker, v_supply: f64) {
         c.range("dc_link.capacitance_f", self.capacitance_f, 1e-5, 1.0, "F");
@@ -84,6 +99,7 @@ impl DcLinkParams {
                 self.chopper_on_v
             ),
         );
+        c.range("dc_link.aux_power_w", self.aux_power_w, 0.0, 1e5, "W");
         c.range(
             "dc_link.overvoltage_trip_v",
             self.overvoltage_trip_v,
@@ -103,6 +119,8 @@ pub struct LinkEnergy {
     pub chopper: f64,
     /// Drawn by the inverter, ∫ v i_inv dt.
     pub inverter: f64,
+    /// Drawn by the auxiliary load, ∫ v i_aux dt.
+    pub aux: f64,
 }
 
 /// The DC link's state.
@@ -110,6 +128,8 @@ pub struct LinkEnergy {
 pub struct DcLink {
     pub(crate) p: DcLinkParams,
     pub(crate) v_supply: f64,
+    /// The auxiliary load's conductance (S).
+    pub(crate) g_aux: f64,
     /// Link voltage v (V).
     pub v: f64,
     /// Chopper switch state.
@@ -124,6 +144,7 @@ impl DcLink {
         DcLink {
             p: p.clone(),
             v_supply,
+            g_aux: p.aux_conductance(v_supply),
             v: v_supply,
             chopper_on: false,
             energy: LinkEnergy::default(),
@@ -159,12 +180,14 @@ impl DcLink {
             0.0
         };
         let i_inv = p_inv / v0;
-        let v1 = v0 + dt * (i_r - i_inv - i_ch) / self.p.capacitance_f;
+        let i_aux = self.g_aux * v0;
+        let v1 = v0 + dt * (i_r - i_inv - i_ch - i_aux) / self.p.capacitance_f;
         self.v = v1;
         let vm = 0.5 * (v0 + v1);
         self.energy.rectifier += dt * vm * i_r;
         self.energy.chopper += dt * vm * i_ch;
         self.energy.inverter += dt * vm * i_inv;
+        self.energy.aux += dt * vm * i_aux;
         v0 * i_ch
     }
 }
@@ -175,22 +198,41 @@ mod tests {
 
     #[test]
     fn idle_link_sits_at_the_supply_voltage() {
-        let mut l = DcLink::new(&DcLinkParams::default(), 780.0);
+        let p = DcLinkParams {
+            aux_power_w: 0.0,
+            ..Default::default()
+        };
+        let mut l = DcLink::new(&p, 780.0);
         for _ in 0..10_000 {
             assert_eq!(l.step(1e-6, 0.0), 0.0);
         }
         assert_eq!(l.v, 780.0);
+        // With the auxiliary load the supply resistance and the load divide the voltage,
+        // v = V_app/(1 + R_s g_aux), and the load draws g_aux v² (closed form; the link's
+        // time constant R_s C = 0.22 ms has decayed 45 times over within 10 ms).
+        let p = DcLinkParams::default();
+        let mut l = DcLink::new(&p, 780.0);
+        for _ in 0..10_000 {
+            l.step(1e-6, 0.0);
+        }
+        let g = p.aux_conductance(780.0);
+        let v = 780.0 / (1.0 + p.supply_resistance_ohm * g);
+        assert!((l.v - v).abs() < 1e-9, "{} vs {v}", l.v);
+        let drawn = l.energy.aux / 0.01;
+        assert!((drawn - g * v * v).abs() < 1e-3 * g * v * v, "{drawn} W");
+        assert!((g * 780.0 * 780.0 - AUX_POWER_W).abs() < 1e-9);
     }
 
     #[test]
     fn motoring_sags_by_the_supply_resistance_and_braking_is_dumped() {
         let p = DcLinkParams::default();
         let mut l = DcLink::new(&p, 780.0);
-        // 39 kW drawn: steady state v = 780 − R i with v i = P: i ≈ 50.3 A, sag ≈ 5.0 V.
+        // 39 kW drawn: steady state v = 780 − R i with i = P/v + g_aux v: i ≈ 50.4 A, sag
+        // ≈ 5.0 V.
         for _ in 0..20_000 {
             l.step(1e-6, 39e3);
         }
-        let i = 39e3 / l.v;
+        let i = 39e3 / l.v + p.aux_conductance(780.0) * l.v;
         assert!((l.v - (780.0 - 0.1 * i)).abs() < 1e-3, "{}", l.v);
         // 50 kW returned: the rectifier blocks, the capacitor charges to the chopper's
         // threshold and the chopper cycles between 830 and 850 V, dumping what comes back.
@@ -207,10 +249,12 @@ mod tests {
         assert_eq!(l.energy.rectifier, 0.0);
         let returned = -l.energy.inverter;
         let stored = l.stored() - 0.5 * p.capacitance_f * 780.0 * 780.0;
+        assert!(l.energy.aux > 0.0);
         assert!(
-            (returned - l.energy.chopper - stored).abs() < 1e-9 * returned,
-            "{returned} vs {} + {stored}",
-            l.energy.chopper
+            (returned - l.energy.chopper - l.energy.aux - stored).abs() < 1e-9 * returned,
+            "{returned} vs {} + {} + {stored}",
+            l.energy.chopper,
+            l.energy.aux
         );
     }
 }

@@ -18,10 +18,18 @@
 //! * `drive_limit`: time (ms counted from `actuator_limits`) during which the drive was at its
 //!   torque, current, speed or stroke limit, on its end stop, or had a protection block its
 //!   gates.
-//! * `chopper`: energy dumped in the braking chopper; raised above `threshold_j` = 1 kJ. Below
-//!   that the chopper only trims what small regenerative flows leave on an idle link (the
-//!   capacitor alone buffers ½C(850² − 780²) = 125 J); above it, braking is part of the duty
-//!   and the energy is lost.
+//! * `chopper`: energy dumped in the braking chopper; raised above `threshold_j`, the energy
+//!   one tilt gives back through the gear: η·max ½M δ_a over the run, M = k_vr(δ_a − ψ) the
+//!   bar's moment (docs/model.md D47). Tilting the vehicle to δ_a against the moment M, which
+//!   grows with it from zero, takes about ½M δ_a (bar, airsprings and the body's weight
+//!   together); tilting back returns it, and the back-driven gear passes η of it to the motor
+//!   (less its copper loss, and the capacitor's 125 J between 780 and 850 V and the auxiliary
+//!   load take the first of it). A chopper that dumps more burns energy the drive pumped
+//!   through the bar more than once per tilt: the controller works the bar, not the curve.
+//! * `thermal`: the motor's RMS torque over the run (equivalently its RMS current, T/k_t)
+//!   against its continuous rating `bldc.continuous_torque_nm`: the servo sizing rule that a
+//!   duty repeated for longer than the motor's thermal time constant must keep the RMS torque
+//!   within the continuous torque (docs/model.md D48).
 //! * `p_ct_range`: a P_CT above 100 % (the formula gives the percentage of passengers
 //!   uncomfortable; past 100 % it is extrapolated and says only "worse than the scale").
 
@@ -33,8 +41,6 @@ use crate::comfort::Comfort;
 
 /// Amplitude above which a 2 s window of θ_v − θ_v^d counts as oscillating (deg).
 pub const OSCILLATION_THRESHOLD_DEG: f64 = 0.1;
-/// Chopper energy above which the chopper flag is raised (J).
-pub const CHOPPER_THRESHOLD_J: f64 = 1000.0;
 const WINDOW_S: f64 = 2.0;
 /// Time after the reference last moved before a window may start (s).
 const SETTLE_S: f64 = 2.0;
@@ -119,6 +125,32 @@ pub struct Chopper {
     pub v_dc_max: f64,
 }
 
+/// The motor's thermal duty: RMS torque over the run against the continuous rating.
+#[derive(Debug, Clone, Serialize, Default, PartialEq)]
+pub struct Thermal {
+    /// Raised.
+    pub raised: bool,
+    /// RMS of the per-millisecond electromagnetic torque over the run (N·m).
+    pub torque_rms_nm: f64,
+    /// RMS of the torque-producing current over the run, T_rms/k_t (A).
+    pub current_rms_a: f64,
+    /// The motor's continuous torque (N·m).
+    pub continuous_torque_nm: f64,
+}
+
+/// The drive's ratings the flags judge a run against (from the scenario).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriveRating {
+    /// Continuous torque of the motor (N·m).
+    pub continuous_torque_nm: f64,
+    /// Torque constant k_t (N·m/A).
+    pub k_t: f64,
+    /// Anti-roll bar stiffness k_vr (N·m/rad).
+    pub k_vr: f64,
+    /// Gear efficiency η.
+    pub gear_efficiency: f64,
+}
+
 /// P_CT outside the formula's meaningful range.
 #[derive(Debug, Clone, Serialize, Default, PartialEq)]
 pub struct PctRange {
@@ -139,6 +171,8 @@ pub struct Flags {
     pub drive_limit: DriveLimit,
     /// Chopper energy.
     pub chopper: Chopper,
+    /// Motor RMS torque against its continuous rating.
+    pub thermal: Thermal,
     /// P_CT above 100 %.
     pub p_ct_range: PctRange,
 }
@@ -164,6 +198,10 @@ pub struct FlagSample {
     pub chopper_power: f64,
     /// DC-link voltage (V).
     pub v_dc: f64,
+    /// Bar twist at the actuator, δ_a − ψ (rad).
+    pub bar_twist: f64,
+    /// Bar angle δ_a (rad).
+    pub delta_a: f64,
 }
 
 /// Any limit of the drive (the chopper is not one: it is the link doing its job).
@@ -204,14 +242,23 @@ pub struct Flagger {
     deflection_peak: f64,
     contact_rows: u64,
     oscillation: Oscillator,
+    rating: DriveRating,
+    torque_sq: f64,
+    rows: u64,
+    tilt_work_peak: f64,
 }
 
 impl Flagger {
-    /// Flags at row period `dt` (s) with bump-stop `clearance` (m).
-    pub fn new(dt: f64, clearance: f64) -> Self {
+    /// Flags at row period `dt` (s) with bump-stop `clearance` (m), the drive judged against
+    /// `rating`.
+    pub fn new(dt: f64, clearance: f64, rating: DriveRating) -> Self {
         Flagger {
             dt,
             clearance,
+            rating,
+            torque_sq: 0.0,
+            rows: 0,
+            tilt_work_peak: 0.0,
             rows_at: [0; 9],
             phase_current_peak: 0.0,
             torque_peak: 0.0,
@@ -239,6 +286,10 @@ impl Flagger {
         self.deflection_peak = self.deflection_peak.max(x.deflection.abs());
         self.contact_rows += u64::from(x.deflection.abs() >= self.clearance);
         self.oscillation.push(x.roll_error, x.reference);
+        self.torque_sq += x.torque * x.torque;
+        self.rows += 1;
+        let work = 0.5 * self.rating.k_vr * x.bar_twist * x.delta_a;
+        self.tilt_work_peak = self.tilt_work_peak.max(work);
     }
 
     /// Every flag of the rows taken, with the run's comfort for the P_CT range.
@@ -261,12 +312,21 @@ impl Flagger {
             braking_power_peak_w: self.braking,
         };
         let energy = self.chopper_sum * dt;
+        let r = self.rating;
+        let threshold = r.gear_efficiency * self.tilt_work_peak;
         let chopper = Chopper {
-            raised: energy > CHOPPER_THRESHOLD_J,
+            raised: energy > threshold,
             energy_j: energy,
-            threshold_j: CHOPPER_THRESHOLD_J,
+            threshold_j: threshold,
             time_on_s: time(8),
             v_dc_max: self.v_dc_max,
+        };
+        let rms = (self.torque_sq / self.rows.max(1) as f64).sqrt();
+        let thermal = Thermal {
+            raised: rms > r.continuous_torque_nm,
+            torque_rms_nm: rms,
+            current_rms_a: rms / r.k_t,
+            continuous_torque_nm: r.continuous_torque_nm,
         };
         let peak = self.deflection_peak;
         let bump = BumpStop {
@@ -288,6 +348,7 @@ impl Flagger {
             bump_stop: bump,
             drive_limit: drive,
             chopper,
+            thermal,
             p_ct_range: PctRange {
                 raised: largest > 100.0,
                 largest_pct: largest,
@@ -304,6 +365,7 @@ impl Flags {
             (self.bump_stop.raised, "bump stop"),
             (self.drive_limit.raised, "drive limit"),
             (self.chopper.raised, "chopper"),
+            (self.thermal.raised, "thermal"),
             (self.p_ct_range.raised, "P_CT > 100 %"),
         ]
         .into_iter()
@@ -345,10 +407,18 @@ impl Flags {
         let c = &self.chopper;
         if c.raised {
             v.push(format!(
-                "chopper: {:.1} kJ of braking energy dumped ({:.3} s on, link up to {:.0} V)",
+                "chopper: {:.2} kJ of braking energy dumped, more than one tilt returns through the gear ({:.2} kJ; {:.3} s on, link up to {:.0} V)",
                 c.energy_j / 1e3,
+                c.threshold_j / 1e3,
                 c.time_on_s,
                 c.v_dc_max
+            ));
+        }
+        let t = &self.thermal;
+        if t.raised {
+            v.push(format!(
+                "thermal: RMS torque {:.0} N·m ({:.1} A) above the motor's continuous {:.0} N·m",
+                t.torque_rms_nm, t.current_rms_a, t.continuous_torque_nm
             ));
         }
         if self.p_ct_range.raised {
@@ -514,6 +584,59 @@ fn spectral_peak(x: &[f64], dt: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    const RATING: DriveRating = DriveRating {
+        continuous_torque_nm: 200.0,
+        k_t: 7.15,
+        k_vr: 2.0e6,
+        gear_efficiency: 0.7,
+    };
+
+    #[test]
+    fn the_thermal_flag_compares_the_rms_torque_with_the_continuous_rating() {
+        // A torque of amplitude A in whole cycles has the RMS A/√2 (closed form): 270 N·m
+        // gives 190.9 N·m, clear against 200; 290 N·m gives 205.1 N·m, raised. The current is
+        // the torque over k_t.
+        for (amplitude, raised) in [(270.0, false), (290.0, true)] {
+            let mut f = Flagger::new(1e-3, 0.06, RATING);
+            for k in 0..4000 {
+                let t = amplitude * (std::f64::consts::TAU * k as f64 * 1e-3).sin();
+                f.push(&FlagSample {
+                    torque: t,
+                    ..Default::default()
+                });
+            }
+            let th = f.finish(&Comfort::default()).thermal;
+            let rms = amplitude / 2f64.sqrt();
+            assert!((th.torque_rms_nm - rms).abs() < 1e-9 * rms, "{th:?}");
+            assert!((th.current_rms_a - rms / 7.15).abs() < 1e-9 * rms);
+            assert_eq!(th.raised, raised, "{th:?}");
+        }
+    }
+
+    #[test]
+    fn the_chopper_threshold_is_what_one_tilt_returns_through_the_gear() {
+        // A bar held at δ_a = 2.4° twisted by 1.0° against the body: M = k_vr·1.0°, one tilt
+        // stores ½·M·δ_a = 731 J, the gear passes η = 0.7 of it, 512 J. 0.5 kJ in the chopper
+        // is clear, 0.55 kJ raises the flag.
+        let (d, tw) = (2.4f64.to_radians(), 1.0f64.to_radians());
+        let want = 0.7 * 0.5 * 2.0e6 * tw * d;
+        for (p_chop, raised) in [(500.0, false), (550.0, true)] {
+            let mut f = Flagger::new(1e-3, 0.06, RATING);
+            for _ in 0..1000 {
+                f.push(&FlagSample {
+                    delta_a: d,
+                    bar_twist: tw,
+                    chopper_power: p_chop,
+                    ..Default::default()
+                });
+            }
+            let c = f.finish(&Comfort::default()).chopper;
+            assert!((c.threshold_j - want).abs() < 1e-9 * want, "{c:?}");
+            assert!((c.energy_j - p_chop).abs() < 1e-6, "{c:?}");
+            assert_eq!(c.raised, raised);
+        }
+    }
 
     #[test]
     fn the_goertzel_amplitude_is_that_of_a_whole_number_of_cycles() {

@@ -15,28 +15,23 @@
 //! keeping one solver and updating `q` and `b` in place (`update_q`, `update_b`), which skips
 //! the set-up and the symbolic factorisation. That is done every period. The solver's
 //! settings are fitted to this QP:
-//! * Iterative refinement of the KKT solves is off: on this 3-variable QP it cost a third of
-//!   the update (p50 40.8 → 28.9 µs, p99 62.3 → 46-49 µs).
+//! * Iterative refinement of the KKT solves is off: on this 3-variable QP it costs a third of
+//!   the update and moves the solution by less than the solver's tolerance.
 //! * Ruiz equilibration is off and the gap and feasibility tolerances are 1e-10 instead of
 //!   1e-8 ([`QP_TOLERANCE`]). The QP is small and already well scaled (radians, weights of
-//!   order one); equilibrated, the interior-point method took 12 iterations to 1e-8, and now
-//!   takes 9-13 to 1e-10.
+//!   order one); unequilibrated, the interior-point method takes 9-13 iterations to 1e-10.
 //! * Measured against the closed-form optimum Δu* = −H⁻¹g on the 12 165 updates of the
-//!   benchmark where no constraint is active: |Δu₀ − Δu₀*| p50 2.8e-8 → 3.5e-9 rad, max
-//!   3.3e-5 → 4.8e-6 rad (an inactive constraint with little slack still pulls an
-//!   interior-point iterate; test `mpc_meets_its_closed_form_in_closed_loop`).
-//! * Time per update, old and new benchmark binaries alternating, four runs each on a shared
-//!   2-CPU VM in a busy hour: p50 40-44 → 35-38 µs, p99 69-94 → 79-83 µs; in a quiet hour
-//!   p50 33 → 29-30 µs, p99 52-54 → 45-48 µs. The p99 is set by the host: 1-2 % of updates are
-//!   interrupted for 40-150 µs whatever the settings.
-//!
+//!   benchmark where no constraint is active: |Δu₀ − Δu₀*| p50 3.5e-9 rad, max 4.8e-6 rad
+//!   (an inactive constraint with little slack still pulls an interior-point iterate; test
+//!   `mpc_meets_its_closed_form_in_closed_loop`).
 //! * Rows that cannot bind are left out ([`Mpc::rows_needed`], [`QpRows`]): three solvers are
 //!   set up once, the full QP, the QP without the soft output rows and the slack, and the QP
 //!   of the move limits only, and each update solves the smallest whose optimum is the full
-//!   QP's. With the paper's 6° output limit the output rows never bind on its track. Old and new
-//!   binaries alternating: p50 27-38 → 13-15 µs, p99 42-86 → 23-25 µs.
+//!   QP's. With the paper's 6° output limit the output rows never bind on its track; an
+//!   update takes about half the time of the full QP.
 //!
-//! All figures: `cargo bench -p controller-proc --bench mpc`. A solve that does not end
+//! Figures: `cargo bench -p controller-proc --bench mpc`; each setting's measured effect is in
+//! docs/performance.md, "The MPC update". A solve that does not end
 //! `Solved`/`AlmostSolved` is counted and the previous command is held (Δu = 0, always
 //! feasible).
 

@@ -5,7 +5,7 @@
 //! [`WaitStrategy::Adaptive`] (the default) spins briefly, then yields the core on every poll,
 //! then sleeps in short naps once a wait has lasted long (a controller idling between its
 //! 50 ms updates). Every poll drains the port, so no wake-up can be lost: the worst case of a
-//! late sample is one nap. Measured costs are in the README.
+//! late sample is one nap. Measured costs are in docs/performance.md.
 
 use std::time::{Duration, Instant};
 

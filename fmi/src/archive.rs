@@ -3,7 +3,8 @@
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
 
 use crate::description::{FmiVersion, ModelDescription};
 
@@ -132,10 +133,54 @@ pub struct Unpacked {
 
 static UNPACKED: AtomicU64 = AtomicU64::new(0);
 
+/// The flag that stops an unpacking under way (the program's interrupt flag, set by Ctrl-C).
+static STOP: OnceLock<Arc<AtomicBool>> = OnceLock::new();
+
+/// What [`Unpacked::open`] says when the flag of [`stop_unpacking_when`] stopped it.
+pub const UNPACKING_STOPPED: &str = "unpacking stopped by an interrupt";
+
+/// Makes every unpacking in this process stop, and remove what it unpacked, once `flag` is
+/// set (a program's interrupt flag: an FMU with gigabytes of resources otherwise keeps
+/// Ctrl-C waiting until it is all written). The first flag given is kept.
+pub fn stop_unpacking_when(flag: Arc<AtomicBool>) {
+    let _ = STOP.set(flag);
+}
+
+fn stopped() -> bool {
+    STOP.get().is_some_and(|f| f.load(Ordering::Relaxed))
+}
+
+/// Copies `from` into `to` a chunk at a time, giving up between chunks once [`stopped`].
+fn copy_until_stopped(
+    from: &mut impl Read,
+    to: &mut impl Write,
+    stop: &dyn Fn() -> bool,
+) -> Result<(), String> {
+    // 1 MiB: at disk speeds a few milliseconds, so an interrupt is honoured that soon.
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        if stop() {
+            return Err(UNPACKING_STOPPED.to_string());
+        }
+        let n = match from.read(&mut buf) {
+            Ok(0) => return Ok(()),
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e.to_string()),
+        };
+        to.write_all(&buf[..n]).map_err(|e| e.to_string())?;
+    }
+}
+
 impl Unpacked {
     /// Unpacks the FMU at `path`; the error says what is wrong with it (not a zip, no
     /// description, model exchange only, no library for this platform).
     pub fn open(path: &Path) -> Result<Unpacked, String> {
+        Self::open_until(path, &stopped)
+    }
+
+    /// [`Unpacked::open`], stopping (and removing what it unpacked) once `stop` says so.
+    fn open_until(path: &Path, stop: &dyn Fn() -> bool) -> Result<Unpacked, String> {
         let description = read_description(path)?;
         description.cs_identifier.as_ref().ok_or_else(|| {
             if description.has_model_exchange {
@@ -185,7 +230,10 @@ impl Unpacked {
             }
             let mut out =
                 std::fs::File::create(&to).map_err(|e| format!("{}: {e}", to.display()))?;
-            std::io::copy(&mut e, &mut out).map_err(|e| format!("{}: {e}", to.display()))?;
+            copy_until_stopped(&mut e, &mut out, stop).map_err(|why| match why.as_str() {
+                UNPACKING_STOPPED => why,
+                _ => format!("{}: {why}", to.display()),
+            })?;
         }
         Ok(unpacked)
     }
@@ -228,6 +276,61 @@ impl Drop for Unpacked {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The private directories this process unpacked an FMU named `model` into.
+    fn unpacked_dirs(model: &str) -> Vec<PathBuf> {
+        let mine = format!("tiltsim-fmu-{}-", std::process::id());
+        std::fs::read_dir(std::env::temp_dir())
+            .unwrap()
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| {
+                let n = p.file_name().unwrap().to_string_lossy().into_owned();
+                n.starts_with(&mine) && n.ends_with(model)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn an_unpacking_stops_between_chunks_and_removes_what_it_wrote() {
+        let dir = std::env::temp_dir().join(format!("tiltsim-stop-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let fmu = dir.join("stop.fmu");
+        let xml = r#"<fmiModelDescription fmiVersion="3.0" modelName="StopTest" instantiationToken="t"><CoSimulation modelIdentifier="stop"/></fmiModelDescription>"#;
+        // Five chunks of resource, so a stop after the first leaves work undone.
+        let resource = vec![7u8; 5 << 20];
+        write_fmu(
+            FmiVersion::V3,
+            &fmu,
+            xml,
+            "stop",
+            b"lib",
+            &[("big.bin", &resource)],
+        )
+        .unwrap();
+        // Unstopped, everything is written.
+        let whole = Unpacked::open_until(&fmu, &|| false).unwrap();
+        assert_eq!(
+            std::fs::read(whole.resources().join("big.bin")).unwrap(),
+            resource
+        );
+        drop(whole);
+        // Stopped inside the resource (the description and the library take two looks each,
+        // the resource one per chunk read): an error that says why, and nothing left on disk.
+        let calls = std::cell::Cell::new(0);
+        let stop = || {
+            calls.set(calls.get() + 1);
+            calls.get() > 6
+        };
+        let e = Unpacked::open_until(&fmu, &stop).unwrap_err();
+        assert_eq!(e, UNPACKING_STOPPED);
+        assert!(
+            unpacked_dirs("StopTest").is_empty(),
+            "{:?}",
+            unpacked_dirs("StopTest")
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn a_description_above_the_limit_is_refused_unread_and_one_below_is_parsed() {

@@ -182,14 +182,7 @@ fn read_trimmed(p: &str) -> String {
         .unwrap_or_default()
 }
 
-/// Start time of process `pid` in clock ticks after boot, if it exists.
-fn start_ticks(pid: u32) -> Option<u64> {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
-    // "pid (comm) state ppid ...": comm may hold spaces and parentheses; fields after the last
-    // ')' are numbered from 3 (state), so field 22 is the 20th of them.
-    let rest = &stat[stat.rfind(')')? + 1..];
-    rest.split_whitespace().nth(19)?.parse().ok()
-}
+use cosim::ipc::start_ticks;
 
 impl Holder {
     /// This process, holding for `command`.
@@ -198,7 +191,7 @@ impl Holder {
         Holder {
             pid,
             start_ticks: start_ticks(pid).unwrap_or(0),
-            boot_id: read_trimmed("/proc/sys/kernel/random/boot_id"),
+            boot_id: cosim::ipc::boot_id(),
             host: read_trimmed("/proc/sys/kernel/hostname"),
             command: command.to_string(),
         }

@@ -112,7 +112,15 @@ pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
     let mut look = QuickLooker::new(s);
     let mut comfort =
         tiltsim_assessment::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort);
-    let mut flags = tiltsim_assessment::validity::Flagger::new(s.run.dt_s, s.comfort.bump_stop_m);
+    let b = &s.actuator.bldc;
+    let rating = tiltsim_assessment::validity::DriveRating {
+        continuous_torque_nm: b.continuous_torque_nm,
+        k_t: b.k_t,
+        k_vr: s.vehicle.k_vr,
+        gear_efficiency: b.gear_efficiency,
+    };
+    let mut flags =
+        tiltsim_assessment::validity::Flagger::new(s.run.dt_s, s.comfort.bump_stop_m, rating);
     let scanned = scan(s, rows, |r, x| {
         look.push(r);
         comfort.push(x);
@@ -126,6 +134,8 @@ pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
             dc_power: r.dc_power,
             chopper_power: r.chopper_power,
             v_dc: r.v_dc,
+            bar_twist: r.delta_a - r.psi,
+            delta_a: r.delta_a,
         });
     });
     if let Err(e) = scanned {

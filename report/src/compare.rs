@@ -172,8 +172,8 @@ impl CsvTable {
 const INTRO: &str = "# Comfort assessment (the paper's Table 4 layout)\n\nOurs, with the \
     paper's value in brackets and our difference where the paper gives one. P_CT headline: \
     whole-run peaks plugged into the formula, as the paper evaluates it; the EN 12299 rows use \
-    per-transition windows on 0.3 Hz filtered signals. The ideal-tilt columns are the floor: the \
-    body follows the tilt command of eq 18 exactly at the run's ρ. A cell marked ⚠ is not a valid \
+    per-transition windows on 0.3 Hz filtered signals. The ideal-tilt columns are a reference, \
+    not a bound: the body follows the tilt command of eq 18 exactly at the run's ρ. A cell marked ⚠ is not a valid \
     ride measure (the run oscillates, hits its bump stops, or the formula is outside its 0-100 % \
     range); its value is given for the record only.\n";
 

@@ -9,7 +9,7 @@
 //!   (rad²/(rad/m)), b = 0.75 m half the distance between the rails' contact points;
 //!
 //! with Ω_c = 0.8246, Ω_r = 0.0206, Ω_s = 0.438 rad/m; A_a = 2.119e-7 (low) / 6.125e-7 (high)
-//! m·rad, A_v = 4.032e-7 (low) / 1.08e-6 (high) m·rad (docs/model.md D32 gives the sources).
+//! m·rad, A_v = 4.032e-7 (low) / 1.08e-6 (high) m·rad (docs/model.md D40 gives the sources).
 //!
 //! A realisation on a periodic grid of N = 2^k points, spacing Δs, length L = N·Δs:
 //! `x(s) = Σ_k (a_k cos Ω_k s + b_k sin Ω_k s)`, Ω_k = 2πk/L inside the band

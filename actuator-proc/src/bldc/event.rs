@@ -51,6 +51,18 @@ pub const MAX_SEGMENT_S: f64 = 50e-6;
 /// them as accurate as the segments around them.
 pub const FALLBACK_STEP: f64 = 0.1;
 
+/// Indices of a segment's energy integrals (J): drawn by the inverter, copper, friction, bar
+/// work, gear loss, delivered by the rectifier, dumped in the chopper, drawn by the
+/// auxiliary load.
+const Q_INVERTER: usize = 0;
+const Q_COPPER: usize = 1;
+const Q_FRICTION: usize = 2;
+const Q_LOAD: usize = 3;
+const Q_GEAR: usize = 4;
+const Q_RECTIFIER: usize = 5;
+const Q_CHOPPER: usize = 6;
+const Q_AUX: usize = 7;
+
 /// Gauss-Legendre nodes on [−1, 1] and weights (2 points, exact to degree 3).
 const GL_X: [f64; 2] = [-0.577_350_269_189_625_8, 0.577_350_269_189_625_8];
 const GL_W: [f64; 2] = [1.0, 1.0];
@@ -68,6 +80,8 @@ pub struct EventStats {
     pub link_events: u64,
     /// Fixed steps taken outside the usual state.
     pub fixed_steps: u64,
+    /// Edges of the gear's loss law crossed (speed ±ω_ε, bar torque 0).
+    pub gear_events: u64,
 }
 
 /// Order of the Taylor series.
@@ -280,7 +294,33 @@ enum Event {
     DiodeOff,
     /// During a commutation: a phase current reached the over-current trip level.
     Trip,
+    /// The rotor's speed reached an edge of the gear's loss law (±ω_ε); the speed to put it
+    /// at, a hair past the edge.
+    GearSpeed(f64),
+    /// The bar's torque reached zero (the gear's power flow reverses); the Δθ_m to put the
+    /// rotor at, a hair past it.
+    GearTorque(f64),
 }
+
+/// The gearbox's load on the rotor over one segment in the linear form T_l = c T_b + d ω
+/// ([`super::GearLoss`], docs/model.md D45): away from zero speed c = 1/η (driving) or η
+/// (back-driven) and d = 0; within ±ω_ε, c = 1 and d = |μ T_b|/ω_ε with T_b and the branch of
+/// μ (driving or back-driven) taken at the segment's start (T_b moves by less than 1e-5 of
+/// itself over a segment at such speeds; a reversal within a segment keeps the branch it
+/// started with: the loss d ω² stays dissipative, only its coefficient is the other
+/// direction's until the segment ends, at most 50 µs).
+/// Carried into the rotor equation as k_vr c/(G² J) and (B_f + d)/J.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Rotor {
+    kappa_j: f64,
+    bf_j: f64,
+    c: f64,
+    d: f64,
+}
+
+/// Relative distance past an edge of the gear's loss law at which a gear event leaves the
+/// rotor, so that the next segment starts on the far side.
+const GEAR_NUDGE: f64 = 1e-12;
 
 /// The earliest event offered so far within a segment of length `tau`: the segment ends there.
 struct First {
@@ -319,10 +359,11 @@ pub(super) struct Consts {
     kt_j: f64,
     bf_j: f64,
     kappa_j: f64,
-    /// 1/C, the rectifier's and the chopper's conductances.
+    /// 1/C, the rectifier's, the chopper's and the auxiliary load's conductances.
     inv_c: f64,
     g_r: f64,
     g_ch: f64,
+    g_aux: f64,
     /// G, 1/G, k_vr/G, k_t, 2 R_s, B_f.
     g: f64,
     inv_g: f64,
@@ -330,10 +371,11 @@ pub(super) struct Consts {
     k_t: f64,
     two_r: f64,
     b_f: f64,
-    /// λ_p = k_t/2 (V·s/rad per phase), 1/L_s, λ_p/J.
+    /// λ_p = k_t/2 (V·s/rad per phase), 1/L_s, λ_p/J, 1/J.
     lam: f64,
     inv_l: f64,
     lam_j: f64,
+    inv_j: f64,
 }
 
 /// 1/n for the Taylor recursion.
@@ -352,12 +394,14 @@ impl Consts {
             inv_c: 1.0 / link.capacitance_f,
             g_r: 1.0 / link.supply_resistance_ohm,
             g_ch: 1.0 / link.chopper_resistance_ohm,
+            g_aux: link.aux_conductance(p.v_dc),
             g,
             inv_g: 1.0 / g,
             k_vr_g: k_vr / g,
             lam: 0.5 * p.k_t,
             inv_l: 1.0 / p.l_s,
             lam_j: 0.5 * p.k_t / p.j_rot,
+            inv_j: 1.0 / p.j_rot,
             k_t: p.k_t,
             two_r: 2.0 * p.r_s,
             b_f: p.b_f,
@@ -366,7 +410,8 @@ impl Consts {
 
     /// Taylor coefficients of (I, ω, Δθ_m, v) from (I, ω, v) at the segment's start, with
     /// the pair at s·v, the rectifier's and chopper's conductances `g_r`, `g_ch`, the rotor
-    /// at `theta_m` and the bar twisted by `psi` at the bogie, the supply at `v_s`.
+    /// at `theta_m` and the bar twisted by `psi` at the bogie, the supply at `v_s`, and the
+    /// gearbox's load on the rotor as `gear` makes it over the segment.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn series(
@@ -378,14 +423,16 @@ impl Consts {
         theta_m: f64,
         psi: f64,
         v_s: f64,
+        gear: Rotor,
     ) -> [Poly; 4] {
-        let g_v = (g_r + g_ch) * self.inv_c;
+        let g_v = (g_r + g_ch + self.g_aux) * self.inv_c;
         let s_c = s * self.inv_c;
         let s_2l = s * self.inv_2l;
+        let (kappa_j, bf_j) = (gear.kappa_j, gear.bf_j);
         let a_x = |x: [f64; 4]| {
             [
                 s_2l * x[3] - self.r_l * x[0] - self.kt_2l * x[1],
-                self.kt_j * x[0] - self.bf_j * x[1] - self.kappa_j * x[2],
+                self.kt_j * x[0] - bf_j * x[1] - kappa_j * x[2],
                 x[1],
                 -g_v * x[3] - s_c * x[0],
             ]
@@ -393,7 +440,7 @@ impl Consts {
         // θ_m is carried as Δθ_m from the segment's start (its coefficients stay small).
         let x0 = [x[0], x[1], 0.0, x[2]];
         let mut ck = a_x(x0);
-        ck[1] -= self.kappa_j * (theta_m - self.g * psi);
+        ck[1] -= kappa_j * (theta_m - self.g * psi);
         ck[3] += g_r * v_s * self.inv_c;
         let mut out = [[0.0; ORDER + 1]; 4];
         for k in 0..4 {
@@ -425,10 +472,12 @@ impl Consts {
         theta_m: f64,
         psi: f64,
         v_s: f64,
+        gear: Rotor,
     ) -> [Poly; 5] {
         let [s_p, s_m, s_o] = legs;
         let sum_s = s_p + s_m + s_o;
-        let g_v = (g_r + g_ch) * self.inv_c;
+        let g_v = (g_r + g_ch + self.g_aux) * self.inv_c;
+        let (kappa_j, bf_j) = (gear.kappa_j, gear.bf_j);
         // out[k][n]: state k = (i_+, i_o, ω, Δθ_m, v), coefficient n.
         let mut out = [[0.0; ORDER + 1]; 5];
         out[0][0] = x[0];
@@ -447,14 +496,12 @@ impl Consts {
             let mut d = [
                 (s_p * v - vn - self.lam * w) * self.inv_l - self.r_l * ip,
                 (s_o * v - vn - e_o) * self.inv_l - self.r_l * io,
-                self.lam_j * (2.0 * ip + (1.0 + f_o0) * io + k_o * ith)
-                    - self.bf_j * w
-                    - self.kappa_j * th,
+                self.lam_j * (2.0 * ip + (1.0 + f_o0) * io + k_o * ith) - bf_j * w - kappa_j * th,
                 w,
                 -g_v * v - ((s_p - s_m) * ip + (s_o - s_m) * io) * self.inv_c,
             ];
             if n == 0 {
-                d[2] -= self.kappa_j * (theta_m - self.g * psi);
+                d[2] -= kappa_j * (theta_m - self.g * psi);
                 d[4] += g_r * v_s * self.inv_c;
             }
             for k in 0..5 {
@@ -551,13 +598,14 @@ impl Bldc {
         if !(0.0..=v0).contains(&u) {
             return Err(FALLBACK_STEP);
         }
-        let h = left.min(MAX_SEGMENT_S);
-
         let k = self.consts;
+        let i_pair = i[pp];
+        let (gear, h_gear) = self.rotor(psi, k.k_t * i_pair);
+        let h = left.min(MAX_SEGMENT_S).min(h_gear);
+
         let g_ch = self.chopper();
         let v_s = self.link.v_supply;
-        let i_pair = i[pp];
-        let rect = self.rectifier(-g_ch * v0 - s * i_pair, || {
+        let rect = self.rectifier(-(g_ch + k.g_aux) * v0 - s * i_pair, || {
             k.series(
                 s,
                 0.0,
@@ -566,6 +614,7 @@ impl Bldc {
                 self.theta_m,
                 psi,
                 v_s,
+                gear,
             )[3]
         });
         let g_r = if rect { k.g_r } else { 0.0 };
@@ -577,6 +626,7 @@ impl Bldc {
             self.theta_m,
             psi,
             v_s,
+            gear,
         );
 
         // Speeds at which the floating terminal could leave [0, v] with the pair at ±v/2.
@@ -627,10 +677,11 @@ impl Bldc {
             }
         }
         self.link_events(&cv, rect, h, &mut first);
+        self.gear_events(psi, &cw, &cth, h, &mut first);
 
         // Integrals over [0, τ] by 2-point Gauss-Legendre.
-        let (mut q_i, mut q_p, mut q_cu, mut q_fr, mut q_ld, mut q_r, mut q_ch) =
-            (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let mut q_i = 0.0;
+        let mut q = [0.0; 8];
         let (mut peak, mut v_hi) = (i_pair.abs(), v0);
         let First { tau, what } = first;
         let half = 0.5 * tau;
@@ -638,14 +689,16 @@ impl Bldc {
             let t = half * (1.0 + xg);
             let w = wg * half;
             let (it, wt, tht, vt) = (eval(&ci, t), eval(&cw, t), eval(&cth, t), eval(&cv, t));
-            let tl = k.k_vr_g * ((self.theta_m + tht) * k.inv_g - psi);
+            let tb = k.k_vr_g * ((self.theta_m + tht) * k.inv_g - psi);
             q_i += w * it;
-            q_p += w * s * vt * it;
-            q_cu += w * k.two_r * it * it;
-            q_fr += w * k.b_f * wt * wt;
-            q_ld += w * tl * wt;
-            q_r += w * vt * g_r * (v_s - vt);
-            q_ch += w * g_ch * vt * vt;
+            q[Q_INVERTER] += w * s * vt * it;
+            q[Q_COPPER] += w * k.two_r * it * it;
+            q[Q_FRICTION] += w * k.b_f * wt * wt;
+            q[Q_LOAD] += w * tb * wt;
+            q[Q_GEAR] += w * ((gear.c - 1.0) * tb + gear.d * wt) * wt;
+            q[Q_RECTIFIER] += w * vt * g_r * (v_s - vt);
+            q[Q_CHOPPER] += w * g_ch * vt * vt;
+            q[Q_AUX] += w * k.g_aux * vt * vt;
             peak = peak.max(it.abs());
             v_hi = v_hi.max(vt);
         }
@@ -654,7 +707,7 @@ impl Bldc {
         let mut i_end = eval(&ci, tau);
         let mut d_th = eval(&cth, tau);
         let mut v_end = eval(&cv, tau);
-        let w_end = eval(&cw, tau);
+        let mut w_end = eval(&cw, tau);
         match what {
             Event::Upper => {
                 i_end = hi;
@@ -668,6 +721,8 @@ impl Bldc {
             }
             Event::Commutation(d, _) => d_th = d,
             Event::Link(level) => v_end = level,
+            Event::GearSpeed(w) => w_end = w,
+            Event::GearTorque(d) => d_th = d,
             Event::End | Event::Floating | Event::Leg(..) | Event::DiodeOff | Event::Trip => {}
         }
         self.i[pp] = i_end;
@@ -680,9 +735,9 @@ impl Bldc {
             v_end,
             peak.max(i_end.abs()),
             v_hi,
-            [q_p, q_cu, q_fr, q_ld, q_r, q_ch],
+            q,
         );
-        Ok((tau, k.k_t * q_i, q_p, q_ch))
+        Ok((tau, k.k_t * q_i, q[Q_INVERTER], q[Q_CHOPPER]))
     }
 
     /// One segment of a commutation: the outgoing phase `off` still carries current through
@@ -698,6 +753,8 @@ impl Bldc {
         sec: usize,
     ) -> Result<(f64, f64, f64, f64), f64> {
         let i = self.i;
+        let (gear, h_gear) = self.rotor(psi, self.consts.k_t * i[pp]);
+        let h = h.min(h_gear);
         let (gp, gm) = (self.gates[pp], self.gates[mm]);
         if gp == Gate::Off || gm == Gate::Off {
             return Err(FALLBACK_STEP);
@@ -721,12 +778,12 @@ impl Bldc {
         let shape = (f_start + per_rad_e * (th - start), per_rad_e * half_pp);
         let x = [i[pp], i[off], self.omega, v0];
         let i_inv0 = (legs[0] - legs[1]) * i[pp] + (legs[2] - legs[1]) * i[off];
-        let rect = self.rectifier(-g_ch * v0 - i_inv0, || {
-            k.transient_series(legs, shape, (0.0, g_ch), x, self.theta_m, psi, v_s)[4]
+        let rect = self.rectifier(-(g_ch + k.g_aux) * v0 - i_inv0, || {
+            k.transient_series(legs, shape, (0.0, g_ch), x, self.theta_m, psi, v_s, gear)[4]
         });
         let g_r = if rect { k.g_r } else { 0.0 };
         let [cp, co, cw, cth, cv] =
-            k.transient_series(legs, shape, (g_r, g_ch), x, self.theta_m, psi, v_s);
+            k.transient_series(legs, shape, (g_r, g_ch), x, self.theta_m, psi, v_s, gear);
         let mut w_max = 0.0;
         for n in (1..=ORDER).rev() {
             w_max = (w_max + cw[n].abs()) * h;
@@ -762,11 +819,12 @@ impl Bldc {
         }
         self.sector_events(sec, &cth, h, &mut first);
         self.link_events(&cv, rect, h, &mut first);
+        self.gear_events(psi, &cw, &cth, h, &mut first);
 
         // Integrals over [0, τ] by 2-point Gauss-Legendre.
         let (f_o0, k_o) = shape;
         let ds = [legs[0] - legs[1], legs[2] - legs[1]];
-        let mut q = [0.0; 6];
+        let mut q = [0.0; 8];
         let mut q_te = 0.0;
         let (mut peak, mut v_hi) = (i[0].abs().max(i[1].abs()).max(i[2].abs()), v0);
         let First { tau, what } = first;
@@ -782,14 +840,16 @@ impl Bldc {
                 eval(&cv, t),
             );
             let im = -ip - io;
-            let tl = k.k_vr_g * ((self.theta_m + tht) * k.inv_g - psi);
+            let tb = k.k_vr_g * ((self.theta_m + tht) * k.inv_g - psi);
             q_te += w * k.lam * (2.0 * ip + (1.0 + f_o0 + k_o * tht) * io);
-            q[0] += w * vt * (ds[0] * ip + ds[1] * io);
-            q[1] += w * 0.5 * k.two_r * (ip * ip + io * io + im * im);
-            q[2] += w * k.b_f * wt * wt;
-            q[3] += w * tl * wt;
-            q[4] += w * vt * g_r * (v_s - vt);
-            q[5] += w * g_ch * vt * vt;
+            q[Q_INVERTER] += w * vt * (ds[0] * ip + ds[1] * io);
+            q[Q_COPPER] += w * 0.5 * k.two_r * (ip * ip + io * io + im * im);
+            q[Q_FRICTION] += w * k.b_f * wt * wt;
+            q[Q_LOAD] += w * tb * wt;
+            q[Q_GEAR] += w * ((gear.c - 1.0) * tb + gear.d * wt) * wt;
+            q[Q_RECTIFIER] += w * vt * g_r * (v_s - vt);
+            q[Q_CHOPPER] += w * g_ch * vt * vt;
+            q[Q_AUX] += w * k.g_aux * vt * vt;
             peak = peak.max(ip.abs()).max(io.abs()).max(im.abs());
             v_hi = v_hi.max(vt);
         }
@@ -797,6 +857,7 @@ impl Bldc {
         let (ip, mut io) = (eval(&cp, tau), eval(&co, tau));
         let mut d_th = eval(&cth, tau);
         let mut v_end = eval(&cv, tau);
+        let mut w_end = eval(&cw, tau);
         match what {
             Event::DiodeOff => io = 0.0,
             Event::Leg(leg, g) => self.gates[leg] = g,
@@ -807,6 +868,8 @@ impl Bldc {
             }
             Event::Commutation(d, _) => d_th = d,
             Event::Link(level) => v_end = level,
+            Event::GearSpeed(w) => w_end = w,
+            Event::GearTorque(d) => d_th = d,
             Event::End | Event::Upper | Event::Lower | Event::Floating => {}
         }
         self.i[pp] = ip;
@@ -817,13 +880,96 @@ impl Bldc {
             what,
             th + half_pp * d_th,
             d_th,
-            eval(&cw, tau),
+            w_end,
             v_end,
             peak.max(i_peak),
             v_hi,
             q,
         );
-        Ok((tau, q_te, q[0], q[5]))
+        Ok((tau, q_te, q[Q_INVERTER], q[Q_CHOPPER]))
+    }
+
+    /// The gear's linear load law over a segment from now ([`Rotor`]), `te0` the motor's
+    /// torque (to tell which way a rotor at rest leaves), and the longest segment it allows
+    /// (its damping d/J times the segment at most 0.25, as accurate as the link's pole).
+    fn rotor(&self, psi: f64, te0: f64) -> (Rotor, f64) {
+        let k = &self.consts;
+        let gl = self.gear_loss;
+        if gl.lossless() {
+            let r = Rotor {
+                kappa_j: k.kappa_j,
+                bf_j: k.bf_j,
+                c: 1.0,
+                d: 0.0,
+            };
+            return (r, f64::INFINITY);
+        }
+        let tb = self.load_torque(psi);
+        let w = self.omega;
+        let dir = if w != 0.0 {
+            w.signum()
+        } else {
+            (te0 - tb).signum()
+        };
+        let mu = gl.mu(tb, dir);
+        let (c, d) = if w.abs() * gl.inv_w_eps >= 1.0 {
+            (1.0 + mu, 0.0)
+        } else {
+            (1.0, mu * tb * dir * gl.inv_w_eps)
+        };
+        let r = Rotor {
+            kappa_j: c * k.kappa_j,
+            bf_j: k.bf_j + d * k.inv_j,
+            c,
+            d,
+        };
+        let h_max = if d > 0.0 {
+            0.25 / (d * k.inv_j)
+        } else {
+            f64::INFINITY
+        };
+        (r, h_max)
+    }
+
+    /// Offers `first` the edges of the gear's loss law that the speed series `cw` and the
+    /// angle series `cth` reach within `h`: ±ω_ε and zero bar torque.
+    fn gear_events(&self, psi: f64, cw: &Poly, cth: &Poly, h: f64, first: &mut First) {
+        let gl = self.gear_loss;
+        if gl.lossless() {
+            return;
+        }
+        // How far each series can move within h: edges further away are not looked for.
+        let (mut w_reach, mut th_reach) = (0.0, 0.0);
+        for k in (1..=ORDER).rev() {
+            w_reach = (w_reach + cw[k].abs()) * h;
+            th_reach = (th_reach + cth[k].abs()) * h;
+        }
+        let w0 = cw[0];
+        let w_eps = 1.0 / gl.inv_w_eps;
+        if (w0.abs() - w_eps).abs() > w_reach {
+            // Neither +ω_ε nor −ω_ε within reach.
+        } else if w0.abs() * gl.inv_w_eps >= 1.0 {
+            let dir = w0.signum();
+            first.offer(
+                reach(cw, dir * w_eps, -dir, h),
+                Event::GearSpeed(dir * w_eps * (1.0 - GEAR_NUDGE)),
+            );
+        } else {
+            // Zero speed is not an edge: within ±ω_ε the loss is d ω, d from the direction at
+            // the segment's start, which stays dissipative (d ω² ≥ 0) through a reversal.
+            let out = w_eps * (1.0 + GEAR_NUDGE);
+            first.offer(reach(cw, w_eps, 1.0, h), Event::GearSpeed(out));
+            first.offer(reach(cw, -w_eps, -1.0, h), Event::GearSpeed(-out));
+        }
+        // The bar's torque is zero where θ_m = G ψ.
+        let target = self.gear * psi - self.theta_m;
+        if target != 0.0 && target.abs() <= th_reach {
+            let dir = target.signum();
+            first.offer(
+                reach(cth, target, dir, h),
+                Event::GearTorque(target + dir * GEAR_NUDGE * (1.0 + self.theta_m.abs())),
+            );
+        }
     }
 
     /// The chopper's state for a segment, by its hysteresis rule as its fixed step decides
@@ -906,7 +1052,7 @@ impl Bldc {
 
     /// Ends a segment that ended with `what`: the rotor at ω `w_end`, advanced by `d_th`
     /// (θ_e at `te`, unwrapped), the link at `v_end`; the peaks and the energy integrals
-    /// `[inverter, copper, friction, load, rectifier, chopper]` booked.
+    /// `q` (indexed by `Q_*`) booked.
     #[allow(clippy::too_many_arguments)]
     fn close(
         &mut self,
@@ -917,12 +1063,13 @@ impl Bldc {
         v_end: f64,
         peak: f64,
         v_hi: f64,
-        q: [f64; 6],
+        q: [f64; 8],
     ) {
         match what {
             Event::Upper | Event::Lower | Event::Leg(..) => self.stats.switchings += 1,
             Event::Commutation(..) => self.stats.commutations += 1,
             Event::Link(_) => self.stats.link_events += 1,
+            Event::GearSpeed(_) | Event::GearTorque(_) => self.stats.gear_events += 1,
             Event::End | Event::Floating | Event::DiodeOff | Event::Trip => {}
         }
         self.omega = w_end;
@@ -946,14 +1093,15 @@ impl Bldc {
         if peak >= self.p.current_limit_a {
             self.limits |= limit::CURRENT;
         }
-        let [q_p, q_cu, q_fr, q_ld, q_r, q_ch] = q;
-        self.energy.electrical_in += q_p;
-        self.energy.copper += q_cu;
-        self.energy.friction += q_fr;
-        self.energy.load += q_ld;
-        self.link.energy.rectifier += q_r;
-        self.link.energy.chopper += q_ch;
-        self.link.energy.inverter += q_p;
+        self.energy.electrical_in += q[Q_INVERTER];
+        self.energy.copper += q[Q_COPPER];
+        self.energy.friction += q[Q_FRICTION];
+        self.energy.load += q[Q_LOAD];
+        self.energy.gear += q[Q_GEAR];
+        self.link.energy.rectifier += q[Q_RECTIFIER];
+        self.link.energy.chopper += q[Q_CHOPPER];
+        self.link.energy.inverter += q[Q_INVERTER];
+        self.link.energy.aux += q[Q_AUX];
         self.stats.segments += 1;
     }
 }

@@ -43,7 +43,19 @@ pub fn leftover_files(prefix: &str) -> Vec<PathBuf> {
 /// and a node directory (`nodes/<node id>/`) that this leaves empty. Returns how many files
 /// were removed. Called last, after every node is gone.
 pub fn remove_run_files(prefix: &str) -> usize {
-    let files = leftover_files(prefix);
+    remove_files_of(prefix, &[])
+}
+
+/// [`remove_run_files`], keeping the files of the live runs whose (longer) prefixes begin with
+/// `prefix`.
+fn remove_files_of(prefix: &str, live: &[&str]) -> usize {
+    let mut files = leftover_files(prefix);
+    files.retain(|p| {
+        let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
+        !live
+            .iter()
+            .any(|l| l.len() > prefix.len() && name.as_deref().is_some_and(|n| n.starts_with(l)))
+    });
     let removed = files
         .iter()
         .filter(|p| {
@@ -67,6 +79,96 @@ pub fn remove_run_files(prefix: &str) -> usize {
         }
     }
     removed
+}
+
+/// The end of the name of a run's owner file, `/dev/shm/<prefix>tiltsim-owner`.
+const OWNER_FILE: &str = "tiltsim-owner";
+
+/// Start time of process `pid` in clock ticks after boot (`/proc/<pid>/stat` field 22), if it
+/// exists: with the pid, it names one process over the machine's uptime.
+pub fn start_ticks(pid: u32) -> Option<u64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // "pid (comm) state ppid ...": comm may hold spaces and parentheses; fields after the last
+    // ')' are numbered from 3 (state), so field 22 is the 20th of them.
+    let rest = &stat[stat.rfind(')')? + 1..];
+    rest.split_whitespace().nth(19)?.parse().ok()
+}
+
+/// This boot's `/proc/sys/kernel/random/boot_id` (empty if it cannot be read).
+pub fn boot_id() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/random/boot_id")
+        .map(|s| s.trim().to_string())
+        .unwrap_or_default()
+}
+
+/// The process that owns a run's files, as its owner file records it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Owner {
+    pid: u32,
+    start_ticks: u64,
+    boot_id: String,
+}
+
+impl Owner {
+    fn me() -> Owner {
+        let pid = std::process::id();
+        Owner {
+            pid,
+            start_ticks: start_ticks(pid).unwrap_or(0),
+            boot_id: boot_id(),
+        }
+    }
+
+    fn parse(text: &str) -> Option<Owner> {
+        let mut w = text.split_whitespace();
+        let owner = Owner {
+            pid: w.next()?.parse().ok()?,
+            start_ticks: w.next()?.parse().ok()?,
+            boot_id: w.next()?.to_string(),
+        };
+        w.next().is_none().then_some(owner)
+    }
+
+    /// Whether the process is gone: another boot, or its pid free or now another process's.
+    fn is_dead(&self) -> bool {
+        self.boot_id != boot_id() || start_ticks(self.pid) != Some(self.start_ticks)
+    }
+}
+
+/// Records this process as the owner of the files of `prefix` (`/dev/shm/<prefix>tiltsim-owner`:
+/// its pid, start time and boot), so that [`remove_dead_runs`] removes them once it is gone,
+/// whatever the prefix. The file is written whole (a temporary renamed into place) and goes
+/// with the run's other files ([`remove_run_files`]).
+pub fn claim_prefix(prefix: &str) -> std::io::Result<()> {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static CLAIMS: AtomicU64 = AtomicU64::new(0);
+    let o = Owner::me();
+    let n = CLAIMS.fetch_add(1, Ordering::Relaxed);
+    let tmp = format!("/dev/shm/.tiltsim-owner-{}-{n}", o.pid);
+    std::fs::write(&tmp, format!("{} {} {}\n", o.pid, o.start_ticks, o.boot_id))?;
+    std::fs::rename(&tmp, format!("/dev/shm/{prefix}{OWNER_FILE}")).inspect_err(|_| {
+        let _ = std::fs::remove_file(&tmp);
+    })
+}
+
+/// The prefixes of the owner files in `dir`, each with whether its owner is dead; a file that
+/// cannot be read or parsed counts as live (never remove what may be in use).
+fn owned_prefixes(dir: &Path) -> Vec<(String, bool)> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    entries
+        .flatten()
+        .filter_map(|e| {
+            let name = e.file_name().to_str()?.to_string();
+            let prefix = name.strip_suffix(OWNER_FILE)?.to_string();
+            let dead = std::fs::read_to_string(e.path())
+                .ok()
+                .and_then(|t| Owner::parse(&t))
+                .is_some_and(|o| o.is_dead());
+            (!prefix.is_empty()).then_some((prefix, dead))
+        })
+        .collect()
 }
 
 /// The owner's pid of a default run prefix `tiltsim_<pid>_<nonce>_<n>_` at the start of `name`
@@ -95,16 +197,25 @@ pub fn remove_dead_runs() -> Vec<String> {
     for (dir, depth) in roots("tiltsim_") {
         walk_names(&dir, depth, &mut found);
     }
+    // A default prefix names its owner's pid; any prefix may have an owner file, which also
+    // tells a dead owner whose pid was reused.
+    let owned = owned_prefixes(Path::new("/dev/shm"));
     let mut dead: Vec<String> = found
         .iter()
         .filter_map(|n| owner(n).map(|pid| (pid, n)))
         .filter(|(pid, _)| *pid > 0 && !alive(*pid))
         .map(|(pid, _)| format!("tiltsim_{pid}_"))
+        .chain(owned.iter().filter(|o| o.1).map(|o| o.0.clone()))
         .collect();
     dead.sort();
     dead.dedup();
+    let live: Vec<&str> = owned
+        .iter()
+        .filter(|o| !o.1)
+        .map(|o| o.0.as_str())
+        .collect();
     for p in &dead {
-        remove_run_files(p);
+        remove_files_of(p, &live);
     }
     if let Ok(cfg) = config("tiltsim_") {
         remove_abandoned_node_dirs(Path::new(&cfg.global.root_path().to_string()));
@@ -191,6 +302,47 @@ mod tests {
         assert!(!empty_old.exists());
         assert!(full_old.exists() && empty_new.exists() && named.exists());
         std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn a_dead_owner_of_any_prefix_has_its_files_removed_and_a_live_longer_prefix_kept() {
+        let pfx = format!("custom_{}_cleanup_", std::process::id());
+        let shm = |name: &str| PathBuf::from(format!("/dev/shm/{pfx}{name}"));
+        // The live run: this process owns `<pfx>live_`.
+        claim_prefix(&format!("{pfx}live_")).unwrap();
+        std::fs::write(shm("live_data"), b"x").unwrap();
+        // The dead one: this pid, but a start time no process of this pid has.
+        let me = Owner::me();
+        let ghost = format!("{} {} {}\n", me.pid, me.start_ticks + 1, me.boot_id);
+        std::fs::write(shm(OWNER_FILE), ghost).unwrap();
+        std::fs::write(shm("data"), b"x").unwrap();
+        let dead = remove_dead_runs();
+        assert!(dead.contains(&pfx), "{dead:?}");
+        assert!(!shm("data").exists() && !shm(OWNER_FILE).exists());
+        assert!(shm("live_data").exists() && shm(&format!("live_{OWNER_FILE}")).exists());
+        // The live run's own clean-up takes its owner file with its other files.
+        assert_eq!(remove_run_files(&format!("{pfx}live_")), 2);
+        assert!(leftover_files(&pfx).is_empty());
+    }
+
+    #[test]
+    fn an_owner_file_names_one_process_of_one_boot() {
+        let me = Owner::me();
+        let text = format!("{} {} {}\n", me.pid, me.start_ticks, me.boot_id);
+        assert_eq!(Owner::parse(&text), Some(me.clone()));
+        assert!(!me.is_dead());
+        assert!(Owner {
+            start_ticks: me.start_ticks + 1,
+            ..me.clone()
+        }
+        .is_dead());
+        assert!(Owner {
+            boot_id: "another-boot".into(),
+            ..me.clone()
+        }
+        .is_dead());
+        assert_eq!(Owner::parse("12 34"), None);
+        assert_eq!(Owner::parse("12 34 b extra"), None);
     }
 
     #[test]

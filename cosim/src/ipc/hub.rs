@@ -10,7 +10,8 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use crate::endpoint::{check_reply, Endpoint, ExchangeCounts, ExitReport, LinkError, ProcessFault};
 use crate::msg::{exchange_key, Header, Kind, Message};
@@ -28,6 +29,7 @@ pub struct IpcHub {
     settings: IpcSettings,
     cfg: Config,
     node: Node<ipc::Service>,
+    interrupt: Option<Arc<AtomicBool>>,
 }
 
 /// How to start a participant's process.
@@ -44,12 +46,24 @@ impl IpcHub {
     pub fn new(settings: IpcSettings) -> Result<Self, IpcError> {
         quiet_iceoryx_logs();
         let cfg = config(&settings.prefix)?;
+        // Whatever the prefix, a run whose orchestrator is killed has its files removed by
+        // the next run or `tiltsim clean`.
+        super::claim_prefix(&settings.prefix)
+            .map_err(|e| IpcError::Iceoryx(format!("owner file of {}: {e}", settings.prefix)))?;
         let node = node(&cfg, "orchestrator")?;
         Ok(IpcHub {
             settings,
             cfg,
             node,
+            interrupt: None,
         })
+    }
+
+    /// Makes [`IpcHub::spawn`] stop waiting for a participant to connect, and stop it, once
+    /// `flag` is set (the program's interrupt flag: Ctrl-C during a long start-up).
+    pub fn interrupted_by(mut self, flag: Arc<AtomicBool>) -> Self {
+        self.interrupt = Some(flag);
+        self
     }
 
     /// The run's settings.
@@ -127,7 +141,10 @@ impl IpcHub {
             resent: None,
             drops: DropPlan::from_env(role),
         };
-        ep.await_connection(startup)?;
+        if !ep.await_connection(startup, self.interrupt.as_deref())? {
+            // Dropping the endpoint stops the process.
+            return Err(IpcError::Interrupted { role });
+        }
         Ok(ep)
     }
 
@@ -217,7 +234,7 @@ pub struct IpcEndpoint<I: Message, O: Message> {
 
 /// Silence after which a pending exchange is looked into (the participant's status read) and
 /// a request or reply found lost is re-sent. Ten times the 99th percentile of a round trip
-/// measured on a quiet machine (under 50 µs, README), so the normal path never reaches it;
+/// measured on a quiet machine (under 50 µs, `tiltsim bench`), so the normal path never reaches it;
 /// short enough that a loss costs well under a millisecond or two. Looking costs three loads
 /// from shared memory, and a re-send happens only when the status shows a loss, so a long
 /// wait (a starved participant) costs nothing either.
@@ -231,6 +248,27 @@ const LOOK_EVERY: Duration = Duration::from_millis(100);
 struct Look {
     cpu_ns: u64,
     empty_polls: u64,
+}
+
+/// How many ceilings of wall time a running participant is waited for at most, whatever CPU
+/// time it got: the bound on one that never gets going (in an uninterruptible wait for ever).
+const WALL_CEILINGS: u32 = 10;
+
+/// Whether a participant judged running has gone past the ceiling: it used more CPU time than
+/// the ceiling since the first look (it computes for ever), or [`WALL_CEILINGS`] ceilings of
+/// wall time have passed. CPU time, not wall time, is what the ceiling counts: a participant
+/// starved by other load gets little of it, so load alone never makes it fail.
+fn past_ceiling(
+    ceiling: Duration,
+    elapsed: Duration,
+    first: Option<Look>,
+    now: Option<Look>,
+) -> bool {
+    let cpu_ns = match (first, now) {
+        (Some(f), Some(n)) => n.cpu_ns.saturating_sub(f.cpu_ns),
+        _ => 0,
+    };
+    Duration::from_nanos(cpu_ns) > ceiling || elapsed > ceiling * WALL_CEILINGS
 }
 
 /// Whether a participant that has not answered by the deadline is hung or only slow.
@@ -313,16 +351,25 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
     /// Waits until the participant's ports are connected. The liveness rule of every exchange
     /// applies from `startup` on: a participant that is runnable or uses CPU (starting under
     /// load) is waited for, counted, up to the ceiling; a stopped, gone or idle one fails.
-    fn await_connection(&mut self, startup: Duration) -> Result<(), LinkError> {
+    /// Returns `false`, not connected, once `interrupt` is set.
+    fn await_connection(
+        &mut self,
+        startup: Duration,
+        interrupt: Option<&AtomicBool>,
+    ) -> Result<bool, LinkError> {
         let started = Instant::now();
         let mut look_at = startup;
         let mut previous = None;
+        let mut first = None;
         let mut idle_looks = 0;
         loop {
             let subs = self.req.dynamic_config().number_of_subscribers();
             let pubs = self.rep.dynamic_config().number_of_publishers();
             if subs >= 1 && pubs >= 1 {
-                return Ok(());
+                return Ok(true);
+            }
+            if interrupt.is_some_and(|f| f.load(Ordering::Relaxed)) {
+                return Ok(false);
             }
             if let Some(status) = self.exited() {
                 return Err(LinkError::Exited {
@@ -337,9 +384,12 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
                 // Not connected yet: never "computing", never polling.
                 let (verdict, look) = judge(self.pid, false, 0, previous, &mut idle_looks);
                 previous = look;
+                first = first.or(look);
                 let limit = match verdict {
                     Liveness::Hung | Liveness::Idle => Some(startup),
-                    Liveness::Running if elapsed > self.ceiling => Some(self.ceiling),
+                    Liveness::Running if past_ceiling(self.ceiling, elapsed, first, look) => {
+                        Some(self.ceiling)
+                    }
                     Liveness::Running => None,
                 };
                 if let Some(limit) = limit {
@@ -477,6 +527,7 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         let mut silence = Silence::default();
         let mut look_at = self.deadline;
         let mut previous: Option<Look> = None;
+        let mut first: Option<Look> = None;
         let mut idle_looks = 0;
         if let Some(r) = &self.exit {
             // Already known to be gone (a kill fault reaps at once).
@@ -505,7 +556,7 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
             // tells whether the request or its reply was lost (then it is re-sent). At the
             // deadline a stopped, idle or sleeping process is declared stalled; one that runs
             // (starved by other load, or computing) is waited for, looked at again every
-            // 100 ms, up to the ceiling.
+            // 100 ms, until it has used the ceiling in CPU time (`past_ceiling`).
             let elapsed = backoff.elapsed();
             if backoff.polls() % 1024 == 1023 || elapsed > check_at {
                 if let Some(status) = self.exited() {
@@ -543,9 +594,10 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
                     let (verdict, look) =
                         judge(self.pid, computing, polls, previous, &mut idle_looks);
                     previous = look;
+                    first = first.or(look);
                     let limit = match verdict {
                         Liveness::Hung => Some(self.deadline),
-                        _ if elapsed > self.ceiling => Some(self.ceiling),
+                        _ if past_ceiling(self.ceiling, elapsed, first, look) => Some(self.ceiling),
                         Liveness::Idle => {
                             // Polling, yet the request is not taken: send it once more.
                             self.resend(key)?;
@@ -693,6 +745,45 @@ mod tests {
     }
 
     #[test]
+    fn the_ceiling_counts_cpu_time_so_a_starved_participant_is_waited_for() {
+        let c = Duration::from_secs(60);
+        let look = |cpu_s: f64| {
+            Some(Look {
+                cpu_ns: (cpu_s * 1e9) as u64,
+                empty_polls: 0,
+            })
+        };
+        // Starved: five minutes of wall time, one second of CPU.
+        assert!(!past_ceiling(
+            c,
+            Duration::from_secs(300),
+            look(2.0),
+            look(3.0)
+        ));
+        // Computing for ever: more CPU than the ceiling since the first look.
+        assert!(past_ceiling(
+            c,
+            Duration::from_secs(70),
+            look(2.0),
+            look(62.5)
+        ));
+        assert!(!past_ceiling(
+            c,
+            Duration::from_secs(70),
+            look(2.0),
+            look(61.5)
+        ));
+        // Never getting going: ten ceilings of wall time, whatever the CPU.
+        assert!(past_ceiling(
+            c,
+            Duration::from_secs(601),
+            look(2.0),
+            look(2.0)
+        ));
+        assert!(!past_ceiling(c, Duration::from_secs(599), None, None));
+    }
+
+    #[test]
     fn a_lost_request_and_a_lost_reply_are_resent_and_the_model_steps_once_each() {
         let prefix = super::super::unique_prefix();
         let hub = IpcHub::new(IpcSettings {
@@ -722,7 +813,7 @@ mod tests {
                 DropPlan::new(vec![(Role::Controller, false, 5)]),
             )
         });
-        ep.await_connection(Duration::from_secs(600)).unwrap();
+        assert!(ep.await_connection(Duration::from_secs(600), None).unwrap());
         for k in 0..8u64 {
             let req = ToController {
                 header: Header::new(k, Kind::Step),

@@ -22,7 +22,9 @@ mod serve;
 mod supervise;
 
 pub use affinity::{allowed_cpus, cpu_plan, pin_to_cpu, set_cpus, set_cpus_of};
-pub use cleanup::{leftover_files, remove_dead_runs, remove_run_files};
+pub use cleanup::{
+    boot_id, claim_prefix, leftover_files, remove_dead_runs, remove_run_files, start_ticks,
+};
 pub use hub::{IpcEndpoint, IpcHub, Launch};
 pub use serve::{
     participant_main, participant_main_with, serve, serve_with, ParticipantArgs, ServeError,
@@ -74,6 +76,10 @@ pub enum IpcError {
     /// The model failed a step (an FMU's `doStep` returned an error): the process ends.
     #[error("{0}")]
     Model(String),
+    /// The program's interrupt flag was set while participant `role` was starting (it was
+    /// stopped, whatever it was doing: unpacking a large FMU, designing a controller).
+    #[error("interrupted while participant {role} was starting")]
+    Interrupted { role: Role },
 }
 
 fn iox<E: core::fmt::Debug>(what: &str) -> impl FnOnce(E) -> IpcError + '_ {

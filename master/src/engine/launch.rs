@@ -208,7 +208,8 @@ pub(crate) fn start(
                 deadline: Duration::from_millis(s.run.deadline_ms),
                 ceiling: Duration::from_millis(s.run.hang_ceiling_ms),
                 participant_cpu: plan.map(|p| p.1),
-            })?;
+            })?
+            .interrupted_by(opts.interrupt.clone());
             if let Some((own, _)) = plan {
                 cosim::ipc::pin_to_cpu(own);
             }
@@ -241,21 +242,27 @@ pub(crate) fn start(
                 };
                 launch_of(role, command, params)
             };
-            let plant = hub.spawn::<ToPlant, FromPlant>(
-                Role::Plant,
-                &launch(Role::Plant, json(&inits.plant)),
-                startup,
-            )?;
-            let actuator = hub.spawn::<ToActuator, FromActuator>(
-                Role::Actuator,
-                &launch(Role::Actuator, json(&inits.actuator)),
-                startup,
-            )?;
-            let controller = hub.spawn::<ToController, FromController>(
-                Role::Controller,
-                &launch(Role::Controller, json(&inits.controller)),
-                startup,
-            )?;
+            let plant = hub
+                .spawn::<ToPlant, FromPlant>(
+                    Role::Plant,
+                    &launch(Role::Plant, json(&inits.plant)),
+                    startup,
+                )
+                .map_err(started)?;
+            let actuator = hub
+                .spawn::<ToActuator, FromActuator>(
+                    Role::Actuator,
+                    &launch(Role::Actuator, json(&inits.actuator)),
+                    startup,
+                )
+                .map_err(started)?;
+            let controller = hub
+                .spawn::<ToController, FromController>(
+                    Role::Controller,
+                    &launch(Role::Controller, json(&inits.controller)),
+                    startup,
+                )
+                .map_err(started)?;
             Ok(Participants {
                 plant: Box::new(plant),
                 actuator: Box::new(actuator),
@@ -267,12 +274,28 @@ pub(crate) fn start(
     }
 }
 
-/// An FMU participant loaded in this process.
+/// A participant process that could not be started, or was stopped by an interrupt. An FMU
+/// it was unpacking when it was stopped is removed.
+fn started(e: cosim::ipc::IpcError) -> RunError {
+    tiltsim_fmi::archive::remove_dead_unpacked();
+    match e {
+        cosim::ipc::IpcError::Interrupted { role } => RunError::Interrupted { role },
+        e => RunError::Ipc(e),
+    }
+}
+
+/// An FMU participant loaded in this process; its unpacking stops at an interrupt.
 fn fmu_model<S: tiltsim_fmi::Samples>(
     init: tiltsim_fmi::FmuInit,
 ) -> Result<tiltsim_fmi::FmuParticipant<S>, RunError> {
     let role = init.role;
-    tiltsim_fmi::FmuParticipant::<S>::new(init).map_err(|message| RunError::Fmu { role, message })
+    tiltsim_fmi::FmuParticipant::<S>::new(init).map_err(|message| {
+        if message.ends_with(tiltsim_fmi::archive::UNPACKING_STOPPED) {
+            RunError::Interrupted { role }
+        } else {
+            RunError::Fmu { role, message }
+        }
+    })
 }
 
 /// Settings as the JSON a participant process receives. Plain settings structs (no maps with

@@ -96,6 +96,13 @@ pub enum RunError {
     /// The controller design failed.
     #[error("controller design: {0}")]
     Design(String),
+    /// The interrupt flag (Ctrl-C, SIGTERM, SIGHUP) was set while a participant was
+    /// starting; it was stopped and nothing was recorded.
+    #[error("interrupted while participant {role} was starting")]
+    Interrupted {
+        /// The participant that was starting.
+        role: cosim::Role,
+    },
     /// An FMU participant could not be loaded or initialised.
     #[error("{role}: {message}")]
     Fmu {

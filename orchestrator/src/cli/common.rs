@@ -81,6 +81,8 @@ pub fn load(path: &Path) -> Result<Scenario, CliError> {
 /// participants.
 pub fn interrupt_and_exe() -> Result<(Arc<AtomicBool>, PathBuf), CliError> {
     let interrupt = tiltsim_master::signals::install();
+    // An FMU unpacked in this process (the in-process transport) stops at Ctrl-C too.
+    tiltsim_fmi::archive::stop_unpacking_when(interrupt.clone());
     let exe = std::env::current_exe().map_err(|e| {
         CliError::Failed(format!(
             "cannot find the tiltsim executable to start participants: {e}"

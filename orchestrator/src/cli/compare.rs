@@ -1,5 +1,5 @@
 //! `tiltsim compare SCENARIO...`: several runs laid out like the paper's Table 4, with the
-//! ideal-tilt floor and the validity flags.
+//! ideal-tilt reference and the validity flags.
 
 use std::path::{Path, PathBuf};
 
@@ -32,7 +32,7 @@ fn one(file: &Path, s: Scenario, out: &Path, base: &RunOptions) -> Result<Entry,
     let mut opts = base.clone();
     opts.out_dir = dir.clone();
     let summary = tiltsim_report::analysis::run(&s, &file.display().to_string(), &opts)
-        .map_err(|e| CliError::Failed(format!("{}: {e}", file.display())))?;
+        .map_err(|e| CliError::of_run(e, &format!("{}: ", file.display())))?;
     write_json(&dir.join("summary.json"), &summary)?;
     println!(
         "{}: {:?}, P_CT standing {:.2} %, peak lateral acceleration {:.2} %g",

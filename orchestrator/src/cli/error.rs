@@ -39,6 +39,22 @@ impl CliError {
 /// What a command returns.
 pub type CliResult = Result<(), CliError>;
 
+impl CliError {
+    /// A run that could not start or end: an interrupt during the start-up exits as an
+    /// interrupt (130), naming the signal; anything else is a failure with `context` first.
+    pub fn of_run(e: tiltsim_master::engine::RunError, context: &str) -> CliError {
+        match e {
+            tiltsim_master::engine::RunError::Interrupted { role } => {
+                CliError::Interrupted(format!(
+                    "interrupted by {} while participant {role} was starting: nothing recorded",
+                    tiltsim_master::signals::describe()
+                ))
+            }
+            e => CliError::Failed(format!("{context}{e}")),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

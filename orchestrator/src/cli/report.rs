@@ -61,7 +61,7 @@ pub fn print(s: &Summary, out: &Path) {
     let flags = s.flags.describe();
     if flags.is_empty() {
         println!(
-            "  flags: all clear (no oscillation, bump stop, drive limit, chopper duty or P_CT out of range)"
+            "  flags: all clear (no oscillation, bump stop, drive limit, chopper duty, motor over its continuous torque or P_CT out of range)"
         );
     } else {
         for f in flags {

@@ -197,7 +197,7 @@ pub fn exec(a: RunArgs) -> CliResult {
             kept = write_json(&out.join("summary.json"), sm)
                 .and_then(|_| write_json(&out.join("perf.json"), &sm.perf()));
         })
-        .map_err(|e| CliError::Failed(e.to_string()))?;
+        .map_err(|e| CliError::of_run(e, ""))?;
     if let Err(e) = kept {
         // The run's own outcome is the more important message; the summary's loss is told too.
         eprintln!("error: summary not written: {e}");
