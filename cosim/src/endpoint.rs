@@ -182,6 +182,13 @@ pub struct ExchangeCounts {
     /// Looks past the deadline at a participant that was running (starved of CPU by other
     /// load, or computing) and was waited for.
     pub starved_waits: u64,
+    /// Requests re-sent and repeats discarded: what lost samples cost.
+    pub lost_samples: LostSamples,
+}
+
+/// How lost samples were repaired for one participant (docs/architecture.md, "Lost samples").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct LostSamples {
     /// Requests re-sent because their exchange went silent.
     pub resends: u64,
     /// Of those, requests found lost: the participant kept polling and never took it.

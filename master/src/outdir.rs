@@ -32,6 +32,7 @@ use std::os::unix::fs::MetadataExt as _;
 use std::os::unix::io::AsRawFd as _;
 use std::path::{Path, PathBuf};
 
+use cosim::ipc::Owner;
 use serde::{Deserialize, Serialize};
 
 /// The lock file's name inside an output directory.
@@ -182,35 +183,31 @@ fn read_trimmed(p: &str) -> String {
         .unwrap_or_default()
 }
 
-use cosim::ipc::start_ticks;
-
 impl Holder {
     /// This process, holding for `command`.
     fn me(command: &str) -> Holder {
-        let pid = std::process::id();
+        let me = Owner::me();
         Holder {
-            pid,
-            start_ticks: start_ticks(pid).unwrap_or(0),
-            boot_id: cosim::ipc::boot_id(),
+            pid: me.pid,
+            start_ticks: me.start_ticks,
+            boot_id: me.boot_id,
             host: read_trimmed("/proc/sys/kernel/hostname"),
             command: command.to_string(),
         }
     }
 
     /// Whether the holder is still running: `Some(true)` alive, `Some(false)` dead (or its pid
-    /// now another process's), `None` on another host.
+    /// now another process's, [`Owner::is_dead`]), `None` on another host.
     fn alive(&self, here: &Holder) -> Option<bool> {
         if self.host != here.host {
             return None;
         }
-        if self.boot_id != here.boot_id {
-            return Some(false);
-        }
-        let pid = libc::pid_t::try_from(self.pid).ok()?;
-        // SAFETY: signal 0 only checks that the process exists and may be signalled.
-        let r = unsafe { libc::kill(pid, 0) };
-        let exists = r == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM);
-        Some(exists && start_ticks(self.pid) == Some(self.start_ticks))
+        let owner = Owner {
+            pid: self.pid,
+            start_ticks: self.start_ticks,
+            boot_id: self.boot_id.clone(),
+        };
+        Some(!owner.is_dead())
     }
 }
 
@@ -261,6 +258,53 @@ fn read_holder(file: &mut std::fs::File) -> Option<Holder> {
     serde_json::from_str(&text).ok()
 }
 
+/// `dir` held under another's flock, naming its holder (it may still be writing its name).
+fn in_use(dir: &Path, file: &mut std::fs::File) -> OutDirError {
+    let mut holder = None;
+    for _ in 0..50 {
+        holder = read_holder(file);
+        if holder.is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    OutDirError::InUse {
+        dir: dir.to_path_buf(),
+        holder: holder.unwrap_or(Holder {
+            pid: 0,
+            start_ticks: 0,
+            boot_id: String::new(),
+            host: "an unknown host".into(),
+            command: "(starting)".into(),
+        }),
+    }
+}
+
+/// Whether `me` may take over the lock of `dir` from the holder its file names, `old`: not
+/// from another live process, nor from one on another host unless `flocked` (the file
+/// system's locks then decide).
+fn take_over(dir: &Path, old: Holder, me: &Holder, flocked: bool) -> Result<(), OutDirError> {
+    match old.alive(me) {
+        Some(true) if old.pid != me.pid || old.start_ticks != me.start_ticks => {
+            Err(OutDirError::InUse {
+                dir: dir.to_path_buf(),
+                holder: old,
+            })
+        }
+        None if !flocked => Err(OutDirError::Unverifiable {
+            dir: dir.to_path_buf(),
+            holder: old,
+        }),
+        _ => {
+            tracing::info!(
+                "{}: taking over the lock of {old}, which is no longer running",
+                dir.display()
+            );
+            Ok(())
+        }
+    }
+}
+
 impl Lock {
     /// Takes `dir` (created if missing) for `command`, before anything is written in it.
     pub fn acquire(dir: &Path, command: &str) -> Result<Lock, OutDirError> {
@@ -279,27 +323,7 @@ impl Lock {
                 .map_err(io(&path))?;
             let flocked = match flock(&file) {
                 Ok(true) => true,
-                Ok(false) => {
-                    // Held: its holder may still be writing its name.
-                    let mut holder = None;
-                    for _ in 0..50 {
-                        holder = read_holder(&mut file);
-                        if holder.is_some() {
-                            break;
-                        }
-                        std::thread::sleep(std::time::Duration::from_millis(2));
-                    }
-                    return Err(OutDirError::InUse {
-                        dir: dir.to_path_buf(),
-                        holder: holder.unwrap_or(Holder {
-                            pid: 0,
-                            start_ticks: 0,
-                            boot_id: String::new(),
-                            host: "an unknown host".into(),
-                            command: "(starting)".into(),
-                        }),
-                    });
-                }
+                Ok(false) => return Err(in_use(dir, &mut file)),
                 Err(e) => {
                     tracing::debug!(
                         "{}: no flock ({e}); the lock's contents decide",
@@ -312,24 +336,7 @@ impl Lock {
                 continue;
             }
             if let Some(old) = read_holder(&mut file) {
-                match old.alive(&me) {
-                    Some(true) if old.pid != me.pid || old.start_ticks != me.start_ticks => {
-                        return Err(OutDirError::InUse {
-                            dir: dir.to_path_buf(),
-                            holder: old,
-                        })
-                    }
-                    None if !flocked => {
-                        return Err(OutDirError::Unverifiable {
-                            dir: dir.to_path_buf(),
-                            holder: old,
-                        })
-                    }
-                    _ => tracing::info!(
-                        "{}: taking over the lock of {old}, which is no longer running",
-                        dir.display()
-                    ),
-                }
+                take_over(dir, old, &me, flocked)?;
             }
             let text = serde_json::to_string(&me).unwrap_or_default() + "\n";
             (|| {
@@ -522,21 +529,6 @@ mod tests {
         let d = std::env::temp_dir().join(format!("tiltsim-outdir-{name}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
         d
-    }
-
-    #[test]
-    fn the_start_time_of_this_process_is_read_from_proc() {
-        let t = start_ticks(std::process::id()).unwrap();
-        assert!(t > 0);
-        // A child started after this process started later (or in the same tick).
-        let mut child = std::process::Command::new("sleep")
-            .arg("5")
-            .spawn()
-            .unwrap();
-        let c = start_ticks(child.id()).unwrap();
-        let _ = child.kill();
-        let _ = child.wait();
-        assert!(c >= t, "{c} < {t}");
     }
 
     #[test]

@@ -101,16 +101,21 @@ pub fn boot_id() -> String {
         .unwrap_or_default()
 }
 
-/// The process that owns a run's files, as its owner file records it.
+/// One process of one boot, told apart from a later process with its pid: the owner of a
+/// run's files (its owner file) or of an output directory's lock.
 #[derive(Debug, Clone, PartialEq, Eq)]
-struct Owner {
-    pid: u32,
-    start_ticks: u64,
-    boot_id: String,
+pub struct Owner {
+    /// Process id.
+    pub pid: u32,
+    /// Start time of the process, clock ticks after boot (`/proc/<pid>/stat` field 22).
+    pub start_ticks: u64,
+    /// `/proc/sys/kernel/random/boot_id` of its machine's boot.
+    pub boot_id: String,
 }
 
 impl Owner {
-    fn me() -> Owner {
+    /// This process.
+    pub fn me() -> Owner {
         let pid = std::process::id();
         Owner {
             pid,
@@ -129,8 +134,9 @@ impl Owner {
         w.next().is_none().then_some(owner)
     }
 
-    /// Whether the process is gone: another boot, or its pid free or now another process's.
-    fn is_dead(&self) -> bool {
+    /// Whether the process is gone: another boot, or its pid free or now another process's
+    /// (a process of that pid that started at another time).
+    pub fn is_dead(&self) -> bool {
         self.boot_id != boot_id() || start_ticks(self.pid) != Some(self.start_ticks)
     }
 }
@@ -325,6 +331,20 @@ mod tests {
         assert!(leftover_files(&pfx).is_empty());
     }
 
+    #[test]
+    fn the_start_time_of_this_process_is_read_from_proc() {
+        let t = start_ticks(std::process::id()).unwrap();
+        assert!(t > 0);
+        // A child started after this process started later (or in the same tick).
+        let mut child = std::process::Command::new("sleep")
+            .arg("5")
+            .spawn()
+            .unwrap();
+        let c = start_ticks(child.id()).unwrap();
+        let _ = child.kill();
+        let _ = child.wait();
+        assert!(c >= t, "{c} < {t}");
+    }
     #[test]
     fn an_owner_file_names_one_process_of_one_boot() {
         let me = Owner::me();

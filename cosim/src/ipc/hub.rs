@@ -20,8 +20,8 @@ use crate::wait::{Backoff, WaitStrategy};
 
 use super::supervise::{proc_state, try_reap, Status};
 use super::{
-    config, drain, iox, node, quiet_iceoryx_logs, reply_service, request_service, service,
-    DropPlan, IpcError, IpcSettings, Resent,
+    config, iox, node, quiet_iceoryx_logs, reply_service, request_service, service, DropPlan,
+    IpcError, IpcSettings, Resent,
 };
 
 /// The orchestrator's side of the transport for one run.
@@ -250,6 +250,15 @@ struct Look {
     empty_polls: u64,
 }
 
+/// What the looks at a participant past its deadline remember: the previous look and the
+/// first (for the ceiling), and how many looks in a row found it idle.
+#[derive(Debug, Default)]
+struct Looks {
+    previous: Option<Look>,
+    first: Option<Look>,
+    idle: u32,
+}
+
 /// How many ceilings of wall time a running participant is waited for at most, whatever CPU
 /// time it got: the bound on one that never gets going (in an uninterruptible wait for ever).
 const WALL_CEILINGS: u32 = 10;
@@ -407,6 +416,104 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
         }
     }
 
+    /// Takes every reply waiting and keeps in `found` the one sample for `step`; any other
+    /// sample is an error. The answer to a repeated request ([`Resent`]) that comes besides
+    /// the one taken is discarded and counted; any other extra, stale or early sample stays an
+    /// error.
+    fn drain(&mut self, step: u64, kind: Kind, found: &mut Option<O>) -> Result<(), LinkError> {
+        let role = self.role;
+        loop {
+            let sample = self
+                .subscriber
+                .receive()
+                .map_err(|e| LinkError::Transport {
+                    role,
+                    what: format!("receive: {e:?}"),
+                })?;
+            let Some(sample) = sample else { return Ok(()) };
+            let value: O = *sample;
+            drop(sample);
+            let h = value.header();
+            if self.resent.is_some_and(|r| r.answers_repeat(h)) {
+                // The answer to a repeat is taken only as the first answer to the pending
+                // request (the original request or reply was lost); any other is an expected
+                // extra.
+                let pending = Header::new(step, kind);
+                let first_for_pending = found.is_none()
+                    && crate::msg::exchange_key(h) == crate::msg::exchange_key(&pending);
+                if !first_for_pending {
+                    self.counts.lost_samples.repeats_discarded += 1;
+                    continue;
+                }
+            }
+            let got = h.step;
+            if got < step {
+                return Err(LinkError::Stale {
+                    role,
+                    expected: step,
+                    got,
+                });
+            }
+            if got > step {
+                return Err(LinkError::OutOfOrder {
+                    role,
+                    expected: step,
+                    got,
+                });
+            }
+            if found.is_some() {
+                return Err(LinkError::Duplicate { role, step });
+            }
+            *found = Some(value);
+        }
+    }
+
+    /// A look at a participant whose reply is past the deadline: a reply that came since the
+    /// last drain is taken (`Ok(true)`); else a hung participant, or one past the ceiling, is
+    /// an error, one that polls without taking the request gets it once more, and a running
+    /// one (starved by other load, or computing) is waited for, the wait counted.
+    fn look_at_deadline(
+        &mut self,
+        key: u64,
+        step: u64,
+        kind: Kind,
+        elapsed: Duration,
+        looks: &mut Looks,
+        found: &mut Option<O>,
+    ) -> Result<bool, LinkError> {
+        self.drain(step, kind, found)?;
+        if found.is_some() {
+            return Ok(true);
+        }
+        let w = self.status.words();
+        let computing = w.taken.load(Ordering::Acquire) == key + 1
+            && w.answered.load(Ordering::Acquire) != key + 1;
+        let polls = w.empty_polls.load(Ordering::Acquire);
+        let (verdict, look) = judge(self.pid, computing, polls, looks.previous, &mut looks.idle);
+        looks.previous = look;
+        looks.first = looks.first.or(look);
+        let limit = match verdict {
+            Liveness::Hung => Some(self.deadline),
+            _ if past_ceiling(self.ceiling, elapsed, looks.first, look) => Some(self.ceiling),
+            Liveness::Idle => {
+                // Polling, yet the request is not taken: send it once more.
+                self.resend(key)?;
+                None
+            }
+            Liveness::Running => None,
+        };
+        if let Some(limit) = limit {
+            return Err(LinkError::Timeout {
+                role: self.role,
+                pid: self.pid,
+                step,
+                deadline_ms: limit.as_millis() as u64,
+            });
+        }
+        self.counts.starved_waits += 1;
+        Ok(false)
+    }
+
     /// Looks into an exchange that has been silent for a while: the participant's status says
     /// whether it published the reply (then, if the reply is not here, the reply was lost) or
     /// keeps polling without having taken the request (the request was lost); either way the
@@ -426,15 +533,7 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
         let repeats = w.repeats.load(Ordering::Acquire);
         if answered == key + 1 {
             // Published before the load above, so a drain now finds it unless it was lost.
-            drain(
-                self.role,
-                &self.subscriber,
-                step,
-                kind,
-                found,
-                self.resent,
-                &mut self.counts.repeats_discarded,
-            )?;
+            self.drain(step, kind, found)?;
             if found.is_some() {
                 return Ok(true);
             }
@@ -442,14 +541,14 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
                 // The repeat sent last is not answered yet.
                 return Ok(false);
             }
-            self.counts.lost_replies += 1;
+            self.counts.lost_samples.lost_replies += 1;
             silence.repeats = Some(repeats);
             self.resend(key)?;
         } else if taken != key + 1 {
             match silence.polls {
                 Some(p) if polls >= p + 2 => {
                     // Two polls since the last look, none found the request.
-                    self.counts.lost_requests += 1;
+                    self.counts.lost_samples.lost_requests += 1;
                     silence.polls = None;
                     self.resend(key)?;
                 }
@@ -473,14 +572,14 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
             attempts: h.attempt,
         });
         self.last_request = Some(req);
-        self.counts.resends += 1;
+        self.counts.lost_samples.resends += 1;
         req.stamp();
         let undelivered =
             super::publish(&self.publisher, req).map_err(|what| LinkError::Transport {
                 role: self.role,
                 what,
             })?;
-        self.counts.undelivered_requests += undelivered;
+        self.counts.lost_samples.undelivered_requests += undelivered;
         Ok(())
     }
 }
@@ -516,7 +615,7 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
                 role: self.role,
                 what,
             })?;
-        self.counts.undelivered_requests += undelivered;
+        self.counts.lost_samples.undelivered_requests += undelivered;
         Ok(())
     }
     fn receive(&mut self, step: u64, kind: Kind) -> Result<O, LinkError> {
@@ -526,9 +625,7 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         let mut check_at = RESEND_AFTER;
         let mut silence = Silence::default();
         let mut look_at = self.deadline;
-        let mut previous: Option<Look> = None;
-        let mut first: Option<Look> = None;
-        let mut idle_looks = 0;
+        let mut looks = Looks::default();
         if let Some(r) = &self.exit {
             // Already known to be gone (a kill fault reaps at once).
             return Err(LinkError::Exited {
@@ -539,15 +636,7 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
             });
         }
         loop {
-            drain(
-                self.role,
-                &self.subscriber,
-                step,
-                kind,
-                &mut found,
-                self.resent,
-                &mut self.counts.repeats_discarded,
-            )?;
+            self.drain(step, kind, &mut found)?;
             if let Some(reply) = found {
                 check_reply::<I, O>(self.role, &reply, step, kind)?;
                 return Ok(reply);
@@ -574,46 +663,9 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
                     }
                 }
                 if elapsed > look_at {
-                    // A reply that came since the drain above is taken, not judged.
-                    drain(
-                        self.role,
-                        &self.subscriber,
-                        step,
-                        kind,
-                        &mut found,
-                        self.resent,
-                        &mut self.counts.repeats_discarded,
-                    )?;
-                    if found.is_some() {
+                    if self.look_at_deadline(key, step, kind, elapsed, &mut looks, &mut found)? {
                         continue;
                     }
-                    let w = self.status.words();
-                    let computing = w.taken.load(Ordering::Acquire) == key + 1
-                        && w.answered.load(Ordering::Acquire) != key + 1;
-                    let polls = w.empty_polls.load(Ordering::Acquire);
-                    let (verdict, look) =
-                        judge(self.pid, computing, polls, previous, &mut idle_looks);
-                    previous = look;
-                    first = first.or(look);
-                    let limit = match verdict {
-                        Liveness::Hung => Some(self.deadline),
-                        _ if past_ceiling(self.ceiling, elapsed, first, look) => Some(self.ceiling),
-                        Liveness::Idle => {
-                            // Polling, yet the request is not taken: send it once more.
-                            self.resend(key)?;
-                            None
-                        }
-                        Liveness::Running => None,
-                    };
-                    if let Some(limit) = limit {
-                        return Err(LinkError::Timeout {
-                            role: self.role,
-                            pid: self.pid,
-                            step,
-                            deadline_ms: limit.as_millis() as u64,
-                        });
-                    }
-                    self.counts.starved_waits += 1;
                     look_at = elapsed + LOOK_EVERY;
                 }
             }
@@ -622,8 +674,9 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
     }
     fn counts(&self) -> ExchangeCounts {
         let mut c = self.counts;
-        c.repeats_answered = self.status.words().repeats.load(Ordering::Relaxed);
-        c.undelivered_replies = self.status.words().undelivered.load(Ordering::Relaxed);
+        c.lost_samples.repeats_answered = self.status.words().repeats.load(Ordering::Relaxed);
+        c.lost_samples.undelivered_replies =
+            self.status.words().undelivered.load(Ordering::Relaxed);
         c
     }
     fn set_shares_cpu(&mut self, shared: bool) {
@@ -826,7 +879,7 @@ mod tests {
         }
         // Every step computed once: the repeat of step 5 was answered from the last reply.
         assert_eq!(steps.load(Ordering::Relaxed), 8);
-        let c = ep.counts();
+        let c = ep.counts().lost_samples;
         assert_eq!((c.lost_requests, c.lost_replies), (1, 1), "{c:?}");
         // One re-send per loss; more only if a slow answer met a look under heavy load.
         assert!(c.resends >= 2 && c.repeats_answered >= 1, "{c:?}");

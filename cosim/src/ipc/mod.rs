@@ -23,7 +23,7 @@ mod supervise;
 
 pub use affinity::{allowed_cpus, cpu_plan, pin_to_cpu, set_cpus, set_cpus_of};
 pub use cleanup::{
-    boot_id, claim_prefix, leftover_files, remove_dead_runs, remove_run_files, start_ticks,
+    boot_id, claim_prefix, leftover_files, remove_dead_runs, remove_run_files, start_ticks, Owner,
 };
 pub use hub::{IpcEndpoint, IpcHub, Launch};
 pub use serve::{
@@ -33,7 +33,6 @@ pub use serve::{
 
 use std::time::Duration;
 
-use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 
@@ -253,60 +252,6 @@ impl Resent {
         h.attempt >= 1
             && h.attempt <= self.attempts
             && crate::msg::exchange_key(h) == Some(self.key)
-    }
-}
-
-/// Drains `sub` and returns the one sample for `step`, or an error for any other sample. The
-/// answer to a repeated request ([`Resent`]) that comes besides the one taken is discarded and
-/// counted in `discarded`; any other extra, stale or early sample stays an error.
-fn drain<T: Message>(
-    role: Role,
-    sub: &Subscriber<ipc::Service, T, ()>,
-    step: u64,
-    kind: Kind,
-    found: &mut Option<T>,
-    resent: Option<Resent>,
-    discarded: &mut u64,
-) -> Result<(), LinkError> {
-    loop {
-        let sample = sub.receive().map_err(|e| LinkError::Transport {
-            role,
-            what: format!("receive: {e:?}"),
-        })?;
-        let Some(sample) = sample else { return Ok(()) };
-        let value: T = *sample;
-        drop(sample);
-        let h = value.header();
-        if resent.is_some_and(|r| r.answers_repeat(h)) {
-            // The answer to a repeat is taken only as the first answer to the pending request
-            // (the original request or reply was lost); any other is an expected extra.
-            let pending = Header::new(step, kind);
-            let first_for_pending = found.is_none()
-                && crate::msg::exchange_key(h) == crate::msg::exchange_key(&pending);
-            if !first_for_pending {
-                *discarded += 1;
-                continue;
-            }
-        }
-        let got = h.step;
-        if got < step {
-            return Err(LinkError::Stale {
-                role,
-                expected: step,
-                got,
-            });
-        }
-        if got > step {
-            return Err(LinkError::OutOfOrder {
-                role,
-                expected: step,
-                got,
-            });
-        }
-        if found.is_some() {
-            return Err(LinkError::Duplicate { role, step });
-        }
-        *found = Some(value);
     }
 }
 

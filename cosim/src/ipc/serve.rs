@@ -6,10 +6,10 @@ use crate::endpoint::LinkError;
 use std::sync::atomic::Ordering;
 
 use crate::msg::{exchange_key, now_ns, Header, Kind, Message, FLAG_CRASH};
-use crate::participant::{Participant, Served};
+use crate::participant::{Participant, Role, Served};
 use crate::wait::{sleep_until_ns, Backoff, Cadence, WaitStrategy};
 
-use super::supervise::Status;
+use super::supervise::{Status, StatusWords};
 use super::{
     config, iox, node, pin_to_cpu, quiet_iceoryx_logs, reply_service, request_service, service,
     DropPlan, IpcError,
@@ -79,30 +79,15 @@ pub(crate) fn serve_dropping<P: Participant>(
     let words = status.words();
     let mut repeat = Repeat::default();
     let mut empty_polls = 0u64;
+    let waiting = Waiting {
+        wait,
+        spin_polls,
+        idle_limit,
+        parent,
+    };
     loop {
-        let mut backoff = Backoff::with_spin(wait, spin_polls);
-        let mut sleep = if wait == WaitStrategy::Adaptive {
-            cadence.sleep_until()
-        } else {
-            None
-        };
-        let request = loop {
-            let sample = subscriber.receive().map_err(iox("receive"))?;
-            if let Some(s) = sample {
-                break *s;
-            }
-            // Plain stores of a counter only this process writes: no cost worth naming.
-            empty_polls += 1;
-            words.empty_polls.store(empty_polls, Ordering::Release);
-            if let Some(until) = sleep.take() {
-                sleep_until_ns(until);
-                continue;
-            }
-            if backoff.elapsed() > idle_limit && unsafe { libc::getppid() } != parent {
-                return Err(IpcError::Iceoryx(format!("{role}: orchestrator is gone")));
-            }
-            backoff.pause();
-        };
+        let request: P::Input =
+            waiting.next_request(&subscriber, &cadence, words, &mut empty_polls, role)?;
         let h = *request.header();
         let key = exchange_key(&h);
         if let Some(k) = key {
@@ -117,32 +102,8 @@ pub(crate) fn serve_dropping<P: Participant>(
             words.repeats.fetch_add(1, Ordering::Release);
             continue;
         }
-        match Kind::from_raw(h.kind) {
-            Some(Kind::Stop) => return Ok(()),
-            Some(Kind::Init) => {
-                last_step = None;
-                cadence.reset();
-            }
-            Some(Kind::Step) => {
-                cadence.observe(h.sent_ns);
-                if let Some(last) = last_step.filter(|&l| h.step <= l) {
-                    return Err(LinkError::OutOfOrder {
-                        role,
-                        expected: last + 1,
-                        got: h.step,
-                    }
-                    .into());
-                }
-                last_step = Some(h.step);
-            }
-            None => {
-                return Err(LinkError::Malformed {
-                    role,
-                    step: h.step,
-                    what: format!("kind {}", h.kind),
-                }
-                .into());
-            }
+        if !admit(&h, role, &mut last_step, &mut cadence)? {
+            return Ok(());
         }
         if h.flags & FLAG_CRASH != 0 {
             // A scheduled `crash` fault: die as a crashing process does.
@@ -165,6 +126,94 @@ pub(crate) fn serve_dropping<P: Participant>(
         if let Some(k) = key {
             words.answered.store(k + 1, Ordering::Release);
         }
+    }
+}
+
+/// How a participant waits for its next request: polling with `wait`'s backoff, asleep
+/// through the quiet part of the cadence (adaptive), and giving up when no request came for
+/// `idle_limit` and its parent, the orchestrator, is gone.
+struct Waiting {
+    wait: WaitStrategy,
+    spin_polls: u32,
+    idle_limit: Duration,
+    parent: libc::pid_t,
+}
+
+impl Waiting {
+    /// The next request from `subscriber`; each empty poll counted in `empty_polls` and
+    /// published in the status `words`.
+    #[inline]
+    fn next_request<I: Message>(
+        &self,
+        subscriber: &iceoryx2::port::subscriber::Subscriber<iceoryx2::prelude::ipc::Service, I, ()>,
+        cadence: &Cadence,
+        words: &StatusWords,
+        empty_polls: &mut u64,
+        role: Role,
+    ) -> Result<I, IpcError> {
+        let mut backoff = Backoff::with_spin(self.wait, self.spin_polls);
+        let mut sleep = if self.wait == WaitStrategy::Adaptive {
+            cadence.sleep_until()
+        } else {
+            None
+        };
+        loop {
+            let sample = subscriber.receive().map_err(iox("receive"))?;
+            if let Some(s) = sample {
+                return Ok(*s);
+            }
+            // Plain stores of a counter only this process writes: no cost worth naming.
+            *empty_polls += 1;
+            words.empty_polls.store(*empty_polls, Ordering::Release);
+            if let Some(until) = sleep.take() {
+                sleep_until_ns(until);
+                continue;
+            }
+            // SAFETY: getppid has no preconditions.
+            if backoff.elapsed() > self.idle_limit && unsafe { libc::getppid() } != self.parent {
+                return Err(IpcError::Iceoryx(format!("{role}: orchestrator is gone")));
+            }
+            backoff.pause();
+        }
+    }
+}
+
+/// Whether the request of header `h` is to be served: `Ok(false)` for `Stop`. An `Init`
+/// starts the sequence again; a `Step` must come after the last one (multi-rate participants
+/// are asked only on their own ticks, so any later step); any other kind is malformed.
+#[inline]
+fn admit(
+    h: &Header,
+    role: Role,
+    last_step: &mut Option<u64>,
+    cadence: &mut Cadence,
+) -> Result<bool, IpcError> {
+    match Kind::from_raw(h.kind) {
+        Some(Kind::Stop) => Ok(false),
+        Some(Kind::Init) => {
+            *last_step = None;
+            cadence.reset();
+            Ok(true)
+        }
+        Some(Kind::Step) => {
+            cadence.observe(h.sent_ns);
+            if let Some(last) = last_step.filter(|&l| h.step <= l) {
+                return Err(LinkError::OutOfOrder {
+                    role,
+                    expected: last + 1,
+                    got: h.step,
+                }
+                .into());
+            }
+            *last_step = Some(h.step);
+            Ok(true)
+        }
+        None => Err(LinkError::Malformed {
+            role,
+            step: h.step,
+            what: format!("kind {}", h.kind),
+        }
+        .into()),
     }
 }
 

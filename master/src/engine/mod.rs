@@ -487,45 +487,9 @@ fn report(
     e: Ended,
     rows: u64,
 ) -> Summary {
-    let (status, error) = match &e.outcome {
-        Ok(_) if opts.interrupt.load(Ordering::Relaxed) => (
-            Status::Interrupted,
-            Some(format!("interrupted by {}", crate::signals::describe())),
-        ),
-        Ok(_) if e.degraded => (
-            Status::Degraded,
-            Some("a participant was lost; the run continued degraded (events.csv)".into()),
-        ),
-        Ok(_) => (Status::Completed, None),
-        // A signal to the whole process group (systemd, Slurm's scancel, a container
-        // runtime) reaches the participants too, and they end first: the run was
-        // interrupted, not failed by them.
-        Err(err) if opts.interrupt.load(Ordering::Relaxed) => (
-            Status::Interrupted,
-            Some(format!(
-                "interrupted by {} ({err})",
-                crate::signals::describe()
-            )),
-        ),
-        Err(err) => (Status::Failed, Some(err.to_string())),
-    };
-    let periods = RoleMap::new([s.run.dt_s, s.run.dt_s, s.controller.period_s]);
-    let compute = obs.compute.percentiles();
-    let participants = Role::ALL
-        .into_iter()
-        .map(|role| ParticipantReport {
-            role,
-            process: role.process_name(),
-            pid: e.pids[role],
-            period_s: periods[role],
-            exit: e.exits[role].clone(),
-            compute_us: compute[role],
-            starved_waits: e.counts[role].starved_waits,
-            lost_samples: e.counts[role].into(),
-        })
-        .collect();
+    let (status, error) = status(&e, opts);
+    let participants = participants(s, &mut obs, &e);
     let simulated = rows as f64 * s.run.dt_s;
-    let o = obs.timing.overhead.percentiles();
     Summary {
         tiltsim_version: env!("CARGO_PKG_VERSION"),
         scenario: s.name.clone(),
@@ -547,18 +511,7 @@ fn report(
         } else {
             0.0
         },
-        timing: Timing {
-            p50: o.p50,
-            p99: o.p99,
-            max: o.max,
-            mean: o.mean,
-            tick_us: obs.timing.ticks.percentiles(),
-            cpu_plan: obs.cpu_plan.as_ref().and_then(|p| p.report()),
-            cpu_s: CpuTime {
-                orchestrator: e.cpu_orchestrator,
-                participants: e.exits.iter().filter_map(|(_, x)| x.cpu_s).sum(),
-            },
-        },
+        timing: timing(&mut obs, &e),
         results: QuickLook::default(),
         link_latency: obs.latency.report(),
         pacing: obs.pacing.as_mut().map(|p| p.report(rows, e.wall)),
@@ -569,5 +522,68 @@ fn report(
         ipc_prefix: prefix.to_string(),
         leftover_ipc_files: e.leftover,
         wall_clock_fields: summary::WALL_CLOCK_FIELDS,
+    }
+}
+
+/// How the run ended, in the summary's words: an interrupt (even one that ended a
+/// participant first), a degraded run, a completion or a failure.
+fn status(e: &Ended, opts: &RunOptions) -> (Status, Option<String>) {
+    match &e.outcome {
+        Ok(_) if opts.interrupt.load(Ordering::Relaxed) => (
+            Status::Interrupted,
+            Some(format!("interrupted by {}", crate::signals::describe())),
+        ),
+        Ok(_) if e.degraded => (
+            Status::Degraded,
+            Some("a participant was lost; the run continued degraded (events.csv)".into()),
+        ),
+        Ok(_) => (Status::Completed, None),
+        // A signal to the whole process group (systemd, Slurm's scancel, a container
+        // runtime) reaches the participants too, and they end first: the run was
+        // interrupted, not failed by them.
+        Err(err) if opts.interrupt.load(Ordering::Relaxed) => (
+            Status::Interrupted,
+            Some(format!(
+                "interrupted by {} ({err})",
+                crate::signals::describe()
+            )),
+        ),
+        Err(err) => (Status::Failed, Some(err.to_string())),
+    }
+}
+
+/// Each participant's part of the summary: process, period, exit, compute and exchanges.
+fn participants(s: &Scenario, obs: &mut Observers, e: &Ended) -> Vec<ParticipantReport> {
+    let periods = RoleMap::new([s.run.dt_s, s.run.dt_s, s.controller.period_s]);
+    let compute = obs.compute.percentiles();
+    Role::ALL
+        .into_iter()
+        .map(|role| ParticipantReport {
+            role,
+            process: role.process_name(),
+            pid: e.pids[role],
+            period_s: periods[role],
+            exit: e.exits[role].clone(),
+            compute_us: compute[role],
+            starved_waits: e.counts[role].starved_waits,
+            lost_samples: e.counts[role].lost_samples,
+        })
+        .collect()
+}
+
+/// The coordination overhead, tick times, CPU plan and CPU time of the run.
+fn timing(obs: &mut Observers, e: &Ended) -> Timing {
+    let o = obs.timing.overhead.percentiles();
+    Timing {
+        p50: o.p50,
+        p99: o.p99,
+        max: o.max,
+        mean: o.mean,
+        tick_us: obs.timing.ticks.percentiles(),
+        cpu_plan: obs.cpu_plan.as_ref().and_then(|p| p.report()),
+        cpu_s: CpuTime {
+            orchestrator: e.cpu_orchestrator,
+            participants: e.exits.iter().filter_map(|(_, x)| x.cpu_s).sum(),
+        },
     }
 }

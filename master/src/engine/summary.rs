@@ -33,38 +33,7 @@ pub struct ParticipantReport {
     pub lost_samples: LostSamples,
 }
 
-/// How lost samples were repaired for one participant (docs/architecture.md, "Lost samples").
-#[derive(Debug, Clone, Copy, Default, Serialize, PartialEq, Eq)]
-pub struct LostSamples {
-    /// Requests re-sent because their exchange went silent.
-    pub resends: u64,
-    /// Requests found lost (the participant polled on and never took it).
-    pub lost_requests: u64,
-    /// Replies found lost (the participant had published it; it never came).
-    pub lost_replies: u64,
-    /// Repeated requests the participant answered from its last reply, without stepping.
-    pub repeats_answered: u64,
-    /// Answers to repeats that came besides the one taken, discarded.
-    pub repeats_discarded: u64,
-    /// Requests whose sending reached no subscriber (sent again at once).
-    pub undelivered_requests: u64,
-    /// Replies whose sending reached no subscriber (sent again at once by the participant).
-    pub undelivered_replies: u64,
-}
-
-impl From<cosim::endpoint::ExchangeCounts> for LostSamples {
-    fn from(c: cosim::endpoint::ExchangeCounts) -> Self {
-        LostSamples {
-            resends: c.resends,
-            lost_requests: c.lost_requests,
-            lost_replies: c.lost_replies,
-            repeats_answered: c.repeats_answered,
-            repeats_discarded: c.repeats_discarded,
-            undelivered_requests: c.undelivered_requests,
-            undelivered_replies: c.undelivered_replies,
-        }
-    }
-}
+pub use cosim::endpoint::LostSamples;
 
 /// Timing of the run.
 #[derive(Debug, Clone, Serialize, Default)]
