@@ -279,75 +279,10 @@ impl Scenario {
     /// more included) arrives exactly; any other key takes a decimal number. Not
     /// re-validated: the caller validates once after all settings. Errors name the key.
     pub fn with_setting(&self, key: &str, text: &str) -> Result<Scenario, String> {
-        use serde_json::Value;
         // JSON numbers hold u64, i64 and f64 exactly, unlike a TOML value (i64 or f64).
         let mut doc = serde_json::to_value(self).map_err(|e| e.to_string())?;
-        let text = text.trim();
-        let parts: Vec<&str> = key.split('.').collect();
-        if parts.iter().any(|p| p.is_empty()) {
-            return Err(format!(
-                "key `{key}`: expected a dotted path such as `vehicle.m_v`"
-            ));
-        }
-        let mut node = &mut doc;
-        for p in &parts[..parts.len() - 1] {
-            let table = node
-                .as_object_mut()
-                .ok_or_else(|| format!("key `{key}`: `{p}` is not inside a table"))?;
-            let child = table
-                .entry(p.to_string())
-                .or_insert_with(|| Value::Object(Default::default()));
-            if child.is_null() {
-                *child = Value::Object(Default::default());
-            }
-            node = child;
-        }
-        let last = parts[parts.len() - 1];
-        let table = node
-            .as_object_mut()
-            .ok_or_else(|| format!("key `{key}`: not inside a table"))?;
-        let whole = |t: &str| -> Option<Value> {
-            t.parse::<u64>()
-                .map(Value::from)
-                .or_else(|_| t.parse::<i64>().map(Value::from))
-                .ok()
-        };
-        let value = match table.get(last) {
-            Some(Value::Number(n)) if n.is_u64() || n.is_i64() => whole(text).ok_or_else(|| {
-                let digits = text.strip_prefix(['-', '+']).unwrap_or(text);
-                if !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()) {
-                    format!(
-                        "key `{key}` = {text}: allowed a whole number from {} to {}",
-                        i64::MIN,
-                        u64::MAX
-                    )
-                } else {
-                    format!("key `{key}` takes a whole number written in digits, not `{text}`")
-                }
-            })?,
-            Some(Value::Number(_)) | Some(Value::Null) | None => {
-                match whole(text) {
-                    // A key with no value yet (an option, `design_vehicle.*`): an integer as
-                    // written, which a decimal setting takes as well.
-                    Some(v) if !matches!(table.get(last), Some(Value::Number(_))) => v,
-                    _ => {
-                        let v: f64 = text
-                            .parse()
-                            .map_err(|_| format!("key `{key}`: `{text}` is not a number"))?;
-                        serde_json::Number::from_f64(v)
-                            .map(Value::Number)
-                            .ok_or_else(|| {
-                                format!("key `{key}` = {text}: allowed a finite number")
-                            })?
-                    }
-                }
-            }
-            Some(_) => {
-                return Err(format!(
-                    "key `{key}` is not a numeric setting (`--set` takes numbers only)"
-                ))
-            }
-        };
+        let (table, last) = setting_slot(&mut doc, key)?;
+        let value = setting_value(key, text.trim(), table.get(last))?;
         table.insert(last.to_string(), value);
         let mut s = serde_path_to_error::deserialize::<_, Scenario>(doc).map_err(|e| {
             format!(
@@ -358,6 +293,98 @@ impl Scenario {
         })?;
         s.name.clone_from(&self.name);
         Ok(s)
+    }
+
+    /// Whether the setting at dotted `key` holds a whole number (a count, a seed).
+    pub fn holds_integer(&self, key: &str) -> bool {
+        let Ok(doc) = serde_json::to_value(self) else {
+            return false;
+        };
+        key.split('.')
+            .try_fold(&doc, |node, p| node.get(p))
+            .is_some_and(|v| v.is_u64() || v.is_i64())
+    }
+}
+
+/// The table of `doc` that holds the last part of dotted `key`, with that part; tables on the
+/// way that are missing or unset (an option) are made.
+fn setting_slot<'d, 'k>(
+    doc: &'d mut serde_json::Value,
+    key: &'k str,
+) -> Result<(&'d mut serde_json::Map<String, serde_json::Value>, &'k str), String> {
+    use serde_json::Value;
+    let parts: Vec<&str> = key.split('.').collect();
+    if parts.iter().any(|p| p.is_empty()) {
+        return Err(format!(
+            "key `{key}`: expected a dotted path such as `vehicle.m_v`"
+        ));
+    }
+    let mut node = doc;
+    for p in &parts[..parts.len() - 1] {
+        let table = node
+            .as_object_mut()
+            .ok_or_else(|| format!("key `{key}`: `{p}` is not inside a table"))?;
+        let child = table
+            .entry(p.to_string())
+            .or_insert_with(|| Value::Object(Default::default()));
+        if child.is_null() {
+            *child = Value::Object(Default::default());
+        }
+        node = child;
+    }
+    let last = parts[parts.len() - 1];
+    let table = node
+        .as_object_mut()
+        .ok_or_else(|| format!("key `{key}`: not inside a table"))?;
+    Ok((table, last))
+}
+
+/// The number written `text` as the value of `key`, whose value now is `current`: a whole
+/// number where it holds one (every `u64` and `i64` exactly), a decimal number otherwise, an
+/// integer as written where it has none yet. Errors name the key and what it takes.
+fn setting_value(
+    key: &str,
+    text: &str,
+    current: Option<&serde_json::Value>,
+) -> Result<serde_json::Value, String> {
+    use serde_json::Value;
+    let whole = |t: &str| -> Option<Value> {
+        t.parse::<u64>()
+            .map(Value::from)
+            .or_else(|_| t.parse::<i64>().map(Value::from))
+            .ok()
+    };
+    match current {
+        Some(Value::Number(n)) if n.is_u64() || n.is_i64() => whole(text).ok_or_else(|| {
+            let digits = text.strip_prefix(['-', '+']).unwrap_or(text);
+            if !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()) {
+                format!(
+                    "key `{key}` = {text}: allowed a whole number from {} to {}",
+                    i64::MIN,
+                    u64::MAX
+                )
+            } else {
+                format!("key `{key}` takes a whole number written in digits, not `{text}`")
+            }
+        }),
+        Some(Value::Number(_)) | Some(Value::Null) | None => {
+            match whole(text) {
+                // A key with no value yet (an option, `design_vehicle.*`): an integer as
+                // written, which a decimal setting takes as well.
+                Some(v) if !matches!(current, Some(Value::Number(_))) => Ok(v),
+                _ => {
+                    let v: f64 = text
+                        .parse()
+                        .map_err(|_| format!("key `{key}`: `{text}` is not a number"))?;
+                    serde_json::Number::from_f64(v)
+                        .map(Value::Number)
+                        .ok_or_else(|| format!("key `{key}` = {text}: allowed a finite number"))
+                }
+            }
+        }
+        Some(_) => Err(format!(
+            "key `{key}` is not a numeric setting (`--set` takes numbers only)"
+        )),
     }
 }
 

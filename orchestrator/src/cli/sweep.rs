@@ -84,7 +84,7 @@ fn plan(a: &SweepArgs, s: &Scenario) -> Result<Plan, CliError> {
     if let Plan::Grid { key, values } = &plan {
         // A key that holds a whole number takes whole numbers that a grid value (f64) holds
         // exactly: at most 2^53 in magnitude.
-        if holds_integer(s, key) {
+        if s.holds_integer(key) {
             if let Some(v) = values
                 .iter()
                 .find(|v| v.fract() != 0.0 || v.abs() > 9_007_199_254_740_992.0)
@@ -100,20 +100,6 @@ fn plan(a: &SweepArgs, s: &Scenario) -> Result<Plan, CliError> {
         }
     }
     Ok(plan)
-}
-
-/// Whether the dotted `key` of `s` holds a whole number (a count, a seed).
-fn holds_integer(s: &Scenario, key: &str) -> bool {
-    let Ok(mut node) = serde_json::to_value(s) else {
-        return false;
-    };
-    for p in key.split('.') {
-        match node.get_mut(p) {
-            Some(v) => node = v.take(),
-            None => return false,
-        }
-    }
-    node.is_u64() || node.is_i64()
 }
 
 /// `--plan-only`: one JSON line per sample of the shard.

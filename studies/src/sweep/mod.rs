@@ -252,7 +252,7 @@ mod tests {
         let s = with_key(&base, "run.seed", 9.0).unwrap();
         assert_eq!(s.run.seed, 9);
         let e = with_key(&base, "run.seed", 1.5).unwrap_err().to_string();
-        assert!(e.contains("whole numbers"), "{e}");
+        assert!(e.contains("run.seed") && e.contains("whole number"), "{e}");
         let e = with_key(&base, "vehicle.m_vv", 1.0)
             .unwrap_err()
             .to_string();

@@ -110,54 +110,21 @@ pub(super) fn grid_plan(arg: &str) -> Result<Plan, String> {
     })
 }
 
-/// Sets the dotted `key` of a scenario to `v` (an integer where the key holds one), and
-/// re-validates. Errors name the key.
+/// Sets the dotted `key` of a scenario to `v` (a whole number where the key holds one,
+/// [`Scenario::with_setting`]), and re-validates. Errors name the key.
 pub fn with_key(base: &Scenario, key: &str, v: f64) -> Result<Scenario, SweepError> {
-    set_key(base, key, v).map_err(SweepError::Argument)
-}
-
-pub(super) fn set_key(base: &Scenario, key: &str, v: f64) -> Result<Scenario, String> {
-    let mut doc = toml::Value::try_from(base).map_err(|e| e.to_string())?;
-    fn set(node: &mut toml::Value, parts: &[&str], key: &str, v: f64) -> Result<(), String> {
-        let table = node
-            .as_table_mut()
-            .ok_or_else(|| format!("sweep key `{key}`: `{}` is not inside a table", parts[0]))?;
-        if let [last] = parts {
-            let integer = matches!(table.get(*last), Some(toml::Value::Integer(_)));
-            let value = if integer {
-                if v.fract() != 0.0 {
-                    return Err(format!("sweep key `{key}` takes whole numbers, not {v}"));
-                }
-                toml::Value::Integer(v as i64)
-            } else {
-                toml::Value::Float(v)
-            };
-            table.insert(last.to_string(), value);
-            Ok(())
-        } else {
-            let child = table
-                .entry(parts[0].to_string())
-                .or_insert_with(|| toml::Value::Table(Default::default()));
-            set(child, &parts[1..], key, v)
-        }
-    }
-    let parts: Vec<&str> = key.split('.').collect();
-    set(&mut doc, &parts, key, v)?;
-    // Typed straight from the document (no text, so no line of an internal document in the
-    // message): the error names the key as the user gave it.
-    let mut s = serde_path_to_error::deserialize::<_, Scenario>(doc).map_err(|e| {
-        format!(
-            "key `{key}`: {} (at `{}`); keys are the scenario's settings as dotted paths, e.g. `vehicle.m_v`, `controller.rho`",
-            e.inner().to_string().trim_end(),
-            e.path()
-        )
-    })?;
+    // `v` written in full (never with an exponent), which parses back to the same f64.
+    let s = base
+        .with_setting(key, &v.to_string())
+        .map_err(SweepError::Argument)?;
     let errors = s.validate();
     if !errors.is_empty() {
         let lines: Vec<String> = errors.iter().map(|e| e.to_string()).collect();
-        return Err(format!("key `{key}` = {v}: {}", lines.join("; ")));
+        return Err(SweepError::Argument(format!(
+            "key `{key}` = {v}: {}",
+            lines.join("; ")
+        )));
     }
-    s.name = base.name.clone();
     Ok(s)
 }
 
