@@ -71,6 +71,62 @@ pub fn library_candidates(explicit: Option<&Path>) -> Vec<PathBuf> {
     v
 }
 
+/// The tiltsim_fmu library to pack: the newest of the candidates ([`library_candidates`]).
+/// cargo leaves a copy in target/<profile>/ when the crate itself is built and one in deps/
+/// when tiltsim's build builds it: the newer is the current one.
+fn newest_library(library: Option<&Path>) -> Result<Vec<u8>, ExportError> {
+    let candidates = library_candidates(library);
+    let lib_path = candidates
+        .iter()
+        .filter_map(|p| Some((std::fs::metadata(p).ok()?.modified().ok()?, p)))
+        .max_by_key(|(t, _)| *t)
+        .map(|(_, p)| p)
+        .ok_or_else(|| ExportError::NoLibrary(candidates.clone()))?;
+    std::fs::read(lib_path).map_err(|source| ExportError::Io {
+        path: lib_path.clone(),
+        source,
+    })
+}
+
+/// The FMU's own settings: the role, the base tick and the participant's settings of `s`.
+fn config_of(s: &Scenario, role: Role) -> Result<FmuConfig, ExportError> {
+    let inits = Inits::from(s);
+    let settings = match role {
+        Role::Plant => serde_json::to_value(&inits.plant),
+        Role::Actuator => serde_json::to_value(&inits.actuator),
+        Role::Controller => serde_json::to_value(&inits.controller),
+    }
+    .map_err(|e| ExportError::Layout(e.to_string()))?;
+    Ok(FmuConfig {
+        role,
+        dt_s: s.run.dt_s,
+        settings,
+    })
+}
+
+/// What the model description says of the FMU of `role` of `s`.
+fn export_info(
+    s: &Scenario,
+    role: Role,
+    identifier: &str,
+    token: String,
+    step_s: f64,
+) -> ExportInfo {
+    ExportInfo {
+        model_name: format!("tiltsim {} ({})", role.name(), s.name),
+        model_identifier: identifier.to_string(),
+        token,
+        description: format!(
+            "tiltsim's {} participant of scenario `{}`: {}",
+            role.name(),
+            s.name,
+            s.description
+        ),
+        step_s,
+        stop_s: s.duration(),
+    }
+}
+
 /// Writes `role` of scenario `s` as an FMU at `out`.
 pub fn export(
     s: &Scenario,
@@ -82,50 +138,15 @@ pub fn export(
     if s.participants.get(role).is_some() {
         return Err(ExportError::AlreadyFmu(role));
     }
-    let candidates = library_candidates(library);
-    // cargo leaves a copy in target/<profile>/ when the crate itself is built and one in
-    // deps/ when tiltsim's build builds it: the newer is the current one.
-    let lib_path = candidates
-        .iter()
-        .filter_map(|p| Some((std::fs::metadata(p).ok()?.modified().ok()?, p)))
-        .max_by_key(|(t, _)| *t)
-        .map(|(_, p)| p)
-        .ok_or_else(|| ExportError::NoLibrary(candidates.clone()))?;
-    let lib = std::fs::read(lib_path).map_err(|source| ExportError::Io {
-        path: lib_path.clone(),
-        source,
-    })?;
-    let inits = Inits::from(s);
-    let settings = match role {
-        Role::Plant => serde_json::to_value(&inits.plant),
-        Role::Actuator => serde_json::to_value(&inits.actuator),
-        Role::Controller => serde_json::to_value(&inits.controller),
-    }
-    .map_err(|e| ExportError::Layout(e.to_string()))?;
-    let config = FmuConfig {
-        role,
-        dt_s: s.run.dt_s,
-        settings,
-    };
+    let lib = newest_library(library)?;
+    let config = config_of(s, role)?;
     let bytes =
         serde_json::to_vec_pretty(&config).map_err(|e| ExportError::Layout(e.to_string()))?;
     let layout =
         Layout::new(role, &config.settings).map_err(|e| ExportError::Layout(e.to_string()))?;
     let step_s = period_of(role, &config.settings).unwrap_or(s.run.dt_s);
     let identifier = format!("tiltsim_{}", role.name());
-    let info = ExportInfo {
-        model_name: format!("tiltsim {} ({})", role.name(), s.name),
-        model_identifier: identifier.clone(),
-        token: token(&bytes),
-        description: format!(
-            "tiltsim's {} participant of scenario `{}`: {}",
-            role.name(),
-            s.name,
-            s.description
-        ),
-        step_s,
-        stop_s: s.duration(),
-    };
+    let info = export_info(s, role, &identifier, token(&bytes), step_s);
     let xml = match version {
         FmiVersion::V3 => write_fmi3(&layout, &info),
         FmiVersion::V2 => write_fmi2(&layout, &info).map_err(ExportError::Layout)?,

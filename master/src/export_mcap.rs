@@ -188,42 +188,25 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
     };
     let events = events(dir)?;
     let wall = trace(dir)?;
-    // The outputs at t₀, as each participant gives them before its first step.
-    let inits = Inits::from(&s);
-    let p0 = plant_proc::Plant::new(&inits.plant).initial_output();
-    let a0 = actuator_proc::Actuator::new(&inits.actuator).initial_output();
-    let c0 = controller_proc::Controller::new(&inits.controller)
-        .map_err(|e| err(&sc, e))?
-        .initial_output();
+    let mut held = initial_outputs(&s).map_err(|e| err(&sc, e))?;
     let path = dir.join("run.mcap");
     let mut rec = McapRecorder::create(&path, s.run.dt_s).map_err(|e| err(&path, e))?;
     let period = s.controller_period_ticks();
     let gauss_seidel = s.run.master == Master::GaussSeidel;
-    let mut held = (p0, a0, c0);
     let mut failed: Option<std::io::Error> = None;
     let rows = crate::record::each_row(dir, |r| {
         let (p, a, c) = outputs(r);
         let k = r.step;
-        let (hp, ha, hc) = &held;
         let rx = [
             r.rx_actuator_command,
             r.rx_bar_angle,
             r.rx_measurement,
             r.rx_bar_twist,
         ];
-        let mut tx = [0.0; 4];
-        tx[LinkId::Measurement as usize] = hp.theta_v_meas;
-        tx[LinkId::BarTwist as usize] = hp.psi;
-        // Gauss-Seidel sends the command and the bar angle of this tick; Jacobi the last.
-        tx[LinkId::ActuatorCommand as usize] = if gauss_seidel {
-            c.delta_a_cmd
-        } else {
-            hc.delta_a_cmd
-        };
-        tx[LinkId::BarAngle as usize] = if gauss_seidel { a.delta_a } else { ha.delta_a };
+        let tx = sent(&held, (&a, &c), gauss_seidel);
         let to_c = ToController {
-            t: hp.t,
-            s: hp.s,
+            t: held.0.t,
+            s: held.0.s,
             theta_v_meas: r.rx_measurement,
             ..Default::default()
         };
@@ -261,4 +244,34 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
     let dt_ns = (s.run.dt_s * 1e9).round() as u64;
     rec.close(&events, &deterministic(summary), &perf, rows * dt_ns)
         .map_err(|e| err(&path, e))
+}
+
+/// The outputs at t₀, as each participant gives them before its first step.
+fn initial_outputs(s: &Scenario) -> Result<(FromPlant, FromActuator, FromController), String> {
+    let inits = Inits::from(s);
+    let p0 = plant_proc::Plant::new(&inits.plant).initial_output();
+    let a0 = actuator_proc::Actuator::new(&inits.actuator).initial_output();
+    let c0 = controller_proc::Controller::new(&inits.controller)?.initial_output();
+    Ok((p0, a0, c0))
+}
+
+/// What each link sent in a tick (indexed by [`LinkId`]), from the outputs `held` of the
+/// tick before and this tick's actuator and controller outputs `now`: Gauss-Seidel sends the
+/// command and the bar angle of this tick, Jacobi the last.
+fn sent(
+    held: &(FromPlant, FromActuator, FromController),
+    (a, c): (&FromActuator, &FromController),
+    gauss_seidel: bool,
+) -> [f64; 4] {
+    let (hp, ha, hc) = held;
+    let mut tx = [0.0; 4];
+    tx[LinkId::Measurement as usize] = hp.theta_v_meas;
+    tx[LinkId::BarTwist as usize] = hp.psi;
+    tx[LinkId::ActuatorCommand as usize] = if gauss_seidel {
+        c.delta_a_cmd
+    } else {
+        hc.delta_a_cmd
+    };
+    tx[LinkId::BarAngle as usize] = if gauss_seidel { a.delta_a } else { ha.delta_a };
+    tx
 }

@@ -11,10 +11,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use cosim::msg::{
-    FromActuator, FromController, FromPlant, Header, Kind, Message, ToActuator, ToController,
-    ToPlant, FLAG_HOLD_BAD_INPUT, FLAG_REJECTED,
-};
+use cosim::msg::{Header, Kind, Message, FLAG_HOLD_BAD_INPUT, FLAG_REJECTED};
 use cosim::{Endpoint, InProcess, Role};
 use serde::Serialize;
 
@@ -230,132 +227,154 @@ fn run_role(
     inbox: &[Recorded],
     lost: Option<u64>,
 ) -> Result<Vec<Recorded>, ReplayError> {
-    let hold = s.faults.on_bad_data == OnBadData::Hold;
     let inits = Inits::from(s);
-    let topic = format!("/{}/out", role.name());
-    let fields = rec::fields(&topic);
     let prefix = cosim::ipc::unique_prefix();
     // The files of the replay's own iceoryx2 run go on every way out.
-    struct Files<'a>(&'a str, bool);
-    impl Drop for Files<'_> {
-        fn drop(&mut self) {
-            if self.1 {
-                cosim::ipc::remove_run_files(self.0);
-            }
-        }
-    }
-    let _files = Files(&prefix, matches!(at, Where::Process(_)));
-    let hub = match at {
-        Where::InProcess => None,
-        Where::Process(_) => Some(
-            cosim::ipc::IpcHub::new(cosim::ipc::IpcSettings {
-                prefix: prefix.clone(),
-                wait: s.run.wait,
-                deadline: std::time::Duration::from_millis(s.run.deadline_ms),
-                ceiling: std::time::Duration::from_millis(s.run.hang_ceiling_ms),
-                participant_cpu: None,
-            })
-            .map_err(|e| ReplayError::Model(e.to_string()))?,
-        ),
+    let _files = RunFiles(&prefix, matches!(at, Where::Process(_)));
+    let hub = hub(s, at, &prefix)?;
+    let stage = Stage {
+        role,
+        at,
+        hub: hub.as_ref(),
+        // An FMU that played the role in the recorded run plays it again.
+        fmu: s.fmu_init(role),
+        startup: std::time::Duration::from_millis(s.run.startup_ms),
+        inbox,
+        lost,
+        hold: s.faults.on_bad_data == OnBadData::Hold,
+        fields: rec::fields(&format!("/{}/out", role.name())),
     };
-    let startup = std::time::Duration::from_millis(s.run.startup_ms);
-    // An FMU that played the role in the recorded run plays it again.
-    let fmu = s.fmu_init(role);
-    macro_rules! endpoint {
-        ($model:expr, $params:expr, $io:ty, $i:ty, $o:ty) => {{
-            let ep: Box<dyn Endpoint<$i, $o>> = match (at, &hub, &fmu) {
-                (Where::Process(exe), Some(hub), _) => {
-                    let (command, params) = match &fmu {
-                        Some(init) => ("fmu-participant", serde_json::to_string(init)),
-                        None => ("participant", serde_json::to_string($params)),
-                    };
-                    let launch = cosim::ipc::Launch {
-                        program: exe.clone(),
-                        args: vec![
-                            command.into(),
-                            role.name().into(),
-                            "--params".into(),
-                            params.unwrap_or_default().into(),
-                        ],
-                    };
-                    Box::new(
-                        hub.spawn::<$i, $o>(role, &launch, startup)
-                            .map_err(|e| ReplayError::Model(e.to_string()))?,
-                    )
-                }
-                (_, _, Some(init)) => Box::new(InProcess::new(
-                    tiltsim_fmi::FmuParticipant::<$io>::new(init.clone())
-                        .map_err(ReplayError::Model)?,
-                )),
-                _ => Box::new(InProcess::new($model?)),
-            };
-            ep
-        }};
-    }
     let result = match role {
-        Role::Plant => {
-            let mut ep = endpoint!(
-                Ok::<_, ReplayError>(plant_proc::Plant::new(&inits.plant)),
-                &inits.plant,
-                tiltsim_fmi::PlantIo,
-                ToPlant,
-                FromPlant
-            );
-            let r = drive(
-                ep.as_mut(),
-                inbox,
-                lost,
-                hold,
-                rec::plant_in,
-                rec::plant_out,
-                fields,
-            );
-            ep.shutdown();
-            r
-        }
-        Role::Actuator => {
-            let mut ep = endpoint!(
-                Ok::<_, ReplayError>(actuator_proc::Actuator::new(&inits.actuator)),
-                &inits.actuator,
-                tiltsim_fmi::ActuatorIo,
-                ToActuator,
-                FromActuator
-            );
-            let r = drive(
-                ep.as_mut(),
-                inbox,
-                lost,
-                hold,
-                rec::actuator_in,
-                rec::actuator_out,
-                fields,
-            );
-            ep.shutdown();
-            r
-        }
-        Role::Controller => {
-            let mut ep = endpoint!(
-                controller_proc::Controller::new(&inits.controller).map_err(ReplayError::Model),
-                &inits.controller,
-                tiltsim_fmi::ControllerIo,
-                ToController,
-                FromController
-            );
-            let r = drive(
-                ep.as_mut(),
-                inbox,
-                lost,
-                hold,
-                rec::controller_in,
-                rec::controller_out,
-                fields,
-            );
-            ep.shutdown();
-            r
-        }
+        Role::Plant => stage.replay::<tiltsim_fmi::PlantIo, _>(
+            || Ok(plant_proc::Plant::new(&inits.plant)),
+            &inits.plant,
+            rec::plant_in,
+            rec::plant_out,
+        ),
+        Role::Actuator => stage.replay::<tiltsim_fmi::ActuatorIo, _>(
+            || Ok(actuator_proc::Actuator::new(&inits.actuator)),
+            &inits.actuator,
+            rec::actuator_in,
+            rec::actuator_out,
+        ),
+        Role::Controller => stage.replay::<tiltsim_fmi::ControllerIo, _>(
+            || controller_proc::Controller::new(&inits.controller).map_err(ReplayError::Model),
+            &inits.controller,
+            rec::controller_in,
+            rec::controller_out,
+        ),
     };
     drop(hub);
     result
+}
+
+/// Removes the files of the replay's own iceoryx2 run (`.0`) when dropped, if it made any
+/// (`.1`).
+struct RunFiles<'a>(&'a str, bool);
+
+impl Drop for RunFiles<'_> {
+    fn drop(&mut self) {
+        if self.1 {
+            cosim::ipc::remove_run_files(self.0);
+        }
+    }
+}
+
+/// The replay's own iceoryx2 hub when the participant runs as a process.
+fn hub(s: &Scenario, at: &Where, prefix: &str) -> Result<Option<cosim::ipc::IpcHub>, ReplayError> {
+    match at {
+        Where::InProcess => Ok(None),
+        Where::Process(_) => cosim::ipc::IpcHub::new(cosim::ipc::IpcSettings {
+            prefix: prefix.to_string(),
+            wait: s.run.wait,
+            deadline: std::time::Duration::from_millis(s.run.deadline_ms),
+            ceiling: std::time::Duration::from_millis(s.run.hang_ceiling_ms),
+            participant_cpu: None,
+        })
+        .map(Some)
+        .map_err(|e| ReplayError::Model(e.to_string())),
+    }
+}
+
+/// Where and how the replayed participant runs, and what it is driven through.
+struct Stage<'a> {
+    role: Role,
+    at: &'a Where,
+    hub: Option<&'a cosim::ipc::IpcHub>,
+    fmu: Option<tiltsim_fmi::FmuInit>,
+    startup: std::time::Duration,
+    inbox: &'a [Recorded],
+    lost: Option<u64>,
+    hold: bool,
+    fields: &'static [&'static str],
+}
+
+impl Stage<'_> {
+    /// Drives the participant through the recorded inputs ([`drive`]) and shuts it down: the
+    /// model `model()` (with `params` as its process's settings), or the role's FMU as
+    /// samples `S`.
+    fn replay<S, M>(
+        &self,
+        model: impl FnOnce() -> Result<M, ReplayError>,
+        params: &impl Serialize,
+        input: fn(&[f64]) -> S::In,
+        output: fn(&S::Out) -> Vec<f64>,
+    ) -> Result<Vec<Recorded>, ReplayError>
+    where
+        S: tiltsim_fmi::Samples,
+        M: cosim::Participant<Input = S::In, Output = S::Out>,
+    {
+        let mut ep = self.endpoint::<S, M>(model, params)?;
+        let r = drive(
+            ep.as_mut(),
+            self.inbox,
+            self.lost,
+            self.hold,
+            input,
+            output,
+            self.fields,
+        );
+        ep.shutdown();
+        r
+    }
+
+    /// The endpoint of the replayed participant: its process (`participant` or
+    /// `fmu-participant`) over the hub, or it in this process.
+    fn endpoint<S, M>(
+        &self,
+        model: impl FnOnce() -> Result<M, ReplayError>,
+        params: &impl Serialize,
+    ) -> Result<Box<dyn Endpoint<S::In, S::Out>>, ReplayError>
+    where
+        S: tiltsim_fmi::Samples,
+        M: cosim::Participant<Input = S::In, Output = S::Out>,
+    {
+        Ok(match (self.at, self.hub, &self.fmu) {
+            (Where::Process(exe), Some(hub), _) => {
+                let (command, params) = match &self.fmu {
+                    Some(init) => ("fmu-participant", serde_json::to_string(init)),
+                    None => ("participant", serde_json::to_string(params)),
+                };
+                let launch = cosim::ipc::Launch {
+                    program: exe.clone(),
+                    args: vec![
+                        command.into(),
+                        self.role.name().into(),
+                        "--params".into(),
+                        params.unwrap_or_default().into(),
+                    ],
+                };
+                Box::new(
+                    hub.spawn::<S::In, S::Out>(self.role, &launch, self.startup)
+                        .map_err(|e| ReplayError::Model(e.to_string()))?,
+                )
+            }
+            (_, _, Some(init)) => Box::new(InProcess::new(
+                tiltsim_fmi::FmuParticipant::<S>::new(init.clone()).map_err(ReplayError::Model)?,
+            )),
+            _ => Box::new(InProcess::new(model()?)),
+        })
+    }
 }
 
 /// Compares replayed with recorded outputs, message by message.

@@ -183,60 +183,22 @@ pub fn run(
     scratch: &Path,
     mut progress: impl FnMut(&str),
 ) -> Result<Report, BenchError> {
-    let mut plan: Vec<(Transport, Master, WaitStrategy)> = vec![(
-        Transport::InProcess,
-        Master::GaussSeidel,
-        WaitStrategy::Adaptive,
-    )];
-    for m in [Master::GaussSeidel, Master::Jacobi] {
-        for w in [
-            WaitStrategy::Adaptive,
-            WaitStrategy::Spin,
-            WaitStrategy::Sleep,
-        ] {
-            plan.push((Transport::Ipc, m, w));
-        }
-    }
     let mut configs = Vec::new();
     let mut walls = WallRounds::default();
-    for (i, (t, m, w)) in plan.into_iter().enumerate() {
-        let mut s = base.clone();
+    for (i, (t, m, w)) in configurations().into_iter().enumerate() {
         // Spinning waiters on a 2-CPU machine starve each other (a tick costs whole
         // scheduler slices), so spin gets a tenth of the ticks; the table shows how many.
-        s.run.duration_s = Some(if w == WaitStrategy::Spin && t == Transport::Ipc {
-            (duration / 10.0).max(s.run.dt_s * 100.0)
+        let d = if w == WaitStrategy::Spin && t == Transport::Ipc {
+            (duration / 10.0).max(base.run.dt_s * 100.0)
         } else {
             duration
-        });
-        s.run.transport = t;
-        s.run.master = m;
-        s.run.wait = w;
+        };
+        let s = configured(base, d, (t, m, w));
         let name = format!("{} {} {}", t.name(), m.name(), w.name());
         progress(&name);
         let sum = measure(&s, exe, &scratch.join(format!("config-{i}")), &name)?;
-        let plant = &sum.link_latency[0];
-        let compute = sum.participants[0].compute_us.p50;
         walls.add(t, m, w, sum.wall_time_s);
-        configs.push(Config {
-            transport: t.name(),
-            master: m.name(),
-            wait: if t == Transport::InProcess {
-                "-"
-            } else {
-                w.name()
-            },
-            ticks: sum.steps_completed,
-            overhead_p50_us: sum.timing.p50,
-            overhead_p99_us: sum.timing.p99,
-            plant_round_trip_p50_us: (plant.round_trip_us.p50 - compute).max(0.0),
-            plant_round_trip_p99_us: plant.round_trip_us.p99,
-            wall_s: sum.wall_time_s,
-            cpu_s: sum.timing.cpu_s.orchestrator + sum.timing.cpu_s.participants,
-            floor_per_tick_us: None,
-            overhead_over_floor: None,
-            critical_floor_per_tick_us: None,
-            overhead_over_critical_floor: None,
-        });
+        configs.push(Config::of(t, m, w, &sum));
     }
     for round in 1..rounds {
         for (t, m) in [
@@ -244,11 +206,7 @@ pub fn run(
             (Transport::Ipc, Master::GaussSeidel),
             (Transport::Ipc, Master::Jacobi),
         ] {
-            let mut s = base.clone();
-            s.run.duration_s = Some(duration);
-            s.run.transport = t;
-            s.run.master = m;
-            s.run.wait = WaitStrategy::Adaptive;
+            let s = configured(base, duration, (t, m, WaitStrategy::Adaptive));
             let name = format!("{} {} adaptive, round {}", t.name(), m.name(), round + 1);
             progress(&name);
             let dir = scratch.join(format!("round-{round}-{}-{}", t.name(), m.name()));
@@ -256,29 +214,12 @@ pub fn run(
             walls.add(t, m, WaitStrategy::Adaptive, sum.wall_time_s);
         }
     }
+    let floor = set_floors(&mut configs, base.controller_period_ticks());
     let (wall_local, wall_ipc, wall_jacobi) = (
         median(&walls.in_process_s),
         median(&walls.ipc_gauss_seidel_s),
         median(&walls.ipc_jacobi_s),
     );
-    let floor = configs
-        .iter()
-        .filter(|c| c.transport == "ipc")
-        .map(|c| c.plant_round_trip_p50_us)
-        .fold(f64::INFINITY, f64::min);
-    let needed = 2.0 + 1.0 / base.controller_period_ticks() as f64;
-    for c in configs.iter_mut().filter(|c| c.transport == "ipc") {
-        let in_turn = if c.master == Master::Jacobi.name() {
-            1.0
-        } else {
-            needed
-        };
-        let (f, critical) = (needed * floor, in_turn * floor);
-        c.floor_per_tick_us = Some(f);
-        c.overhead_over_floor = (f > 0.0).then(|| c.overhead_p50_us / f);
-        c.critical_floor_per_tick_us = Some(critical);
-        c.overhead_over_critical_floor = (critical > 0.0).then(|| c.overhead_p50_us / critical);
-    }
     Ok(Report {
         scenario: base.name.clone(),
         duration_s: duration,
@@ -302,6 +243,93 @@ pub fn run(
         wall_rounds: walls,
         machine_floors: None,
     })
+}
+
+/// The configurations measured: in-process, then IPC under each master and wait strategy.
+fn configurations() -> Vec<(Transport, Master, WaitStrategy)> {
+    let mut plan = vec![(
+        Transport::InProcess,
+        Master::GaussSeidel,
+        WaitStrategy::Adaptive,
+    )];
+    for m in [Master::GaussSeidel, Master::Jacobi] {
+        for w in [
+            WaitStrategy::Adaptive,
+            WaitStrategy::Spin,
+            WaitStrategy::Sleep,
+        ] {
+            plan.push((Transport::Ipc, m, w));
+        }
+    }
+    plan
+}
+
+/// `base` run for `duration` (s) on transport, master and wait strategy `(t, m, w)`.
+fn configured(
+    base: &Scenario,
+    duration: f64,
+    (t, m, w): (Transport, Master, WaitStrategy),
+) -> Scenario {
+    let mut s = base.clone();
+    s.run.duration_s = Some(duration);
+    s.run.transport = t;
+    s.run.master = m;
+    s.run.wait = w;
+    s
+}
+
+impl Config {
+    /// The row of configuration `(t, m, w)` from the summary of its run (floors not yet set,
+    /// [`set_floors`]).
+    fn of(t: Transport, m: Master, w: WaitStrategy, sum: &Summary) -> Config {
+        let plant = &sum.link_latency[0];
+        let compute = sum.participants[0].compute_us.p50;
+        Config {
+            transport: t.name(),
+            master: m.name(),
+            wait: if t == Transport::InProcess {
+                "-"
+            } else {
+                w.name()
+            },
+            ticks: sum.steps_completed,
+            overhead_p50_us: sum.timing.p50,
+            overhead_p99_us: sum.timing.p99,
+            plant_round_trip_p50_us: (plant.round_trip_us.p50 - compute).max(0.0),
+            plant_round_trip_p99_us: plant.round_trip_us.p99,
+            wall_s: sum.wall_time_s,
+            cpu_s: sum.timing.cpu_s.orchestrator + sum.timing.cpu_s.participants,
+            floor_per_tick_us: None,
+            overhead_over_floor: None,
+            critical_floor_per_tick_us: None,
+            overhead_over_critical_floor: None,
+        }
+    }
+}
+
+/// Sets each IPC row's floors from the least IPC round trip, the returned floor (µs): the
+/// exchanges a tick needs (two, and the controller's every `period_ticks`), all of them for
+/// Gauss-Seidel and one in turn for Jacobi.
+fn set_floors(configs: &mut [Config], period_ticks: u64) -> f64 {
+    let floor = configs
+        .iter()
+        .filter(|c| c.transport == "ipc")
+        .map(|c| c.plant_round_trip_p50_us)
+        .fold(f64::INFINITY, f64::min);
+    let needed = 2.0 + 1.0 / period_ticks as f64;
+    for c in configs.iter_mut().filter(|c| c.transport == "ipc") {
+        let in_turn = if c.master == Master::Jacobi.name() {
+            1.0
+        } else {
+            needed
+        };
+        let (f, critical) = (needed * floor, in_turn * floor);
+        c.floor_per_tick_us = Some(f);
+        c.overhead_over_floor = (f > 0.0).then(|| c.overhead_p50_us / f);
+        c.critical_floor_per_tick_us = Some(critical);
+        c.overhead_over_critical_floor = (critical > 0.0).then(|| c.overhead_p50_us / critical);
+    }
+    floor
 }
 
 /// CPU model, logical CPUs and kernel, as Linux reports them.

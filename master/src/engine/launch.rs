@@ -149,7 +149,15 @@ pub(crate) fn start(
     prefix: &str,
 ) -> Result<Participants, RunError> {
     let inits = Inits::from(s);
-    // Reply fields an FMU does not provide are recorded as 0: say so once, before the run.
+    warn_missing_fmu_outputs(s);
+    match s.run.transport {
+        Transport::InProcess => start_in_process(s, opts, &inits),
+        Transport::Ipc => start_processes(s, opts, prefix, &inits),
+    }
+}
+
+/// Reply fields an FMU does not provide are recorded as 0: says so once, before the run.
+fn warn_missing_fmu_outputs(s: &Scenario) {
     for role in Role::ALL {
         if let Some(Ok((_, plan))) = s.fmu_init(role).map(|i| tiltsim_fmi::import::check(&i)) {
             if !plan.missing_outputs.is_empty() {
@@ -160,117 +168,131 @@ pub(crate) fn start(
             }
         }
     }
-    match s.run.transport {
-        Transport::InProcess => {
-            // A model in this process, with the run's stall deadline and timing.
-            fn local<P: Participant>(model: P, s: &Scenario, opts: &RunOptions) -> InProcess<P> {
-                InProcess::new(model)
-                    .with_deadline(Duration::from_millis(s.run.deadline_ms))
-                    .timed(opts.timing)
-            }
-            let plant: PlantEp = match s.fmu_init(Role::Plant) {
-                Some(init) => Box::new(local(fmu_model::<PlantIo>(init)?, s, opts)),
-                None => Box::new(local(Plant::new(&inits.plant), s, opts)),
-            };
-            let actuator: ActuatorEp = match s.fmu_init(Role::Actuator) {
-                Some(init) => Box::new(local(fmu_model::<ActuatorIo>(init)?, s, opts)),
-                None => Box::new(local(Actuator::new(&inits.actuator), s, opts)),
-            };
-            let controller: ControllerEp = match s.fmu_init(Role::Controller) {
-                Some(init) => Box::new(local(fmu_model::<ControllerIo>(init)?, s, opts)),
-                None => Box::new(local(
-                    Controller::new(&inits.controller).map_err(RunError::Design)?,
-                    s,
-                    opts,
-                )),
-            };
-            Ok(Participants {
-                plant,
-                actuator,
-                controller,
-                hub: None,
-                shares_cpu: RoleMap::default(),
-            })
-        }
-        Transport::Ipc => {
-            // Files of runs whose orchestrator was killed before it could clean up.
-            for p in cosim::ipc::remove_dead_runs() {
-                tracing::info!("removed the files of dead run {p}");
-            }
-            let plan = if s.run.pin_cpus {
-                cosim::ipc::cpu_plan()
-            } else {
-                None
-            };
-            let hub = IpcHub::new(IpcSettings {
-                prefix: prefix.to_string(),
-                wait: s.run.wait,
-                deadline: Duration::from_millis(s.run.deadline_ms),
-                ceiling: Duration::from_millis(s.run.hang_ceiling_ms),
-                participant_cpu: plan.map(|p| p.1),
-            })?
-            .interrupted_by(opts.interrupt.clone());
-            if let Some((own, _)) = plan {
-                cosim::ipc::pin_to_cpu(own);
-            }
-            let startup = Duration::from_millis(s.run.startup_ms);
-            let launch_of = |role: Role, command: &str, params: String| Launch {
-                program: opts
-                    .participant_overrides
-                    .iter()
-                    .find(|(r, _)| *r == role)
-                    .map_or_else(|| opts.participant_exe.clone(), |(_, p)| p.clone()),
-                args: [
-                    command.into(),
-                    role.name().into(),
-                    "--params".into(),
-                    params.into(),
-                ]
+}
+
+/// The participants as models (or FMUs) in this process.
+fn start_in_process(
+    s: &Scenario,
+    opts: &RunOptions,
+    inits: &Inits,
+) -> Result<Participants, RunError> {
+    // A model in this process, with the run's stall deadline and timing.
+    fn local<P: Participant>(model: P, s: &Scenario, opts: &RunOptions) -> InProcess<P> {
+        InProcess::new(model)
+            .with_deadline(Duration::from_millis(s.run.deadline_ms))
+            .timed(opts.timing)
+    }
+    let plant: PlantEp = match s.fmu_init(Role::Plant) {
+        Some(init) => Box::new(local(fmu_model::<PlantIo>(init)?, s, opts)),
+        None => Box::new(local(Plant::new(&inits.plant), s, opts)),
+    };
+    let actuator: ActuatorEp = match s.fmu_init(Role::Actuator) {
+        Some(init) => Box::new(local(fmu_model::<ActuatorIo>(init)?, s, opts)),
+        None => Box::new(local(Actuator::new(&inits.actuator), s, opts)),
+    };
+    let controller: ControllerEp = match s.fmu_init(Role::Controller) {
+        Some(init) => Box::new(local(fmu_model::<ControllerIo>(init)?, s, opts)),
+        None => Box::new(local(
+            Controller::new(&inits.controller).map_err(RunError::Design)?,
+            s,
+            opts,
+        )),
+    };
+    Ok(Participants {
+        plant,
+        actuator,
+        controller,
+        hub: None,
+        shares_cpu: RoleMap::default(),
+    })
+}
+
+/// The participants as processes of `opts.participant_exe` (or its override for a role)
+/// connected over iceoryx2 with `prefix`, after the files of dead runs are removed and this
+/// process is pinned by the CPU plan.
+fn start_processes(
+    s: &Scenario,
+    opts: &RunOptions,
+    prefix: &str,
+    inits: &Inits,
+) -> Result<Participants, RunError> {
+    // Files of runs whose orchestrator was killed before it could clean up.
+    for p in cosim::ipc::remove_dead_runs() {
+        tracing::info!("removed the files of dead run {p}");
+    }
+    let plan = if s.run.pin_cpus {
+        cosim::ipc::cpu_plan()
+    } else {
+        None
+    };
+    let hub = IpcHub::new(IpcSettings {
+        prefix: prefix.to_string(),
+        wait: s.run.wait,
+        deadline: Duration::from_millis(s.run.deadline_ms),
+        ceiling: Duration::from_millis(s.run.hang_ceiling_ms),
+        participant_cpu: plan.map(|p| p.1),
+    })?
+    .interrupted_by(opts.interrupt.clone());
+    if let Some((own, _)) = plan {
+        cosim::ipc::pin_to_cpu(own);
+    }
+    let startup = Duration::from_millis(s.run.startup_ms);
+    let plant = hub
+        .spawn::<ToPlant, FromPlant>(
+            Role::Plant,
+            &launch(s, opts, Role::Plant, json(&inits.plant)),
+            startup,
+        )
+        .map_err(started)?;
+    let actuator = hub
+        .spawn::<ToActuator, FromActuator>(
+            Role::Actuator,
+            &launch(s, opts, Role::Actuator, json(&inits.actuator)),
+            startup,
+        )
+        .map_err(started)?;
+    let controller = hub
+        .spawn::<ToController, FromController>(
+            Role::Controller,
+            &launch(s, opts, Role::Controller, json(&inits.controller)),
+            startup,
+        )
+        .map_err(started)?;
+    Ok(Participants {
+        plant: Box::new(plant),
+        actuator: Box::new(actuator),
+        controller: Box::new(controller),
+        hub: Some(hub),
+        shares_cpu: RoleMap::default(),
+    })
+}
+
+/// How the process of `role` is started: `participant ROLE --params PARAMS`, or, for an FMU,
+/// this executable's `fmu-participant` given the FMU's settings; `--realtime` when paced.
+fn launch(s: &Scenario, opts: &RunOptions, role: Role, params: String) -> Launch {
+    let (command, params) = match s.fmu_init(role) {
+        Some(init) => ("fmu-participant", json(&init)),
+        None => ("participant", params),
+    };
+    Launch {
+        program: opts
+            .participant_overrides
+            .iter()
+            .find(|(r, _)| *r == role)
+            .map_or_else(|| opts.participant_exe.clone(), |(_, p)| p.clone()),
+        args: [
+            command.into(),
+            role.name().into(),
+            "--params".into(),
+            params.into(),
+        ]
+        .into_iter()
+        .chain(
+            opts.realtime
                 .into_iter()
-                .chain(
-                    opts.realtime
-                        .into_iter()
-                        .flat_map(|p| ["--realtime".into(), p.to_string().into()]),
-                )
-                .collect(),
-            };
-            // An FMU's process is this executable's `fmu-participant`, given the FMU's settings.
-            let launch = |role: Role, params: String| {
-                let (command, params) = match s.fmu_init(role) {
-                    Some(init) => ("fmu-participant", json(&init)),
-                    None => ("participant", params),
-                };
-                launch_of(role, command, params)
-            };
-            let plant = hub
-                .spawn::<ToPlant, FromPlant>(
-                    Role::Plant,
-                    &launch(Role::Plant, json(&inits.plant)),
-                    startup,
-                )
-                .map_err(started)?;
-            let actuator = hub
-                .spawn::<ToActuator, FromActuator>(
-                    Role::Actuator,
-                    &launch(Role::Actuator, json(&inits.actuator)),
-                    startup,
-                )
-                .map_err(started)?;
-            let controller = hub
-                .spawn::<ToController, FromController>(
-                    Role::Controller,
-                    &launch(Role::Controller, json(&inits.controller)),
-                    startup,
-                )
-                .map_err(started)?;
-            Ok(Participants {
-                plant: Box::new(plant),
-                actuator: Box::new(actuator),
-                controller: Box::new(controller),
-                hub: Some(hub),
-                shares_cpu: RoleMap::default(),
-            })
-        }
+                .flat_map(|p| ["--realtime".into(), p.to_string().into()]),
+        )
+        .collect(),
     }
 }
 

@@ -52,46 +52,13 @@ fn one(file: &Path, s: Scenario, out: &Path, base: &RunOptions) -> Result<Entry,
 
 /// Runs the command.
 pub fn exec(a: CompareArgs) -> CliResult {
-    let mut loaded = Vec::new();
-    for f in &a.scenarios {
-        let mut s = load(f)?;
-        if let Some(t) = a.transport {
-            s.run.transport = t.into();
-        }
-        loaded.push((f.clone(), s));
-    }
-    // Scenarios of one name get distinct directories and labels: `name`, `name-2`, ...
-    let names: Vec<String> = loaded.iter().map(|(_, s)| s.name.clone()).collect();
-    for ((file, s), name) in loaded
-        .iter_mut()
-        .zip(tiltsim_report::compare::distinct_names(&names))
-    {
-        if name != s.name {
-            eprintln!(
-                "note: {}: `{}` is also the name of another scenario compared (or of a file of the compare): this one runs in {} and is labelled {name}",
-                file.display(),
-                s.name,
-                a.out.join(&name).display()
-            );
-            s.name = name;
-        }
-    }
+    let loaded = load_all(&a)?;
     let invalid = |e: tiltsim_master::outdir::OutDirError| CliError::Invalid(e.to_string());
     // The compare holds its directory; an earlier compare's runs and tables there go first.
     let _lock =
         tiltsim_master::outdir::claim(&a.out, tiltsim_master::outdir::Kind::Compare, "compare")
             .map_err(invalid)?;
-    if let Some(old) = tiltsim_report::compare::Manifest::read(&a.out) {
-        for r in old.runs {
-            let dir = a.out.join(&r.dir);
-            if r.dir.contains(['/', '\\']) || r.dir.starts_with('.') || !dir.is_dir() {
-                continue;
-            }
-            drop(tiltsim_master::outdir::claim_run(&dir, "compare").map_err(invalid)?);
-            tiltsim_master::outdir::remove_if_empty(&dir);
-        }
-    }
-    tiltsim_master::outdir::clear_compare_results(&a.out).map_err(invalid)?;
+    clear_earlier(&a.out)?;
     let manifest = tiltsim_report::compare::Manifest {
         runs: loaded
             .iter()
@@ -109,9 +76,66 @@ pub fn exec(a: CompareArgs) -> CliResult {
     for (file, s) in loaded {
         entries.push(one(&file, s, &a.out, &base)?);
     }
-    let (md, csv) = tiltsim_report::compare::tables(&entries);
+    write_results(&entries, &a.out)?;
+    println!(
+        "wrote {0}/table.md, {0}/table.csv and {0}/plots/compare_*.svg|png",
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// The scenarios compared, each with its file, on the transport asked for; scenarios of one
+/// name get distinct directories and labels: `name`, `name-2`, ...
+fn load_all(a: &CompareArgs) -> Result<Vec<(PathBuf, Scenario)>, CliError> {
+    let mut loaded = Vec::new();
+    for f in &a.scenarios {
+        let mut s = load(f)?;
+        if let Some(t) = a.transport {
+            s.run.transport = t.into();
+        }
+        loaded.push((f.clone(), s));
+    }
+    let names: Vec<String> = loaded.iter().map(|(_, s)| s.name.clone()).collect();
+    for ((file, s), name) in loaded
+        .iter_mut()
+        .zip(tiltsim_report::compare::distinct_names(&names))
+    {
+        if name != s.name {
+            eprintln!(
+                "note: {}: `{}` is also the name of another scenario compared (or of a file of the compare): this one runs in {} and is labelled {name}",
+                file.display(),
+                s.name,
+                a.out.join(&name).display()
+            );
+            s.name = name;
+        }
+    }
+    Ok(loaded)
+}
+
+/// Removes an earlier compare's runs (each claimed first, so a live one is never touched) and
+/// tables from `out`.
+fn clear_earlier(out: &Path) -> Result<(), CliError> {
+    let invalid = |e: tiltsim_master::outdir::OutDirError| CliError::Invalid(e.to_string());
+    if let Some(old) = tiltsim_report::compare::Manifest::read(out) {
+        for r in old.runs {
+            let dir = out.join(&r.dir);
+            if r.dir.contains(['/', '\\']) || r.dir.starts_with('.') || !dir.is_dir() {
+                continue;
+            }
+            drop(tiltsim_master::outdir::claim_run(&dir, "compare").map_err(invalid)?);
+            tiltsim_master::outdir::remove_if_empty(&dir);
+        }
+    }
+    tiltsim_master::outdir::clear_compare_results(out).map_err(invalid)?;
+    Ok(())
+}
+
+/// Writes the compare's tables and figures into `out`.
+fn write_results(entries: &[Entry], out: &Path) -> CliResult {
+    let (md, csv) = tiltsim_report::compare::tables(entries);
     for (name, text) in [("table.md", &md), ("table.csv", &csv)] {
-        let p = a.out.join(name);
+        let p = out.join(name);
         tiltsim_master::files::write_atomic(&p, text)
             .map_err(|e| CliError::Failed(e.to_string()))?;
     }
@@ -121,17 +145,13 @@ pub fn exec(a: CompareArgs) -> CliResult {
             (
                 e.scenario.name.clone(),
                 e.scenario.clone(),
-                a.out.join(&e.scenario.name),
+                out.join(&e.scenario.name),
             )
         })
         .collect();
-    tiltsim_report::analysis::write_compare_plots(&runs, &a.out)
-        .map_err(|e| CliError::Failed(format!("{}: {e}", a.out.join("plots").display())))?;
-    tiltsim_report::compare::write_trade_off_plot(&entries, &a.out)
-        .map_err(|e| CliError::Failed(format!("{}: {e}", a.out.join("plots").display())))?;
-    println!(
-        "wrote {0}/table.md, {0}/table.csv and {0}/plots/compare_*.svg|png",
-        a.out.display()
-    );
+    tiltsim_report::analysis::write_compare_plots(&runs, out)
+        .map_err(|e| CliError::Failed(format!("{}: {e}", out.join("plots").display())))?;
+    tiltsim_report::compare::write_trade_off_plot(entries, out)
+        .map_err(|e| CliError::Failed(format!("{}: {e}", out.join("plots").display())))?;
     Ok(())
 }

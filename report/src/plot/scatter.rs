@@ -28,18 +28,7 @@ pub fn write_scatter(
     y_label: &str,
     series: &[Series],
 ) -> std::io::Result<[PathBuf; 2]> {
-    let pts = series.iter().flat_map(|s| s.points.iter().copied());
-    let (mut x0, mut x1) = (f64::INFINITY, f64::NEG_INFINITY);
-    let mut ys = Vec::new();
-    for (x, y) in pts.filter(|(x, y)| x.is_finite() && y.is_finite()) {
-        x0 = x0.min(x);
-        x1 = x1.max(x);
-        ys.push(y);
-    }
-    if !x0.is_finite() {
-        (x0, x1) = (0.0, 1.0);
-    }
-    let pad = 0.08 * (x1 - x0).max(1e-6);
+    let (xr, ys) = ranges(series);
     let range = Chart {
         title,
         x_label,
@@ -53,7 +42,6 @@ pub fn write_scatter(
         bands: Vec::new(),
         note: "",
     };
-    let xr = [x0 - pad, x1 + pad];
     let f = Frame::new(&range, &xr);
     let mut p = vec![Prim::Rect {
         x: 0.0,
@@ -67,44 +55,7 @@ pub fn write_scatter(
     f.y_axis(&mut p);
     labels(&mut p, &range);
     for (k, se) in series.iter().enumerate() {
-        let colour = Rgb::hex(se.colour);
-        let xy: Vec<(f64, f64)> = se
-            .points
-            .iter()
-            .filter(|(x, y)| x.is_finite() && y.is_finite())
-            .map(|&(x, y)| (f.xs(x), f.ys(y)))
-            .collect();
-        if se.joined && xy.len() > 1 {
-            p.push(Prim::Path {
-                pts: xy.clone(),
-                colour,
-                width: 1.3,
-                dash: None,
-            });
-        }
-        for (i, &(x, y)) in xy.iter().enumerate() {
-            p.push(Prim::Rect {
-                x: x - 3.5,
-                y: y - 3.5,
-                w: 7.0,
-                h: 7.0,
-                fill: Some(colour),
-                stroke: None,
-            });
-            if let Some(t) = se.labels.get(i).filter(|t| !t.is_empty()) {
-                p.push(text(x + 6.0, y - 6.0, t.clone(), Anchor::Start));
-            }
-        }
-        let ly = T + 14.0 + 16.0 * k as f64;
-        p.push(Prim::Rect {
-            x: W - R - 222.0,
-            y: ly - 3.5,
-            w: 7.0,
-            h: 7.0,
-            fill: Some(colour),
-            stroke: None,
-        });
-        p.push(text(W - R - 200.0, ly + 4.0, se.label, Anchor::Start));
+        draw_series(&mut p, &f, k, se);
     }
     let sc = Scene {
         w: W,
@@ -116,4 +67,65 @@ pub fn write_scatter(
     let png = dir.join(format!("{name}.png"));
     write_png(&sc, &png)?;
     Ok([svg, png])
+}
+
+/// The x range of the finite points of `series`, padded by 8 % each side ([0, 1] when there
+/// are none), and their y values (the chart's y range is theirs).
+fn ranges(series: &[Series]) -> ([f64; 2], Vec<f64>) {
+    let pts = series.iter().flat_map(|s| s.points.iter().copied());
+    let (mut x0, mut x1) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut ys = Vec::new();
+    for (x, y) in pts.filter(|(x, y)| x.is_finite() && y.is_finite()) {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        ys.push(y);
+    }
+    if !x0.is_finite() {
+        (x0, x1) = (0.0, 1.0);
+    }
+    let pad = 0.08 * (x1 - x0).max(1e-6);
+    ([x0 - pad, x1 + pad], ys)
+}
+
+/// Draws series `se`, the `k`-th, in frame `f`: its points as squares (joined in order when
+/// asked, each with its label), and its legend entry.
+fn draw_series(p: &mut Vec<Prim>, f: &Frame, k: usize, se: &Series) {
+    let colour = Rgb::hex(se.colour);
+    let xy: Vec<(f64, f64)> = se
+        .points
+        .iter()
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .map(|&(x, y)| (f.xs(x), f.ys(y)))
+        .collect();
+    if se.joined && xy.len() > 1 {
+        p.push(Prim::Path {
+            pts: xy.clone(),
+            colour,
+            width: 1.3,
+            dash: None,
+        });
+    }
+    for (i, &(x, y)) in xy.iter().enumerate() {
+        p.push(Prim::Rect {
+            x: x - 3.5,
+            y: y - 3.5,
+            w: 7.0,
+            h: 7.0,
+            fill: Some(colour),
+            stroke: None,
+        });
+        if let Some(t) = se.labels.get(i).filter(|t| !t.is_empty()) {
+            p.push(text(x + 6.0, y - 6.0, t.clone(), Anchor::Start));
+        }
+    }
+    let ly = T + 14.0 + 16.0 * k as f64;
+    p.push(Prim::Rect {
+        x: W - R - 222.0,
+        y: ly - 3.5,
+        w: 7.0,
+        h: 7.0,
+        fill: Some(colour),
+        stroke: None,
+    });
+    p.push(text(W - R - 200.0, ly + 4.0, se.label, Anchor::Start));
 }

@@ -258,8 +258,29 @@ pub fn run(
     if !resumed {
         clear_results(&ex.out).map_err(|e| SweepError::Files(e.to_string()))?;
     }
+    let kept = kept_rows(&done, &mine, plan, &ex.out);
+    let todo: Vec<usize> = mine
+        .into_iter()
+        .filter(|j| !kept.iter().any(|r| r.sample == *j))
+        .collect();
+    let mut base = base.clone();
+    // Parallel process runs must not all pin themselves to the same two CPUs.
+    base.run.pin_cpus = false;
+    let rows = run_parallel(&base, plan, &todo, ex, &done);
+    let _ = std::fs::remove_dir(ex.out.join("runs"));
+    let mut all: Vec<Row> = rows.into_iter().flatten().chain(kept).collect();
+    all.sort_by_key(|r| r.sample);
+    Ok(Swept {
+        rows: all,
+        interrupted: ex.interrupt.load(Ordering::Relaxed),
+    })
+}
+
+/// The rows of the samples of `mine` that an earlier invocation kept in `out/done` and that
+/// check out; a damaged one is said and run again.
+fn kept_rows(done: &resume::Done, mine: &[usize], plan: &Plan, out: &Path) -> Vec<Row> {
     let mut kept: Vec<Row> = Vec::new();
-    for j in &mine {
+    for j in mine {
         match done.get(*j, plan) {
             Ok(Some(r)) => kept.push(r),
             Ok(None) => {}
@@ -272,28 +293,22 @@ pub fn run(
             "resuming: {} of {} samples already finished in {}",
             kept.len(),
             mine.len(),
-            ex.out.join("done").display()
+            out.join("done").display()
         );
     }
-    let todo: Vec<usize> = mine
-        .into_iter()
-        .filter(|j| !kept.iter().any(|r| r.sample == *j))
-        .collect();
-    let mut base = base.clone();
-    // Parallel process runs must not all pin themselves to the same two CPUs.
-    base.run.pin_cpus = false;
-    let bar = if ex.progress {
-        indicatif::ProgressBar::new(todo.len() as u64)
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:40}] {pos}/{len} samples, eta {eta} {msg}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-        .progress_chars("=> "),
-    );
+    kept
+}
+
+/// Runs samples `todo` on `ex.jobs` threads, each kept in `done` as it ends; returns their
+/// rows in `todo`'s order, `None` for those not run or cut short by an interrupt.
+fn run_parallel(
+    base: &Scenario,
+    plan: &Plan,
+    todo: &[usize],
+    ex: &Exec,
+    done: &resume::Done,
+) -> Vec<Option<Row>> {
+    let bar = progress_bar(ex.progress, todo.len());
     let next = AtomicUsize::new(0);
     let rows: Mutex<Vec<Option<Row>>> = Mutex::new(vec![None; todo.len()]);
     std::thread::scope(|sc| {
@@ -303,7 +318,7 @@ pub fn run(
                 if i >= todo.len() || ex.interrupt.load(Ordering::Relaxed) {
                     break;
                 }
-                let row = run_one(&base, plan, todo[i], ex);
+                let row = run_one(base, plan, todo[i], ex);
                 if ex.interrupt.load(Ordering::Relaxed) {
                     // This sample may have been cut short by the interrupt: not kept.
                     break;
@@ -322,19 +337,24 @@ pub fn run(
         }
     });
     bar.finish_and_clear();
-    let _ = std::fs::remove_dir(ex.out.join("runs"));
-    let mut all: Vec<Row> = rows
-        .into_inner()
-        .unwrap_or_default()
-        .into_iter()
-        .flatten()
-        .chain(kept)
-        .collect();
-    all.sort_by_key(|r| r.sample);
-    Ok(Swept {
-        rows: all,
-        interrupted: ex.interrupt.load(Ordering::Relaxed),
-    })
+    rows.into_inner().unwrap_or_default()
+}
+
+/// The sweep's progress bar over `n` samples (hidden unless `shown`).
+fn progress_bar(shown: bool, n: usize) -> indicatif::ProgressBar {
+    let bar = if shown {
+        indicatif::ProgressBar::new(n as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} samples, eta {eta} {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    bar
 }
 
 /// Removes an earlier sweep's results from `out`: its tables, figures and kept sample runs

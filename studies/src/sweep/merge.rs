@@ -163,66 +163,20 @@ pub fn merge(dirs: &[PathBuf]) -> Result<(Scenario, Plan, String, Vec<Row>), Swe
 
 pub(super) fn join(shards: Vec<Outputs>) -> Result<(Scenario, Plan, String, Vec<Row>), String> {
     let first = shards.first().ok_or("no shard directories given")?;
-    let (d0, m0) = (first.dir.clone(), first.meta.clone());
-    let (base, plan) = (first.base.clone(), m0.plan.clone());
+    let (base, plan) = (first.base.clone(), first.meta.plan.clone());
     let n = plan.len();
-    let shard_of = |o: &Outputs| match &o.meta.shard {
-        None => Ok(Shard { index: 0, count: 1 }),
-        Some(t) => Shard::parse(t).map_err(|_| {
-            format!(
-                "{}: shard `{t}` is not I/N",
-                o.dir.join("sweep.json").display()
-            )
-        }),
-    };
     let split = shard_of(first)?.count;
     let mut taken: Vec<Option<PathBuf>> = vec![None; split];
     let mut rows: Vec<Row> = Vec::new();
     for o in &shards {
-        let (d, m) = (&o.dir, &o.meta);
-        if m.interrupted {
-            return Err(format!(
-                "{}: the sweep there was interrupted (sweep.json: \"interrupted\": true): start it again with the same arguments to finish it, then merge",
-                d.display()
-            ));
-        }
-        if m.plan != m0.plan {
-            return Err(format!(
-                "{}: a different sweep plan than {}",
-                d.display(),
-                d0.display()
-            ));
-        }
-        if o.base != base {
-            return Err(format!(
-                "{}: a different base scenario than {}",
-                d.display(),
-                d0.display()
-            ));
-        }
-        if m.build != m0.build {
-            return Err(format!(
-                "{}: computed by another build of tiltsim ({}) than {} ({}): run the shards with one build",
-                d.display(),
-                m.build,
-                d0.display(),
-                m0.build
-            ));
-        }
-        if m.fingerprint != m0.fingerprint {
-            return Err(format!(
-                "{}: another sweep than {} (fingerprint differs)",
-                d.display(),
-                d0.display()
-            ));
-        }
+        same_sweep(o, first)?;
         let sh = shard_of(o)?;
         let name = format!("{}/{}", sh.index, sh.count);
         if sh.count != split {
             return Err(format!(
                 "{} is shard {name}, {} is shard {}: shards of different splits",
-                d.display(),
-                d0.display(),
+                o.dir.display(),
+                first.dir.display(),
                 shard_name(first)
             ));
         }
@@ -230,56 +184,135 @@ pub(super) fn join(shards: Vec<Outputs>) -> Result<(Scenario, Plan, String, Vec<
             return Err(format!(
                 "{} and {} are both shard {name}",
                 other.display(),
-                d.display()
+                o.dir.display()
             ));
         }
-        taken[sh.index] = Some(d.clone());
-        let mine = sh.samples(n);
-        let mut seen = std::collections::BTreeSet::new();
-        for (at, r) in &o.rows {
-            if r.sample >= n {
-                return Err(format!(
-                    "{at}: sample {} is not in the plan ({n} samples)",
-                    r.sample
-                ));
-            }
-            if mine.binary_search(&r.sample).is_err() {
-                return Err(format!("{at}: sample {} is not in shard {name}", r.sample));
-            }
-            if !seen.insert(r.sample) {
-                return Err(format!("{at}: sample {} appears twice", r.sample));
-            }
-            check_params(&base, &plan, r).map_err(|e| format!("{at}: {e}"))?;
-            if !o.series.contains(&r.sample) {
-                return Err(format!(
-                    "{at}: sample {} has no line in {}",
-                    r.sample,
-                    d.join("series.csv").display()
-                ));
-            }
-        }
-        let absent: Vec<usize> = mine.iter().filter(|j| !seen.contains(j)).copied().collect();
-        if !absent.is_empty() {
-            return Err(format!(
-                "{}: {} of the {} samples of shard {name} missing (first: {:?})",
-                d.join("samples.csv").display(),
-                absent.len(),
-                mine.len(),
-                &absent[..absent.len().min(5)]
-            ));
-        }
-        if let Some(e) = o.orphans.first() {
-            return Err(e.clone());
-        }
-        if m.samples != seen.iter().copied().collect::<Vec<_>>() {
-            return Err(format!(
-                "{}: its list of samples is not that of samples.csv",
-                d.join("sweep.json").display()
-            ));
-        }
+        taken[sh.index] = Some(o.dir.clone());
+        check_shard_rows(o, &base, &plan, &sh.samples(n), &name)?;
         rows.extend(o.rows.iter().map(|(_, r)| r.clone()));
     }
     rows.sort_by_key(|r| r.sample);
+    all_samples_present(&rows, n, &taken)?;
+    Ok((base, plan, first.meta.build.clone(), rows))
+}
+
+/// The shard `o` says it is (a whole sweep when it says none).
+fn shard_of(o: &Outputs) -> Result<Shard, String> {
+    match &o.meta.shard {
+        None => Ok(Shard { index: 0, count: 1 }),
+        Some(t) => Shard::parse(t).map_err(|_| {
+            format!(
+                "{}: shard `{t}` is not I/N",
+                o.dir.join("sweep.json").display()
+            )
+        }),
+    }
+}
+
+/// Whether shard `o` belongs to the sweep of shard `first`: finished, and of one plan, base
+/// scenario, build and fingerprint.
+fn same_sweep(o: &Outputs, first: &Outputs) -> Result<(), String> {
+    let (d, m) = (&o.dir, &o.meta);
+    let (d0, m0) = (&first.dir, &first.meta);
+    if m.interrupted {
+        return Err(format!(
+            "{}: the sweep there was interrupted (sweep.json: \"interrupted\": true): start it again with the same arguments to finish it, then merge",
+            d.display()
+        ));
+    }
+    if m.plan != m0.plan {
+        return Err(format!(
+            "{}: a different sweep plan than {}",
+            d.display(),
+            d0.display()
+        ));
+    }
+    if o.base != first.base {
+        return Err(format!(
+            "{}: a different base scenario than {}",
+            d.display(),
+            d0.display()
+        ));
+    }
+    if m.build != m0.build {
+        return Err(format!(
+            "{}: computed by another build of tiltsim ({}) than {} ({}): run the shards with one build",
+            d.display(),
+            m.build,
+            d0.display(),
+            m0.build
+        ));
+    }
+    if m.fingerprint != m0.fingerprint {
+        return Err(format!(
+            "{}: another sweep than {} (fingerprint differs)",
+            d.display(),
+            d0.display()
+        ));
+    }
+    Ok(())
+}
+
+/// Whether the rows of shard `o` (shard `name`, samples `mine` of the plan) are each of its
+/// samples once, with the plan's parameters and a line of series, all of them, and those its
+/// `sweep.json` lists.
+fn check_shard_rows(
+    o: &Outputs,
+    base: &Scenario,
+    plan: &Plan,
+    mine: &[usize],
+    name: &str,
+) -> Result<(), String> {
+    let (d, n) = (&o.dir, plan.len());
+    let mut seen = std::collections::BTreeSet::new();
+    for (at, r) in &o.rows {
+        if r.sample >= n {
+            return Err(format!(
+                "{at}: sample {} is not in the plan ({n} samples)",
+                r.sample
+            ));
+        }
+        if mine.binary_search(&r.sample).is_err() {
+            return Err(format!("{at}: sample {} is not in shard {name}", r.sample));
+        }
+        if !seen.insert(r.sample) {
+            return Err(format!("{at}: sample {} appears twice", r.sample));
+        }
+        check_params(base, plan, r).map_err(|e| format!("{at}: {e}"))?;
+        if !o.series.contains(&r.sample) {
+            return Err(format!(
+                "{at}: sample {} has no line in {}",
+                r.sample,
+                d.join("series.csv").display()
+            ));
+        }
+    }
+    let absent: Vec<usize> = mine.iter().filter(|j| !seen.contains(j)).copied().collect();
+    if !absent.is_empty() {
+        return Err(format!(
+            "{}: {} of the {} samples of shard {name} missing (first: {:?})",
+            d.join("samples.csv").display(),
+            absent.len(),
+            mine.len(),
+            &absent[..absent.len().min(5)]
+        ));
+    }
+    if let Some(e) = o.orphans.first() {
+        return Err(e.clone());
+    }
+    if o.meta.samples != seen.iter().copied().collect::<Vec<_>>() {
+        return Err(format!(
+            "{}: its list of samples is not that of samples.csv",
+            d.join("sweep.json").display()
+        ));
+    }
+    Ok(())
+}
+
+/// Whether the joined `rows` (in sample order) hold every one of the `n` samples; else the
+/// shards of the split not `taken` are named.
+fn all_samples_present(rows: &[Row], n: usize, taken: &[Option<PathBuf>]) -> Result<(), String> {
+    let split = taken.len();
     let missing: Vec<usize> = (0..n)
         .filter(|j| rows.binary_search_by_key(j, |r| r.sample).is_err())
         .collect();
@@ -295,7 +328,7 @@ pub(super) fn join(shards: Vec<Outputs>) -> Result<(Scenario, Plan, String, Vec<
             absent.join(", ")
         ));
     }
-    Ok((base, plan, m0.build, rows))
+    Ok(())
 }
 
 pub(super) fn shard_name(o: &Outputs) -> String {
