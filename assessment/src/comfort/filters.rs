@@ -40,14 +40,50 @@ pub fn slope_peak(x: &[f64], dt: f64, w: f64) -> f64 {
     sp.value(dt)
 }
 
+/// One second-order section, y = b0 x + b1 x[k−1] + b2 x[k−2] − a1 y[k−1] − a2 y[k−2], one
+/// sample at a time: the low-pass of the comfort filters and each section of a ride
+/// weighting ([`super::WeightingFilter`]).
+#[derive(Debug, Clone)]
+pub(super) struct Biquad {
+    b: [f64; 3],
+    a: [f64; 2],
+    /// x[k−1], x[k−2], y[k−1], y[k−2].
+    state: [f64; 4],
+}
+
+impl Biquad {
+    /// The section with numerator `b` (b0, b1, b2) and denominator `a` (a1, a2; a0 = 1), at
+    /// rest at zero.
+    pub(super) fn new(b: [f64; 3], a: [f64; 2]) -> Self {
+        Biquad {
+            b,
+            a,
+            state: [0.0; 4],
+        }
+    }
+
+    /// Puts the section at rest at `x` (input and output, as for a unit DC gain).
+    pub(super) fn rest_at(&mut self, x: f64) {
+        self.state = [x; 4];
+    }
+
+    /// Filters the next sample.
+    #[inline]
+    pub(super) fn step(&mut self, x0: f64) -> f64 {
+        let [x1, x2, y1, y2] = self.state;
+        let y0 = self.b[0] * x0 + self.b[1] * x1 + self.b[2] * x2 - self.a[0] * y1 - self.a[1] * y2;
+        self.state = [x0, x1, y0, y1];
+        y0
+    }
+}
+
 /// Second-order Butterworth low-pass (bilinear transform), one sample at a time, from rest at
 /// the first sample's value.
 #[derive(Debug, Clone)]
 pub struct LowPass {
-    b: [f64; 3],
-    a: [f64; 2],
-    /// x[k−1], x[k−2], y[k−1], y[k−2]; `None` before the first sample.
-    state: Option<[f64; 4]>,
+    f: Biquad,
+    /// Whether a sample has come (the filter starts at rest at the first one).
+    started: bool,
 }
 
 impl LowPass {
@@ -58,18 +94,21 @@ impl LowPass {
         let norm = 1.0 / (1.0 + q * k + k * k);
         let b0 = k * k * norm;
         LowPass {
-            b: [b0, 2.0 * b0, b0],
-            a: [2.0 * (k * k - 1.0) * norm, (1.0 - q * k + k * k) * norm],
-            state: None,
+            f: Biquad::new(
+                [b0, 2.0 * b0, b0],
+                [2.0 * (k * k - 1.0) * norm, (1.0 - q * k + k * k) * norm],
+            ),
+            started: false,
         }
     }
 
     /// Filters the next sample.
     pub fn step(&mut self, x0: f64) -> f64 {
-        let [x1, x2, y1, y2] = self.state.unwrap_or([x0; 4]);
-        let y0 = self.b[0] * x0 + self.b[1] * x1 + self.b[2] * x2 - self.a[0] * y1 - self.a[1] * y2;
-        self.state = Some([x0, x1, y0, y1]);
-        y0
+        if !self.started {
+            self.f.rest_at(x0);
+            self.started = true;
+        }
+        self.f.step(x0)
     }
 }
 

@@ -3,6 +3,7 @@
 
 use serde::Serialize;
 
+use super::filters::Biquad;
 use super::*;
 
 /// A frequency weighting of ISO 2631-1 as ISO 8041 (Table 3.1 of its parameters) and EN 12299
@@ -150,8 +151,8 @@ impl Weighting {
 #[derive(Debug, Clone)]
 pub struct WeightingFilter {
     k: f64,
-    /// (b0, b1, b2, a1, a2) and the state (x1, x2, y1, y2) of each section.
-    biquads: Vec<([f64; 5], [f64; 4])>,
+    /// The sections, in order.
+    biquads: Vec<Biquad>,
 }
 
 impl WeightingFilter {
@@ -173,15 +174,9 @@ impl WeightingFilter {
                     ]
                 };
                 let (nb, na) = (z(b), z(a));
-                (
-                    [
-                        nb[0] / na[0],
-                        nb[1] / na[0],
-                        nb[2] / na[0],
-                        na[1] / na[0],
-                        na[2] / na[0],
-                    ],
-                    [0.0; 4],
+                Biquad::new(
+                    [nb[0] / na[0], nb[1] / na[0], nb[2] / na[0]],
+                    [na[1] / na[0], na[2] / na[0]],
                 )
             })
             .collect();
@@ -190,12 +185,7 @@ impl WeightingFilter {
 
     /// Filters the next sample.
     pub fn step(&mut self, x: f64) -> f64 {
-        let mut v = x;
-        for (c, st) in &mut self.biquads {
-            let y = c[0] * v + c[1] * st[0] + c[2] * st[1] - c[3] * st[2] - c[4] * st[3];
-            *st = [v, st[0], y, st[2]];
-            v = y;
-        }
+        let v = self.biquads.iter_mut().fold(x, |v, f| f.step(v));
         self.k * v
     }
 }
