@@ -223,6 +223,209 @@ fn dense_to_csc(m: &DMatrix<f64>, upper_only: bool) -> CscMatrix<f64> {
     CscMatrix::new(m.nrows(), m.ncols(), colptr, rowval, nzval)
 }
 
+/// The model discretised over the controller period and augmented with the output
+/// disturbance (state 10): x⁺ = A x + B u (Γ₁ the input's effect under `input_shape` over one
+/// period), w through G, y = C x.
+struct Augmented {
+    a: DMatrix<f64>,
+    b: DMatrix<f64>,
+    b1: DMatrix<f64>,
+    g: DMatrix<f64>,
+    c: DMatrix<f64>,
+}
+
+fn augmented(m: &LinearModel, period: f64, input_shape: InputShape) -> Augmented {
+    let d = m.discretise(period);
+    let n = 10;
+    let mut a = DMatrix::identity(n, n);
+    a.view_mut((0, 0), (9, 9)).copy_from(&d.a);
+    let mut b = DMatrix::zeros(n, 1);
+    b.view_mut((0, 0), (9, 1)).copy_from(&d.b);
+    let b1 = match input_shape {
+        InputShape::Hold => b.clone(),
+        InputShape::Ramp => {
+            // The ramp as the state of an integrator driven by 1/T: [ẋ; u̇] =
+            // [A B; 0 0][x; u] + [0; 1/T]·1, discretised exactly over T from u = 0.
+            let mut aa = DMatrix::zeros(10, 10);
+            aa.view_mut((0, 0), (9, 9)).copy_from(&m.a);
+            aa.view_mut((0, 9), (9, 1)).copy_from(&m.b);
+            let mut bb = DMatrix::zeros(10, 1);
+            bb[(9, 0)] = 1.0 / period;
+            let (_, g1) = crate::linalg::c2d(&aa, &bb, period);
+            let mut b1 = DMatrix::zeros(n, 1);
+            b1.view_mut((0, 0), (9, 1))
+                .copy_from(&g1.view((0, 0), (9, 1)));
+            b1
+        }
+    };
+    let mut g = DMatrix::zeros(n, 6);
+    g.view_mut((0, 0), (9, 6)).copy_from(&d.g);
+    let mut c = DMatrix::zeros(1, n);
+    c.view_mut((0, 0), (1, 9)).copy_from(&d.c);
+    c[(0, 9)] = 1.0;
+    Augmented { a, b, b1, g, c }
+}
+
+/// The Kalman filter's gain from the dual DARE of the augmented model.
+fn kalman_gain(
+    m: &LinearModel,
+    k: &KalmanSettings,
+    a: &DMatrix<f64>,
+    c: &DMatrix<f64>,
+    period: f64,
+) -> Result<DMatrix<f64>, DesignError> {
+    let n = 10;
+    let mut qn = DMatrix::zeros(n, n);
+    qn.view_mut((0, 0), (9, 9))
+        .copy_from(&van_loan(&m.a, &process_noise(m, &k.w_n), period));
+    qn[(9, 9)] = k.disturbance_var;
+    let rn = DMatrix::from_element(1, 1, k.v_n);
+    let pk = dare(&a.transpose(), &c.transpose(), &qn, &rn)?;
+    let sgain = (c * &pk * c.transpose())[(0, 0)] + k.v_n;
+    Ok(&pk * c.transpose() / sgain)
+}
+
+/// The prediction over `p` periods: the free response's state map F_x, the step response S,
+/// the preview's map of w, and Θ, the outputs' response to the `mm` moves.
+struct Prediction {
+    fx: DMatrix<f64>,
+    step: Vec<f64>,
+    fw: Vec<Vec<[f64; 6]>>,
+    theta: DMatrix<f64>,
+}
+
+fn prediction(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    b1: &DMatrix<f64>,
+    g: &DMatrix<f64>,
+    c: &DMatrix<f64>,
+    p: usize,
+    mm: usize,
+) -> Prediction {
+    let n = a.nrows();
+    let mut powers = vec![DMatrix::identity(n, n)];
+    for i in 1..=p {
+        let next = a * &powers[i - 1];
+        powers.push(next);
+    }
+    let mut fx = DMatrix::zeros(p, n);
+    let mut step = vec![0.0; p + 1];
+    for i in 1..=p {
+        fx.row_mut(i - 1).copy_from(&(c * &powers[i]));
+        step[i] = step[i - 1] + (c * &powers[i - 1] * b)[(0, 0)];
+    }
+    let fw = (1..=p)
+        .map(|i| {
+            (0..i)
+                .map(|j| {
+                    let row = c * &powers[i - 1 - j] * g;
+                    std::array::from_fn(|q| row[(0, q)])
+                })
+                .collect()
+        })
+        .collect();
+    // Θ_{i,l}: move l affects every later output, ramped in over its own period and held
+    // after it: S_{i−l−1} + C A^{i−l−1} Γ₁ (= S_{i−l} for a hold).
+    let mut theta = DMatrix::zeros(p, mm);
+    for i in 1..=p {
+        for l in 0..mm.min(i) {
+            let k = i - l - 1;
+            theta[(i - 1, l)] = step[k] + (c * &powers[k] * b1)[(0, 0)];
+        }
+    }
+    Prediction {
+        fx,
+        step,
+        fw,
+        theta,
+    }
+}
+
+/// The QP over [Δu; ε]: the cost ½ zᵀ P z + qᵀ z with P = 2·blkdiag(H, λ_ε), and the
+/// constraint rows u upper (M), u lower (M), Δu upper (M), Δu lower (M), ξ upper (p),
+/// ξ lower (p), ε ≥ 0 (1).
+fn qp_matrices(
+    h: &DMatrix<f64>,
+    theta: &DMatrix<f64>,
+    s: &MpcSettings,
+) -> (DMatrix<f64>, DMatrix<f64>) {
+    let (p, mm) = (s.horizon_p, s.horizon_m);
+    let nv = mm + 1;
+    let mut pq = DMatrix::zeros(nv, nv);
+    pq.view_mut((0, 0), (mm, mm)).copy_from(&(h * 2.0));
+    pq[(mm, mm)] = 2.0 * s.slack_weight;
+    let nc = 4 * mm + 2 * p + 1;
+    let mut ac = DMatrix::zeros(nc, nv);
+    for i in 0..mm {
+        for l in 0..=i {
+            ac[(i, l)] = 1.0;
+            ac[(mm + i, l)] = -1.0;
+        }
+        ac[(2 * mm + i, i)] = 1.0;
+        ac[(3 * mm + i, i)] = -1.0;
+    }
+    for i in 0..p {
+        for l in 0..mm {
+            ac[(4 * mm + i, l)] = theta[(i, l)];
+            ac[(4 * mm + p + i, l)] = -theta[(i, l)];
+        }
+        ac[(4 * mm + i, mm)] = -1.0;
+        ac[(4 * mm + p + i, mm)] = -1.0;
+    }
+    ac[(nc - 1, mm)] = -1.0;
+    (pq, ac)
+}
+
+/// The three forms of the QP, indexed by `QpRows as usize`, each set up in Clarabel with the
+/// rows it keeps and its variables (the first of [Δu; ε]).
+fn qp_forms(
+    pq: &DMatrix<f64>,
+    ac: &DMatrix<f64>,
+    s: &MpcSettings,
+    q: &[f64],
+    bvec: &[f64],
+) -> Result<[QpForm; 3], DesignError> {
+    let mm = s.horizon_m;
+    let (nc, nv) = (ac.nrows(), ac.ncols());
+    // See the module's notes: settings fitted to a QP this small.
+    let settings: DefaultSettings<f64> = DefaultSettingsBuilder::default()
+        .verbose(false)
+        .presolve_enable(false)
+        .max_iter(s.max_iter)
+        .iterative_refinement_enable(false)
+        .equilibrate_enable(false)
+        .tol_gap_abs(QP_TOLERANCE)
+        .tol_gap_rel(QP_TOLERANCE)
+        .tol_feas(QP_TOLERANCE)
+        .build()
+        .map_err(|e| DesignError(format!("MPC: Clarabel settings: {e}")))?;
+    let form = |rows_of: QpRows| {
+        let (rows, nvars) = match rows_of {
+            QpRows::Full => (0..nc, nv),
+            QpRows::Inputs => (0..4 * mm, mm),
+            QpRows::Moves => (2 * mm..4 * mm, mm),
+        };
+        let nr = rows.len();
+        let (q, b) = (q[..nvars].to_vec(), bvec[rows.clone()].to_vec());
+        let solver = DefaultSolver::new(
+            &dense_to_csc(&pq.view((0, 0), (nvars, nvars)).into_owned(), true),
+            &q,
+            &dense_to_csc(&ac.view((rows.start, 0), (nr, nvars)).into_owned(), false),
+            &b,
+            &[SupportedConeT::NonnegativeConeT(nr)],
+            settings.clone(),
+        )
+        .map_err(|e| DesignError(format!("MPC: Clarabel set-up ({rows_of:?} QP): {e}")))?;
+        Ok::<_, DesignError>(QpForm { solver, q, b, rows })
+    };
+    Ok([
+        form(QpRows::Full)?,
+        form(QpRows::Inputs)?,
+        form(QpRows::Moves)?,
+    ])
+}
+
 impl Mpc {
     /// Builds the model, the filter and the QP. `u_max_deg` is the hard input limit.
     pub fn new(
@@ -233,142 +436,24 @@ impl Mpc {
         u_max_deg: f64,
         input_shape: InputShape,
     ) -> Result<Self, DesignError> {
-        let d = m.discretise(period);
-        let (n, p, mm) = (10, s.horizon_p, s.horizon_m);
-        let mut a = DMatrix::identity(n, n);
-        a.view_mut((0, 0), (9, 9)).copy_from(&d.a);
-        let mut b = DMatrix::zeros(n, 1);
-        b.view_mut((0, 0), (9, 1)).copy_from(&d.b);
-        let b1 = match input_shape {
-            InputShape::Hold => b.clone(),
-            InputShape::Ramp => {
-                // The ramp as the state of an integrator driven by 1/T: [ẋ; u̇] =
-                // [A B; 0 0][x; u] + [0; 1/T]·1, discretised exactly over T from u = 0.
-                let mut aa = DMatrix::zeros(10, 10);
-                aa.view_mut((0, 0), (9, 9)).copy_from(&m.a);
-                aa.view_mut((0, 9), (9, 1)).copy_from(&m.b);
-                let mut bb = DMatrix::zeros(10, 1);
-                bb[(9, 0)] = 1.0 / period;
-                let (_, g1) = crate::linalg::c2d(&aa, &bb, period);
-                let mut b1 = DMatrix::zeros(n, 1);
-                b1.view_mut((0, 0), (9, 1))
-                    .copy_from(&g1.view((0, 0), (9, 1)));
-                b1
-            }
-        };
-        let mut g = DMatrix::zeros(n, 6);
-        g.view_mut((0, 0), (9, 6)).copy_from(&d.g);
-        let mut c = DMatrix::zeros(1, n);
-        c.view_mut((0, 0), (1, 9)).copy_from(&d.c);
-        c[(0, 9)] = 1.0;
-        // Kalman filter (dual DARE).
-        let mut qn = DMatrix::zeros(n, n);
-        qn.view_mut((0, 0), (9, 9))
-            .copy_from(&van_loan(&m.a, &process_noise(m, &k.w_n), period));
-        qn[(9, 9)] = k.disturbance_var;
-        let rn = DMatrix::from_element(1, 1, k.v_n);
-        let pk = dare(&a.transpose(), &c.transpose(), &qn, &rn)?;
-        let sgain = (&c * &pk * c.transpose())[(0, 0)] + k.v_n;
-        let l_est = &pk * c.transpose() / sgain;
-        // Prediction matrices.
-        let mut powers = vec![DMatrix::identity(n, n)];
-        for i in 1..=p {
-            let next = &a * &powers[i - 1];
-            powers.push(next);
-        }
-        let mut fx = DMatrix::zeros(p, n);
-        let mut step = vec![0.0; p + 1];
-        for i in 1..=p {
-            fx.row_mut(i - 1).copy_from(&(&c * &powers[i]));
-            step[i] = step[i - 1] + (&c * &powers[i - 1] * &b)[(0, 0)];
-        }
-        let fw = (1..=p)
-            .map(|i| {
-                (0..i)
-                    .map(|j| {
-                        let row = &c * &powers[i - 1 - j] * &g;
-                        std::array::from_fn(|q| row[(0, q)])
-                    })
-                    .collect()
-            })
-            .collect();
-        // Θ_{i,l}: move l affects every later output, ramped in over its own period and held
-        // after it: S_{i−l−1} + C A^{i−l−1} Γ₁ (= S_{i−l} for a hold).
-        let mut theta = DMatrix::zeros(p, mm);
-        for i in 1..=p {
-            for l in 0..mm.min(i) {
-                let k = i - l - 1;
-                theta[(i - 1, l)] = step[k] + (&c * &powers[k] * &b1)[(0, 0)];
-            }
-        }
+        let n = 10;
+        let (p, mm) = (s.horizon_p, s.horizon_m);
+        let Augmented { a, b, b1, g, c } = augmented(m, period, input_shape);
+        let l_est = kalman_gain(m, k, &a, &c, period)?;
+        let Prediction {
+            fx,
+            step,
+            fw,
+            theta,
+        } = prediction(&a, &b, &b1, &g, &c, p, mm);
         let h = theta.transpose() * &theta * s.output_weight
             + DMatrix::identity(mm, mm) * s.rate_weight;
-        // QP: variables [Δu; ε]; cost ½ zᵀ P z + qᵀ z with P = 2·blkdiag(H, λ_ε).
+        let (pq, ac) = qp_matrices(&h, &theta, s);
         let nv = mm + 1;
-        let mut pq = DMatrix::zeros(nv, nv);
-        pq.view_mut((0, 0), (mm, mm)).copy_from(&(&h * 2.0));
-        pq[(mm, mm)] = 2.0 * s.slack_weight;
-        // Constraint rows: u upper (M), u lower (M), Δu upper (M), Δu lower (M),
-        // ξ upper (p), ξ lower (p), ε ≥ 0 (1).
         let nc = 4 * mm + 2 * p + 1;
-        let mut ac = DMatrix::zeros(nc, nv);
-        for i in 0..mm {
-            for l in 0..=i {
-                ac[(i, l)] = 1.0;
-                ac[(mm + i, l)] = -1.0;
-            }
-            ac[(2 * mm + i, i)] = 1.0;
-            ac[(3 * mm + i, i)] = -1.0;
-        }
-        for i in 0..p {
-            for l in 0..mm {
-                ac[(4 * mm + i, l)] = theta[(i, l)];
-                ac[(4 * mm + p + i, l)] = -theta[(i, l)];
-            }
-            ac[(4 * mm + i, mm)] = -1.0;
-            ac[(4 * mm + p + i, mm)] = -1.0;
-        }
-        ac[(nc - 1, mm)] = -1.0;
-        // See the module's notes: settings fitted to a QP this small.
-        let settings: DefaultSettings<f64> = DefaultSettingsBuilder::default()
-            .verbose(false)
-            .presolve_enable(false)
-            .max_iter(s.max_iter)
-            .iterative_refinement_enable(false)
-            .equilibrate_enable(false)
-            .tol_gap_abs(QP_TOLERANCE)
-            .tol_gap_rel(QP_TOLERANCE)
-            .tol_feas(QP_TOLERANCE)
-            .build()
-            .map_err(|e| DesignError(format!("MPC: Clarabel settings: {e}")))?;
         let q = vec![0.0; nv];
         let bvec = vec![1.0; nc];
-        // The rows each form keeps and its variables (the first of [Δu; ε]).
-        let form = |rows_of: QpRows| {
-            let (rows, nvars) = match rows_of {
-                QpRows::Full => (0..nc, nv),
-                QpRows::Inputs => (0..4 * mm, mm),
-                QpRows::Moves => (2 * mm..4 * mm, mm),
-            };
-            let nr = rows.len();
-            let (q, b) = (q[..nvars].to_vec(), bvec[rows.clone()].to_vec());
-            let solver = DefaultSolver::new(
-                &dense_to_csc(&pq.view((0, 0), (nvars, nvars)).into_owned(), true),
-                &q,
-                &dense_to_csc(&ac.view((rows.start, 0), (nr, nvars)).into_owned(), false),
-                &b,
-                &[SupportedConeT::NonnegativeConeT(nr)],
-                settings.clone(),
-            )
-            .map_err(|e| DesignError(format!("MPC: Clarabel set-up ({rows_of:?} QP): {e}")))?;
-            Ok::<_, DesignError>(QpForm { solver, q, b, rows })
-        };
-        // Indexed by `QpRows as usize`.
-        let forms = [
-            form(QpRows::Full)?,
-            form(QpRows::Inputs)?,
-            form(QpRows::Moves)?,
-        ];
+        let forms = qp_forms(&pq, &ac, s, &q, &bvec)?;
         Ok(Mpc {
             s: s.clone(),
             u_max: u_max_deg.to_radians(),
