@@ -206,6 +206,108 @@ fn check(status: c_int, what: &str, log: &Log) -> Result<(), String> {
     }
 }
 
+/// `fmi2Instantiate` as a co-simulation slave with the resources at `resources`: the
+/// instance, the callbacks it keeps (`env` the log), and the resource URI it was given.
+fn instantiate2(
+    lib: &libloading::Library,
+    cname: &CString,
+    ctoken: &CString,
+    resources: &Path,
+    env: *mut c_void,
+) -> Result<(Inst, Box<Callbacks2>, CString), String> {
+    type F = unsafe extern "C" fn(
+        *const c_char,
+        c_int,
+        *const c_char,
+        *const c_char,
+        *const Callbacks2,
+        c_int,
+        c_int,
+    ) -> Inst;
+    let f = sym!(lib, F, "fmi2Instantiate");
+    let uri = CString::new(format!("file://{}", resources.display()))
+        .map_err(|_| "path with NUL".to_string())?;
+    let cb = Box::new(Callbacks2 {
+        logger: log2,
+        allocate: alloc2,
+        free: free2,
+        step_finished: std::ptr::null(),
+        env,
+    });
+    // SAFETY: arguments as fmi2Instantiate asks (fmi2CoSimulation = 1).
+    let inst = unsafe { f(cname.as_ptr(), 1, ctoken.as_ptr(), uri.as_ptr(), &*cb, 0, 0) };
+    Ok((inst, cb, uri))
+}
+
+/// `fmi3InstantiateCoSimulation` with the resources at `resources` (`env` the log): the
+/// instance and the resource path it was given.
+fn instantiate3(
+    lib: &libloading::Library,
+    cname: &CString,
+    ctoken: &CString,
+    resources: &Path,
+    env: *mut c_void,
+) -> Result<(Inst, CString), String> {
+    type F = unsafe extern "C" fn(
+        *const c_char,
+        *const c_char,
+        *const c_char,
+        bool,
+        bool,
+        bool,
+        bool,
+        *const Vr,
+        usize,
+        *mut c_void,
+        unsafe extern "C" fn(*mut c_void, c_int, *const c_char, *const c_char),
+        *const c_void,
+    ) -> Inst;
+    let f = sym!(lib, F, "fmi3InstantiateCoSimulation");
+    let path = CString::new(format!("{}/", resources.display()))
+        .map_err(|_| "path with NUL".to_string())?;
+    // SAFETY: arguments as fmi3InstantiateCoSimulation asks; no event mode, no early
+    // return, no intermediate update.
+    let inst = unsafe {
+        f(
+            cname.as_ptr(),
+            ctoken.as_ptr(),
+            path.as_ptr(),
+            false,
+            false,
+            false,
+            false,
+            std::ptr::null(),
+            0,
+            env,
+            log3,
+            std::ptr::null(),
+        )
+    };
+    Ok((inst, path))
+}
+
+impl Hot {
+    /// The addresses of the functions each step calls, from `lib` of `version`.
+    fn of(lib: &libloading::Library, version: FmiVersion) -> Result<Hot, String> {
+        let names = match version {
+            FmiVersion::V2 => ["fmi2SetReal", "fmi2GetReal", "fmi2DoStep"],
+            FmiVersion::V3 => ["fmi3SetFloat64", "fmi3GetFloat64", "fmi3DoStep"],
+        };
+        let mut ptrs = [std::ptr::null::<c_void>(); 3];
+        for (p, n) in ptrs.iter_mut().zip(names) {
+            // SAFETY: only the address is taken; it is called with the standard's signature.
+            let f: libloading::Symbol<*const c_void> = unsafe { lib.get(n.as_bytes()) }
+                .map_err(|_| format!("the library does not export `{n}`"))?;
+            *p = *f;
+        }
+        Ok(Hot {
+            set_reals: ptrs[0],
+            get_reals: ptrs[1],
+            do_step: ptrs[2],
+        })
+    }
+}
+
 impl Slave {
     /// Loads `library`, instantiates it as a co-simulation slave called `name` and takes it
     /// into initialisation mode at `start_s`.
@@ -230,90 +332,21 @@ impl Slave {
         let cname = CString::new(name).map_err(|_| "name with NUL".to_string())?;
         let ctoken = CString::new(token).map_err(|_| "token with NUL".to_string())?;
         let env = &*log as *const Log as *mut c_void;
-        let mut strings = vec![];
-        let (inst, callbacks) = match version {
+        let (inst, callbacks, path) = match version {
             FmiVersion::V2 => {
-                type F = unsafe extern "C" fn(
-                    *const c_char,
-                    c_int,
-                    *const c_char,
-                    *const c_char,
-                    *const Callbacks2,
-                    c_int,
-                    c_int,
-                ) -> Inst;
-                let f = sym!(lib, F, "fmi2Instantiate");
-                let uri = CString::new(format!("file://{}", resources.display()))
-                    .map_err(|_| "path with NUL".to_string())?;
-                let cb = Box::new(Callbacks2 {
-                    logger: log2,
-                    allocate: alloc2,
-                    free: free2,
-                    step_finished: std::ptr::null(),
-                    env,
-                });
-                // SAFETY: arguments as fmi2Instantiate asks (fmi2CoSimulation = 1).
-                let inst =
-                    unsafe { f(cname.as_ptr(), 1, ctoken.as_ptr(), uri.as_ptr(), &*cb, 0, 0) };
-                strings.push(uri);
-                (inst, Some(cb))
+                let (inst, cb, uri) = instantiate2(&lib, &cname, &ctoken, resources, env)?;
+                (inst, Some(cb), uri)
             }
             FmiVersion::V3 => {
-                type F = unsafe extern "C" fn(
-                    *const c_char,
-                    *const c_char,
-                    *const c_char,
-                    bool,
-                    bool,
-                    bool,
-                    bool,
-                    *const Vr,
-                    usize,
-                    *mut c_void,
-                    unsafe extern "C" fn(*mut c_void, c_int, *const c_char, *const c_char),
-                    *const c_void,
-                ) -> Inst;
-                let f = sym!(lib, F, "fmi3InstantiateCoSimulation");
-                let path = CString::new(format!("{}/", resources.display()))
-                    .map_err(|_| "path with NUL".to_string())?;
-                // SAFETY: arguments as fmi3InstantiateCoSimulation asks; no event mode, no early
-                // return, no intermediate update.
-                let inst = unsafe {
-                    f(
-                        cname.as_ptr(),
-                        ctoken.as_ptr(),
-                        path.as_ptr(),
-                        false,
-                        false,
-                        false,
-                        false,
-                        std::ptr::null(),
-                        0,
-                        env,
-                        log3,
-                        std::ptr::null(),
-                    )
-                };
-                strings.push(path);
-                (inst, None)
+                let (inst, path) = instantiate3(&lib, &cname, &ctoken, resources, env)?;
+                (inst, None, path)
             }
         };
-        strings.push(cname);
-        strings.push(ctoken);
+        let strings = vec![path, cname, ctoken];
         if inst.is_null() {
             return Err(format!("instantiation failed{}", log.recent()));
         }
-        let names = match version {
-            FmiVersion::V2 => ["fmi2SetReal", "fmi2GetReal", "fmi2DoStep"],
-            FmiVersion::V3 => ["fmi3SetFloat64", "fmi3GetFloat64", "fmi3DoStep"],
-        };
-        let mut ptrs = [std::ptr::null::<c_void>(); 3];
-        for (p, n) in ptrs.iter_mut().zip(names) {
-            // SAFETY: only the address is taken; it is called with the standard's signature.
-            let f: libloading::Symbol<*const c_void> = unsafe { lib.get(n.as_bytes()) }
-                .map_err(|_| format!("the library does not export `{n}`"))?;
-            *p = *f;
-        }
+        let hot = Hot::of(&lib, version)?;
         let mut s = Slave {
             lib,
             inst,
@@ -321,11 +354,7 @@ impl Slave {
             log,
             _callbacks: callbacks,
             strings,
-            hot: Hot {
-                set_reals: ptrs[0],
-                get_reals: ptrs[1],
-                do_step: ptrs[2],
-            },
+            hot,
         };
         s.enter_initialization(start_s)?;
         Ok(s)

@@ -73,13 +73,29 @@ pub fn write_fmi3(layout: &Layout, info: &ExportInfo) -> String {
     x.push_str("  <ModelVariables>\n");
     x.push_str(r#"    <Float64 name="time" valueReference="0" causality="independent" variability="continuous" unit="s" description="Simulated time"/>"#);
     x.push('\n');
-    let unit = |u: &str| {
-        if u.is_empty() {
-            String::new()
-        } else {
-            format!(r#" unit="{}""#, esc(u))
-        }
-    };
+    fmi3_scalars(layout, &mut x);
+    fmi3_parameters(layout, &mut x);
+    x.push_str("  </ModelVariables>\n  <ModelStructure>\n");
+    for i in 0..layout.outputs.len() {
+        let _ = writeln!(
+            x,
+            r#"    <Output valueReference="{}"/>"#,
+            layout.output_vr(i)
+        );
+    }
+    for i in 0..layout.outputs.len() {
+        let _ = writeln!(
+            x,
+            r#"    <InitialUnknown valueReference="{}"/>"#,
+            layout.output_vr(i)
+        );
+    }
+    x.push_str("  </ModelStructure>\n</fmiModelDescription>\n");
+    x
+}
+
+/// The FMI 3.0 variables of the inputs and the outputs of `layout`.
+fn fmi3_scalars(layout: &Layout, x: &mut String) {
     for (i, s) in layout.inputs.iter().enumerate() {
         let (var, start) = match s.ty {
             ScalarType::F64 => ("continuous", "0"),
@@ -92,7 +108,7 @@ pub fn write_fmi3(layout: &Layout, info: &ExportInfo) -> String {
             n = esc(&s.name),
             vr = layout.input_vr(i),
             u = if s.ty == ScalarType::F64 {
-                unit(s.unit)
+                unit_attr(s.unit)
             } else {
                 String::new()
             },
@@ -111,13 +127,17 @@ pub fn write_fmi3(layout: &Layout, info: &ExportInfo) -> String {
             n = esc(&s.name),
             vr = layout.output_vr(i),
             u = if s.ty == ScalarType::F64 {
-                unit(s.unit)
+                unit_attr(s.unit)
             } else {
                 String::new()
             },
             d = esc(s.description),
         );
     }
+}
+
+/// The FMI 3.0 variables of the parameters of `layout`.
+fn fmi3_parameters(layout: &Layout, x: &mut String) {
     for (i, p) in layout.params.iter().enumerate() {
         let vr = layout.param_vr(i);
         let head = format!(
@@ -126,7 +146,9 @@ pub fn write_fmi3(layout: &Layout, info: &ExportInfo) -> String {
             n = esc(&p.name),
         );
         let _ = match &p.value {
-            ParamValue::F64(v) => writeln!(x, r#"{head} start="{}"{}/>"#, real(*v), unit(p.unit)),
+            ParamValue::F64(v) => {
+                writeln!(x, r#"{head} start="{}"{}/>"#, real(*v), unit_attr(p.unit))
+            }
             ParamValue::U64(v) => writeln!(x, r#"{head} start="{v}"/>"#),
             ParamValue::I64(v) => writeln!(x, r#"{head} start="{v}"/>"#),
             ParamValue::Bool(v) => writeln!(x, r#"{head} start="{v}"/>"#),
@@ -137,23 +159,6 @@ pub fn write_fmi3(layout: &Layout, info: &ExportInfo) -> String {
             ),
         };
     }
-    x.push_str("  </ModelVariables>\n  <ModelStructure>\n");
-    for i in 0..layout.outputs.len() {
-        let _ = writeln!(
-            x,
-            r#"    <Output valueReference="{}"/>"#,
-            layout.output_vr(i)
-        );
-    }
-    for i in 0..layout.outputs.len() {
-        let _ = writeln!(
-            x,
-            r#"    <InitialUnknown valueReference="{}"/>"#,
-            layout.output_vr(i)
-        );
-    }
-    x.push_str("  </ModelStructure>\n</fmiModelDescription>\n");
-    x
 }
 
 /// The FMI 2.0 co-simulation model description of `layout` (same value references as FMI
@@ -183,13 +188,23 @@ pub fn write_fmi2(layout: &Layout, info: &ExportInfo) -> Result<String, String> 
         real(info.step_s)
     );
     x.push_str("  <ModelVariables>\n");
-    let unit = |u: &str| {
-        if u.is_empty() {
-            String::new()
-        } else {
-            format!(r#" unit="{}""#, esc(u))
-        }
-    };
+    let outputs = fmi2_scalars(layout, &mut x);
+    fmi2_parameters(layout, &mut x)?;
+    x.push_str("  </ModelVariables>\n  <ModelStructure>\n    <Outputs>\n");
+    for i in &outputs {
+        let _ = writeln!(x, r#"      <Unknown index="{i}"/>"#);
+    }
+    x.push_str("    </Outputs>\n    <InitialUnknowns>\n");
+    for i in &outputs {
+        let _ = writeln!(x, r#"      <Unknown index="{i}"/>"#);
+    }
+    x.push_str("    </InitialUnknowns>\n  </ModelStructure>\n</fmiModelDescription>\n");
+    Ok(x)
+}
+
+/// The FMI 2.0 variables of the inputs and the outputs of `layout`; returns the outputs'
+/// indices (1-based, in the order of the variables).
+fn fmi2_scalars(layout: &Layout, x: &mut String) -> Vec<usize> {
     let mut index = 0usize;
     let mut outputs = Vec::new();
     for (i, s) in layout.inputs.iter().enumerate() {
@@ -197,7 +212,7 @@ pub fn write_fmi2(layout: &Layout, info: &ExportInfo) -> Result<String, String> 
         let (var, ty) = match s.ty {
             ScalarType::F64 => (
                 "continuous",
-                format!(r#"<Real start="0"{}/>"#, unit(s.unit)),
+                format!(r#"<Real start="0"{}/>"#, unit_attr(s.unit)),
             ),
             ScalarType::U32 => ("discrete", r#"<Integer start="0"/>"#.to_string()),
         };
@@ -213,7 +228,7 @@ pub fn write_fmi2(layout: &Layout, info: &ExportInfo) -> Result<String, String> 
         index += 1;
         outputs.push(index);
         let (var, ty) = match s.ty {
-            ScalarType::F64 => ("continuous", format!(r#"<Real{}/>"#, unit(s.unit))),
+            ScalarType::F64 => ("continuous", format!(r#"<Real{}/>"#, unit_attr(s.unit))),
             ScalarType::U32 => ("discrete", "<Integer/>".to_string()),
         };
         let _ = writeln!(
@@ -224,6 +239,12 @@ pub fn write_fmi2(layout: &Layout, info: &ExportInfo) -> Result<String, String> 
             esc(s.description),
         );
     }
+    outputs
+}
+
+/// The FMI 2.0 variables of the parameters of `layout`; a value that does not fit 32 bits is
+/// an error.
+fn fmi2_parameters(layout: &Layout, x: &mut String) -> Result<(), String> {
     for (i, p) in layout.params.iter().enumerate() {
         let int = |v: i64| {
             i32::try_from(v).map_err(|_| {
@@ -234,7 +255,7 @@ pub fn write_fmi2(layout: &Layout, info: &ExportInfo) -> Result<String, String> 
             })
         };
         let ty = match &p.value {
-            ParamValue::F64(v) => format!(r#"<Real start="{}"{}/>"#, real(*v), unit(p.unit)),
+            ParamValue::F64(v) => format!(r#"<Real start="{}"{}/>"#, real(*v), unit_attr(p.unit)),
             ParamValue::U64(v) => format!(
                 r#"<Integer start="{}"/>"#,
                 int(i64::try_from(*v).unwrap_or(i64::MAX))?
@@ -250,16 +271,16 @@ pub fn write_fmi2(layout: &Layout, info: &ExportInfo) -> Result<String, String> 
             layout.param_vr(i),
         );
     }
-    x.push_str("  </ModelVariables>\n  <ModelStructure>\n    <Outputs>\n");
-    for i in &outputs {
-        let _ = writeln!(x, r#"      <Unknown index="{i}"/>"#);
+    Ok(())
+}
+
+/// The `unit` attribute of unit `u` (none for a unitless value).
+fn unit_attr(u: &str) -> String {
+    if u.is_empty() {
+        String::new()
+    } else {
+        format!(r#" unit="{}""#, esc(u))
     }
-    x.push_str("    </Outputs>\n    <InitialUnknowns>\n");
-    for i in &outputs {
-        let _ = writeln!(x, r#"      <Unknown index="{i}"/>"#);
-    }
-    x.push_str("    </InitialUnknowns>\n  </ModelStructure>\n</fmiModelDescription>\n");
-    Ok(x)
 }
 
 /// `<UnitDefinitions>` of the units `layout` uses.
@@ -365,6 +386,82 @@ pub struct ModelDescription {
     pub vars: Vec<VarDesc>,
 }
 
+/// The FMI version an `fmiModelDescription` element declares (2.x or 3.x).
+fn version_of(root: roxmltree::Node) -> Result<FmiVersion, String> {
+    let v = root.attribute("fmiVersion").unwrap_or("");
+    if v.starts_with("2.") {
+        Ok(FmiVersion::V2)
+    } else if v.starts_with("3.") {
+        Ok(FmiVersion::V3)
+    } else {
+        Err(format!(
+            "fmiVersion `{v}`: tiltsim reads FMI 2.0 and FMI 3.0 FMUs"
+        ))
+    }
+}
+
+/// The variables of a `<ModelVariables>` element of `version` that have a name and a value
+/// reference.
+fn variables(mv: roxmltree::Node, version: FmiVersion) -> Vec<VarDesc> {
+    let mut vars = Vec::new();
+    for e in mv.children().filter(|c| c.is_element()) {
+        let (type_name, kind, is_array) = var_type(e, version);
+        let (Some(name), Some(vr)) = (
+            e.attribute("name"),
+            e.attribute("valueReference")
+                .and_then(|s| s.trim().parse().ok()),
+        ) else {
+            continue;
+        };
+        vars.push(VarDesc {
+            name: name.to_string(),
+            vr,
+            causality: e.attribute("causality").unwrap_or("local").to_string(),
+            kind,
+            type_name,
+            is_array,
+        });
+    }
+    vars
+}
+
+/// The type of variable element `e`: its name, its kind and whether it is an array (FMI 2.0
+/// names it by a child element and has no arrays; FMI 3.0 by the element, with dimensions).
+fn var_type(e: roxmltree::Node, version: FmiVersion) -> (String, VarKind, bool) {
+    match version {
+        FmiVersion::V2 => {
+            let t = e
+                .children()
+                .find(|c| c.is_element())
+                .map(|c| c.tag_name().name().to_string())
+                .unwrap_or_default();
+            let k = match t.as_str() {
+                "Real" => VarKind::Real,
+                "Integer" | "Enumeration" => VarKind::Int32,
+                "Boolean" => VarKind::Boolean,
+                "String" => VarKind::Str,
+                _ => VarKind::Other,
+            };
+            (t, k, false)
+        }
+        FmiVersion::V3 => {
+            let t = e.tag_name().name().to_string();
+            let k = match t.as_str() {
+                "Float64" => VarKind::Real,
+                "Int32" | "Enumeration" => VarKind::Int32,
+                "UInt32" => VarKind::UInt32,
+                "Int64" => VarKind::Int64,
+                "UInt64" => VarKind::UInt64,
+                "Boolean" => VarKind::Boolean,
+                "String" => VarKind::Str,
+                _ => VarKind::Other,
+            };
+            let arr = e.children().any(|c| c.has_tag_name("Dimension"));
+            (t, k, arr)
+        }
+    }
+}
+
 impl ModelDescription {
     /// Reads a description; the error says what is wrong.
     pub fn parse(xml: &str) -> Result<ModelDescription, String> {
@@ -376,16 +473,7 @@ impl ModelDescription {
                 root.tag_name().name()
             ));
         }
-        let v = root.attribute("fmiVersion").unwrap_or("");
-        let version = if v.starts_with("2.") {
-            FmiVersion::V2
-        } else if v.starts_with("3.") {
-            FmiVersion::V3
-        } else {
-            return Err(format!(
-                "fmiVersion `{v}`: tiltsim reads FMI 2.0 and FMI 3.0 FMUs"
-            ));
-        };
+        let version = version_of(root)?;
         let token = match version {
             FmiVersion::V2 => root.attribute("guid"),
             FmiVersion::V3 => root.attribute("instantiationToken"),
@@ -399,58 +487,7 @@ impl ModelDescription {
             n.and_then(|c| c.attribute(a))
                 .and_then(|s| s.trim().parse::<f64>().ok())
         };
-        let mut vars = Vec::new();
-        if let Some(mv) = child("ModelVariables") {
-            for e in mv.children().filter(|c| c.is_element()) {
-                let (type_name, kind, is_array) = match version {
-                    FmiVersion::V2 => {
-                        let t = e
-                            .children()
-                            .find(|c| c.is_element())
-                            .map(|c| c.tag_name().name().to_string())
-                            .unwrap_or_default();
-                        let k = match t.as_str() {
-                            "Real" => VarKind::Real,
-                            "Integer" | "Enumeration" => VarKind::Int32,
-                            "Boolean" => VarKind::Boolean,
-                            "String" => VarKind::Str,
-                            _ => VarKind::Other,
-                        };
-                        (t, k, false)
-                    }
-                    FmiVersion::V3 => {
-                        let t = e.tag_name().name().to_string();
-                        let k = match t.as_str() {
-                            "Float64" => VarKind::Real,
-                            "Int32" | "Enumeration" => VarKind::Int32,
-                            "UInt32" => VarKind::UInt32,
-                            "Int64" => VarKind::Int64,
-                            "UInt64" => VarKind::UInt64,
-                            "Boolean" => VarKind::Boolean,
-                            "String" => VarKind::Str,
-                            _ => VarKind::Other,
-                        };
-                        let arr = e.children().any(|c| c.has_tag_name("Dimension"));
-                        (t, k, arr)
-                    }
-                };
-                let (Some(name), Some(vr)) = (
-                    e.attribute("name"),
-                    e.attribute("valueReference")
-                        .and_then(|s| s.trim().parse().ok()),
-                ) else {
-                    continue;
-                };
-                vars.push(VarDesc {
-                    name: name.to_string(),
-                    vr,
-                    causality: e.attribute("causality").unwrap_or("local").to_string(),
-                    kind,
-                    type_name,
-                    is_array,
-                });
-            }
-        }
+        let vars = child("ModelVariables").map_or_else(Vec::new, |mv| variables(mv, version));
         Ok(ModelDescription {
             version,
             model_name: root.attribute("modelName").unwrap_or("").to_string(),

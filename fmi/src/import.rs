@@ -135,6 +135,39 @@ pub fn plan(
     md: &ModelDescription,
     period_s: f64,
 ) -> Result<Plan, PlanError> {
+    check_stepping(role, settings, md, period_s)?;
+    let (ins, outs) = io(role);
+    let (inputs, _) = bind(role, md, "inputs", &ins, &settings.inputs, "input")?;
+    let (outputs, missing_outputs) = bind(role, md, "outputs", &outs, &settings.outputs, "output")?;
+    if outputs.is_empty() {
+        let names: Vec<&str> = outs.iter().map(|s| s.name.as_str()).collect();
+        return Err(PlanError {
+            field: "outputs".into(),
+            value: "{}".into(),
+            allowed: format!(
+                "a mapping of at least one of the {role}'s reply fields ({}) to an FMU output ({})",
+                names.join(", "),
+                names_of(md, "output")
+            ),
+        });
+    }
+    let params = parameters(settings, md)?;
+    Ok(Plan {
+        inputs,
+        outputs,
+        missing_outputs,
+        params,
+    })
+}
+
+/// Whether the FMU can play `role` stepping with period `period_s`: a co-simulation FMU whose
+/// fixed internal step, if any, divides the period.
+fn check_stepping(
+    role: Role,
+    settings: &FmuSettings,
+    md: &ModelDescription,
+    period_s: f64,
+) -> Result<(), PlanError> {
     let fmu = || format!("{:?}", settings.fmu.display().to_string());
     if md.cs_identifier.is_none() {
         return Err(PlanError {
@@ -162,94 +195,96 @@ pub fn plan(
             });
         }
     }
-    let (ins, outs) = io(role);
-    let bind = |table: &str,
-                list: &[cosim::msg::ScalarInfo],
-                map: &BTreeMap<String, String>,
-                causality: &str|
-     -> Result<(Vec<Binding>, Vec<String>), PlanError> {
-        for (k, v) in map {
-            if !list.iter().any(|s| &s.name == k) {
-                let names: Vec<&str> = list.iter().map(|s| s.name.as_str()).collect();
-                return Err(PlanError {
-                    field: format!("{table}.{k}"),
-                    value: format!("{v:?}"),
-                    allowed: format!(
-                        "a {} field of the {role} as key: {}",
-                        if causality == "input" {
-                            "request"
-                        } else {
-                            "reply"
-                        },
-                        names.join(", ")
-                    ),
-                });
-            }
-        }
-        let mut found = Vec::new();
-        let mut missing = Vec::new();
-        for (i, s) in list.iter().enumerate() {
-            let (var, explicit) = match map.get(&s.name) {
-                Some(v) => (v.as_str(), true),
-                None => (s.name.as_str(), false),
-            };
-            let err = |why: String| PlanError {
-                field: format!("{table}.{}", s.name),
-                value: format!("{var:?}"),
-                allowed: why,
-            };
-            let Some(v) = md.var(var) else {
-                if explicit {
-                    return Err(err(format!(
-                        "a variable of the FMU (it has no `{var}`; {})",
-                        names_of(md, causality)
-                    )));
-                }
-                missing.push(s.name.clone());
-                continue;
-            };
-            let ok_causality = v.causality == causality;
-            if !ok_causality || !fits(s.ty, v) || v.is_array {
-                if !explicit {
-                    missing.push(s.name.clone());
-                    continue;
-                }
-                return Err(err(if !ok_causality {
-                    format!(
-                        "an FMU variable of causality `{causality}` (`{var}` is `{}`; {})",
-                        v.causality,
-                        names_of(md, causality)
-                    )
-                } else if v.is_array {
-                    format!("a scalar FMU variable (`{var}` is an array)")
-                } else {
-                    format!("{} (`{var}` is a {})", type_word(s.ty), v.type_name)
-                }));
-            }
-            found.push(Binding {
-                scalar: i,
-                field: s.name.clone(),
-                vr: v.vr,
-                var: var.to_string(),
-                int: int_type(v.kind),
+    Ok(())
+}
+
+/// Binds the `role`'s fields `list` (its request for causality `input`, its reply for
+/// `output`) to the FMU's variables: by the mapping `map` (table `table` of the settings),
+/// else by name. Returns the bindings and the fields no variable of the FMU takes (an error
+/// for a field mapped explicitly).
+fn bind(
+    role: Role,
+    md: &ModelDescription,
+    table: &str,
+    list: &[cosim::msg::ScalarInfo],
+    map: &BTreeMap<String, String>,
+    causality: &str,
+) -> Result<(Vec<Binding>, Vec<String>), PlanError> {
+    for (k, v) in map {
+        if !list.iter().any(|s| &s.name == k) {
+            let names: Vec<&str> = list.iter().map(|s| s.name.as_str()).collect();
+            return Err(PlanError {
+                field: format!("{table}.{k}"),
+                value: format!("{v:?}"),
+                allowed: format!(
+                    "a {} field of the {role} as key: {}",
+                    if causality == "input" {
+                        "request"
+                    } else {
+                        "reply"
+                    },
+                    names.join(", ")
+                ),
             });
         }
-        Ok((found, missing))
-    };
-    let (inputs, _) = bind("inputs", &ins, &settings.inputs, "input")?;
-    let (outputs, missing_outputs) = bind("outputs", &outs, &settings.outputs, "output")?;
-    if outputs.is_empty() {
-        let names: Vec<&str> = outs.iter().map(|s| s.name.as_str()).collect();
-        return Err(PlanError {
-            field: "outputs".into(),
-            value: "{}".into(),
-            allowed: format!(
-                "a mapping of at least one of the {role}'s reply fields ({}) to an FMU output ({})",
-                names.join(", "),
-                names_of(md, "output")
-            ),
+    }
+    let mut found = Vec::new();
+    let mut missing = Vec::new();
+    for (i, s) in list.iter().enumerate() {
+        let (var, explicit) = match map.get(&s.name) {
+            Some(v) => (v.as_str(), true),
+            None => (s.name.as_str(), false),
+        };
+        let err = |why: String| PlanError {
+            field: format!("{table}.{}", s.name),
+            value: format!("{var:?}"),
+            allowed: why,
+        };
+        let Some(v) = md.var(var) else {
+            if explicit {
+                return Err(err(format!(
+                    "a variable of the FMU (it has no `{var}`; {})",
+                    names_of(md, causality)
+                )));
+            }
+            missing.push(s.name.clone());
+            continue;
+        };
+        let ok_causality = v.causality == causality;
+        if !ok_causality || !fits(s.ty, v) || v.is_array {
+            if !explicit {
+                missing.push(s.name.clone());
+                continue;
+            }
+            return Err(err(if !ok_causality {
+                format!(
+                    "an FMU variable of causality `{causality}` (`{var}` is `{}`; {})",
+                    v.causality,
+                    names_of(md, causality)
+                )
+            } else if v.is_array {
+                format!("a scalar FMU variable (`{var}` is an array)")
+            } else {
+                format!("{} (`{var}` is a {})", type_word(s.ty), v.type_name)
+            }));
+        }
+        found.push(Binding {
+            scalar: i,
+            field: s.name.clone(),
+            vr: v.vr,
+            var: var.to_string(),
+            int: int_type(v.kind),
         });
     }
+    Ok((found, missing))
+}
+
+/// The FMU parameters that `settings` set, each checked against its variable: causality
+/// `parameter` (or `structuralParameter`) and a value of its type.
+fn parameters(
+    settings: &FmuSettings,
+    md: &ModelDescription,
+) -> Result<Vec<(u32, VarKind, Value, String)>, PlanError> {
     let mut params = Vec::new();
     for (name, value) in &settings.parameters {
         let err = |why: String| PlanError {
@@ -281,12 +316,7 @@ pub fn plan(
         .ok_or_else(|| err(format!("a value of the variable's type, {}", v.type_name)))?;
         params.push((v.vr, v.kind, val, name.clone()));
     }
-    Ok(Plan {
-        inputs,
-        outputs,
-        missing_outputs,
-        params,
-    })
+    Ok(params)
 }
 
 /// What an FMU participant process receives: the settings with the FMU's path made absolute,
