@@ -49,8 +49,6 @@ mod series;
 mod sources;
 mod usual;
 
-pub(in crate::bldc) use series::Consts;
-
 /// Longest segment between two evaluations of the Taylor series (s).
 pub const MAX_SEGMENT_S: f64 = 50e-6;
 
@@ -90,6 +88,36 @@ pub struct EventStats {
     pub fixed_steps: u64,
     /// Edges of the gear's loss law crossed (speed ±ω_ε, bar torque 0).
     pub gear_events: u64,
+}
+
+/// The drive's constants as the segment equations use them (no division per segment).
+#[derive(Debug, Clone, Copy)]
+pub(in crate::bldc) struct Consts {
+    /// 1/(2 L_s), R_s/L_s, k_t/(2 L_s).
+    inv_2l: f64,
+    r_l: f64,
+    kt_2l: f64,
+    /// k_t/J, B_f/J, k_vr/(G² J).
+    kt_j: f64,
+    bf_j: f64,
+    kappa_j: f64,
+    /// 1/C, the rectifier's, the chopper's and the auxiliary load's conductances.
+    inv_c: f64,
+    g_r: f64,
+    g_ch: f64,
+    g_aux: f64,
+    /// G, 1/G, k_vr/G, k_t, 2 R_s, B_f.
+    g: f64,
+    inv_g: f64,
+    k_vr_g: f64,
+    k_t: f64,
+    two_r: f64,
+    b_f: f64,
+    /// λ_p = k_t/2 (V·s/rad per phase), 1/L_s, λ_p/J, 1/J.
+    lam: f64,
+    inv_l: f64,
+    lam_j: f64,
+    inv_j: f64,
 }
 
 /// What ended a segment.

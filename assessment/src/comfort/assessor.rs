@@ -1,7 +1,9 @@
 //! [`Assessor`]: P_CT and the peaks of a run, one sample per plant step, both evaluations at
 //! once; [`assess`] on whole signals.
 
-use super::*;
+use super::filters::{LowPass, SlopePeak};
+use super::ride::RideAssessor;
+use super::{Comfort, ComfortSettings, LateralAcceleration, OtherForm, Pct, Signals, G};
 
 /// The comfort signals at one instant (the fields of [`Signals`]).
 #[derive(Debug, Clone, Copy, Default)]

@@ -2,7 +2,8 @@
 
 use std::path::{Path, PathBuf};
 
-use super::*;
+use super::{labels, text, to_svg, write_png, Anchor, Chart, Frame, Line, Prim, Rgb, Scene};
+use super::{H, R, T, W};
 
 /// One series of a scatter chart: points (x, y), drawn as squares, joined in order when
 /// `joined` (a front along a swept parameter), each labelled when `labels` are given.

@@ -8,7 +8,7 @@ use tiltsim_assessment::comfort::{values, METRICS};
 use tiltsim_master::engine::{RunOptions, Status};
 use tiltsim_master::scenario::Scenario;
 
-use super::*;
+use super::{identity, resume, sample, Plan, Row, SampleStatus, SweepError, SERIES_DT};
 
 /// Which samples an invocation runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use tiltsim_assessment::comfort::METRICS;
 use tiltsim_master::scenario::Scenario;
 
-use super::*;
+use super::{check_params, identity, Plan, Row, SampleStatus, Shard, SweepError, SweepFile};
 
 pub(super) fn parse_f64s<'a>(
     fields: impl Iterator<Item = &'a str>,

@@ -11,7 +11,7 @@ use tiltsim_master::scenario::Scenario;
 use tiltsim_report::compare::fmt;
 use tiltsim_report::plot::{Chart, Line, PALETTE};
 
-use super::*;
+use super::{identity, Plan, Row, Shard, PERTURBED, SERIES_DT};
 
 /// What `sweep.json` holds.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use tiltsim_master::scenario::Scenario;
 
-use super::*;
+use super::SweepError;
 
 /// The vehicle parameters a Monte Carlo sweep perturbs: masses, inertias and suspension.
 pub const PERTURBED: [&str; 15] = [

@@ -2,37 +2,7 @@
 //! commutation's three conducting phases, from the drive's constants.
 
 use super::roots::{Poly, ORDER};
-use super::Rotor;
-
-/// The drive's constants as the segment equations use them (no division per segment).
-#[derive(Debug, Clone, Copy)]
-pub(in crate::bldc) struct Consts {
-    /// 1/(2 L_s), R_s/L_s, k_t/(2 L_s).
-    pub(super) inv_2l: f64,
-    pub(super) r_l: f64,
-    pub(super) kt_2l: f64,
-    /// k_t/J, B_f/J, k_vr/(G² J).
-    pub(super) kt_j: f64,
-    pub(super) bf_j: f64,
-    pub(super) kappa_j: f64,
-    /// 1/C, the rectifier's, the chopper's and the auxiliary load's conductances.
-    pub(super) inv_c: f64,
-    pub(super) g_r: f64,
-    pub(super) g_ch: f64,
-    pub(super) g_aux: f64,
-    /// G, 1/G, k_vr/G, k_t, 2 R_s, B_f.
-    pub(super) g: f64,
-    pub(super) inv_g: f64,
-    pub(super) k_vr_g: f64,
-    pub(super) k_t: f64,
-    pub(super) two_r: f64,
-    pub(super) b_f: f64,
-    /// λ_p = k_t/2 (V·s/rad per phase), 1/L_s, λ_p/J, 1/J.
-    pub(super) lam: f64,
-    pub(super) inv_l: f64,
-    pub(super) lam_j: f64,
-    pub(super) inv_j: f64,
-}
+use super::{Consts, Rotor};
 
 /// 1/n for the Taylor recursion.
 const INV_N: [f64; ORDER + 1] = [1.0, 1.0, 0.5, 1.0 / 3.0, 0.25, 0.2];
