@@ -20,6 +20,33 @@ fn median_of(csv: &str, col: &str) -> f64 {
     }
 }
 
+/// Every factor of the Monte Carlo sweep in `whole` inside ±22 %, every sample completed, and
+/// its table's median the median of the samples.
+fn every_sample_and_the_table_check_out(whole: &Path) {
+    // Every factor inside ±22 %; every sample completed; the table's median is the median.
+    let csv = std::fs::read_to_string(whole.join("samples.csv")).unwrap();
+    let samples = csv_table(&csv);
+    // The last column names the validity flags each sample raised.
+    assert_eq!(samples[0].last().map(String::as_str), Some("flags"));
+    for f in &samples[1..] {
+        for x in &f[1..16] {
+            let x: f64 = x.parse().unwrap();
+            assert!((0.78..=1.22).contains(&x), "factor {x}");
+        }
+        assert_eq!(f[16], "completed");
+    }
+    let table = std::fs::read_to_string(whole.join("table.csv")).unwrap();
+    let rows = csv_table(&table);
+    let row = rows.iter().find(|r| r[0] == "p_ct_standing").unwrap();
+    assert_eq!(row[1], "5");
+    assert_eq!(
+        row[2].parse::<f64>().unwrap(),
+        median_of(&csv, "p_ct_standing")
+    );
+    let (p5, p95): (f64, f64) = (row[3].parse().unwrap(), row[4].parse().unwrap());
+    assert!(p5 < row[2].parse::<f64>().unwrap() && row[2].parse::<f64>().unwrap() < p95);
+}
+
 #[test]
 fn a_sharded_monte_carlo_sweep_merges_into_the_whole_sweep_byte_for_byte() {
     // LQG with the ideal actuator: the controller and vehicle are what vary here.
@@ -85,28 +112,7 @@ fn a_sharded_monte_carlo_sweep_merges_into_the_whole_sweep_byte_for_byte() {
     let idx: Vec<String> = csv_table(&s0)[1..].iter().map(|r| r[0].clone()).collect();
     assert_eq!(idx, ["0", "2", "4"]);
 
-    // Every factor inside ±22 %; every sample completed; the table's median is the median.
-    let csv = std::fs::read_to_string(whole.join("samples.csv")).unwrap();
-    let samples = csv_table(&csv);
-    // The last column names the validity flags each sample raised.
-    assert_eq!(samples[0].last().map(String::as_str), Some("flags"));
-    for f in &samples[1..] {
-        for x in &f[1..16] {
-            let x: f64 = x.parse().unwrap();
-            assert!((0.78..=1.22).contains(&x), "factor {x}");
-        }
-        assert_eq!(f[16], "completed");
-    }
-    let table = std::fs::read_to_string(whole.join("table.csv")).unwrap();
-    let rows = csv_table(&table);
-    let row = rows.iter().find(|r| r[0] == "p_ct_standing").unwrap();
-    assert_eq!(row[1], "5");
-    assert_eq!(
-        row[2].parse::<f64>().unwrap(),
-        median_of(&csv, "p_ct_standing")
-    );
-    let (p5, p95): (f64, f64) = (row[3].parse().unwrap(), row[4].parse().unwrap());
-    assert!(p5 < row[2].parse::<f64>().unwrap() && row[2].parse::<f64>().unwrap() < p95);
+    every_sample_and_the_table_check_out(&whole);
 
     // A missing shard is named, not silently merged.
     let (code, _, err) = run(&[
@@ -183,6 +189,36 @@ const RESULT_FILES: [&str; 5] = [
     "sweep.json",
 ];
 
+/// Starts the shard of sweep arguments `args` writing to `out` and kills it (SIGKILL, as a
+/// preempting scheduler does) once some samples are done, before it finishes its 12; returns
+/// how many were done.
+fn killed_after_some_samples(args: &[String], out: &Path) -> usize {
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let mut child = tiltsim_suite::spawn(&refs);
+    let done_dir = out.join("done");
+    let count = || {
+        std::fs::read_dir(&done_dir)
+            .map(|d| {
+                d.flatten()
+                    .filter(|e| e.file_name().to_string_lossy().starts_with("sample-"))
+                    .count()
+            })
+            .unwrap_or(0)
+    };
+    let some = tiltsim_suite::wait_for(std::time::Duration::from_secs(120), || {
+        (count() >= 3).then_some(())
+    });
+    let _ = child.kill();
+    let _ = child.wait();
+    assert!(some.is_some(), "no sample finished within 120 s");
+    let before = count();
+    assert!(
+        before < 12,
+        "the shard finished before it could be killed ({before})"
+    );
+    before
+}
+
 #[test]
 fn a_killed_shard_started_again_skips_what_it_finished_and_merges_byte_identically() {
     let sc = scenario_with(
@@ -223,32 +259,10 @@ fn a_killed_shard_started_again_skips_what_it_finished_and_merges_byte_identical
     let clean = [dir.join("clean0"), dir.join("clean1")];
     call(&args(&clean[0], "0/2"));
     call(&args(&clean[1], "1/2"));
-    // Shard 0 is killed (SIGKILL, as a preempting scheduler does) once some samples are done.
+    // Shard 0 is killed once some samples are done.
     let killed = dir.join("killed0");
     let a = args(&killed, "0/2");
-    let refs: Vec<&str> = a.iter().map(String::as_str).collect();
-    let mut child = tiltsim_suite::spawn(&refs);
-    let done_dir = killed.join("done");
-    let count = || {
-        std::fs::read_dir(&done_dir)
-            .map(|d| {
-                d.flatten()
-                    .filter(|e| e.file_name().to_string_lossy().starts_with("sample-"))
-                    .count()
-            })
-            .unwrap_or(0)
-    };
-    let some = tiltsim_suite::wait_for(std::time::Duration::from_secs(120), || {
-        (count() >= 3).then_some(())
-    });
-    let _ = child.kill();
-    let _ = child.wait();
-    assert!(some.is_some(), "no sample finished within 120 s");
-    let before = count();
-    assert!(
-        before < 12,
-        "the shard finished before it could be killed ({before})"
-    );
+    let before = killed_after_some_samples(&a, &killed);
     // Started again with the same arguments: it says what it resumes and runs the rest.
     let (_, err) = call(&a);
     assert!(
@@ -485,44 +499,14 @@ fn reseal(dir: &Path, file: &str) {
     std::fs::write(&p, serde_json::to_string_pretty(&v).unwrap()).unwrap();
 }
 
-#[test]
-fn sweep_merge_refuses_tampered_extra_missing_and_duplicated_samples_naming_the_file() {
-    let sc = scenario_with(
-        "paper-lqg.toml",
-        "model = \"bldc\"",
-        "model = \"ideal\"",
-        "sweep-tamper",
-    );
-    let sc = sc.to_str().unwrap();
-    let dir = temp_dir("sweep-tamper");
-    let s0 = dir.join("s0");
-    let s1 = dir.join("s1");
-    for (out, shard) in [(&s0, "0/2"), (&s1, "1/2")] {
-        let (code, _, err) = call(&mc_args(sc, out, "5", Some(shard)));
-        assert_eq!(code, 0, "{err}");
-    }
-    let merge = |a: &Path, b: &Path| {
-        run(&[
-            "sweep-merge",
-            a.to_str().unwrap(),
-            b.to_str().unwrap(),
-            "--out",
-            dir.join("m").to_str().unwrap(),
-        ])
-    };
-    let (code, _, err) = merge(&s0, &s1);
-    assert_eq!(code, 0, "{err}");
-    let good = read(&dir.join("m/samples.csv"));
-    // Each tampering on a copy of shard 1 (samples 1 and 3): (name, change, what the error says).
-    let lines = |p: &Path| -> Vec<String> {
-        std::fs::read_to_string(p)
-            .unwrap()
-            .lines()
-            .map(str::to_string)
-            .collect()
-    };
-    type Tamper = fn(&Path, &[String]) -> String;
-    let cases: [(&str, Tamper, bool, &str); 7] = [
+/// A change to a shard's file: the shard's directory and its file's lines in, the new text
+/// out.
+type Tamper = fn(&Path, &[String]) -> String;
+
+/// Each tampering on a copy of shard 1 (samples 1 and 3): its name, the change, whether the
+/// checksum is recomputed after it, and what the merge's error says.
+fn tamperings() -> [(&'static str, Tamper, bool, &'static str); 7] {
+    [
         // A factor changed, checksum left: the file no longer matches.
         (
             "factor",
@@ -602,7 +586,47 @@ fn sweep_merge_refuses_tampered_extra_missing_and_duplicated_samples_naming_the_
             false,
             "series.csv: changed since the sweep wrote it",
         ),
-    ];
+    ]
+}
+
+/// The lines of file `p`.
+fn lines(p: &Path) -> Vec<String> {
+    std::fs::read_to_string(p)
+        .unwrap()
+        .lines()
+        .map(str::to_string)
+        .collect()
+}
+
+#[test]
+fn sweep_merge_refuses_tampered_extra_missing_and_duplicated_samples_naming_the_file() {
+    let sc = scenario_with(
+        "paper-lqg.toml",
+        "model = \"bldc\"",
+        "model = \"ideal\"",
+        "sweep-tamper",
+    );
+    let sc = sc.to_str().unwrap();
+    let dir = temp_dir("sweep-tamper");
+    let s0 = dir.join("s0");
+    let s1 = dir.join("s1");
+    for (out, shard) in [(&s0, "0/2"), (&s1, "1/2")] {
+        let (code, _, err) = call(&mc_args(sc, out, "5", Some(shard)));
+        assert_eq!(code, 0, "{err}");
+    }
+    let merge = |a: &Path, b: &Path| {
+        run(&[
+            "sweep-merge",
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+            "--out",
+            dir.join("m").to_str().unwrap(),
+        ])
+    };
+    let (code, _, err) = merge(&s0, &s1);
+    assert_eq!(code, 0, "{err}");
+    let good = read(&dir.join("m/samples.csv"));
+    let cases = tamperings();
     for (name, change, resealed, says) in cases {
         let t = dir.join(format!("t-{name}"));
         copy_dir(&s1, &t);
