@@ -2,46 +2,13 @@
 
 use tiltsim_suite::{run, scenario, temp_dir};
 
-#[test]
-fn bench_measures_every_master_and_wait_strategy_and_both_transports() {
-    let dir = temp_dir("bench");
-    let out = dir.join("bench.json");
-    let (code, stdout, err) = run(&[
-        "bench",
-        scenario("paper-passive.toml").to_str().unwrap(),
-        "--duration",
-        "0.2",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{err}");
-    assert!(stdout.contains("iceoryx2 round-trip floor"), "{stdout}");
-    let r: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
-    // The machine, as Linux reports it: at least the CPUs this process may use, the kernel
-    // release, and the table says so.
-    let m = &r["machine"];
-    assert!(
-        m["logical_cpus"].as_u64().unwrap() as usize
-            >= std::thread::available_parallelism().unwrap().get()
-    );
-    let kernel = std::fs::read_to_string("/proc/sys/kernel/osrelease").unwrap();
-    assert_eq!(m["kernel"], kernel.trim());
-    assert!(
-        stdout.contains(&format!("Linux {}", kernel.trim())),
-        "{stdout}"
-    );
-    let configs = r["configs"].as_array().unwrap();
-    // In-process, then IPC × {gauss-seidel, jacobi} × {adaptive, spin, sleep}.
-    assert_eq!(configs.len(), 7);
-    let mut seen = std::collections::BTreeSet::new();
-    for c in configs {
-        seen.insert(format!("{} {} {}", c["transport"], c["master"], c["wait"]));
-        let ticks = c["ticks"].as_u64().unwrap();
-        let want = if c["wait"] == "spin" { 100 } else { 200 };
-        assert_eq!(ticks, want, "{c}");
-    }
-    assert_eq!(seen.len(), 7);
+/// The bench report `r`'s walls are the medians of their rounds (the first the
+/// configuration's own run), its ratio the two walls it names, its floor the best IPC round
+/// trip, and each configuration's floors and ratios follow from it.
+fn walls_are_medians_and_floors_the_best_round_trip(
+    r: &serde_json::Value,
+    configs: &[serde_json::Value],
+) {
     // Three rounds (the default) of the runs the ratios compare; each wall is the median of
     // its rounds, the first round being the configuration's own run in the table.
     let rounds = &r["wall_rounds"];
@@ -96,6 +63,49 @@ fn bench_measures_every_master_and_wait_strategy_and_both_transports() {
             );
         }
     }
+}
+
+#[test]
+fn bench_measures_every_master_and_wait_strategy_and_both_transports() {
+    let dir = temp_dir("bench");
+    let out = dir.join("bench.json");
+    let (code, stdout, err) = run(&[
+        "bench",
+        scenario("paper-passive.toml").to_str().unwrap(),
+        "--duration",
+        "0.2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(stdout.contains("iceoryx2 round-trip floor"), "{stdout}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    // The machine, as Linux reports it: at least the CPUs this process may use, the kernel
+    // release, and the table says so.
+    let m = &r["machine"];
+    assert!(
+        m["logical_cpus"].as_u64().unwrap() as usize
+            >= std::thread::available_parallelism().unwrap().get()
+    );
+    let kernel = std::fs::read_to_string("/proc/sys/kernel/osrelease").unwrap();
+    assert_eq!(m["kernel"], kernel.trim());
+    assert!(
+        stdout.contains(&format!("Linux {}", kernel.trim())),
+        "{stdout}"
+    );
+    let configs = r["configs"].as_array().unwrap();
+    // In-process, then IPC × {gauss-seidel, jacobi} × {adaptive, spin, sleep}.
+    assert_eq!(configs.len(), 7);
+    let mut seen = std::collections::BTreeSet::new();
+    for c in configs {
+        seen.insert(format!("{} {} {}", c["transport"], c["master"], c["wait"]));
+        let ticks = c["ticks"].as_u64().unwrap();
+        let want = if c["wait"] == "spin" { 100 } else { 200 };
+        assert_eq!(ticks, want, "{c}");
+    }
+    assert_eq!(seen.len(), 7);
+    walls_are_medians_and_floors_the_best_round_trip(&r, configs);
     assert!(!dir.join("bench.runs").exists(), "scratch runs removed");
     // The machine's own floors beside them, for a sample of tiltsim's size.
     let f = &r["machine_floors"];

@@ -270,63 +270,37 @@ fn refused(sc: &Path, says: &[&str]) {
     assert!(!err.contains("panicked"), "{err}");
 }
 
-#[test]
-fn bad_fmus_and_bad_mappings_are_refused_with_exit_2_naming_the_field() {
-    let dir = temp_dir("fmi-bad");
-    let exported = export(
-        "controller",
-        &scenario("paper-pi.toml"),
-        &dir.join("pi.fmu"),
+/// A copy of FMU `src` at `dst`, each archive entry `i` (its bytes `data`) passed through the
+/// Python statements `code` (Python's zipfile).
+fn rewrite_fmu(src: &Path, dst: &Path, code: &str) {
+    let script = format!(
+        "import zipfile\n\
+         src = zipfile.ZipFile({src:?})\n\
+         dst = zipfile.ZipFile({dst:?}, 'w')\n\
+         for i in src.infolist():\n\
+         \x20   data = src.read(i)\n\
+         {code}\n\
+         dst.close()\n",
+        src = s(src),
+        dst = s(dst),
     );
-    let table = tilt_pi_table(&dir, "k_p = 12.0");
-    let case = |name: &str, extra: &str| scenario_in(&dir, "paper-pi.toml", name, extra);
+    let (c, _, err) = fmi_tool("python", &["-c", &script]);
+    assert_eq!(c, 0, "{err}");
+}
 
-    // Not an FMU at all.
-    std::fs::write(dir.join("text.fmu"), "not a zip").expect("write");
-    refused(
-        &case("not-zip", "[participants.controller]\nfmu = \"text.fmu\"\n"),
-        &["participants.controller.fmu", "not a zip archive"],
-    );
-    // No library for this platform, and a model-exchange-only FMU: rewritten copies of an
-    // exported FMU (Python's zipfile).
-    let rewrite = |out: &str, code: &str| {
-        let script = format!(
-            "import zipfile\n\
-             src = zipfile.ZipFile({src:?})\n\
-             dst = zipfile.ZipFile({dst:?}, 'w')\n\
-             for i in src.infolist():\n\
-             \x20   data = src.read(i)\n\
-             {code}\n\
-             dst.close()\n",
-            src = s(&exported),
-            dst = s(&dir.join(out)),
-        );
-        let (c, _, err) = fmi_tool("python", &["-c", &script]);
-        assert_eq!(c, 0, "{err}");
-    };
-    rewrite(
-        "nolib.fmu",
-        "    if not i.filename.startswith('binaries/'): dst.writestr(i, data)",
-    );
-    refused(
-        &case("no-lib", "[participants.controller]\nfmu = \"nolib.fmu\"\n"),
-        &[
-            "participants.controller.fmu",
-            "binaries/x86_64-linux/tiltsim_controller.so",
-            "missing",
-        ],
-    );
-    rewrite(
-        "me.fmu",
-        "    if i.filename == 'modelDescription.xml': data = data.replace(b'<CoSimulation ', b'<ModelExchange ')\n    dst.writestr(i, data)",
-    );
-    refused(
-        &case("me-only", "[participants.controller]\nfmu = \"me.fmu\"\n"),
-        &["participants.controller.fmu", "model exchange only"],
-    );
-    // Mappings: a variable the FMU lacks, the wrong causality, the wrong type, a field the
-    // role does not have, a parameter the FMU lacks.
-    let cases: [(&str, &str, &str, &[&str]); 5] = [
+/// A refused mapping: (case, the text of the scenario's table replaced, its replacement, what
+/// the error says).
+type BadMapping = (
+    &'static str,
+    &'static str,
+    &'static str,
+    &'static [&'static str],
+);
+
+/// Mappings the FMU refuses: a variable it lacks, the wrong causality, the wrong type, a field
+/// the role does not have, a parameter it lacks.
+fn bad_mappings() -> [BadMapping; 5] {
+    [
         (
             "no-var",
             "outputs = { delta_a_cmd = \"u\" }",
@@ -373,7 +347,53 @@ fn bad_fmus_and_bad_mappings_are_refused_with_exit_2_naming_the_field() {
                 "k_p",
             ],
         ),
-    ];
+    ]
+}
+
+#[test]
+fn bad_fmus_and_bad_mappings_are_refused_with_exit_2_naming_the_field() {
+    let dir = temp_dir("fmi-bad");
+    let exported = export(
+        "controller",
+        &scenario("paper-pi.toml"),
+        &dir.join("pi.fmu"),
+    );
+    let table = tilt_pi_table(&dir, "k_p = 12.0");
+    let case = |name: &str, extra: &str| scenario_in(&dir, "paper-pi.toml", name, extra);
+
+    // Not an FMU at all.
+    std::fs::write(dir.join("text.fmu"), "not a zip").expect("write");
+    refused(
+        &case("not-zip", "[participants.controller]\nfmu = \"text.fmu\"\n"),
+        &["participants.controller.fmu", "not a zip archive"],
+    );
+    // No library for this platform, and a model-exchange-only FMU: rewritten copies of an
+    // exported FMU (Python's zipfile).
+    rewrite_fmu(
+        &exported,
+        &dir.join("nolib.fmu"),
+        "    if not i.filename.startswith('binaries/'): dst.writestr(i, data)",
+    );
+    refused(
+        &case("no-lib", "[participants.controller]\nfmu = \"nolib.fmu\"\n"),
+        &[
+            "participants.controller.fmu",
+            "binaries/x86_64-linux/tiltsim_controller.so",
+            "missing",
+        ],
+    );
+    rewrite_fmu(
+        &exported,
+        &dir.join("me.fmu"),
+        "    if i.filename == 'modelDescription.xml': data = data.replace(b'<CoSimulation ', b'<ModelExchange ')\n    dst.writestr(i, data)",
+    );
+    refused(
+        &case("me-only", "[participants.controller]\nfmu = \"me.fmu\"\n"),
+        &["participants.controller.fmu", "model exchange only"],
+    );
+    // Mappings: a variable the FMU lacks, the wrong causality, the wrong type, a field the
+    // role does not have, a parameter the FMU lacks.
+    let cases = bad_mappings();
     for (name, from, to, says) in cases {
         assert!(table.contains(from), "{name}");
         refused(&case(name, &table.replace(from, to)), says);
@@ -398,6 +418,63 @@ fn bad_fmus_and_bad_mappings_are_refused_with_exit_2_naming_the_field() {
     );
 }
 
+/// A run of scenario `sc` whose FMU fails its step at 0.5 s, on `transport`: the failure names
+/// the participant and the FMU, and the rows before it are kept, complete.
+fn a_failing_step_is_named(dir: &Path, sc: &Path, transport: &str) {
+    let pfx = prefix(&format!("fmi_fail_{}", transport.replace('-', "_")));
+    let out = dir.join(transport);
+    let (code, _, err) = run(&[
+        "run",
+        s(sc),
+        "--out",
+        s(&out),
+        "--transport",
+        transport,
+        "--duration",
+        "2",
+        "--ipc-prefix",
+        &pfx,
+    ]);
+    assert_eq!(code, 1, "{transport}: {err}");
+    assert!(err.contains("participant controller"), "{transport}: {err}");
+    assert!(
+        err.contains("TiltPi.fmu") && err.contains("fmi2DoStep returned"),
+        "{transport}: {err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    // The rows before the failing step are kept, complete.
+    let sum = summary(&out);
+    assert_eq!(sum["steps_completed"], 500, "{transport}");
+    assert_eq!(
+        Series::read(&out.join("timeseries.csv")).rows.len(),
+        500,
+        "{transport}"
+    );
+    assert!(
+        leftovers(&pfx).is_empty(),
+        "{transport}: {:?}",
+        leftovers(&pfx)
+    );
+}
+
+/// The FMUs unpacked in the temporary directory by processes that no longer exist.
+fn unpacked_fmus_of_dead_processes() -> Vec<String> {
+    std::fs::read_dir(std::env::temp_dir())
+        .expect("temp dir")
+        .flatten()
+        .filter_map(|e| {
+            let n = e.file_name().to_string_lossy().into_owned();
+            let pid: u32 = n
+                .strip_prefix("tiltsim-fmu-")?
+                .split('-')
+                .next()?
+                .parse()
+                .ok()?;
+            (!Path::new(&format!("/proc/{pid}")).exists()).then_some(n)
+        })
+        .collect()
+}
+
 #[test]
 fn an_fmu_whose_step_fails_or_whose_process_is_killed_is_a_named_participant_failure() {
     let dir = temp_dir("fmi-failure");
@@ -409,40 +486,7 @@ fn an_fmu_whose_step_fails_or_whose_process_is_killed_is_a_named_participant_fai
         &tilt_pi_table(&dir, "k_p = 12.0, fail_at = 0.5"),
     );
     for transport in ["ipc", "in-process"] {
-        let pfx = prefix(&format!("fmi_fail_{}", transport.replace('-', "_")));
-        let out = dir.join(transport);
-        let (code, _, err) = run(&[
-            "run",
-            s(&sc),
-            "--out",
-            s(&out),
-            "--transport",
-            transport,
-            "--duration",
-            "2",
-            "--ipc-prefix",
-            &pfx,
-        ]);
-        assert_eq!(code, 1, "{transport}: {err}");
-        assert!(err.contains("participant controller"), "{transport}: {err}");
-        assert!(
-            err.contains("TiltPi.fmu") && err.contains("fmi2DoStep returned"),
-            "{transport}: {err}"
-        );
-        assert!(!err.contains("panicked"), "{err}");
-        // The rows before the failing step are kept, complete.
-        let sum = summary(&out);
-        assert_eq!(sum["steps_completed"], 500, "{transport}");
-        assert_eq!(
-            Series::read(&out.join("timeseries.csv")).rows.len(),
-            500,
-            "{transport}"
-        );
-        assert!(
-            leftovers(&pfx).is_empty(),
-            "{transport}: {:?}",
-            leftovers(&pfx)
-        );
+        a_failing_step_is_named(&dir, &sc, transport);
     }
 
     // A kill of the FMU's process at 8 s: detected, named and degraded exactly as for the
@@ -479,20 +523,7 @@ fn an_fmu_whose_step_fails_or_whose_process_is_killed_is_a_named_participant_fai
     );
     assert_eq!(summary(&with_fmu)["status"], summary(&native)["status"]);
     // The killed process could not remove its unpacked FMU; the orchestrator did.
-    let stale: Vec<_> = std::fs::read_dir(std::env::temp_dir())
-        .expect("temp dir")
-        .flatten()
-        .filter_map(|e| {
-            let n = e.file_name().to_string_lossy().into_owned();
-            let pid: u32 = n
-                .strip_prefix("tiltsim-fmu-")?
-                .split('-')
-                .next()?
-                .parse()
-                .ok()?;
-            (!Path::new(&format!("/proc/{pid}")).exists()).then_some(n)
-        })
-        .collect();
+    let stale = unpacked_fmus_of_dead_processes();
     assert!(
         stale.is_empty(),
         "unpacked FMUs of dead processes left: {stale:?}"

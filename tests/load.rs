@@ -4,6 +4,7 @@
 //! stopped, gone or idle one is declared stalled. A test of correctness, not of time: nothing
 //! here reads a clock.
 
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
@@ -39,65 +40,60 @@ impl Drop for Hogs {
     }
 }
 
-#[test]
-fn sixteen_concurrent_ipc_runs_under_two_cpu_hogs_all_complete_identically() {
-    let sc = scenario("paper-lqg.toml");
-    let solo = temp_dir("load-solo").join("out");
+/// The timeseries of scenario `sc` run alone in this process under `master`, in `name`'s
+/// directory.
+fn run_alone(sc: &Path, name: &str, master: &str) -> Vec<u8> {
+    let out = temp_dir(name).join("out");
     let (code, _, err) = tiltsim_suite::run(&[
         "run",
         sc.to_str().unwrap(),
         "--out",
-        solo.to_str().unwrap(),
-        "--transport",
-        "in-process",
-        "--duration",
-        "2",
-        "-q",
-    ]);
-    assert_eq!(code, 0, "{err}");
-    let want = std::fs::read(solo.join("timeseries.csv")).unwrap();
-    let hogs = Hogs::start(2);
-    let runs: Vec<_> = (0..16)
-        .map(|i| {
-            let name = format!("load-{i}");
-            let out = temp_dir(&name).join("out");
-            let pfx = prefix(&name);
-            let master = if i % 2 == 0 { "gauss-seidel" } else { "jacobi" };
-            let child = spawn(&[
-                "run",
-                sc.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "--transport",
-                "ipc",
-                "--master",
-                master,
-                "--ipc-prefix",
-                &pfx,
-                "--duration",
-                "2",
-                "-q",
-            ]);
-            (child, out, pfx, master)
-        })
-        .collect();
-    // Jacobi's series differs from Gauss-Seidel's (one tick on every link): its own reference.
-    let jacobi = temp_dir("load-solo-jacobi").join("out");
-    let (code, _, err) = tiltsim_suite::run(&[
-        "run",
-        sc.to_str().unwrap(),
-        "--out",
-        jacobi.to_str().unwrap(),
+        out.to_str().unwrap(),
         "--transport",
         "in-process",
         "--master",
-        "jacobi",
+        master,
         "--duration",
         "2",
         "-q",
     ]);
     assert_eq!(code, 0, "{err}");
-    let want_jacobi = std::fs::read(jacobi.join("timeseries.csv")).unwrap();
+    std::fs::read(out.join("timeseries.csv")).unwrap()
+}
+
+/// Starts run `i` of scenario `sc` over IPC (Gauss-Seidel for even `i`, Jacobi for odd) with
+/// a prefix of its own: the child, its output directory, its prefix and its master.
+fn start_ipc_run(sc: &Path, i: usize) -> (Child, PathBuf, String, &'static str) {
+    let name = format!("load-{i}");
+    let out = temp_dir(&name).join("out");
+    let pfx = prefix(&name);
+    let master = if i % 2 == 0 { "gauss-seidel" } else { "jacobi" };
+    let child = spawn(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--transport",
+        "ipc",
+        "--master",
+        master,
+        "--ipc-prefix",
+        &pfx,
+        "--duration",
+        "2",
+        "-q",
+    ]);
+    (child, out, pfx, master)
+}
+
+#[test]
+fn sixteen_concurrent_ipc_runs_under_two_cpu_hogs_all_complete_identically() {
+    let sc = scenario("paper-lqg.toml");
+    let want = run_alone(&sc, "load-solo", "gauss-seidel");
+    let hogs = Hogs::start(2);
+    let runs: Vec<_> = (0..16).map(|i| start_ipc_run(&sc, i)).collect();
+    // Jacobi's series differs from Gauss-Seidel's (one tick on every link): its own reference.
+    let want_jacobi = run_alone(&sc, "load-solo-jacobi", "jacobi");
     let mut outcomes = Vec::new();
     for (child, out, pfx, master) in runs {
         // A bound only against a hung test, far beyond any load: never a verdict on speed.

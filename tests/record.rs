@@ -7,8 +7,11 @@ use std::path::Path;
 
 use tiltsim_suite::{csv_table, prefix, run, scenario, temp_dir};
 
-/// Every message of a recording: topic → (sequence, log time, data), publish time left out.
-fn messages(path: &Path) -> BTreeMap<String, Vec<(u32, u64, String)>> {
+/// A recording's messages: topic → (sequence, log time, data).
+type Messages = BTreeMap<String, Vec<(u32, u64, String)>>;
+
+/// Every message of a recording, publish time left out.
+fn messages(path: &Path) -> Messages {
     let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let mut out: BTreeMap<String, Vec<(u32, u64, String)>> = BTreeMap::new();
     for m in mcap::MessageStream::new(&bytes).unwrap() {
@@ -55,18 +58,9 @@ fn record_with(file: &str, dir: &Path, transport: &str, extra: &[&str]) {
     }
 }
 
-#[test]
-fn a_recorded_fault_run_replays_byte_for_byte_and_a_changed_gain_is_found() {
-    let dir = temp_dir("record-nan").join("run");
-    record("fault-measurement-nan.toml", &dir, "ipc");
-    let m = messages(&dir.join("run.mcap"));
-    // Every tick of every participant (the PI runs every tick), every link, the summary.
-    for topic in ["/plant/in", "/plant/out", "/actuator/in", "/controller/out"] {
-        assert_eq!(m[topic].len(), 16_800, "{topic}");
-    }
-    assert_eq!(m["/summary"].len(), 1);
-    // The link channel says what was sent and what arrived: NaN (null) inside the window,
-    // and the received values are the timeseries' rx column.
+/// The link channel of recording `m` of run `dir` says what was sent and what arrived: NaN
+/// (null) inside the window, and the received values are the timeseries' rx column.
+fn links_are_the_timeseries(m: &Messages, dir: &Path) {
     let csv = std::fs::read_to_string(dir.join("timeseries.csv")).unwrap();
     let rows = csv_table(&csv);
     let col = rows[0].iter().position(|c| c == "rx_measurement").unwrap();
@@ -87,6 +81,48 @@ fn a_recorded_fault_run_replays_byte_for_byte_and_a_changed_gain_is_found() {
             .count()
             == 200
     );
+}
+
+/// Participant `role` replayed alone on `transport` against what it received in run `dir`
+/// (recording `m`): every output identical, the replayed outputs the recorded messages byte
+/// for byte.
+fn replays_identically(m: &Messages, dir: &Path, role: &str, transport: &str) {
+    let out = dir.join(format!("replay-{role}-{transport}"));
+    let (code, stdout, err) = run(&[
+        "replay",
+        dir.to_str().unwrap(),
+        "--participant",
+        role,
+        "--transport",
+        transport,
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        stdout.contains("every output identical"),
+        "{role}: {stdout}"
+    );
+    // The replayed outputs are the recorded messages, byte for byte.
+    let replayed = std::fs::read_to_string(out.join(format!("{role}-out.jsonl"))).unwrap();
+    let recorded: String = m[&format!("/{role}/out")]
+        .iter()
+        .map(|x| format!("{}\n", x.2))
+        .collect();
+    assert!(replayed == recorded, "{role}");
+}
+
+#[test]
+fn a_recorded_fault_run_replays_byte_for_byte_and_a_changed_gain_is_found() {
+    let dir = temp_dir("record-nan").join("run");
+    record("fault-measurement-nan.toml", &dir, "ipc");
+    let m = messages(&dir.join("run.mcap"));
+    // Every tick of every participant (the PI runs every tick), every link, the summary.
+    for topic in ["/plant/in", "/plant/out", "/actuator/in", "/controller/out"] {
+        assert_eq!(m[topic].len(), 16_800, "{topic}");
+    }
+    assert_eq!(m["/summary"].len(), 1);
+    links_are_the_timeseries(&m, &dir);
     // Each participant alone, against what it received: identical outputs, in this process
     // and as its own process over iceoryx2.
     for (role, transport) in [
@@ -95,29 +131,7 @@ fn a_recorded_fault_run_replays_byte_for_byte_and_a_changed_gain_is_found() {
         ("controller", "in-process"),
         ("controller", "ipc"),
     ] {
-        let out = dir.join(format!("replay-{role}-{transport}"));
-        let (code, stdout, err) = run(&[
-            "replay",
-            dir.to_str().unwrap(),
-            "--participant",
-            role,
-            "--transport",
-            transport,
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert_eq!(code, 0, "{err}");
-        assert!(
-            stdout.contains("every output identical"),
-            "{role}: {stdout}"
-        );
-        // The replayed outputs are the recorded messages, byte for byte.
-        let replayed = std::fs::read_to_string(out.join(format!("{role}-out.jsonl"))).unwrap();
-        let recorded: String = m[&format!("/{role}/out")]
-            .iter()
-            .map(|x| format!("{}\n", x.2))
-            .collect();
-        assert!(replayed == recorded, "{role}");
+        replays_identically(&m, &dir, role, transport);
     }
     // A changed PI gain: the controller's first command already differs. At step 0 the
     // command is (K_p + K_i·dt)·e (the integral has taken its first step), so the ratio of

@@ -108,6 +108,42 @@ fn a_tilt_step_settles_without_limit_cycling() {
     }
 }
 
+/// The DC link's account over drive `m`'s run closes, and the inverter's draw it booked is
+/// the one the motor booked.
+fn link_account_closes(
+    m: &Bldc,
+    p: &BldcParams,
+    link: &DcLinkParams,
+    kind: Electrics,
+    integration: SwitchedIntegration,
+) {
+    // The DC link closes too: what the rectifier delivered went to the inverter, the
+    // chopper or the capacitor (exact on the link's own booking), and what the link
+    // booked as drawn by the inverter (on each step's mean link voltage) is what the
+    // motor booked (on the start-of-step voltage) within ½·Δv·i·dt per step: 1e-4.
+    // Event-driven, the link's account closes to the series' truncation and the
+    // 2-point Gauss quadrature of each segment (the capacitor's energy comes from the
+    // series' end value, the flows from the quadrature): measured 1.3e-7, bound 1e-6.
+    let (l, e) = (m.link.energy, m.energy);
+    let c0 = 0.5 * link.capacitance_f * p.v_dc * p.v_dc;
+    let link_out = l.inverter + l.chopper + l.aux + (m.link.stored() - c0);
+    let link_tol = match (kind, integration) {
+        (Electrics::Switched, SwitchedIntegration::Event) => 1e-6,
+        _ => 1e-9,
+    };
+    assert!(
+        (l.rectifier - link_out).abs() < link_tol * l.rectifier,
+        "{kind:?} {integration:?}: rectifier {} J, out {link_out} J",
+        l.rectifier
+    );
+    assert!(
+        (l.inverter - e.electrical_in).abs() < 1e-4 * l.rectifier,
+        "{kind:?}: link {} J, motor {} J",
+        l.inverter,
+        e.electrical_in
+    );
+}
+
 #[test]
 fn energy_balances_over_a_run() {
     // Both the paper's lossless gear on an unloaded link and the default gear efficiency
@@ -175,31 +211,7 @@ fn energy_balances_over_a_run() {
         } else {
             assert!(e.gear > 0.0, "{kind:?} {integration:?}: gear {} J", e.gear);
         }
-        // The DC link closes too: what the rectifier delivered went to the inverter, the
-        // chopper or the capacitor (exact on the link's own booking), and what the link
-        // booked as drawn by the inverter (on each step's mean link voltage) is what the
-        // motor booked (on the start-of-step voltage) within ½·Δv·i·dt per step: 1e-4.
-        // Event-driven, the link's account closes to the series' truncation and the
-        // 2-point Gauss quadrature of each segment (the capacitor's energy comes from the
-        // series' end value, the flows from the quadrature): measured 1.3e-7, bound 1e-6.
-        let l = m.link.energy;
-        let c0 = 0.5 * link.capacitance_f * p.v_dc * p.v_dc;
-        let link_out = l.inverter + l.chopper + l.aux + (m.link.stored() - c0);
-        let link_tol = match (kind, integration) {
-            (Electrics::Switched, SwitchedIntegration::Event) => 1e-6,
-            _ => 1e-9,
-        };
-        assert!(
-            (l.rectifier - link_out).abs() < link_tol * l.rectifier,
-            "{kind:?} {integration:?}: rectifier {} J, out {link_out} J",
-            l.rectifier
-        );
-        assert!(
-            (l.inverter - e.electrical_in).abs() < 1e-4 * l.rectifier,
-            "{kind:?}: link {} J, motor {} J",
-            l.inverter,
-            e.electrical_in
-        );
+        link_account_closes(&m, &p, &link, kind, integration);
     }
 }
 

@@ -123,15 +123,17 @@ mod tests {
         }
     }
 
+    /// An environment of the variables `vars`.
+    fn env<'a>(vars: &'a [(&'a str, &'a str)]) -> impl Fn(&str) -> Option<String> + Copy + 'a {
+        move |k: &str| {
+            vars.iter()
+                .find(|(n, _)| *n == k)
+                .map(|(_, v)| v.to_string())
+        }
+    }
+
     #[test]
-    fn the_shard_of_an_array_task_is_read_from_its_scheduler() {
-        let env = |vars: &'static [(&'static str, &'static str)]| {
-            move |k: &str| {
-                vars.iter()
-                    .find(|(n, _)| *n == k)
-                    .map(|(_, v)| v.to_string())
-            }
-        };
+    fn the_shard_of_a_slurm_array_task_is_read_from_its_variables() {
         let slurm = env(&[
             ("SLURM_ARRAY_TASK_ID", "5"),
             ("SLURM_ARRAY_TASK_MIN", "1"),
@@ -150,12 +152,10 @@ mod tests {
                 ("SLURM_ARRAY_TASK_STEP", "2"),
                 ("SLURM_ARRAY_TASK_COUNT", "4"),
             ];
-            let var = |k: &str| {
-                vars.iter()
-                    .find(|(n, _)| *n == k)
-                    .map(|(_, v)| v.to_string())
-            };
-            assert_eq!(Shard::auto(None, var).unwrap(), Shard { index, count: 4 });
+            assert_eq!(
+                Shard::auto(None, env(&vars)).unwrap(),
+                Shard { index, count: 4 }
+            );
         }
         // `sbatch --array=2`, task 2 of a larger array submitted again: refused, saying how.
         let single = env(&[
@@ -187,6 +187,10 @@ mod tests {
             e.contains("evenly spaced") && e.contains("--shard I/N"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn the_shard_of_an_aws_or_kubernetes_array_task_is_read_and_none_is_an_error() {
         let aws = env(&[
             ("AWS_BATCH_JOB_ARRAY_INDEX", "2"),
             ("AWS_BATCH_JOB_ARRAY_SIZE", "3"),
