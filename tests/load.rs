@@ -67,7 +67,11 @@ fn start_ipc_run(sc: &Path, i: usize) -> (Child, PathBuf, String, &'static str) 
     let name = format!("load-{i}");
     let out = temp_dir(&name).join("out");
     let pfx = prefix(&name);
-    let master = if i.is_multiple_of(2) { "gauss-seidel" } else { "jacobi" };
+    let master = if i.is_multiple_of(2) {
+        "gauss-seidel"
+    } else {
+        "jacobi"
+    };
     let child = spawn(&[
         "run",
         sc.to_str().unwrap(),

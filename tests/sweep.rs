@@ -1,6 +1,8 @@
 //! `tiltsim sweep` and `tiltsim sweep-merge`.
 
-use tiltsim_suite::{csv_table, run, scenario, scenario_with, summary, temp_dir};
+use tiltsim_suite::{
+    copy_dir, csv_table, mc_args, run, run_strings, scenario, scenario_with, summary, temp_dir,
+};
 
 fn read(p: &std::path::Path) -> Vec<u8> {
     std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
@@ -395,48 +397,7 @@ fn samples_kept_in_memory_give_the_results_of_samples_written_to_disk() {
     }
 }
 
-/// Arguments of a small Monte Carlo sweep of LQG with the ideal actuator.
-fn mc_args(sc: &str, out: &Path, samples: &str, shard: Option<&str>) -> Vec<String> {
-    let mut a: Vec<String> = [
-        "sweep",
-        sc,
-        "--samples",
-        samples,
-        "--seed",
-        "3",
-        "--jobs",
-        "1",
-        "--out",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
-    a.push(out.display().to_string());
-    a.push("--quiet".into());
-    if let Some(s) = shard {
-        a.extend(["--shard".into(), s.into()]);
-    }
-    a
-}
-
-fn call(a: &[String]) -> (i32, String, String) {
-    let refs: Vec<&str> = a.iter().map(String::as_str).collect();
-    run(&refs)
-}
-
 use std::path::Path;
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            copy_dir(&p, &to.join(e.file_name()));
-        } else {
-            std::fs::copy(&p, to.join(e.file_name())).unwrap();
-        }
-    }
-}
 
 #[test]
 fn a_damaged_kept_sample_is_run_again_with_a_warning_and_the_tables_stay_whole() {
@@ -449,7 +410,7 @@ fn a_damaged_kept_sample_is_run_again_with_a_warning_and_the_tables_stay_whole()
     let sc = sc.to_str().unwrap();
     let dir = temp_dir("sweep-damaged");
     let clean = dir.join("clean");
-    let (code, _, err) = call(&mc_args(sc, &clean, "5", None));
+    let (code, _, err) = run_strings(&mc_args(sc, &clean, "5", None));
     assert_eq!(code, 0, "{err}");
     let d = dir.join("d");
     copy_dir(&clean, &d);
@@ -466,7 +427,7 @@ fn a_damaged_kept_sample_is_run_again_with_a_warning_and_the_tables_stay_whole()
     // Sample 2: garbage. Sample 3: sample 4's file in its place.
     std::fs::write(kept(2), "{\"body\": [1, 2").unwrap();
     std::fs::copy(kept(4), kept(3)).unwrap();
-    let (code, _, err) = call(&mc_args(sc, &d, "5", None));
+    let (code, _, err) = run_strings(&mc_args(sc, &d, "5", None));
     assert_eq!(code, 0, "{err}");
     assert!(!err.contains("panicked"), "{err}");
     for j in [1, 2, 3] {
@@ -483,178 +444,6 @@ fn a_damaged_kept_sample_is_run_again_with_a_warning_and_the_tables_stay_whole()
     }
 }
 
-/// Sets the checksum `sweep.json` records for `file` to the file's own, as a tamperer who
-/// knows the format would.
-fn reseal(dir: &Path, file: &str) {
-    use sha2::Digest as _;
-    let bytes = std::fs::read(dir.join(file)).unwrap();
-    let sum: String = sha2::Sha256::digest(&bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
-    let p = dir.join("sweep.json");
-    let mut v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
-    v["sha256"][file] = serde_json::Value::String(sum);
-    std::fs::write(&p, serde_json::to_string_pretty(&v).unwrap()).unwrap();
-}
-
-/// A change to a shard's file: the shard's directory and its file's lines in, the new text
-/// out.
-type Tamper = fn(&Path, &[String]) -> String;
-
-/// Each tampering on a copy of shard 1 (samples 1 and 3): its name, the change, whether the
-/// checksum is recomputed after it, and what the merge's error says.
-fn tamperings() -> [(&'static str, Tamper, bool, &'static str); 7] {
-    [
-        // A factor changed, checksum left: the file no longer matches.
-        (
-            "factor",
-            |_, l| {
-                let mut l = l.to_vec();
-                l[1] = l[1].replacen(",", ",9", 2);
-                l.join("\n") + "\n"
-            },
-            false,
-            "samples.csv: changed since the sweep wrote it",
-        ),
-        // The same with the checksum recomputed: the parameters are not the plan's.
-        (
-            "factor-resealed",
-            |_, l| {
-                let mut f: Vec<String> = l[1].split(',').map(str::to_string).collect();
-                f[1] = "1.1".into();
-                let mut l = l.to_vec();
-                l[1] = f.join(",");
-                l.join("\n") + "\n"
-            },
-            true,
-            "are not the plan's",
-        ),
-        // An extra sample beyond the plan.
-        (
-            "extra",
-            |_, l| {
-                let mut l = l.to_vec();
-                let mut f: Vec<String> = l[1].split(',').map(str::to_string).collect();
-                f[0] = "9".into();
-                l.push(f.join(","));
-                l.join("\n") + "\n"
-            },
-            true,
-            "sample 9 is not in the plan (5 samples)",
-        ),
-        // A sample of the other shard.
-        (
-            "other-shard",
-            |_, l| {
-                let mut l = l.to_vec();
-                let mut f: Vec<String> = l[1].split(',').map(str::to_string).collect();
-                f[0] = "2".into();
-                l.push(f.join(","));
-                l.join("\n") + "\n"
-            },
-            true,
-            "sample 2 is not in shard 1/2",
-        ),
-        // A row twice.
-        (
-            "duplicate",
-            |_, l| {
-                let mut l = l.to_vec();
-                l.push(l[1].clone());
-                l.join("\n") + "\n"
-            },
-            true,
-            "sample 1 appears twice",
-        ),
-        // A row missing.
-        (
-            "missing",
-            |_, l| {
-                let mut l = l.to_vec();
-                l.remove(2);
-                l.join("\n") + "\n"
-            },
-            true,
-            "1 of the 2 samples of shard 1/2 missing",
-        ),
-        // Garbage in place of the series (samples.csv untouched; this case edits series.csv).
-        (
-            "series",
-            |_, _| "garbage".into(),
-            false,
-            "series.csv: changed since the sweep wrote it",
-        ),
-    ]
-}
-
-/// The lines of file `p`.
-fn lines(p: &Path) -> Vec<String> {
-    std::fs::read_to_string(p)
-        .unwrap()
-        .lines()
-        .map(str::to_string)
-        .collect()
-}
-
-#[test]
-fn sweep_merge_refuses_tampered_extra_missing_and_duplicated_samples_naming_the_file() {
-    let sc = scenario_with(
-        "paper-lqg.toml",
-        "model = \"bldc\"",
-        "model = \"ideal\"",
-        "sweep-tamper",
-    );
-    let sc = sc.to_str().unwrap();
-    let dir = temp_dir("sweep-tamper");
-    let s0 = dir.join("s0");
-    let s1 = dir.join("s1");
-    for (out, shard) in [(&s0, "0/2"), (&s1, "1/2")] {
-        let (code, _, err) = call(&mc_args(sc, out, "5", Some(shard)));
-        assert_eq!(code, 0, "{err}");
-    }
-    let merge = |a: &Path, b: &Path| {
-        run(&[
-            "sweep-merge",
-            a.to_str().unwrap(),
-            b.to_str().unwrap(),
-            "--out",
-            dir.join("m").to_str().unwrap(),
-        ])
-    };
-    let (code, _, err) = merge(&s0, &s1);
-    assert_eq!(code, 0, "{err}");
-    let good = read(&dir.join("m/samples.csv"));
-    let cases = tamperings();
-    for (name, change, resealed, says) in cases {
-        let t = dir.join(format!("t-{name}"));
-        copy_dir(&s1, &t);
-        let file = if name == "series" {
-            "series.csv"
-        } else {
-            "samples.csv"
-        };
-        let text = change(&t, &lines(&t.join(file)));
-        std::fs::write(t.join(file), text).unwrap();
-        if resealed {
-            reseal(&t, file);
-        }
-        let (code, _, err) = merge(&s0, &t);
-        assert_eq!(code, 2, "{name}: {err}");
-        assert!(
-            err.contains(t.to_str().unwrap()) && err.contains(says),
-            "{name}: {err}"
-        );
-        assert!(!err.contains("panicked"), "{err}");
-    }
-    // One shard given twice; the refused merges left the earlier merged files as they were.
-    let (code, _, err) = merge(&s1, &s1);
-    assert_eq!(code, 2, "{err}");
-    assert!(err.contains("are both shard 1/2"), "{err}");
-    assert!(read(&dir.join("m/samples.csv")) == good);
-}
-
 #[test]
 fn another_build_runs_a_resumed_sweep_again_and_says_so_under_quiet() {
     let sc = scenario_with(
@@ -667,11 +456,11 @@ fn another_build_runs_a_resumed_sweep_again_and_says_so_under_quiet() {
     let dir = temp_dir("sweep-build");
     let d = dir.join("d");
     let a = mc_args(sc, &d, "2", None);
-    let (code, _, err) = call(&a);
+    let (code, _, err) = run_strings(&a);
     assert_eq!(code, 0, "{err}");
     let first = read(&d.join("samples.csv"));
     // The same command again resumes everything.
-    let (code, _, err) = call(&a);
+    let (code, _, err) = run_strings(&a);
     assert_eq!(code, 0, "{err}");
     assert!(err.contains("resuming: 2 of 2 samples"), "{err}");
     // Another build: the same program with one byte more (ELF ignores trailing bytes), so
@@ -698,7 +487,7 @@ fn another_build_runs_a_resumed_sweep_again_and_says_so_under_quiet() {
     // Same code, same numbers.
     assert!(read(&d.join("samples.csv")) == first);
     // A directory of a whole sweep is never resumed as a shard.
-    let (code, _, err) = call(&mc_args(sc, &d, "2", Some("1/2")));
+    let (code, _, err) = run_strings(&mc_args(sc, &d, "2", Some("1/2")));
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("holds shard 0/1"), "{err}");
 }

@@ -268,3 +268,47 @@ pub fn fmi_tool(tool: &str, args: &[&str]) -> (i32, String, String) {
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
 }
+
+/// Arguments of a small Monte Carlo sweep (seed 3, one job) of scenario `sc` into `out`,
+/// of `samples` samples, the shard `shard` of them if given.
+pub fn mc_args(sc: &str, out: &Path, samples: &str, shard: Option<&str>) -> Vec<String> {
+    let mut a: Vec<String> = [
+        "sweep",
+        sc,
+        "--samples",
+        samples,
+        "--seed",
+        "3",
+        "--jobs",
+        "1",
+        "--out",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    a.push(out.display().to_string());
+    a.push("--quiet".into());
+    if let Some(s) = shard {
+        a.extend(["--shard".into(), s.into()]);
+    }
+    a
+}
+
+/// [`run`] with owned arguments.
+pub fn run_strings(a: &[String]) -> (i32, String, String) {
+    let refs: Vec<&str> = a.iter().map(String::as_str).collect();
+    run(&refs)
+}
+
+/// Copies the directory tree `from` to `to`.
+pub fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            copy_dir(&p, &to.join(e.file_name()));
+        } else {
+            std::fs::copy(&p, to.join(e.file_name())).unwrap();
+        }
+    }
+}
