@@ -197,6 +197,7 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
         .initial_output();
     let path = dir.join("run.mcap");
     let mut rec = McapRecorder::create(&path, s.run.dt_s).map_err(|e| err(&path, e))?;
+    rec.queue_events(events);
     let period = s.controller_period_ticks();
     let gauss_seidel = s.run.master == Master::GaussSeidel;
     let mut held = (p0, a0, c0);
@@ -259,6 +260,6 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
         return Err(err(&path, e));
     }
     let dt_ns = (s.run.dt_s * 1e9).round() as u64;
-    rec.close(&events, &deterministic(summary), &perf, rows * dt_ns)
+    rec.close(&deterministic(summary), &perf, rows * dt_ns)
         .map_err(|e| err(&path, e))
 }
