@@ -5,18 +5,18 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --quiet
-t=target/release/tiltsim
+t="${CARGO_TARGET_DIR:-target}/release/tiltsim"
 o=out/results
 rm -rf "$o"
 mkdir -p "$o"
-$t compare scenarios/paper-passive.toml scenarios/paper-pi.toml scenarios/pi-drive.toml \
+"$t" compare scenarios/paper-passive.toml scenarios/paper-pi.toml scenarios/pi-drive.toml \
     scenarios/paper-lqg.toml scenarios/paper-mpc.toml scenarios/paper-mpc-hold.toml \
     scenarios/paper-mpc-preview.toml scenarios/paper-mpc-rho50.toml \
     --out "$o/paper" --transport in-process
-$t compare scenarios/irregular-track.toml scenarios/pi-drive-irregular.toml \
+"$t" compare scenarios/irregular-track.toml scenarios/pi-drive-irregular.toml \
     scenarios/lqg-irregular.toml scenarios/mpc-irregular.toml \
     --out "$o/irregular" --transport in-process
-$t linearize scenarios/paper-pi.toml --design-pi --phase-margin 60 --gain-margin 6 --ti 0.25 \
+"$t" linearize scenarios/paper-pi.toml --design-pi --phase-margin 60 --gain-margin 6 --ti 0.25 \
     --out "$o/pi-design.json"
 python3 - "$o/pi-design.json" > "$o/pi-design.md" <<'PY'
 import json, sys
@@ -30,16 +30,16 @@ for name, kp, ki, m in rows:
           f"{m['phase_crossover_hz']:.2f} | {m['gain_margin_db']:.1f} |")
 PY
 for c in paper-lqg paper-mpc pi-drive paper-pi; do
-    $t sweep "scenarios/$c.toml" --samples 40 --seed 1 --out "$o/sweep-$c" -q
+    "$t" sweep "scenarios/$c.toml" --samples 40 --seed 1 --out "$o/sweep-$c" -q
 done
-$t sweep scenarios/paper-lqg.toml --grid links.actuator_command.delay_ticks=0:100:20 \
+"$t" sweep scenarios/paper-lqg.toml --grid links.actuator_command.delay_ticks=0:100:20 \
     --out "$o/delay-lqg" -q
-$t sweep scenarios/paper-mpc.toml --grid links.actuator_command.delay_ticks=0:100:20 \
+"$t" sweep scenarios/paper-mpc.toml --grid links.actuator_command.delay_ticks=0:100:20 \
     --out "$o/delay-mpc" -q
 # Curving comfort against straight-track ride: each controller on the paper's curve and on
 # 5 minutes of straight ERRI B176 high-level track; and the PI's proportional gain swept on
 # both (K_i = K_p / 0.25 s kept: the integral time of the design), the front a tuner moves on.
-$t compare scenarios/paper-passive.toml scenarios/pi-drive.toml scenarios/paper-lqg.toml \
+"$t" compare scenarios/paper-passive.toml scenarios/pi-drive.toml scenarios/paper-lqg.toml \
     scenarios/paper-mpc.toml scenarios/straight-passive.toml scenarios/straight-pi-drive.toml \
     scenarios/straight-lqg.toml scenarios/straight-mpc.toml \
     --out "$o/trade-off" --transport in-process
@@ -51,7 +51,7 @@ PY
 for kp in 0.25 0.40 0.5708 0.80 1.10; do
     ki=$(python3 -c "print($kp / 0.25)")
     for sc in pi-drive straight-pi-drive; do
-        $t run "scenarios/$sc.toml" --transport in-process --set controller.pi.kp=$kp \
+        "$t" run "scenarios/$sc.toml" --transport in-process --set controller.pi.kp=$kp \
             --set controller.pi.ki=$ki --out "$o/front/$sc-$kp" -q
     done
 done

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use tiltsim_suite::{csv_table, prefix, run, scenario, temp_dir};
+use tiltsim_suite::{csv_table, fmi_tool, prefix, root, run, scenario, temp_dir};
 
 /// A recording's messages: topic → (sequence, log time, data).
 type Messages = BTreeMap<String, Vec<(u32, u64, String)>>;
@@ -58,8 +58,9 @@ fn record_with(file: &str, dir: &Path, transport: &str, extra: &[&str]) {
     }
 }
 
-/// The link channel of recording `m` of run `dir` says what was sent and what arrived: NaN
-/// (null) inside the window, and the received values are the timeseries' rx column.
+/// The link channel of recording `m` of run `dir` says what was sent and what arrived: inside
+/// the window the NaN that arrived is left out of the message (JSON has no NaN), and the
+/// received values are the timeseries' rx column.
 fn links_are_the_timeseries(m: &Messages, dir: &Path) {
     let csv = std::fs::read_to_string(dir.join("timeseries.csv")).unwrap();
     let rows = csv_table(&csv);
@@ -69,7 +70,10 @@ fn links_are_the_timeseries(m: &Messages, dir: &Path) {
         let v: serde_json::Value = serde_json::from_str(data).unwrap();
         let rx = &rows[k + 1][col];
         if rx == "NaN" {
-            assert!(v["received"].is_null() && v["sent"].is_number(), "{data}");
+            assert!(
+                v.get("received").is_none() && v["sent"].is_number(),
+                "{data}"
+            );
         } else {
             assert_eq!(v["received"].as_f64().unwrap(), rx.parse::<f64>().unwrap());
         }
@@ -77,7 +81,7 @@ fn links_are_the_timeseries(m: &Messages, dir: &Path) {
     assert!(
         m["/links/measurement"]
             .iter()
-            .filter(|x| x.2.contains("\"received\":null"))
+            .filter(|x| !x.2.contains("\"received\":"))
             .count()
             == 200
     );
@@ -222,5 +226,144 @@ fn a_finished_run_exported_holds_the_messages_recorded_live_under_both_masters()
         for topic in a.keys() {
             assert!(a[topic] == b[topic], "{master}: {topic} differs");
         }
+    }
+}
+
+/// What a reader from the Python registry (`mcap` 1.6.0, tests/record/mcap_check.py) finds in
+/// a recording of `dir`.
+fn registry_check(mcap: &Path) -> serde_json::Value {
+    let check = root().join("tests/record/mcap_check.py");
+    let (code, out, err) = fmi_tool("python", &[check.to_str().unwrap(), mcap.to_str().unwrap()]);
+    assert_eq!(code, 0, "mcap_check.py: {err}");
+    serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"))
+}
+
+#[test]
+fn recordings_read_by_an_outside_reader_are_in_order_compressed_and_typed_for_plotting() {
+    // A run with events during the run (the NaN window opens and closes) and a fault, live
+    // and exported from its files.
+    let dir = temp_dir("record-order").join("run");
+    record("fault-measurement-nan.toml", &dir, "in-process");
+    let live = dir.join("live.mcap");
+    std::fs::rename(dir.join("run.mcap"), &live).unwrap();
+    let (code, _, err) = run(&["export-mcap", dir.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    for file in [live, dir.join("run.mcap")] {
+        let r = registry_check(&file);
+        let name = file.display();
+        // `mcap doctor --strict-message-order` fails a file whose log times go back.
+        assert_eq!(r["order"], 0, "{name}: messages out of log-time order");
+        assert_eq!(r["compression"], serde_json::json!(["zstd"]), "{name}");
+        // The plant's output of tick k holds at t = (k+1)·dt: its log time.
+        assert_eq!(
+            r["plant_time"], 0,
+            "{name}: /plant/out log time is not its t"
+        );
+        assert_eq!(r["counts"]["/plant/out"], 16_800, "{name}");
+        assert!(r["counts"]["/events"].as_u64().unwrap() >= 2, "{name}");
+        // Lichtblick reads a field typed "number" as a float and plots it; it refuses a
+        // union such as ["number","null"]. Every field but the tick is a number.
+        for (topic, fields) in r["schemas"].as_object().unwrap() {
+            for (field, ty) in fields.as_object().unwrap() {
+                let want = if field == "step" { "integer" } else { "number" };
+                assert_eq!(ty, want, "{name}: {topic}.{field}");
+            }
+        }
+        assert!(
+            r["schemas"]["/actuator/out"]
+                .as_object()
+                .unwrap()
+                .contains_key("actuator_limits"),
+            "{name}: the CSV's name for the drive's limits"
+        );
+        // The shipped Foxglove/Lichtblick layout plots only what a recording holds.
+        let layout = root().join("docs/layouts/tiltsim-plots.json");
+        let layout: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&layout).unwrap()).unwrap();
+        for panel in layout["configById"].as_object().unwrap().values() {
+            for path in panel["paths"].as_array().unwrap() {
+                let path = path["value"].as_str().unwrap();
+                let (topic, field) = path.split_once('.').unwrap();
+                assert_eq!(
+                    r["schemas"][topic][field], "number",
+                    "{name}: layout path {path}"
+                );
+            }
+        }
+    }
+}
+
+/// The rows of one entity's chunk in `rerun rrd print -vvv`: (time in s, value).
+fn rerun_rows(printed: &str, entity: &str) -> Vec<(f64, f64)> {
+    let mut rows = Vec::new();
+    let mut inside = false;
+    for line in printed.lines() {
+        if line.starts_with("Chunk(") {
+            inside = line.contains(&format!(" - {entity} -"));
+            continue;
+        }
+        if !inside || !line.contains("row_") {
+            continue;
+        }
+        // "│ │ row_… ┆ PT0.004S ┆ [7.406447632314828e-11] │ │"
+        let cells: Vec<&str> = line.split('┆').map(str::trim).collect();
+        let time = cells[1].trim_start_matches("PT").trim_end_matches('S');
+        let value = cells[2]
+            .split(['[', ']'])
+            .nth(1)
+            .unwrap_or_else(|| panic!("{line}"));
+        rows.push((time.parse().unwrap(), value.parse().unwrap()));
+    }
+    rows
+}
+
+#[test]
+fn a_run_exported_for_rerun_holds_every_signal_as_scalars_on_simulated_time() {
+    let dir = temp_dir("rerun").join("run");
+    let sc = scenario("paper-lqg.toml");
+    let (code, _, err) = run(&[
+        "run",
+        sc.to_str().unwrap(),
+        "--duration",
+        "0.5",
+        "--transport",
+        "in-process",
+        "--out",
+        dir.to_str().unwrap(),
+        "-q",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let script = root().join("scripts/to-rerun.py");
+    let (code, out, err) = fmi_tool("python", &[script.to_str().unwrap(), dir.to_str().unwrap()]);
+    assert_eq!(code, 0, "to-rerun.py: {err}");
+    assert!(out.contains("500 ticks"), "{out}");
+    let rrd = dir.join("run.rrd");
+    let rrd = rrd.to_str().unwrap();
+    // Rerun's own tools: the file loads, and every signal of the CSV is a Scalars series.
+    let (code, _, err) = fmi_tool("rerun", &["rrd", "verify", rrd]);
+    assert_eq!(code, 0, "rerun rrd verify: {err}");
+    let (code, listing, err) = fmi_tool("rerun", &["rrd", "print", rrd]);
+    assert_eq!(code, 0, "rerun rrd print: {err}");
+    let csv = std::fs::read_to_string(dir.join("timeseries.csv")).unwrap();
+    let table = csv_table(&csv);
+    for col in &table[0][2..] {
+        let line = listing
+            .lines()
+            .find(|l| l.ends_with(&format!("/{col} - data columns: [Scalars:scalars]")))
+            .unwrap_or_else(|| panic!("{col} is not a Scalars series in Rerun:\n{listing}"));
+        assert!(line.contains("with 500 rows"), "{line}");
+    }
+    // The values Rerun decodes are the CSV's, at the CSV's times.
+    let (code, printed, err) = fmi_tool("rerun", &["rrd", "print", "-vvv", rrd]);
+    assert_eq!(code, 0, "{err}");
+    let rows = rerun_rows(&printed, "/plant/lat_acc");
+    assert_eq!(rows.len(), 500);
+    let t = table[0].iter().position(|c| c == "t").unwrap();
+    let a = table[0].iter().position(|c| c == "lat_acc").unwrap();
+    for (r, (time, value)) in table[1..].iter().zip(&rows) {
+        // Rerun keeps a duration in whole nanoseconds.
+        let ns = |s: f64| (s * 1e9).round() as i64;
+        assert_eq!(ns(*time), ns(r[t].parse::<f64>().unwrap()));
+        assert_eq!(*value, r[a].parse::<f64>().unwrap());
     }
 }

@@ -191,6 +191,7 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
     let mut held = initial_outputs(&s).map_err(|e| err(&sc, e))?;
     let path = dir.join("run.mcap");
     let mut rec = McapRecorder::create(&path, s.run.dt_s).map_err(|e| err(&path, e))?;
+    rec.queue_events(events);
     let period = s.controller_period_ticks();
     let gauss_seidel = s.run.master == Master::GaussSeidel;
     let mut failed: Option<std::io::Error> = None;
@@ -242,7 +243,7 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
         return Err(err(&path, e));
     }
     let dt_ns = (s.run.dt_s * 1e9).round() as u64;
-    rec.close(&events, &deterministic(summary), &perf, rows * dt_ns)
+    rec.close(&deterministic(summary), &perf, rows * dt_ns)
         .map_err(|e| err(&path, e))
 }
 

@@ -20,8 +20,9 @@ pub const ROW_BYTES_DRIVE: u64 = 670;
 /// measured 168-264 B on the paper's scenarios, in-process and over IPC).
 pub const TRACE_BYTES_PER_TICK: u64 = 300;
 /// Bytes per tick of `run.mcap` (`--record`: every participant's inputs and outputs and every
-/// link; measured 1529 B on paper-passive, 1552-1845 B on the controlled scenarios).
-pub const RECORD_BYTES_PER_TICK: u64 = 2050;
+/// link, in zstd chunks; measured 386 B on paper-passive, 429-574 B on the controlled,
+/// irregular-track and jittered scenarios); 10 % above the largest measured.
+pub const RECORD_BYTES_PER_TICK: u64 = 640;
 /// What every run writes whatever its length: figures (about 1 MB), summary, perf, events,
 /// scenario.
 pub const FIXED_BYTES: u64 = 2 << 20;

@@ -221,7 +221,7 @@ pub fn leftovers(prefix: &str) -> Vec<PathBuf> {
     cosim::ipc::leftover_files(prefix)
 }
 
-/// The Python of the FMI checks' environment (FMPy, pythonfmu, mcap from PyPI), made by
+/// The Python of the outside checks' environment (FMPy, pythonfmu, mcap, rerun-sdk from PyPI), made by
 /// `scripts/fmi-venv.sh` in `target/fmi-venv` the first time a test needs it. Concurrent
 /// tests wait for one another (a lock file); a failure to make it fails the test, never skips.
 pub fn fmi_python() -> PathBuf {

@@ -7,12 +7,17 @@
 //! * `/events`: the run's events; `/summary`: the summary's deterministic part (written
 //!   after the analysis); `/perf`: its wall-clock part.
 //!
-//! Log time is simulated time (tick k at k·dt, in ns); publish time is the wall clock of the
-//! two-clock trace (`CLOCK_MONOTONIC` ns: request sent for `in`, reply received for `out`;
-//! the log time on the wall-clock-free channels). Every channel declares a JSON schema. The
-//! messages of a run repeat exactly when the run does; only publish times and `/perf` differ.
+//! Log time is the simulated time a message's values hold at, in ns: t_k = k·dt for what a
+//! participant received at tick k, the controller's answer and the links, t_(k+1) for the
+//! plant's and the actuator's outputs (the state at the end of the step); an event at its tick,
+//! the summary at the end. Log times never decrease through the file, and the chunks are
+//! zstd-compressed. Publish time is the wall clock of the two-clock trace (`CLOCK_MONOTONIC`
+//! ns: request sent for `in`, reply received for `out`; the log time on the wall-clock-free
+//! channels). Every channel declares a JSON schema whose fields are numbers; a non-finite
+//! value is left out of its message. The messages of a run repeat exactly when the run does;
+//! only publish times and `/perf` differ.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -67,7 +72,7 @@ const CHANNELS: &[(&str, &[&str])] = &[
             "phase_current_peak",
             "v_dc",
             "chopper_power",
-            "limits",
+            "actuator_limits",
         ],
     ),
     ("/controller/in", &["t", "s", "theta_v_meas"]),
@@ -150,13 +155,14 @@ pub fn controller_in(v: &[f64]) -> ToController {
     }
 }
 
-/// A JSON schema for a message of `step` and `fields`.
+/// A JSON schema for a message of `step` and `fields`: every field a number, none required (a
+/// non-finite value is left out of its message, since JSON has no NaN).
 fn schema(title: &str, fields: &[&str]) -> String {
     let mut props = vec![r#""step":{"type":"integer","description":"tick"}"#.to_string()];
     props.extend(
         fields
             .iter()
-            .map(|f| format!(r#""{f}":{{"type":["number","null"]}}"#)),
+            .map(|f| format!(r#""{f}":{{"type":"number"}}"#)),
     );
     format!(
         r#"{{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"{title}","type":"object","properties":{{{}}}}}"#,
@@ -164,24 +170,26 @@ fn schema(title: &str, fields: &[&str]) -> String {
     )
 }
 
-/// A JSON message: `step` and the values (shortest round trip; NaN and infinities as null).
+/// A JSON message: `step` and the values (shortest round trip). A NaN or an infinity is left
+/// out, as the schema allows: readers see a gap, as they would in a plot of the CSV.
 pub fn message(step: u64, fields: &[&str], values: &[f64]) -> String {
     let mut s = format!("{{\"step\":{step}");
     for (f, v) in fields.iter().zip(values) {
+        if !v.is_finite() {
+            continue;
+        }
         s.push_str(",\"");
         s.push_str(f);
         s.push_str("\":");
-        if v.is_finite() {
-            crate::record::put_f64(*v, &mut s);
-        } else {
-            s.push_str("null");
-        }
+        crate::record::put_f64(*v, &mut s);
     }
     s.push('}');
     s
 }
 
-/// Writes `run.mcap` as the run goes.
+/// Writes `run.mcap` as the run goes, in log-time order: a tick's inputs, links and controller
+/// messages at t_k, then the events of tick k, then the plant's and the actuator's outputs at
+/// t_(k+1), the time their values hold at.
 pub(crate) struct McapRecorder {
     out: mcap::Writer<BufWriter<File>>,
     path: PathBuf,
@@ -190,6 +198,14 @@ pub(crate) struct McapRecorder {
     events: u16,
     summary: u16,
     perf: u16,
+    /// Events not yet written, in the order of the run's event log.
+    queued: VecDeque<EventMessage>,
+    /// Events taken from the run's event log so far.
+    taken: usize,
+    /// Events written so far (their sequence numbers).
+    written: u32,
+    /// The largest log time written so far: no message goes below it.
+    last_log: u64,
 }
 
 fn named(path: &Path, e: impl std::fmt::Display) -> std::io::Error {
@@ -203,7 +219,7 @@ impl McapRecorder {
         let opts = mcap::WriteOptions::new()
             .library(concat!("tiltsim ", env!("CARGO_PKG_VERSION")))
             .profile("")
-            .compression(None);
+            .compression(Some(mcap::Compression::Zstd));
         let mut out = opts.create(file).map_err(|e| named(path, e))?;
         let mut add = |topic: &str, fields: &[&str], extra: Option<&str>| {
             let text = match extra {
@@ -239,10 +255,43 @@ impl McapRecorder {
             events,
             summary,
             perf,
+            queued: VecDeque::new(),
+            taken: 0,
+            written: 0,
+            last_log: 0,
         })
     }
 
+    /// Queues `events` (in the run's order) to be written at their ticks.
+    pub(crate) fn queue_events(&mut self, events: impl IntoIterator<Item = EventMessage>) {
+        self.queued.extend(events);
+    }
+
+    /// Queues the events of `log` not taken yet.
+    fn take_events(&mut self, log: &EventLog) {
+        let new = log.events.get(self.taken..).unwrap_or(&[]);
+        self.taken += new.len();
+        self.queued.extend(new.iter().map(EventMessage::from));
+    }
+
+    /// Writes the queued events of ticks up to `k` (all of them for `None`), in the log's
+    /// order, each at its own time or, for one logged after later messages, at the latest
+    /// log time written.
+    fn write_events(&mut self, k: Option<u64>) -> std::io::Result<()> {
+        while let Some(e) = self.queued.front() {
+            if k.is_some_and(|k| e.step > k) {
+                break;
+            }
+            let e = self.queued.pop_front().unwrap_or_else(|| unreachable!());
+            let log = ((e.t * 1e9).round().max(0.0) as u64).max(self.last_log);
+            self.written += 1;
+            self.put_on(self.events, self.written, log, &e.json())?;
+        }
+        Ok(())
+    }
+
     fn put(&mut self, channel: usize, log: u64, publish: u64, data: &str) -> std::io::Result<()> {
+        self.last_log = self.last_log.max(log);
         let c = &mut self.channels[channel];
         c.seq += 1;
         let header = mcap::records::MessageHeader {
@@ -257,6 +306,7 @@ impl McapRecorder {
     }
 
     fn put_on(&mut self, id: u16, seq: u32, log: u64, data: &str) -> std::io::Result<()> {
+        self.last_log = self.last_log.max(log);
         let header = mcap::records::MessageHeader {
             channel_id: id,
             sequence: seq,
@@ -268,42 +318,29 @@ impl McapRecorder {
             .map_err(|e| named(&self.path, e))
     }
 
-    /// Writes the events, the summary's deterministic part and its wall-clock part, and
-    /// closes the file.
-    pub fn finish(self, events: &EventLog, summary: &super::Summary) -> std::io::Result<PathBuf> {
-        let events: Vec<EventMessage> = events
-            .events
-            .iter()
-            .map(|e| EventMessage {
-                step: e.step,
-                t: e.t,
-                source: e.source.clone(),
-                kind: serde_json::to_value(e.kind)
-                    .ok()
-                    .and_then(|v| v.as_str().map(str::to_string))
-                    .unwrap_or_default(),
-                value: e.value,
-                detail: e.detail.clone(),
-            })
-            .collect();
+    /// Writes the events not written yet, the summary's deterministic part and its wall-clock
+    /// part, and closes the file.
+    pub fn finish(
+        mut self,
+        events: &EventLog,
+        summary: &super::Summary,
+    ) -> std::io::Result<PathBuf> {
+        self.take_events(events);
         let det = super::summary::deterministic(serde_json::to_value(summary).unwrap_or_default());
         let end = summary.steps_completed * self.dt_ns;
-        self.close(&events, &det, &summary.perf(), end)
+        self.close(&det, &summary.perf(), end)
     }
 
-    /// Writes `events`, the summary's deterministic part `det` and its wall-clock part `perf`
-    /// (at log time `end`), and closes the file.
+    /// Writes the queued events, the summary's deterministic part `det` and its wall-clock
+    /// part `perf` (at log time `end`, or the latest written if later), and closes the file.
     pub(crate) fn close(
         mut self,
-        events: &[EventMessage],
         det: &serde_json::Value,
         perf: &serde_json::Value,
         end: u64,
     ) -> std::io::Result<PathBuf> {
-        for (i, e) in events.iter().enumerate() {
-            let log = (e.t * 1e9).round().max(0.0) as u64;
-            self.put_on(self.events, i as u32 + 1, log, &e.json())?;
-        }
+        self.write_events(None)?;
+        let end = end.max(self.last_log);
         self.put_on(self.summary, 1, end, &det.to_string())?;
         self.put_on(self.perf, 1, end, &perf.to_string())?;
         self.out.finish().map_err(|e| named(&self.path, e))?;
@@ -321,15 +358,32 @@ pub(crate) struct EventMessage {
     pub detail: String,
 }
 
+impl From<&crate::events::Event> for EventMessage {
+    fn from(e: &crate::events::Event) -> Self {
+        EventMessage {
+            step: e.step,
+            t: e.t,
+            source: e.source.clone(),
+            kind: serde_json::to_value(e.kind)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_string))
+                .unwrap_or_default(),
+            value: e.value,
+            detail: e.detail.clone(),
+        }
+    }
+}
+
 impl EventMessage {
+    /// The event as JSON; an event without a value (NaN) has no `value` field.
     fn json(&self) -> String {
         let value = if self.value.is_finite() {
-            crate::record::fmt_f64(self.value)
+            format!(",\"value\":{}", crate::record::fmt_f64(self.value))
         } else {
-            "null".into()
+            String::new()
         };
         format!(
-            "{{\"step\":{},\"t\":{},\"source\":{},\"kind\":{},\"value\":{value},\"detail\":{}}}",
+            "{{\"step\":{},\"t\":{},\"source\":{},\"kind\":{}{value},\"detail\":{}}}",
             self.step,
             crate::record::fmt_f64(self.t),
             serde_json::Value::from(self.source.as_str()),
@@ -368,9 +422,12 @@ pub(crate) struct TickData<'a> {
 }
 
 impl McapRecorder {
-    /// Writes one tick's messages.
+    /// Writes one tick's messages: what the participants received, the controller's answer
+    /// and the links at t_k, the queued events of tick k, then the actuator's and the plant's
+    /// outputs at t_(k+1).
     pub(crate) fn write_tick(&mut self, d: &TickData) -> std::io::Result<()> {
         let log = d.k * self.dt_ns;
+        let next = log + self.dt_ns;
         let k = d.k;
         let when = |role: Role| d.wall[role as usize].unwrap_or((log, log));
         let rx = d.rx;
@@ -384,36 +441,33 @@ impl McapRecorder {
             let m = message(k, ch(i + 1), &controller_out(d.c));
             self.put(i + 1, log, got, &m)?;
         }
-        let (sent, got) = when(Role::Actuator);
+        let (a_sent, a_got) = when(Role::Actuator);
         let i = inbox(Role::Actuator);
-        let m = message(
-            k,
-            ch(i),
-            &[
-                rx[LinkId::ActuatorCommand as usize],
-                rx[LinkId::BarTwist as usize],
-            ],
-        );
-        self.put(i, log, sent, &m)?;
-        let m = message(k, ch(i + 1), &actuator_out(d.a));
-        self.put(i + 1, log, got, &m)?;
-        let (sent, got) = when(Role::Plant);
-        let i = inbox(Role::Plant);
-        let m = message(k, ch(i), &[rx[LinkId::BarAngle as usize]]);
-        self.put(i, log, sent, &m)?;
-        let m = message(k, ch(i + 1), &plant_out(d.p));
-        self.put(i + 1, log, got, &m)?;
+        let command = [
+            rx[LinkId::ActuatorCommand as usize],
+            rx[LinkId::BarTwist as usize],
+        ];
+        self.put(i, log, a_sent, &message(k, ch(i), &command))?;
+        let (p_sent, p_got) = when(Role::Plant);
+        let j = inbox(Role::Plant);
+        let bar = [rx[LinkId::BarAngle as usize]];
+        self.put(j, log, p_sent, &message(k, ch(j), &bar))?;
         for link in LinkId::ALL {
-            let j = 6 + link as usize;
-            let m = message(k, ch(j), &[d.tx[link as usize], rx[link as usize]]);
-            self.put(j, log, log, &m)?;
+            let l = 6 + link as usize;
+            let m = message(k, ch(l), &[d.tx[link as usize], rx[link as usize]]);
+            self.put(l, log, log, &m)?;
         }
-        Ok(())
+        self.write_events(Some(k))?;
+        let m = message(k, ch(i + 1), &actuator_out(d.a));
+        self.put(i + 1, next, a_got, &m)?;
+        let m = message(k, ch(j + 1), &plant_out(d.p));
+        self.put(j + 1, next, p_got, &m)
     }
 }
 
 impl Observer for McapRecorder {
-    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
+    fn after_tick(&mut self, t: &TickRecord, ev: &mut EventLog) -> std::io::Result<()> {
+        self.take_events(ev);
         let k = t.k;
         // Wall-clock times of this tick's step exchanges (the Init ones have step 0 too).
         let when = |role: Role| {

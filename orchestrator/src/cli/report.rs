@@ -34,8 +34,9 @@ pub fn print(s: &Summary, out: &Path) {
         println!("  analysis skipped: {why}");
         print_timing(s);
         println!(
-            "  wrote {}/timeseries.csv, summary.json, events.csv, scenario.toml (`tiltsim plot {}` draws the figures)",
+            "  wrote {}/timeseries.csv, summary.json, events.csv, scenario.toml{} (`tiltsim plot {}` draws the figures)",
             out.display(),
+            optional_files(out),
             out.display()
         );
         return;
@@ -73,9 +74,20 @@ pub fn print(s: &Summary, out: &Path) {
     }
     print_timing(s);
     println!(
-        "  wrote {}/timeseries.csv, summary.json, perf.json, events.csv, scenario.toml, plots/*.svg|png",
-        out.display()
+        "  wrote {}/timeseries.csv, summary.json, perf.json, events.csv, scenario.toml{}, plots/*.svg|png",
+        out.display(),
+        optional_files(out)
     );
+}
+
+/// The files only some runs write (`--record`, `--trace`), as ", run.mcap, trace.csv" for
+/// those in `out` (a run removes an earlier run's at its start, so what is there is its own).
+fn optional_files(out: &Path) -> String {
+    ["run.mcap", "trace.csv"]
+        .iter()
+        .filter(|f| out.join(f).is_file())
+        .map(|f| format!(", {f}"))
+        .collect()
 }
 
 /// Compute, latency, pacing and solver figures.
