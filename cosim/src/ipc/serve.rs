@@ -5,7 +5,7 @@ use std::time::Duration;
 use crate::endpoint::LinkError;
 use std::sync::atomic::Ordering;
 
-use crate::msg::{exchange_key, now_ns, Header, Kind, Message, FLAG_CRASH};
+use crate::msg::{exchange_key, now_ns, Header, Kind, Message, FLAG_CRASH, FLAG_FREE_START};
 use crate::participant::{Participant, Served};
 use crate::wait::{sleep_until_ns, Backoff, Cadence, WaitStrategy};
 
@@ -122,6 +122,15 @@ pub(crate) fn serve_dropping<P: Participant>(
             Some(Kind::Init) => {
                 last_step = None;
                 cadence.reset();
+            }
+            Some(Kind::Step) if h.flags & FLAG_FREE_START != 0 => {
+                return super::free::serve_free(
+                    &mut served,
+                    &subscriber,
+                    &publisher,
+                    request,
+                    parent,
+                );
             }
             Some(Kind::Step) => {
                 cadence.observe(h.sent_ns);
