@@ -43,7 +43,10 @@ impl Relay {
         mut req: I,
         from: [Option<i64>; 3],
     ) -> Result<(), LinkError> {
-        req.header_mut().step = self.next;
+        // The starting request (relay 0) carries the period in ticks in its step instead.
+        if req.header().flags & FLAG_FREE_START == 0 {
+            req.header_mut().step = self.next;
+        }
         self.sent.push_back((self.next, from));
         self.next += 1;
         ep.send(&req)
