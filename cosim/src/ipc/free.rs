@@ -85,20 +85,15 @@ pub(crate) fn serve_free<P: Participant>(
                 sleep_until_ns(due);
             }
         }
-        loop {
-            match subscriber.receive().map_err(super::iox("receive"))? {
-                Some(s) => {
-                    let got: P::Input = *s;
-                    match Kind::from_raw(got.header().kind) {
-                        Some(Kind::Stop) => return Ok(()),
-                        Some(Kind::Step) => {
-                            input = got;
-                            relay = got.header().step;
-                        }
-                        _ => {}
-                    }
+        while let Some(s) = subscriber.receive().map_err(super::iox("receive"))? {
+            let got: P::Input = *s;
+            match Kind::from_raw(got.header().kind) {
+                Some(Kind::Stop) => return Ok(()),
+                Some(Kind::Step) => {
+                    input = got;
+                    relay = got.header().step;
                 }
-                None => break,
+                _ => {}
             }
         }
         // SAFETY: getppid has no preconditions.
