@@ -99,6 +99,11 @@ pub struct FreeReport {
     pub leftover_ipc_files: Vec<String>,
 }
 
+/// Nanoseconds as microseconds with one decimal.
+fn us(ns: u64) -> f64 {
+    (ns / 100) as f64 / 10.0
+}
+
 fn percentile(sorted: &[u64], q: f64) -> u64 {
     if sorted.is_empty() {
         return 0;
@@ -220,9 +225,9 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
             serde_json::json!({
                 "steps": t.lateness_ns.len(),
                 "start_lateness_us": {
-                    "p50": percentile(&t.lateness_ns, 0.5) as f64 * 1e-3,
-                    "p99": percentile(&t.lateness_ns, 0.99) as f64 * 1e-3,
-                    "max": max as f64 * 1e-3,
+                    "p50": us(percentile(&t.lateness_ns, 0.5)),
+                    "p99": us(percentile(&t.lateness_ns, 0.99)),
+                    "max": us(max),
                 },
                 "late_starts": t.late_start,
                 "late_finishes": t.late_finish,
