@@ -41,7 +41,8 @@ pub fn col(role: Role) -> usize {
 }
 
 /// The age in ticks of producer step `from` read by consumer step `step`, measured against
-/// the lock-step Gauss-Seidel coupling (where every age is 0): the plant's output of step q
+/// the lock-step Gauss-Seidel coupling (where it is 0, and `k mod period` for the held
+/// controller command): the plant's output of step q
 /// holds at t_{q+1}, so its age is `step − (q + 1)`; the actuator's and controller's outputs
 /// of step q are used from t_q on, so theirs is `step − q`. The output at t₀ is step −1.
 pub fn age(producer: Role, step: u64, from: i64) -> i64 {
