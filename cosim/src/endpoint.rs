@@ -230,6 +230,16 @@ pub trait Endpoint<I: Message, O: Message> {
     /// Asks the participant to end, waits for it (bounded), reports how it ended.
     fn shutdown(&mut self) -> ExitReport;
     /// Starved waits, re-sent requests and discarded repeats so far ([`ExchangeCounts`]).
+    /// Free running: appends every reply that has arrived, in arrival order, without waiting
+    /// and without the lock-step's step checks (the caller checks the order). A participant
+    /// whose process has ended is an error. Only the IPC transport runs free; in-process
+    /// participants have no clock of their own.
+    fn take_arrived(&mut self, _out: &mut Vec<O>) -> Result<(), LinkError> {
+        Err(LinkError::Transport {
+            role: self.role(),
+            what: "no free-running mode in one process".into(),
+        })
+    }
     fn counts(&self) -> ExchangeCounts {
         ExchangeCounts::default()
     }

@@ -50,6 +50,13 @@ pub const FLAG_CRASH: u32 = 2;
 pub const FLAG_REJECTED: u32 = 4;
 /// Reply flag: the request carried a non-finite value; the last good input was used.
 pub const FLAG_HELD: u32 = 8;
+/// Request flag: start free running (docs/architecture.md, "Execution modes"). The request
+/// carries the first input (relay number 0); its `recv_ns` is the common start instant
+/// (CLOCK_MONOTONIC ns), `compute_ns` the participant's period (ns), `step` its period in
+/// ticks and `field` a busy wait added to each step (µs, for studies). Every later request of
+/// a free run carries its relay number in `step`; a reply's `attempt` is the relay number of
+/// the input its step read.
+pub const FLAG_FREE_START: u32 = 16;
 
 /// Monotonic clock (CLOCK_MONOTONIC, ns): one clock for every process of the machine, so
 /// timestamps taken in different processes can be subtracted.

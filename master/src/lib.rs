@@ -28,6 +28,7 @@ pub mod export_fmu;
 pub mod export_mcap;
 pub mod faults;
 pub mod files;
+pub mod free;
 pub mod links;
 pub mod outdir;
 pub mod record;

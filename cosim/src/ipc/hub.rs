@@ -672,6 +672,21 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
             backoff.pause();
         }
     }
+    fn take_arrived(&mut self, out: &mut Vec<O>) -> Result<(), LinkError> {
+        let before = out.len();
+        super::free::take_arrived(self.role, &self.subscriber, out)?;
+        if out.len() == before {
+            if let Some(status) = self.exited() {
+                return Err(LinkError::Exited {
+                    role: self.role,
+                    pid: self.pid,
+                    step: 0,
+                    status,
+                });
+            }
+        }
+        Ok(())
+    }
     fn counts(&self) -> ExchangeCounts {
         let mut c = self.counts;
         c.lost_samples.repeats_answered = self.status.words().repeats.load(Ordering::Relaxed);

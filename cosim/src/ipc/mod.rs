@@ -16,6 +16,7 @@
 
 mod affinity;
 mod cleanup;
+mod free;
 mod hub;
 pub mod pingpong;
 mod serve;
@@ -124,6 +125,12 @@ fn node(cfg: &Config, name: &str) -> Result<Node<ipc::Service>, IpcError> {
         .map_err(iox("create node"))
 }
 
+/// Samples a subscriber holds before the oldest is overwritten. The lock-step has one in
+/// flight; a free run's participants publish without waiting for the hub, which may be
+/// starved by other load: 1024 replies are a second of plant steps before one is lost (and a
+/// lost one ends the run, named, instead of leaving a gap in the trace).
+const BUFFER: usize = 1024;
+
 fn service<T: Message>(
     node: &Node<ipc::Service>,
     name: &str,
@@ -134,7 +141,7 @@ fn service<T: Message>(
         .max_publishers(1)
         .max_subscribers(1)
         .history_size(0)
-        .subscriber_max_buffer_size(4)
+        .subscriber_max_buffer_size(BUFFER)
         .open_or_create()
         .map_err(iox("open or create service"))
 }

@@ -5,7 +5,7 @@ use std::time::Duration;
 use crate::endpoint::LinkError;
 use std::sync::atomic::Ordering;
 
-use crate::msg::{exchange_key, now_ns, Header, Kind, Message, FLAG_CRASH};
+use crate::msg::{exchange_key, now_ns, Header, Kind, Message, FLAG_CRASH, FLAG_FREE_START};
 use crate::participant::{Participant, Role, Served};
 use crate::wait::{sleep_until_ns, Backoff, Cadence, WaitStrategy};
 
@@ -101,6 +101,10 @@ pub(crate) fn serve_dropping<P: Participant>(
             // answered and still did not come.
             words.repeats.fetch_add(1, Ordering::Release);
             continue;
+        }
+        if matches!(Kind::from_raw(h.kind), Some(Kind::Step)) && h.flags & FLAG_FREE_START != 0 {
+            // The start of a free run: from here the participant keeps its own clock.
+            return super::free::serve_free(&mut served, &subscriber, &publisher, request, parent);
         }
         if !admit(&h, role, &mut last_step, &mut cadence)? {
             return Ok(());

@@ -91,6 +91,22 @@ pub struct RunSettings {
     /// Under Jacobi over IPC, give the participant measured heaviest a CPU of its own after a
     /// warm-up (`measured`, default) or keep every participant on one CPU (`fixed`).
     pub cpu_plan: CpuPlanMode,
+    /// Lock-step (default) or free running over IPC (docs/architecture.md, "Execution modes").
+    pub execution: Execution,
+    /// Free running only: a busy wait added to each controller step (s), for studies of a
+    /// slow controller. 0 = none.
+    pub controller_busy_wait_s: f64,
+}
+
+/// How simulated time advances (`run.execution`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Execution {
+    /// The orchestrator steps every participant and waits for its reply.
+    #[default]
+    LockStep,
+    /// Every participant process steps on its own wall-clock timer; nobody waits.
+    Free,
 }
 
 /// How a Jacobi run over IPC places its processes (`run.cpu_plan`).
@@ -118,6 +134,8 @@ impl Default for RunSettings {
             startup_ms: 5000,
             pin_cpus: true,
             cpu_plan: CpuPlanMode::Measured,
+            execution: Execution::LockStep,
+            controller_busy_wait_s: 0.0,
         }
     }
 }

@@ -95,6 +95,7 @@ impl Scenario {
             r.startup_ms,
             "an integer in [100, 120000] ms",
         );
+        self.validate_execution(&mut c);
         let mut all = c;
         all.merge(self.validate_name());
         all.merge(self.validate_timeline());

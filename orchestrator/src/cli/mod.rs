@@ -12,6 +12,7 @@ mod compare;
 mod error;
 mod export_fmu;
 mod export_mcap;
+mod free_run;
 mod linearize;
 mod participant;
 mod plot;
@@ -69,6 +70,10 @@ enum Command {
     /// Run one participant of a run recorded with `run --record` alone against the inputs it
     /// received, and report where its outputs differ from the recording.
     Replay(replay::ReplayArgs),
+    /// Replay a free run's timing (RUN_DIR/timing.csv) exactly, in lock-step: every step fed
+    /// the producer outputs it read in the free run; RUN_DIR/replay-timing/timeseries.csv
+    /// equals the free run's byte for byte (with --scenario: the same timing, another system).
+    ReplayTiming(free_run::ReplayTimingArgs),
     /// Write a finished run's files as RUN_DIR/run.mcap (the channels of `run --record`).
     ExportMcap(export_mcap::ExportMcapArgs),
     /// Write one participant of a scenario as an FMI 3.0 co-simulation FMU (its inputs and
@@ -116,6 +121,7 @@ pub fn main() -> i32 {
         Command::Validate(a) => validate::exec(a),
         Command::Compare(a) => compare::exec(a),
         Command::Plot(a) => plot::exec(a),
+        Command::ReplayTiming(a) => free_run::replay_timing(a),
         Command::Sweep(a) => sweep::exec(a),
         Command::SweepMerge(a) => sweep_merge::exec(a),
         Command::Bench(a) => bench::exec(a),

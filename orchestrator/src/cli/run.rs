@@ -65,6 +65,11 @@ pub struct RunArgs {
     /// sent and received, the events and the summary; opens in Foxglove, Rerun, `mcap`).
     #[arg(long)]
     record: bool,
+    /// Free running (run.execution = "free", IPC only): every participant steps on its own
+    /// wall-clock timer and reads the newest input that has arrived; the real timing goes to
+    /// DIR/timing.csv, which `tiltsim replay-timing DIR` replays exactly in lock-step.
+    #[arg(long)]
+    free_run: bool,
     /// Print nothing but errors.
     #[arg(short, long)]
     quiet: bool,
@@ -98,6 +103,9 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
     if let Some(d) = a.duration {
         s.run.duration_s = Some(d);
     }
+    if a.free_run {
+        s.run.execution = tiltsim_master::scenario::Execution::Free;
+    }
     for kv in &a.set {
         let bad = || CliError::Invalid(format!("command line: --set {kv}: expected KEY=NUMBER"));
         let (k, v) = kv.split_once('=').ok_or_else(bad)?;
@@ -119,7 +127,21 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
             s.run.wait = cosim::wait::WaitStrategy::Paced;
         }
     }
-    if a.realtime && a.pace.is_none() {
+    let free = s.run.execution == tiltsim_master::scenario::Execution::Free;
+    if free {
+        for (given, flag) in [
+            (a.pace.is_some(), "--pace"),
+            (a.trace, "--trace"),
+            (a.record, "--record"),
+        ] {
+            if given {
+                return Err(CliError::Invalid(format!(
+                    "command line: {flag}: not available with run.execution = \"free\" (a free run keeps its own clock; its timing goes to timing.csv)"
+                )));
+            }
+        }
+    }
+    if a.realtime && a.pace.is_none() && !free {
         // Unpaced, real-time processes that poll would take both cores from everything else.
         return Err(CliError::Invalid(
             "command line: --realtime: allowed only with --pace".into(),
@@ -191,6 +213,9 @@ pub fn exec(a: RunArgs) -> CliResult {
         keep_rows: false,
         timing: true,
     };
+    if s.run.execution == tiltsim_master::scenario::Execution::Free {
+        return super::free_run::exec(&s, &a.scenario, &opts, a.quiet);
+    }
     let mut kept = Ok(());
     let summary =
         tiltsim_report::analysis::run_then(&s, &a.scenario.display().to_string(), &opts, |sm| {

@@ -1,0 +1,350 @@
+//! The timing trace of a free run, `timing.csv`: one line per consumer step.
+//!
+//! ```text
+//! # tiltsim timing trace: dt_s=0.001 steps=3000 controller_period_ticks=10 start_ns=...
+//! role,step,from_plant,from_actuator,from_controller,age_plant,age_actuator,age_controller,due_ns,read_ns,compute_end_ns,publish_ns,late_start,late_finish
+//! ```
+//!
+//! `step` is the consumer's step (a tick index); `from_<producer>` the producer step whose
+//! output the step read (`-1` = the output at t₀, empty = not an input of this role);
+//! `age_<producer>` that input's age in ticks (see [`age`]); the instants are
+//! CLOCK_MONOTONIC ns since the common start instant (`due_ns` = when the step was due).
+//! `late_start`: the step started after the next was due (for the plant: a step it had to
+//! catch up on); `late_finish`: it was published after the next step was due.
+
+use std::io::Write;
+use std::path::Path;
+
+use cosim::Role;
+
+/// The trace's file name beside the results.
+pub const TIMING_CSV: &str = "timing.csv";
+
+const COLUMNS: &str = "role,step,from_plant,from_actuator,from_controller,age_plant,age_actuator,age_controller,due_ns,read_ns,compute_end_ns,publish_ns,late_start,late_finish";
+
+/// The inputs each role reads, by producer.
+pub fn inputs_of(role: Role) -> &'static [Role] {
+    match role {
+        Role::Plant => &[Role::Actuator],
+        Role::Actuator => &[Role::Controller, Role::Plant],
+        Role::Controller => &[Role::Plant],
+    }
+}
+
+/// Index of a role in the trace's per-producer columns.
+pub fn col(role: Role) -> usize {
+    match role {
+        Role::Plant => 0,
+        Role::Actuator => 1,
+        Role::Controller => 2,
+    }
+}
+
+/// The age in ticks of producer step `from` read by consumer step `step`, measured against
+/// the lock-step Gauss-Seidel coupling (where it is 0, and `k mod period` for the held
+/// controller command): the plant's output of step q
+/// holds at t_{q+1}, so its age is `step − (q + 1)`; the actuator's and controller's outputs
+/// of step q are used from t_q on, so theirs is `step − q`. The output at t₀ is step −1.
+pub fn age(producer: Role, step: u64, from: i64) -> i64 {
+    let step = step as i64;
+    match producer {
+        Role::Plant => step - (from + 1),
+        Role::Actuator | Role::Controller => step - from,
+    }
+}
+
+/// One consumer step of a free run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StepTrace {
+    /// The consumer.
+    pub role: Role,
+    /// Its step (tick index).
+    pub step: u64,
+    /// Producer step read, per producer column ([`col`]); `None` = not an input.
+    pub from: [Option<i64>; 3],
+    /// When the step was due (ns since the start instant).
+    pub due_ns: u64,
+    /// When it read its inputs (ns since the start instant).
+    pub read_ns: u64,
+    /// When its computation ended.
+    pub compute_end_ns: u64,
+    /// When it published its output.
+    pub publish_ns: u64,
+}
+
+impl StepTrace {
+    /// Started after the next step was due.
+    pub fn late_start(&self, period_ns: u64) -> bool {
+        self.read_ns >= self.due_ns + period_ns
+    }
+    /// Published after the next step was due.
+    pub fn late_finish(&self, period_ns: u64) -> bool {
+        self.publish_ns >= self.due_ns + period_ns
+    }
+}
+
+/// What a trace was recorded for: checked against the scenario of a replay.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TraceHead {
+    /// Base tick (s).
+    pub dt_s: f64,
+    /// Plant steps.
+    pub steps: u64,
+    /// Controller period in ticks.
+    pub controller_period_ticks: u64,
+    /// The common start instant (CLOCK_MONOTONIC ns).
+    pub start_ns: u64,
+}
+
+/// Writes `timing.csv` (streamed, one line per step as the orchestrator records it).
+pub struct TraceWriter {
+    out: std::io::BufWriter<std::fs::File>,
+    dt_ns: f64,
+    period_ticks: u64,
+}
+
+fn opt(v: Option<i64>) -> String {
+    v.map(|v| v.to_string()).unwrap_or_default()
+}
+
+impl TraceWriter {
+    /// Creates the file with its head line and column names.
+    pub fn create(path: &Path, head: &TraceHead) -> std::io::Result<Self> {
+        let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+        writeln!(
+            out,
+            "# tiltsim timing trace: dt_s={} steps={} controller_period_ticks={} start_ns={}",
+            head.dt_s, head.steps, head.controller_period_ticks, head.start_ns
+        )?;
+        writeln!(out, "{COLUMNS}")?;
+        Ok(TraceWriter {
+            out,
+            dt_ns: head.dt_s * 1e9,
+            period_ticks: head.controller_period_ticks,
+        })
+    }
+
+    /// Appends one step.
+    pub fn push(&mut self, t: &StepTrace) -> std::io::Result<()> {
+        let ticks = if t.role == Role::Controller {
+            self.period_ticks
+        } else {
+            1
+        };
+        let period_ns = (self.dt_ns * ticks as f64).round() as u64;
+        let ages: Vec<String> = Role::ALL
+            .iter()
+            .map(|&p| opt(t.from[col(p)].map(|f| age(p, t.step, f))))
+            .collect();
+        writeln!(
+            self.out,
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            t.role.name(),
+            t.step,
+            opt(t.from[0]),
+            opt(t.from[1]),
+            opt(t.from[2]),
+            ages[0],
+            ages[1],
+            ages[2],
+            t.due_ns,
+            t.read_ns,
+            t.compute_end_ns,
+            t.publish_ns,
+            u8::from(t.late_start(period_ns)),
+            u8::from(t.late_finish(period_ns)),
+        )
+    }
+
+    /// Flushes the file.
+    pub fn finish(mut self) -> std::io::Result<()> {
+        self.out.flush()
+    }
+}
+
+/// Why a trace cannot be replayed: the file, the field and what was expected.
+#[derive(Debug, thiserror::Error)]
+#[error("{file}: {field}: {what}")]
+pub struct TraceError {
+    /// The trace file.
+    pub file: String,
+    /// The field (head key, or `line N: column`).
+    pub field: String,
+    /// What is wrong and what is allowed.
+    pub what: String,
+}
+
+/// Reads a trace and checks it against the steps a scenario of `dt_s`, `steps` and
+/// `controller_period_ticks` has: the head must match, every consumer step must appear
+/// exactly once, and every input must name a producer step that exists.
+pub fn read(
+    path: &Path,
+    dt_s: f64,
+    steps: u64,
+    controller_period_ticks: u64,
+) -> Result<(TraceHead, Vec<StepTrace>), TraceError> {
+    let file = path.display().to_string();
+    let err = |field: String, what: String| TraceError {
+        file: file.clone(),
+        field,
+        what,
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| err("file".into(), e.to_string()))?;
+    let mut lines = text.lines();
+    let head_line = lines.next().unwrap_or_default();
+    let head = parse_head(head_line).ok_or_else(|| {
+        err(
+            "line 1".into(),
+            "expected `# tiltsim timing trace: dt_s=.. steps=.. controller_period_ticks=.. start_ns=..`"
+                .into(),
+        )
+    })?;
+    if head.dt_s != dt_s {
+        return Err(err(
+            "dt_s".into(),
+            format!(
+                "{} in the trace; the scenario has run.dt_s = {dt_s}",
+                head.dt_s
+            ),
+        ));
+    }
+    if head.steps != steps {
+        return Err(err(
+            "steps".into(),
+            format!(
+                "{} in the trace; the scenario has {steps} steps (run.duration_s / run.dt_s)",
+                head.steps
+            ),
+        ));
+    }
+    if head.controller_period_ticks != controller_period_ticks {
+        return Err(err(
+            "controller_period_ticks".into(),
+            format!(
+                "{} in the trace; the scenario's controller.period_s is {controller_period_ticks} ticks",
+                head.controller_period_ticks
+            ),
+        ));
+    }
+    if lines.next() != Some(COLUMNS) {
+        return Err(err(
+            "line 2".into(),
+            format!("expected the columns `{COLUMNS}`"),
+        ));
+    }
+    let mut out = Vec::new();
+    let counts = [steps, steps, steps.div_ceil(controller_period_ticks)];
+    let mut seen = [
+        vec![false; counts[0] as usize],
+        vec![false; counts[1] as usize],
+        vec![false; counts[2] as usize],
+    ];
+    for (i, line) in lines.enumerate() {
+        let n = i + 3;
+        let cells: Vec<&str> = line.split(',').collect();
+        if cells.len() != 14 {
+            return Err(err(format!("line {n}"), "expected 14 columns".into()));
+        }
+        let role = Role::parse(cells[0]).ok_or_else(|| {
+            err(
+                format!("line {n}: role"),
+                "plant, actuator or controller".into(),
+            )
+        })?;
+        let int = |c: usize, name: &str| -> Result<u64, TraceError> {
+            cells[c]
+                .parse::<u64>()
+                .map_err(|_| err(format!("line {n}: {name}"), "a whole number".into()))
+        };
+        let step = int(1, "step")?;
+        let ticks = if role == Role::Controller {
+            controller_period_ticks
+        } else {
+            1
+        };
+        let idx = step / ticks;
+        if !step.is_multiple_of(ticks) || idx >= counts[col(role)] {
+            return Err(err(
+                format!("line {n}: step"),
+                format!("{step} is not a step of the {role} in this scenario"),
+            ));
+        }
+        if std::mem::replace(&mut seen[col(role)][idx as usize], true) {
+            return Err(err(
+                format!("line {n}: step"),
+                format!("{role} step {step} appears twice"),
+            ));
+        }
+        let mut from = [None; 3];
+        for &p in inputs_of(role) {
+            let c = 2 + col(p);
+            let name = format!("from_{}", p.name());
+            let v: i64 = cells[c]
+                .parse()
+                .map_err(|_| err(format!("line {n}: {name}"), "a step number or -1".into()))?;
+            let pticks = if p == Role::Controller {
+                controller_period_ticks
+            } else {
+                1
+            };
+            let ok = v == -1
+                || (v >= 0
+                    && (v as u64).is_multiple_of(pticks)
+                    && (v as u64) / pticks < counts[col(p)]);
+            if !ok {
+                return Err(err(
+                    format!("line {n}: {name}"),
+                    format!("{v} is not a step of the {p} in this scenario"),
+                ));
+            }
+            from[col(p)] = Some(v);
+        }
+        out.push(StepTrace {
+            role,
+            step,
+            from,
+            due_ns: int(8, "due_ns")?,
+            read_ns: int(9, "read_ns")?,
+            compute_end_ns: int(10, "compute_end_ns")?,
+            publish_ns: int(11, "publish_ns")?,
+        });
+    }
+    for r in Role::ALL {
+        if let Some(missing) = seen[col(r)].iter().position(|s| !s) {
+            let ticks = if r == Role::Controller {
+                controller_period_ticks
+            } else {
+                1
+            };
+            return Err(err(
+                "step".into(),
+                format!("{r} step {} is missing", missing as u64 * ticks),
+            ));
+        }
+    }
+    Ok((head, out))
+}
+
+fn parse_head(line: &str) -> Option<TraceHead> {
+    let rest = line.strip_prefix("# tiltsim timing trace:")?;
+    let mut dt_s = None;
+    let mut steps = None;
+    let mut period = None;
+    let mut start = None;
+    for kv in rest.split_whitespace() {
+        let (k, v) = kv.split_once('=')?;
+        match k {
+            "dt_s" => dt_s = v.parse().ok(),
+            "steps" => steps = v.parse().ok(),
+            "controller_period_ticks" => period = v.parse().ok(),
+            "start_ns" => start = v.parse().ok(),
+            _ => return None,
+        }
+    }
+    Some(TraceHead {
+        dt_s: dt_s?,
+        steps: steps?,
+        controller_period_ticks: period?,
+        start_ns: start?,
+    })
+}

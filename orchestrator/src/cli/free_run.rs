@@ -1,0 +1,193 @@
+//! `tiltsim run SCENARIO --free-run` (or `run.execution = "free"`): the free-running mode's
+//! files and report; and `tiltsim replay-timing DIR`: its exact lock-step replay.
+
+use std::path::{Path, PathBuf};
+
+use super::common::{interrupt_and_exe, load, write_json, TransportArg};
+use super::error::{CliError, CliResult};
+use tiltsim_master::engine::{RunOptions, Status};
+use tiltsim_master::free::{FreeError, FreeReport};
+use tiltsim_master::scenario::{Execution, Scenario, Transport};
+
+/// Fields of a free run's `summary.json` measured on the wall clock (they differ on every
+/// run; a free run's values do too, which is why its replay is what repeats).
+const WALL_CLOCK_FIELDS: &[&str] = &[
+    "wall_time_s",
+    "not_real_time",
+    "plant_max_lateness_s",
+    "free_run",
+];
+
+fn of_free(e: FreeError) -> CliError {
+    match e {
+        FreeError::Trace(t) => CliError::Invalid(t.to_string()),
+        FreeError::Run(r) => CliError::of_run(r, ""),
+        FreeError::Link(l) => CliError::Failed(l.to_string()),
+    }
+}
+
+/// Runs `s` free and writes `summary.json` and `perf.json` beside the trace.
+pub fn exec(s: &Scenario, scenario_file: &Path, opts: &RunOptions, quiet: bool) -> CliResult {
+    let out = opts.out_dir.clone();
+    let r: FreeReport = tiltsim_master::free::run(s, opts).map_err(of_free)?;
+    let summary = serde_json::json!({
+        "tiltsim_version": env!("CARGO_PKG_VERSION"),
+        "scenario": s.name,
+        "scenario_file": scenario_file.display().to_string(),
+        "seed": s.run.seed,
+        "transport": s.run.transport,
+        "execution": Execution::Free,
+        "status": r.status,
+        "error": r.error,
+        "dt_s": s.run.dt_s,
+        "steps_planned": s.steps(),
+        "steps_completed": r.steps_completed,
+        "simulated_time_s": r.steps_completed as f64 * s.run.dt_s,
+        "wall_time_s": r.wall_time_s,
+        "not_real_time": r.not_real_time,
+        "not_real_time_margin_s": r.not_real_time_margin_s,
+        "plant_max_lateness_s": r.plant_max_lateness_s,
+        "timing_trace": tiltsim_master::free::trace::TIMING_CSV,
+        "exits": r.exits,
+        "ipc_prefix": r.ipc_prefix,
+        "leftover_ipc_files": r.leftover_ipc_files,
+        "wall_clock_fields": WALL_CLOCK_FIELDS,
+    });
+    let perf = serde_json::json!({
+        "scenario": s.name,
+        "execution": Execution::Free,
+        "steps_completed": r.steps_completed,
+        "wall_time_s": r.wall_time_s,
+        "not_real_time": r.not_real_time,
+        "plant_max_lateness_s": r.plant_max_lateness_s,
+        "free_run": {
+            "participants": r.participants,
+            "input_age_ticks": r.input_age_ticks,
+        },
+    });
+    write_json(&out.join("summary.json"), &summary)?;
+    write_json(&out.join("perf.json"), &perf)?;
+    if !quiet {
+        let plant = &r.participants["plant"];
+        println!(
+            "{}: free run, {} of {} steps in {:.2} s; plant start lateness p50 {} µs, p99 {} µs, max {} µs, {} late steps{}",
+            s.name,
+            r.steps_completed,
+            s.steps(),
+            r.wall_time_s,
+            plant["start_lateness_us"]["p50"],
+            plant["start_lateness_us"]["p99"],
+            plant["start_lateness_us"]["max"],
+            plant["late_starts"],
+            if r.not_real_time { "; NOT REAL-TIME" } else { "" }
+        );
+        println!("  {}", out.join("timing.csv").display());
+    }
+    match r.status {
+        Status::Completed | Status::Degraded => Ok(()),
+        Status::Failed => Err(CliError::Failed(format!(
+            "{}; {} of {} steps recorded in {}",
+            r.error.as_deref().unwrap_or("run failed"),
+            r.steps_completed,
+            s.steps(),
+            out.join("timeseries.csv").display()
+        ))),
+        Status::Interrupted => Err(CliError::Interrupted(format!(
+            "interrupted: {} of {} steps recorded",
+            r.steps_completed,
+            s.steps()
+        ))),
+    }
+}
+
+/// Arguments of `replay-timing`.
+#[derive(clap::Args, Debug)]
+pub struct ReplayTimingArgs {
+    /// Directory of a free run (`tiltsim run SCENARIO --free-run`): its timing.csv and
+    /// scenario.toml.
+    run_dir: PathBuf,
+    /// Scenario to replay the recorded timing with [default: RUN_DIR/scenario.toml]; another
+    /// controller or other gains see the same timing.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Participants in this process (default) or as processes over iceoryx2.
+    #[arg(long, value_enum)]
+    transport: Option<TransportArg>,
+    /// Output directory [default: RUN_DIR/replay-timing].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Print nothing but errors.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// Runs `replay-timing`.
+pub fn replay_timing(a: ReplayTimingArgs) -> CliResult {
+    let file = a
+        .scenario
+        .clone()
+        .unwrap_or_else(|| a.run_dir.join("scenario.toml"));
+    let mut s = load(&file)?;
+    // The replay is a lock-step run; a study's busy wait changes no value.
+    s.run.execution = Execution::LockStep;
+    s.run.controller_busy_wait_s = 0.0;
+    s.run.transport = a
+        .transport
+        .map(Transport::from)
+        .unwrap_or(Transport::InProcess);
+    let errors = s.validate();
+    if !errors.is_empty() {
+        let lines: Vec<String> = errors
+            .iter()
+            .map(|e| format!("{}: {e}", file.display()))
+            .collect();
+        return Err(CliError::Invalid(lines.join("\nerror: ")));
+    }
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| a.run_dir.join("replay-timing"));
+    let _lock = tiltsim_master::outdir::claim_run(&out, "run")
+        .map_err(|e| CliError::Invalid(e.to_string()))?;
+    let (interrupt, exe) = interrupt_and_exe()?;
+    let opts = RunOptions {
+        out_dir: out.clone(),
+        participant_exe: exe,
+        participant_overrides: Vec::new(),
+        ipc_prefix: None,
+        interrupt,
+        plots: false,
+        trace: false,
+        pace: None,
+        realtime: None,
+        machine_progress: false,
+        record: false,
+        keep_rows: false,
+        timing: true,
+    };
+    let trace = a.run_dir.join(tiltsim_master::free::trace::TIMING_CSV);
+    let r = tiltsim_master::free::replay(&s, &trace, &opts).map_err(of_free)?;
+    write_json(
+        &out.join("summary.json"),
+        &serde_json::json!({
+            "scenario": s.name,
+            "scenario_file": file.display().to_string(),
+            "timing_trace": trace.display().to_string(),
+            "transport": s.run.transport,
+            "status": Status::Completed,
+            "steps_completed": r.steps_completed,
+            "exchanges": r.exchanges,
+        }),
+    )?;
+    if !a.quiet {
+        println!(
+            "{}: {} steps replayed from {} ({} exchanges) into {}",
+            s.name,
+            r.steps_completed,
+            trace.display(),
+            r.exchanges,
+            out.join("timeseries.csv").display()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,337 @@
+//! The free-running mode and its exact lock-step replay (docs/architecture.md, "Execution
+//! modes"). Nothing here asserts a wall-clock time or an age distribution: a free run on a
+//! loaded machine is late, not failed. What is asserted holds whatever the load: the replay
+//! gives the free run's bytes, causality in the trace (an input is read only after it was
+//! published), and a study busy wait that lies between a controller's read and its publish.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use tiltsim_suite::{leftovers, prefix, run, scenario, summary, temp_dir};
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// One line of `timing.csv`.
+#[derive(Debug, Clone)]
+struct Step {
+    role: String,
+    step: i64,
+    /// Producer step read, by producer name.
+    from: HashMap<String, i64>,
+    due: u64,
+    read: u64,
+    compute_end: u64,
+    publish: u64,
+}
+
+fn read_trace(dir: &Path) -> Vec<Step> {
+    let text = std::fs::read_to_string(dir.join("timing.csv")).expect("timing.csv");
+    let mut lines = text.lines();
+    assert!(lines.next().unwrap().starts_with("# tiltsim timing trace:"));
+    let cols: Vec<&str> = lines.next().unwrap().split(',').collect();
+    lines
+        .map(|l| {
+            let c: Vec<&str> = l.split(',').collect();
+            let at = |n: &str| c[cols.iter().position(|x| *x == n).unwrap()];
+            let mut from = HashMap::new();
+            for p in ["plant", "actuator", "controller"] {
+                let v = at(&format!("from_{p}"));
+                if !v.is_empty() {
+                    from.insert(p.to_string(), v.parse().unwrap());
+                }
+            }
+            Step {
+                role: at("role").to_string(),
+                step: at("step").parse().unwrap(),
+                from,
+                due: at("due_ns").parse().unwrap(),
+                read: at("read_ns").parse().unwrap(),
+                compute_end: at("compute_end_ns").parse().unwrap(),
+                publish: at("publish_ns").parse().unwrap(),
+            }
+        })
+        .collect()
+}
+
+/// A free run of pi-drive over IPC for `duration` s with `extra` arguments; must complete.
+fn free_run(name: &str, duration: &str, extra: &[&str]) -> (PathBuf, String) {
+    let out = temp_dir(name).join("free");
+    let pre = prefix(name);
+    let sc = scenario("pi-drive.toml");
+    let mut args = vec![
+        "run",
+        s(&sc),
+        "--free-run",
+        "--duration",
+        duration,
+        "--out",
+        s(&out),
+        "--ipc-prefix",
+        &pre,
+        "-q",
+    ];
+    args.extend_from_slice(extra);
+    let (code, _, err) = run(&args);
+    assert_eq!(code, 0, "{name}: {err}");
+    assert!(
+        leftovers(&pre).is_empty(),
+        "{name}: shared-memory files left"
+    );
+    (out, pre)
+}
+
+fn replay(dir: &Path, out: &Path, extra: &[&str]) -> (i32, String) {
+    let mut args = vec!["replay-timing", s(dir), "--out", s(out), "-q"];
+    args.extend_from_slice(extra);
+    let (code, _, err) = run(&args);
+    (code, err)
+}
+
+fn bytes(p: &Path) -> Vec<u8> {
+    std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+/// Every step of every consumer is in the trace once, started no earlier than it was due, and
+/// read only outputs that had been published before its read instant (causality of the relay:
+/// a producer's output reaches the hub, then the consumer, after it was published).
+fn check_trace(t: &[Step], steps: i64, controller_ticks: i64) {
+    let mut by: HashMap<(String, i64), &Step> = HashMap::new();
+    for x in t {
+        assert!(
+            by.insert((x.role.clone(), x.step), x).is_none(),
+            "{} step {} twice",
+            x.role,
+            x.step
+        );
+        assert!(
+            x.read >= x.due,
+            "{} step {} read before it was due",
+            x.role,
+            x.step
+        );
+        assert!(x.read <= x.compute_end && x.compute_end <= x.publish);
+    }
+    for k in 0..steps {
+        assert!(by.contains_key(&("plant".into(), k)));
+        assert!(by.contains_key(&("actuator".into(), k)));
+        if k % controller_ticks == 0 {
+            assert!(by.contains_key(&("controller".into(), k)));
+        }
+    }
+    for x in t {
+        for (p, &q) in &x.from {
+            if q >= 0 {
+                let src = by[&(p.clone(), q)];
+                assert!(
+                    src.publish <= x.read,
+                    "{} step {} read {p} step {q} before it was published",
+                    x.role,
+                    x.step
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_free_run_is_replayed_byte_for_byte_in_process_and_over_ipc_and_with_another_system() {
+    let (dir, _) = free_run("freerun-replay", "2", &[]);
+    let trace = read_trace(&dir);
+    check_trace(&trace, 2000, 1);
+    let sm = summary(&dir);
+    assert_eq!(sm["status"], "completed");
+    assert_eq!(sm["steps_completed"], 2000);
+    assert!(sm["not_real_time"].is_boolean());
+    // perf.json: an age distribution per link over every step of its consumer.
+    let perf: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("perf.json")).unwrap()).unwrap();
+    for link in ["actuator_command", "bar_angle", "measurement", "bar_twist"] {
+        let n: i64 = perf["free_run"]["input_age_ticks"][link]["counts"]
+            .as_array()
+            .unwrap_or_else(|| panic!("{link} has no age counts"))
+            .iter()
+            .map(|p| p[1].as_i64().unwrap())
+            .sum();
+        assert_eq!(n, 2000, "{link}: one age per consumer step");
+    }
+    let free = bytes(&dir.join("timeseries.csv"));
+    assert_eq!(free.iter().filter(|&&b| b == b'\n').count(), 2001);
+
+    let root = temp_dir("freerun-replay-out");
+    let (code, err) = replay(&dir, &root.join("in-process"), &[]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(bytes(&root.join("in-process/timeseries.csv")), free);
+    let (code, err) = replay(&dir, &root.join("ipc"), &["--transport", "ipc"]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(bytes(&root.join("ipc/timeseries.csv")), free);
+
+    // The replay follows the trace: plant step 1000 told it read the bar angle at t₀ instead
+    // gives other rows from there on, and the same rows before.
+    let edited = root.join("edited");
+    std::fs::create_dir_all(&edited).unwrap();
+    std::fs::copy(dir.join("scenario.toml"), edited.join("scenario.toml")).unwrap();
+    let text = std::fs::read_to_string(dir.join("timing.csv")).unwrap();
+    let changed: Vec<String> = text
+        .lines()
+        .map(|l| {
+            if l.starts_with("plant,1000,") {
+                let mut c: Vec<&str> = l.split(',').collect();
+                c[3] = "-1";
+                c.join(",")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect();
+    std::fs::write(edited.join("timing.csv"), changed.join("\n") + "\n").unwrap();
+    let (code, err) = replay(&edited, &root.join("edited-out"), &[]);
+    assert_eq!(code, 0, "{err}");
+    let other = bytes(&root.join("edited-out/timeseries.csv"));
+    let lines = |b: &[u8]| {
+        String::from_utf8_lossy(b)
+            .lines()
+            .map(String::from)
+            .collect::<Vec<_>>()
+    };
+    let (a, b) = (lines(&free), lines(&other));
+    assert_eq!(a[..1001], b[..1001], "rows before step 1000 are unchanged");
+    assert_ne!(a[1001..], b[1001..], "the edited step changes what follows");
+
+    // Another system under the same timing: twice the PI gain. Same time base, other commands.
+    let resolved = std::fs::read_to_string(dir.join("scenario.toml")).unwrap();
+    assert!(resolved.contains("\nkp = 0.5708\n"));
+    let stiffer = root.join("stiffer.toml");
+    std::fs::write(
+        &stiffer,
+        resolved.replace("\nkp = 0.5708\n", "\nkp = 1.1416\n"),
+    )
+    .unwrap();
+    let (code, err) = replay(&dir, &root.join("kp"), &["--scenario", s(&stiffer)]);
+    assert_eq!(code, 0, "{err}");
+    let kp = tiltsim_suite::Series::read(&root.join("kp/timeseries.csv"));
+    let base = tiltsim_suite::Series::read(&dir.join("timeseries.csv"));
+    assert_eq!(kp.col("t"), base.col("t"));
+    assert_ne!(kp.col("delta_a_cmd"), base.col("delta_a_cmd"));
+
+    // A trace that does not belong to the scenario is refused naming the file and the field.
+    let trace_file = dir.join("timing.csv");
+    let name = trace_file.display().to_string();
+    for (set, field) in [("run.dt_s=0.0005", "dt_s"), ("run.duration_s=1", "steps")] {
+        let other = root.join(format!("foreign-{field}"));
+        std::fs::create_dir_all(&other).unwrap();
+        let (k, v) = set.split_once('=').unwrap();
+        let text = std::fs::read_to_string(dir.join("scenario.toml")).unwrap();
+        let mut doc: toml::Table = toml::from_str(&text).unwrap();
+        let (sec, key) = k.split_once('.').unwrap();
+        doc.get_mut(sec)
+            .and_then(|t| t.as_table_mut())
+            .unwrap()
+            .insert(key.into(), toml::Value::Float(v.parse().unwrap()));
+        let file = other.join("scenario.toml");
+        std::fs::write(&file, toml::to_string(&doc).unwrap()).unwrap();
+        let (code, err) = replay(&dir, &other.join("out"), &["--scenario", s(&file)]);
+        assert_eq!(code, 2, "{field}: {err}");
+        assert!(err.contains(&name) && err.contains(field), "{field}: {err}");
+    }
+    let gap = root.join("gap");
+    std::fs::create_dir_all(&gap).unwrap();
+    std::fs::copy(dir.join("scenario.toml"), gap.join("scenario.toml")).unwrap();
+    let kept: Vec<&str> = text
+        .lines()
+        .filter(|l| !l.starts_with("actuator,500,"))
+        .collect();
+    std::fs::write(gap.join("timing.csv"), kept.join("\n") + "\n").unwrap();
+    let (code, err) = replay(&gap, &root.join("gap-out"), &[]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("timing.csv") && err.contains("step") && err.contains("actuator step 500"),
+        "{err}"
+    );
+}
+
+#[test]
+fn an_injected_controller_delay_shows_in_the_input_ages_and_is_replayed() {
+    // A 10 ms controller given 4 ms of extra compute per step.
+    let (dir, _) = free_run(
+        "freerun-delay",
+        "2",
+        &[
+            "--set",
+            "controller.period_s=0.01",
+            "--set",
+            "run.controller_busy_wait_s=0.004",
+        ],
+    );
+    let trace = read_trace(&dir);
+    check_trace(&trace, 2000, 10);
+    let delay = 4_000_000;
+    let read_of: HashMap<i64, u64> = trace
+        .iter()
+        .filter(|x| x.role == "controller")
+        .map(|x| {
+            assert!(
+                x.publish - x.read >= delay,
+                "controller step {} without its delay",
+                x.step
+            );
+            (x.step, x.read)
+        })
+        .collect();
+    // Every command the actuator read is at least the delay older than the controller's read
+    // of the measurement it came from (the delay lies between that read and the publish).
+    let mut read_commands = 0;
+    for x in trace.iter().filter(|x| x.role == "actuator") {
+        let q = x.from["controller"];
+        if q >= 0 {
+            read_commands += 1;
+            assert!(x.read - read_of[&q] >= delay, "actuator step {}", x.step);
+        }
+    }
+    assert!(read_commands > 0);
+    let out = temp_dir("freerun-delay-out").join("replay");
+    let (code, err) = replay(&dir, &out, &[]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(
+        bytes(&out.join("timeseries.csv")),
+        bytes(&dir.join("timeseries.csv"))
+    );
+}
+
+#[test]
+fn free_running_is_refused_in_process_and_with_what_it_does_not_apply() {
+    let sc = scenario("pi-drive.toml");
+    let out = temp_dir("freerun-refused");
+    let (code, _, err) = run(&[
+        "run",
+        s(&sc),
+        "--free-run",
+        "--transport",
+        "in-process",
+        "--out",
+        s(&out),
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("run.execution") && err.contains("ipc"),
+        "{err}"
+    );
+    let delayed = scenario("latency-command-delay.toml");
+    let (code, _, err) = run(&["run", s(&delayed), "--free-run", "--out", s(&out)]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("run.execution") && err.contains("[links]"),
+        "{err}"
+    );
+    let (code, _, err) = run(&[
+        "run",
+        s(&sc),
+        "--set",
+        "run.controller_busy_wait_s=0.001",
+        "--out",
+        s(&out),
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("run.controller_busy_wait_s"), "{err}");
+}
