@@ -1,0 +1,89 @@
+//! The hub and its endpoints against participants in threads of this process.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use super::*;
+use crate::endpoint::Endpoint;
+use crate::msg::{FromController, Header, Kind, ToController};
+use crate::participant::Participant;
+use crate::wait::WaitStrategy;
+
+/// Doubles the measurement and counts its steps.
+struct Doubler(Arc<AtomicU64>);
+impl Participant for Doubler {
+    type Input = ToController;
+    type Output = FromController;
+    const ROLE: Role = Role::Controller;
+    fn initial_output(&mut self) -> FromController {
+        FromController::default()
+    }
+    fn step(&mut self, i: &ToController) -> FromController {
+        self.0.fetch_add(1, Ordering::Relaxed);
+        FromController {
+            theta_v_hat: 2.0 * i.theta_v_meas,
+            ..Default::default()
+        }
+    }
+}
+
+#[test]
+fn a_lost_request_and_a_lost_reply_are_resent_and_the_model_steps_once_each() {
+    let prefix = super::super::unique_prefix();
+    let hub = IpcHub::new(IpcSettings {
+        prefix: prefix.clone(),
+        wait: WaitStrategy::Adaptive,
+        deadline: Duration::from_millis(500),
+        ceiling: Duration::from_secs(600),
+        participant_cpu: None,
+    })
+    .unwrap();
+    let mut ep = hub
+        .attach::<ToController, FromController>(Role::Controller)
+        .unwrap();
+    // The orchestrator loses its first sending of step 3's request, the participant its
+    // first sending of step 5's reply.
+    ep.drops = DropPlan::new(vec![(Role::Controller, true, 3)]);
+    let steps = Arc::new(AtomicU64::new(0));
+    let (model, pfx) = (Doubler(steps.clone()), prefix.clone());
+    let served = std::thread::spawn(move || {
+        super::super::serve::serve_dropping(
+            model,
+            &pfx,
+            WaitStrategy::Adaptive,
+            crate::wait::SPIN_POLLS,
+            super::super::IDLE_LIMIT,
+            |_| {},
+            DropPlan::new(vec![(Role::Controller, false, 5)]),
+        )
+    });
+    assert!(ep.await_connection(Duration::from_secs(600), None).unwrap());
+    for k in 0..8u64 {
+        let req = ToController {
+            header: Header::new(k, Kind::Step),
+            theta_v_meas: k as f64,
+            ..Default::default()
+        };
+        ep.send(&req).unwrap();
+        let reply = ep.receive(k, Kind::Step).unwrap();
+        assert_eq!(reply.theta_v_hat, 2.0 * k as f64, "step {k}");
+    }
+    // Every step computed once: the repeat of step 5 was answered from the last reply.
+    assert_eq!(steps.load(Ordering::Relaxed), 8);
+    let c = ep.counts().lost_samples;
+    assert_eq!((c.lost_requests, c.lost_replies), (1, 1), "{c:?}");
+    // One re-send per loss; more only if a slow answer met a look under heavy load.
+    assert!(c.resends >= 2 && c.repeats_answered >= 1, "{c:?}");
+    let _ = super::super::publish(
+        &ep.publisher,
+        ToController {
+            header: Header::new(u64::MAX, Kind::Stop),
+            ..Default::default()
+        },
+    );
+    served.join().unwrap().unwrap();
+    drop(ep);
+    drop(hub);
+    super::super::remove_run_files(&prefix);
+    assert!(super::super::leftover_files(&prefix).is_empty());
+}
