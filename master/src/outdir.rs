@@ -38,16 +38,18 @@ use serde::{Deserialize, Serialize};
 /// The lock file's name inside an output directory.
 pub const LOCK_FILE: &str = ".tiltsim.lock";
 
-/// Files a run writes at the top of its directory (engine, analysis, `tiltsim run`,
-/// `tiltsim export-mcap`).
-pub const RUN_FILES: [&str; 7] = [
+/// Files a run writes at the top of its directory (engine, analysis, `tiltsim run`, a free
+/// run's `timing.csv`, `tiltsim export-mcap`, and `scripts/to-rerun.py`'s `run.rrd`).
+pub const RUN_FILES: [&str; 9] = [
     "timeseries.csv",
     "summary.json",
     "perf.json",
     "events.csv",
     "scenario.toml",
     "trace.csv",
+    "timing.csv",
     "run.mcap",
+    "run.rrd",
 ];
 /// Figures of a run in `plots/` (`.svg` and `.png` each): the run's charts and, with
 /// `--trace`, the latency histogram.
@@ -569,6 +571,7 @@ mod tests {
         for f in [
             "run.mcap",
             "trace.csv",
+            "timing.csv",
             ".summary.json.77.tmp",
             "notes.txt",
             "plots/body_roll.png",
@@ -578,9 +581,10 @@ mod tests {
         ] {
             std::fs::write(d.join(f), "x").unwrap();
         }
-        assert_eq!(clear_run(&d).unwrap(), 6);
+        assert_eq!(clear_run(&d).unwrap(), 7);
         assert!(d.join("notes.txt").exists() && d.join("plots/mine.svg").exists());
         assert!(!d.join("run.mcap").exists() && !d.join("replay-plant").exists());
+        assert!(!d.join("timing.csv").exists());
         let _ = std::fs::remove_dir_all(&d);
     }
 }
