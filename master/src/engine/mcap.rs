@@ -219,7 +219,10 @@ impl McapRecorder {
         let opts = mcap::WriteOptions::new()
             .library(concat!("tiltsim ", env!("CARGO_PKG_VERSION")))
             .profile("")
-            .compression(Some(mcap::Compression::Zstd));
+            .compression(Some(mcap::Compression::Zstd))
+            // zstd's fastest level: half the CPU of its default (3) on a paper-mpc recording
+            // (0.07 against 0.15 s for 26 MB of JSON) at a like size.
+            .compression_level(1);
         let mut out = opts.create(file).map_err(|e| named(path, e))?;
         let mut add = |topic: &str, fields: &[&str], extra: Option<&str>| {
             let text = match extra {
