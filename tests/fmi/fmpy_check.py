@@ -22,9 +22,16 @@ from mcap.reader import make_reader
 STATE = ["y_v", "theta_v", "y_b", "theta_b", "dy_v", "dtheta_v", "dy_b", "dtheta_b", "theta_r"]
 
 
+# Recorded fields whose FMU variable has another name: the actuator FMU's own output `limits`
+# is `actuator_limits` in the recording, as in timeseries.csv.
+RENAMED = {"actuator_limits": "limits"}
+
+
 def fmu_name(field):
     """The FMU variable of a recorded field (the plant's state vector x is recorded by name)."""
-    return f"x[{STATE.index(field)}]" if field in STATE else field
+    if field in STATE:
+        return f"x[{STATE.index(field)}]"
+    return RENAMED.get(field, field)
 
 
 def main():
