@@ -94,7 +94,109 @@ for v in sorted(set([round(y0, 2), round(y1, 2)])):
 svg.append("</svg>")
 open(os.path.join(d, "front.svg"), "w").write("\n".join(svg) + "\n")
 PY
+# Free running: paper-mpc and pi-drive on their own clocks, on the machine as it is, with two
+# CPU hogs, and with the controller given extra compute; each replayed in lock-step (the
+# replay must give the free run's bytes), next to the lock-step run and to a lock-step run
+# with the median extra ages declared as link delays.
+f="$o/free"
+mkdir -p "$f"
+hogs=()
+stop_hogs() { for p in "${hogs[@]}"; do kill "$p" 2>/dev/null || true; done; hogs=(); }
+trap stop_hogs EXIT
+for sc in paper-mpc pi-drive; do
+    busy=0.03; [ "$sc" = pi-drive ] && busy=0.0008
+    "$t" run "scenarios/$sc.toml" --transport in-process --out "$f/$sc-lock-step" -q
+    "$t" run "scenarios/$sc.toml" --free-run --out "$f/$sc-quiet" -q
+    for _ in 1 2; do yes > /dev/null & hogs+=($!); done
+    "$t" run "scenarios/$sc.toml" --free-run --out "$f/$sc-hogs" -q || true
+    stop_hogs
+    "$t" run "scenarios/$sc.toml" --free-run --set run.controller_busy_wait_s=$busy \
+        --out "$f/$sc-busy" -q
+    for case in quiet hogs busy; do
+        d="$f/$sc-$case"
+        "$t" replay-timing "$d" --no-plots -q
+        if cmp -s "$d/timeseries.csv" "$d/replay-timing/timeseries.csv"; then
+            echo identical > "$d/replay.txt"
+        else
+            echo DIFFERS > "$d/replay.txt"
+        fi
+        # The median extra age of each input over lock-step Gauss-Seidel, as link delays.
+        python3 - "$d" > "$d/equivalent.toml" <<'PY'
+import csv, statistics, sys
+d = sys.argv[1]
+lines = open(f"{d}/timing.csv").read().splitlines()
+period = int(lines[0].split("controller_period_ticks=")[1].split()[0])
+extra = {"actuator_command": [], "measurement": [], "bar_angle": []}
+for r in csv.DictReader(lines[1:]):
+    step = int(r["step"])
+    if r["role"] == "actuator":
+        extra["actuator_command"].append(int(r["age_controller"]) - step % period)
+    elif r["role"] == "controller":
+        extra["measurement"].append(int(r["age_plant"]))
+    else:
+        extra["bar_angle"].append(int(r["age_actuator"]))
+for link, xs in extra.items():
+    print(f"[links.{link}]\ndelay_ticks = {max(0, round(statistics.median(xs)))}\n")
+PY
+        cat "$f/$sc-lock-step/scenario.toml" > "$d/equivalent-scenario.toml"
+        python3 - "$d/equivalent-scenario.toml" "$d/equivalent.toml" <<'PY'
+import sys, tomllib
+base = open(sys.argv[1]).read()
+add = tomllib.loads(open(sys.argv[2]).read())
+doc = tomllib.loads(base)
+# The lock-step run's resolved scenario has every link written out: set only the delays.
+lines = base.splitlines()
+out = []
+section = None
+for line in lines:
+    s = line.strip()
+    if s.startswith("[") and s.endswith("]"):
+        section = s.strip("[]")
+    out.append(line)
+    if section and section.startswith("links.") and s.startswith("delay_ticks"):
+        name = section.split(".", 1)[1]
+        if name in add["links"]:
+            out[-1] = f"delay_ticks = {add['links'][name]['delay_ticks']}"
+open(sys.argv[1], "w").write("\n".join(out) + "\n")
+PY
+        "$t" run "$d/equivalent-scenario.toml" --transport in-process --out "$d/equivalent" -q
+    done
+done
+stop_hogs
+python3 - "$f" > "$f/free.md" <<'PY'
+import json, os, sys
+f = sys.argv[1]
+def load(p):
+    return json.load(open(p))
+def raised(flags):
+    return ", ".join(k for k, v in flags.items() if isinstance(v, dict) and v.get("raised")) or "clear"
+print("| scenario | case | P_CT standing (%) | peak lateral acc. (%g) | flags | command age p50 / p99 / max (ticks) "
+      "| measurement age p50 / p99 / max | plant late steps | plant lateness max (ms) | not real-time | replay "
+      "| lock-step with the median extra ages as delays: P_CT standing (%) |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+for sc in ["paper-mpc", "pi-drive"]:
+    ref = load(f"{f}/{sc}-lock-step/summary.json")
+    c = ref["comfort"]
+    print(f"| {sc} | lock-step | {c['p_ct']['standing']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
+          f"| {raised(ref['flags'])} | | | | | | | |")
+    for case, label in [("quiet", "free, machine as it is"), ("hogs", "free, two CPU hogs"),
+                        ("busy", "free, controller +extra compute")]:
+        d = f"{f}/{sc}-{case}"
+        s = load(f"{d}/summary.json")
+        p = load(f"{d}/perf.json")["free_run"]
+        ages = p["input_age_ticks"]
+        a = lambda k: f"{ages[k]['p50']} / {ages[k]['p99']} / {ages[k]['max']}"
+        pl = p["participants"]["plant"]
+        eq = load(f"{d}/equivalent/summary.json")["comfort"]["p_ct"]["standing"]
+        c = s["comfort"]
+        print(f"| {sc} | {label} | {c['p_ct']['standing']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
+              f"| {raised(s['flags'])} | {a('actuator_command')} | {a('measurement')} "
+              f"| {pl['late_starts']} | {pl['start_lateness_us']['max'] / 1000:.1f} "
+              f"| {'yes' if s['not_real_time'] else 'no'} | {open(f'{d}/replay.txt').read().strip()} | {eq:.2f} |")
+PY
 mkdir -p docs/figures
+cp "$f/paper-mpc-hogs/plots/timing_input_age.svg" docs/figures/free-run-input-age.svg
+cp "$f/paper-mpc-hogs/plots/timing_lateness.svg" docs/figures/free-run-lateness.svg
 cp "$o/front/front.svg" docs/figures/pi-front.svg
 cp "$o/trade-off/plots/trade_off.svg" docs/figures/trade-off.svg
 while IFS= read -r line; do

@@ -300,13 +300,11 @@ impl Link {
         self.delivered.map_or(first, |(_, val)| val)
     }
 
-    /// Carries value `v` sent at tick `k` (simulated time `t`); returns what the receiver
-    /// gets, and logs what the link did.
-    pub fn carry(&mut self, k: u64, t: f64, v: f64, ev: &mut EventLog) -> f64 {
+    /// What the effects do to the value `v` sent at tick `k` (time `t`): this tick's random
+    /// draws, the window edges logged, whether the sample is lost (and the delay it travels
+    /// with when it is not), and the value as the receiver will see it once delivered.
+    fn effects(&mut self, k: u64, t: f64, v: f64, ev: &mut EventLog) -> Effects {
         let fx = self.fx.clone();
-        if fx.is_identity() {
-            return v;
-        }
         let in_drop_window = fx.drop_window.is_some_and(|w| w.contains(t));
         let freeze = fx.freeze_window.is_some_and(|w| w.contains(t));
         let nan = fx.nan_window.is_some_and(|w| w.contains(t));
@@ -321,10 +319,11 @@ impl Link {
         self.window_edge(1, freeze, k, EventKind::FreezeWindow, ev);
         self.window_edge(2, nan, k, EventKind::NanWindow, ev);
         self.window_edge(3, over.is_some(), k, EventKind::ValueWindow, ev);
-        if dropped {
+        let delay = if dropped {
             if !in_drop_window {
                 ev.push(k, name, EventKind::Drop, v, "sample lost");
             }
+            None
         } else {
             let d = fx.delay_ticks + extra;
             if extra > 0 {
@@ -336,23 +335,60 @@ impl Link {
                     format!("delay {d} ticks"),
                 );
             }
+            Some(d)
+        };
+        Effects {
+            delay,
+            freeze,
+            offset: fx.bias + noise,
+            over: if nan { Some(f64::NAN) } else { over },
+        }
+    }
+
+    /// Carries value `v` sent at tick `k` (simulated time `t`); returns what the receiver
+    /// gets, and logs what the link did.
+    pub fn carry(&mut self, k: u64, t: f64, v: f64, ev: &mut EventLog) -> f64 {
+        if self.fx.is_identity() {
+            return v;
+        }
+        let e = self.effects(k, t, v, ev);
+        if let Some(d) = e.delay {
             self.queue.push_back((k + d, k, v));
         }
         let mut out = self.deliver(k, v);
-        if freeze {
+        if e.freeze {
             out = *self.frozen.get_or_insert(out);
         } else {
             self.frozen = None;
         }
-        out += fx.bias + noise;
-        if let Some(x) = over {
-            out = x;
-        }
-        if nan {
-            out = f64::NAN;
-        }
-        out
+        e.over.unwrap_or(out + e.offset)
     }
+
+    /// One sample of a free run, sent at tick `k` (time `t`) with value `v`, as it travels:
+    /// `None` when it is lost (dropped, or sent inside a freeze window, so the receiver keeps
+    /// the value it holds), else its delay in ticks and the value it arrives with. The same
+    /// random draws as [`Link::carry`] per sample, so a free run and its replay, which pass
+    /// every sample of a link in the order it was sent, agree on every one.
+    pub fn pass(&mut self, k: u64, t: f64, v: f64, ev: &mut EventLog) -> Option<(u64, f64)> {
+        if self.fx.is_identity() {
+            return Some((0, v));
+        }
+        let e = self.effects(k, t, v, ev);
+        let d = e.delay.filter(|_| !e.freeze)?;
+        Some((d, e.over.unwrap_or(v + e.offset)))
+    }
+}
+
+/// What a link's effects do to one sample (see [`Link::effects`]).
+struct Effects {
+    /// Lost (`None`) or delayed by this many ticks.
+    delay: Option<u64>,
+    /// Sent inside a freeze window.
+    freeze: bool,
+    /// Bias and this sample's noise.
+    offset: f64,
+    /// A value that replaces the sample (NaN inside a NaN window).
+    over: Option<f64>,
 }
 
 /// The four links of a run: the manipulator of the values in flight.
@@ -380,6 +416,18 @@ impl LinkSet {
     /// gets.
     pub fn carry(&mut self, id: LinkId, k: u64, t: f64, v: f64, ev: &mut EventLog) -> f64 {
         self.links[id as usize].carry(k, t, v, ev)
+    }
+
+    /// Passes one sample of a free run over link `id` (see [`Link::pass`]).
+    pub fn pass(
+        &mut self,
+        id: LinkId,
+        k: u64,
+        t: f64,
+        v: f64,
+        ev: &mut EventLog,
+    ) -> Option<(u64, f64)> {
+        self.links[id as usize].pass(k, t, v, ev)
     }
 
     /// Start-of-run events describing the static effects.
@@ -519,5 +567,79 @@ mod tests {
         );
         let p = ev.iter().filter(|e| e.kind == EventKind::Drop).count() as f64 / 20_000.0;
         assert!((p - 0.3).abs() < 0.015, "{p}");
+    }
+
+    #[test]
+    fn a_free_runs_sample_gets_the_values_and_draws_of_the_lock_step_link() {
+        // Without delay the two agree sample for sample: the same draws per tick.
+        let fx = LinkEffects {
+            bias: 0.25,
+            noise_std: 0.1,
+            jitter: Jitter::Uniform,
+            jitter_ticks: 3.0,
+            ..Default::default()
+        };
+        let (carried, _) = run(
+            LinkEffects {
+                jitter: Jitter::None,
+                ..fx.clone()
+            },
+            50,
+        );
+        let mut l = Link::new(
+            0,
+            &LinkEffects {
+                jitter: Jitter::None,
+                ..fx.clone()
+            },
+            1,
+        );
+        let mut ev = EventLog::new(1e-3);
+        for (k, c) in carried.iter().enumerate() {
+            let (d, v) = l.pass(k as u64, k as f64 * 1e-3, k as f64, &mut ev).unwrap();
+            assert_eq!((d, v), (0, *c));
+        }
+        // A delay is the fixed part plus the jitter drawn for the sample, within its bound.
+        let mut l = Link::new(
+            0,
+            &LinkEffects {
+                delay_ticks: 5,
+                ..fx
+            },
+            1,
+        );
+        let delays: Vec<u64> = (0..500)
+            .map(|k| l.pass(k, k as f64 * 1e-3, 0.0, &mut ev).unwrap().0)
+            .collect();
+        assert!(delays.iter().all(|d| (5..=8).contains(d)));
+        assert!((5..=8).all(|d| delays.contains(&d)), "every delay in the range drawn");
+        // Samples sent inside a drop or a freeze window are lost; a NaN window gives NaN.
+        let mut l = Link::new(
+            0,
+            &LinkEffects {
+                drop_window: Some(Window {
+                    start_s: 0.002,
+                    end_s: 0.004,
+                }),
+                freeze_window: Some(Window {
+                    start_s: 0.005,
+                    end_s: 0.006,
+                }),
+                nan_window: Some(Window {
+                    start_s: 0.007,
+                    end_s: 0.008,
+                }),
+                ..Default::default()
+            },
+            1,
+        );
+        let got: Vec<Option<(u64, f64)>> = (0..9)
+            .map(|k| l.pass(k, k as f64 * 1e-3, k as f64, &mut ev))
+            .collect();
+        assert_eq!(&got[..5], &[Some((0, 0.)), Some((0, 1.)), None, None, Some((0, 4.))]);
+        assert_eq!(got[5], None);
+        assert_eq!(got[6], Some((0, 6.)));
+        assert!(got[7].is_some_and(|(_, v)| v.is_nan()));
+        assert_eq!(got[8], Some((0, 8.)));
     }
 }

@@ -105,10 +105,37 @@ fn run_inner(
     Ok((summary, kept))
 }
 
+/// What the analysis of a recorded series finds: the quick look, ride comfort and the
+/// validity flags.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Assessment {
+    /// Headline numbers.
+    pub results: QuickLook,
+    /// Ride comfort (Table 4 rows).
+    pub comfort: tiltsim_assessment::comfort::Comfort,
+    /// Whether the numbers are valid.
+    pub flags: tiltsim_assessment::validity::Flags,
+}
+
 /// Fills `results`, `comfort` and `flags` of `summary` from the series recorded in `rows`
-/// (works on partial runs too), in one pass over them with one row in memory at a time (from a
-/// file), so the analysis of an hour-long run needs no more memory than that of a short one.
+/// (see [`assess`]); leaves them as they are when the series cannot be read.
 pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
+    match assess(s, rows) {
+        Ok(a) => {
+            summary.results = a.results;
+            summary.comfort = a.comfort;
+            summary.flags = a.flags;
+        }
+        // Results from part of a series would read as the run's: none are given.
+        Err(e) => tracing::warn!("comfort, flags and results not computed: {e}"),
+    }
+}
+
+/// The quick look, ride comfort and flags of the series recorded in `rows` (works on partial
+/// runs too), in one pass over them with one row in memory at a time (from a file), so the
+/// analysis of an hour-long run needs no more memory than that of a short one. Any run's
+/// series is assessed this way: lock-step, free-running or a replay of one.
+pub fn assess(s: &Scenario, rows: Rows) -> std::io::Result<Assessment> {
     let mut look = QuickLooker::new(s);
     let mut comfort =
         tiltsim_assessment::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort);
@@ -121,7 +148,7 @@ pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
     };
     let mut flags =
         tiltsim_assessment::validity::Flagger::new(s.run.dt_s, s.comfort.bump_stop_m, rating);
-    let scanned = scan(s, rows, |r, x| {
+    scan(s, rows, |r, x| {
         look.push(r);
         comfort.push(x);
         flags.push(&tiltsim_assessment::validity::FlagSample {
@@ -137,15 +164,14 @@ pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
             bar_twist: r.delta_a - r.psi,
             delta_a: r.delta_a,
         });
-    });
-    if let Err(e) = scanned {
-        // Results from part of a series would read as the run's: none are given.
-        tracing::warn!("comfort, flags and results not computed: {e}");
-        return;
-    }
-    summary.results = look.q;
-    summary.comfort = comfort.finish();
-    summary.flags = flags.finish(&summary.comfort);
+    })?;
+    let comfort = comfort.finish();
+    let flags = flags.finish(&comfort);
+    Ok(Assessment {
+        results: look.q,
+        comfort,
+        flags,
+    })
 }
 
 /// The comfort of the ideal tilt on the track of a recorded run: the body follows eq 18

@@ -9,14 +9,15 @@
 //! read instant (`recv_ns`), the compute time including any study busy wait (`compute_ns`),
 //! the publish instant (`sent_ns`) and, in `attempt`, the relay number of the input read (the starting request's is 0, every
 //! later request carries its own in `step`).
-//! A `Stop` request, or an orchestrator that has gone, ends it.
+//! A `Stop` request, or an orchestrator that has gone, ends it; a request flagged as a
+//! scheduled crash aborts the process.
 
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
 use crate::endpoint::LinkError;
-use crate::msg::{now_ns, Kind, Message};
+use crate::msg::{now_ns, Kind, Message, FLAG_CRASH};
 use crate::participant::{Participant, Role, Served};
 use crate::wait::sleep_until_ns;
 
@@ -90,6 +91,10 @@ pub(crate) fn serve_free<P: Participant>(
             match Kind::from_raw(got.header().kind) {
                 Some(Kind::Stop) => return Ok(()),
                 Some(Kind::Step) => {
+                    if got.header().flags & FLAG_CRASH != 0 {
+                        // A scheduled `crash` fault: die as a crashing process does.
+                        std::process::abort();
+                    }
                     input = got;
                     relay = got.header().step;
                 }

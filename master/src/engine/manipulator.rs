@@ -62,18 +62,34 @@ impl FaultSchedule {
                     Role::Controller => ps.controller.inject(fault),
                 }
             }
-            let value = if f.action == FaultAction::Stall {
-                f.stall_s
-            } else {
-                f64::NAN
-            };
-            ev.push(
-                k,
-                role.name(),
-                EventKind::FaultInjected,
-                value,
-                format!("{:?}", f.action).to_lowercase(),
-            );
+            Self::log(k, f, ev);
+        }
+    }
+
+    /// The event of fault `f` applied at tick `k`.
+    fn log(k: u64, f: &ScheduledFault, ev: &mut EventLog) {
+        let value = if f.action == FaultAction::Stall {
+            f.stall_s
+        } else {
+            f64::NAN
+        };
+        ev.push(
+            k,
+            f.participant.name(),
+            EventKind::FaultInjected,
+            value,
+            format!("{:?}", f.action).to_lowercase(),
+        );
+    }
+
+    /// The events [`FaultSchedule::apply`] logs for every fault due at a tick up to `last`,
+    /// in tick order, without applying any (a free run's and its replay's `events.csv`).
+    pub fn log_until(&self, last: u64, ev: &mut EventLog) {
+        let mut due: Vec<&(u64, ScheduledFault)> =
+            self.due.iter().filter(|(at, _)| *at <= last).collect();
+        due.sort_by_key(|(at, _)| *at);
+        for (k, f) in due {
+            Self::log(*k, f, ev);
         }
     }
 }

@@ -1,43 +1,27 @@
 //! What a free run and its replay share, so that they cannot differ: each consumer's input
-//! composed from producer outputs, and the rows of `timeseries.csv` defined from the outputs
-//! and the inputs each step read (never from when the orchestrator relayed them).
+//! composed from producer outputs as the links carried them, and the rows of
+//! `timeseries.csv` defined from the outputs and the inputs each step read (never from when
+//! the orchestrator relayed them).
+//!
+//! Link effects (`[links]`) act on each sample as it travels: every output a producer
+//! publishes is passed, in the order of its steps, through the link to each consumer
+//! ([`crate::links::Link::pass`]), at the tick its value holds from (a plant output of step q
+//! at q + 1, an actuator's or controller's at q, the outputs at t₀ at 0). The link loses it
+//! or delays it by whole ticks of wall time and gives the value it arrives with; which sample
+//! a consumer step read is in the trace, and the value it read is the link's for that
+//! sample, so the replay, passing the same samples in the same order, feeds the same values.
 
 use cosim::msg::{FromActuator, FromController, FromPlant, Header, Kind};
 use cosim::msg::{ToActuator, ToController, ToPlant};
 use cosim::Role;
 
 use super::trace::{col, StepTrace};
+use crate::events::EventLog;
+use crate::links::{LinkId, LinkSet, Links};
 use crate::record::Row;
 
-/// The plant's input from the actuator output `a`.
-pub fn to_plant(a: &FromActuator) -> ToPlant {
-    ToPlant {
-        header: Header::new(0, Kind::Step),
-        delta_a: a.delta_a,
-    }
-}
-
-/// The actuator's input from the controller output `c` and the plant output `p`.
-pub fn to_actuator(c: &FromController, p: &FromPlant) -> ToActuator {
-    ToActuator {
-        header: Header::new(0, Kind::Step),
-        delta_a_cmd: c.delta_a_cmd,
-        psi: p.psi,
-    }
-}
-
-/// The controller's input from the plant output `p`.
-pub fn to_controller(p: &FromPlant) -> ToController {
-    ToController {
-        header: Header::new(0, Kind::Step),
-        t: p.t,
-        s: p.s,
-        theta_v_meas: p.theta_v_meas,
-    }
-}
-
-/// Every output of a run by producer step, and the producer steps each consumer step read.
-#[derive(Debug, Default)]
+/// Every output of a run by producer step, what the links made of each, and the producer
+/// steps each consumer step read.
 pub struct Store {
     /// Controller period in ticks.
     pub period: u64,
@@ -51,11 +35,20 @@ pub struct Store {
     pub c: Vec<Option<FromController>>,
     /// What each step read, per role column, by the role's step index.
     pub read: [Vec<[Option<i64>; 3]>; 3],
+    /// The links, each passed its producer's samples in step order.
+    links: LinkSet,
+    /// Per link ([`LinkId`] order), the value each sample arrived with by sample index (0:
+    /// the output at t₀, i + 1: the producer's step index i); `None` = lost or not yet sent.
+    arrived: [Vec<Option<f64>>; 4],
+    /// What the links did, per link (merged in tick order by [`Store::events`]).
+    events: [EventLog; 4],
+    dt: f64,
 }
 
 impl Store {
-    /// An empty store for `steps` plant steps and a controller of `period` ticks.
-    pub fn new(steps: u64, period: u64) -> Self {
+    /// An empty store for `steps` plant steps of `dt` s, a controller of `period` ticks and
+    /// the links `links` with their random streams from `seed`.
+    pub fn new(steps: u64, period: u64, dt: f64, links: &Links, seed: u64) -> Self {
         let n = steps as usize;
         let nc = steps.div_ceil(period) as usize;
         Store {
@@ -65,7 +58,104 @@ impl Store {
             a: vec![None; n],
             c: vec![None; nc],
             read: [vec![[None; 3]; n], vec![[None; 3]; n], vec![[None; 3]; nc]],
+            links: LinkSet::new(links, seed),
+            arrived: [
+                vec![None; nc + 1],
+                vec![None; n + 1],
+                vec![None; n + 1],
+                vec![None; n + 1],
+            ],
+            events: std::array::from_fn(|_| EventLog::new(dt)),
+            dt,
         }
+    }
+
+    /// Passes sample `index` (0: at t₀) of link `id`, valid from tick `k`, with value `v`;
+    /// returns its delay in ticks, `None` when lost. The outputs at t₀ always arrive: they are
+    /// what every receiver holds from the start.
+    fn pass(&mut self, id: LinkId, index: usize, k: u64, v: f64) -> Option<u64> {
+        let i = id as usize;
+        let got = self
+            .links
+            .pass(id, k, k as f64 * self.dt, v, &mut self.events[i]);
+        let (delay, value) = match got {
+            Some((d, x)) => (Some(d), x),
+            None if index == 0 => (Some(0), v),
+            None => (None, v),
+        };
+        if let Some(slot) = self.arrived[i].get_mut(index) {
+            *slot = delay.map(|_| value);
+        }
+        delay
+    }
+
+    /// Keeps the outputs at t₀ and passes them through their links (every one arrives).
+    pub fn put_init(&mut self, p: FromPlant, a: FromActuator, c: FromController) {
+        self.init = (p, a, c);
+        self.pass(LinkId::Measurement, 0, 0, p.theta_v_meas);
+        self.pass(LinkId::BarTwist, 0, 0, p.psi);
+        self.pass(LinkId::BarAngle, 0, 0, a.delta_a);
+        self.pass(LinkId::ActuatorCommand, 0, 0, c.delta_a_cmd);
+    }
+
+    /// Keeps the plant's output of step `q` and passes it on; returns the delays of its
+    /// samples on the measurement and bar-twist links (`None`: lost).
+    pub fn put_plant(&mut self, q: u64, o: FromPlant) -> [Option<u64>; 2] {
+        let i = q as usize;
+        if let Some(slot) = self.p.get_mut(i) {
+            *slot = Some(o);
+        }
+        [
+            self.pass(LinkId::Measurement, i + 1, q + 1, o.theta_v_meas),
+            self.pass(LinkId::BarTwist, i + 1, q + 1, o.psi),
+        ]
+    }
+
+    /// Keeps the actuator's output of step `q` and passes it on the bar-angle link.
+    pub fn put_actuator(&mut self, q: u64, o: FromActuator) -> Option<u64> {
+        let i = q as usize;
+        if let Some(slot) = self.a.get_mut(i) {
+            *slot = Some(o);
+        }
+        self.pass(LinkId::BarAngle, i + 1, q, o.delta_a)
+    }
+
+    /// Keeps the controller's output of step `q` and passes it on the command link.
+    pub fn put_controller(&mut self, q: u64, o: FromController) -> Option<u64> {
+        let i = (q / self.period) as usize;
+        if let Some(slot) = self.c.get_mut(i) {
+            *slot = Some(o);
+        }
+        self.pass(LinkId::ActuatorCommand, i + 1, q, o.delta_a_cmd)
+    }
+
+    /// The value producer step `q` (−1: at t₀) arrived with over link `id`; `None` when it
+    /// was lost or has not been sent.
+    fn arrived(&self, id: LinkId, q: i64) -> Option<f64> {
+        let index = if q < 0 {
+            0
+        } else if id == LinkId::ActuatorCommand {
+            (q as u64 / self.period) as usize + 1
+        } else {
+            q as usize + 1
+        };
+        *self.arrived[id as usize].get(index)?
+    }
+
+    /// What the links did, in tick order (each link's events in its own order; a tick's
+    /// events in link order), so a free run and its replay write the same `events.csv`.
+    pub fn events(&self) -> EventLog {
+        let mut all = EventLog::new(self.dt);
+        let mut tagged: Vec<(u64, usize, usize)> = Vec::new();
+        for (l, log) in self.events.iter().enumerate() {
+            tagged.extend(log.events.iter().enumerate().map(|(i, e)| (e.step, l, i)));
+        }
+        tagged.sort_unstable();
+        all.events = tagged
+            .into_iter()
+            .map(|(_, l, i)| self.events[l].events[i].clone())
+            .collect();
+        all
     }
 
     /// Index of `role`'s step `step` in its vectors.
@@ -120,27 +210,54 @@ impl Store {
             .unwrap_or(-1)
     }
 
+    /// The input of a plant step that read actuator step `qa`, as the bar-angle link
+    /// delivered it; `None` if that output is not there (yet) or was lost.
+    pub fn plant_input(&self, qa: i64) -> Option<ToPlant> {
+        self.actuator(qa)?;
+        Some(ToPlant {
+            header: Header::new(0, Kind::Step),
+            delta_a: self.arrived(LinkId::BarAngle, qa)?,
+        })
+    }
+    /// The input of an actuator step that read controller step `qc` and plant step `qp`.
+    pub fn actuator_input(&self, qc: i64, qp: i64) -> Option<ToActuator> {
+        self.controller(qc)?;
+        self.plant(qp)?;
+        Some(ToActuator {
+            header: Header::new(0, Kind::Step),
+            delta_a_cmd: self.arrived(LinkId::ActuatorCommand, qc)?,
+            psi: self.arrived(LinkId::BarTwist, qp)?,
+        })
+    }
+    /// The input of a controller step that read plant step `qp`.
+    pub fn controller_input(&self, qp: i64) -> Option<ToController> {
+        let p = self.plant(qp)?;
+        Some(ToController {
+            header: Header::new(0, Kind::Step),
+            t: p.t,
+            s: p.s,
+            theta_v_meas: self.arrived(LinkId::Measurement, qp)?,
+        })
+    }
+
     /// The input of `role`'s step as the trace says it read it; `None` if an output it names
     /// is not there (yet).
     pub fn input_plant(&self, t: &StepTrace) -> Option<ToPlant> {
-        Some(to_plant(self.actuator(t.from[col(Role::Actuator)]?)?))
+        self.plant_input(t.from[col(Role::Actuator)]?)
     }
     /// See [`Store::input_plant`].
     pub fn input_actuator(&self, t: &StepTrace) -> Option<ToActuator> {
-        Some(to_actuator(
-            self.controller(t.from[col(Role::Controller)]?)?,
-            self.plant(t.from[col(Role::Plant)]?)?,
-        ))
+        self.actuator_input(t.from[col(Role::Controller)]?, t.from[col(Role::Plant)]?)
     }
     /// See [`Store::input_plant`].
     pub fn input_controller(&self, t: &StepTrace) -> Option<ToController> {
-        Some(to_controller(self.plant(t.from[col(Role::Plant)]?)?))
+        self.controller_input(t.from[col(Role::Plant)]?)
     }
 
     /// Row `k` of `timeseries.csv`: the plant's output of step `k`, the actuator output that
     /// step read, the controller output that actuator step read, and as the `rx_*` columns
-    /// what each of those steps received (the measurement as the controller step read it, the
-    /// bar twist as the actuator step read it). An output at t₀ read nothing: the outputs at
+    /// what each of those steps received over its link (the measurement as the controller
+    /// step read it, the bar twist as the actuator step read it). An output at t₀ read nothing: the outputs at
     /// t₀ stand for what it would have read. `None` if an output is missing.
     pub fn row(&self, k: u64) -> Option<Row> {
         let p = self.p.get(k as usize)?.as_ref()?;
@@ -150,11 +267,13 @@ impl Store {
         let qp_a = self.read_of(Role::Actuator, qa, Role::Plant);
         let c = self.controller(qc)?;
         let qp_c = self.read_of(Role::Controller, qc, Role::Plant);
+        self.plant(qp_c)?;
+        self.plant(qp_a)?;
         let rx = [
-            c.delta_a_cmd,
-            a.delta_a,
-            self.plant(qp_c)?.theta_v_meas,
-            self.plant(qp_a)?.psi,
+            self.arrived(LinkId::ActuatorCommand, qc)?,
+            self.arrived(LinkId::BarAngle, qa)?,
+            self.arrived(LinkId::Measurement, qp_c)?,
+            self.arrived(LinkId::BarTwist, qp_a)?,
         ];
         Some(Row::new(k, p, a, c, &rx))
     }

@@ -82,16 +82,10 @@ impl Scenario {
             "\"free\" only with run.transport = \"ipc\": in one process the participants have no clocks of their own",
         );
         c.require(
-            self.links == crate::links::Links::default(),
+            self.faults.on_failure == crate::faults::OnFailure::Abort,
             "execution",
             "\"free\"",
-            "\"lock-step\" when [links] sets link effects (free running relays values as they are; link effects are not applied in it yet)",
-        );
-        c.require(
-            self.faults.schedule.is_empty(),
-            "execution",
-            "\"free\"",
-            "\"lock-step\" when [[faults.schedule]] is set (scheduled faults are not applied in free running yet)",
+            "\"lock-step\" when faults.on_failure = \"degrade\" (a free run ends, naming the participant, when one fails; stand-ins replace participants in lock-step only)",
         );
     }
 }
@@ -125,8 +119,36 @@ pub(crate) fn init_all(ps: &mut Participants, store: &mut compose::Store) -> Res
         ..Default::default()
     })?;
     let c: FromController = ps.controller.receive(0, Kind::Init)?;
-    store.init = (p, a, c);
+    store.put_init(p, a, c);
     Ok(())
+}
+
+/// `events.csv` of a free run or its replay with `rows` plant steps: the scheduled faults
+/// that happened and what the links did, in tick order (a tick's faults first, as they happen
+/// before its exchanges).
+pub(crate) fn run_events(
+    s: &Scenario,
+    store: &compose::Store,
+    rows: u64,
+) -> crate::events::EventLog {
+    let mut ev = crate::events::EventLog::new(s.run.dt_s);
+    crate::links::LinkSet::describe(&s.links, &mut ev);
+    crate::engine::manipulator::FaultSchedule::new(&s.faults, s.run.dt_s).log_until(rows, &mut ev);
+    let links = store.events();
+    let mut merged = Vec::with_capacity(ev.events.len() + links.events.len());
+    let mut a = ev.events.into_iter().peekable();
+    let mut b = links.events.into_iter().peekable();
+    loop {
+        let take_a = match (a.peek(), b.peek()) {
+            (Some(x), Some(y)) => x.step <= y.step,
+            (Some(_), None) => true,
+            (None, Some(_)) => false,
+            (None, None) => break,
+        };
+        merged.extend(if take_a { a.next() } else { b.next() });
+    }
+    ev.events = merged;
+    ev
 }
 
 /// Writes `dir/timeseries.csv` from the store: rows 0, 1, ... up to the first that cannot be

@@ -65,7 +65,7 @@ pub fn replay(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Repl
     let guard = FilesGuard(prefix.clone());
     let cpus = cosim::ipc::allowed_cpus();
     let mut ps = launch::start(s, opts, &prefix).map_err(FreeError::Run)?;
-    let mut store = Store::new(steps, period);
+    let mut store = Store::new(steps, period, s.run.dt_s, &s.links, s.run.seed);
     let outcome = (|| -> Result<(), LinkError> {
         init_all(&mut ps, &mut store)?;
         for t in &order {
@@ -80,17 +80,17 @@ pub fn replay(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Repl
                 Role::Plant => {
                     let req = store.input_plant(t).ok_or_else(missing)?;
                     let o = ask(&mut ps.plant, req, t.step)?;
-                    store.p[t.step as usize] = Some(o);
+                    store.put_plant(t.step, o);
                 }
                 Role::Actuator => {
                     let req = store.input_actuator(t).ok_or_else(missing)?;
                     let o = ask(&mut ps.actuator, req, t.step)?;
-                    store.a[t.step as usize] = Some(o);
+                    store.put_actuator(t.step, o);
                 }
                 Role::Controller => {
                     let req = store.input_controller(t).ok_or_else(missing)?;
                     let o = ask(&mut ps.controller, req, t.step)?;
-                    store.c[(t.step / period) as usize] = Some(o);
+                    store.put_controller(t.step, o);
                 }
             }
         }
@@ -110,7 +110,7 @@ pub fn replay(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Repl
     let rows = write_rows(dir, &store, steps)
         .map_err(|e| FreeError::io(&dir.join("timeseries.csv"), e))?;
     let events_csv = dir.join("events.csv");
-    crate::events::EventLog::new(s.run.dt_s)
+    super::run_events(s, &store, rows)
         .write(&events_csv)
         .map_err(|e| FreeError::io(&events_csv, e))?;
     outcome?;

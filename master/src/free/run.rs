@@ -10,10 +10,12 @@ use cosim::msg::{now_ns, FromActuator, FromController, FromPlant, Header, Kind, 
 use cosim::msg::{ToActuator, ToController, ToPlant, FLAG_FREE_START};
 use cosim::{Endpoint, LinkError, Role};
 
-use super::compose::{to_actuator, to_controller, to_plant, Store};
+use super::compose::Store;
 use super::trace::{age, col, inputs_of, StepTrace, TraceHead, TraceWriter, TIMING_CSV};
 use super::{init_all, write_rows, FilesGuard, FreeError};
 use crate::engine::launch::{self, Participants};
+use crate::engine::manipulator::FaultSchedule;
+use crate::links::LinkId;
 use crate::engine::{RunOptions, Status};
 use crate::roles::RoleMap;
 use crate::scenario::Scenario;
@@ -139,7 +141,7 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
     let mut ps = launch::start(s, opts, &prefix).map_err(FreeError::Run)?;
     let steps = s.steps();
     let period = s.controller_period_ticks();
-    let mut store = Store::new(steps, period);
+    let mut store = Store::new(steps, period, s.run.dt_s, &s.links, s.run.seed);
     let outcome = init_all(&mut ps, &mut store).map_err(|e| e.to_string());
     let dt_ns = (s.run.dt_s * 1e9).round() as u64;
     let start_ns = now_ns() + START_MARGIN.as_nanos() as u64;
@@ -196,7 +198,7 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
         .collect();
     let rows =
         write_rows(dir, &store, steps).map_err(|e| FreeError::io(&dir.join("timeseries.csv"), e));
-    let events = crate::events::EventLog::new(s.run.dt_s);
+    let events = super::run_events(s, &store, rows.as_ref().copied().unwrap_or(0));
     let events_csv = dir.join("events.csv");
     events
         .write(&events_csv)
@@ -301,10 +303,124 @@ fn shut_down(
     exits
 }
 
-/// The newest output of each producer and its step.
-struct Newest {
-    p: (FromPlant, i64),
-    c: (FromController, i64),
+/// A sample on its way over a link, delivered to its consumer at `due_ns`.
+#[derive(Clone, Copy)]
+struct InFlight {
+    due_ns: u64,
+    link: LinkId,
+    step: i64,
+}
+
+/// What the hub has delivered over the links and what is still on its way.
+struct Deliveries {
+    /// Per link ([`LinkId`] order), the newest producer step delivered (−1: the output at t₀).
+    newest: [i64; 4],
+    in_flight: Vec<InFlight>,
+    /// Flags for the next request of each role (a scheduled crash).
+    flags: RoleMap<u32>,
+}
+
+impl Deliveries {
+    /// Sends a sample of producer step `step` over `link` with the delay the link gave it
+    /// (`None`: lost): relayed at once, or later by [`Deliveries::release`].
+    #[allow(clippy::too_many_arguments)]
+    fn send(
+        &mut self,
+        link: LinkId,
+        step: i64,
+        delay: Option<u64>,
+        now: u64,
+        dt_ns: u64,
+        ps: &mut Participants,
+        store: &Store,
+        relays: &mut RoleMap<Relay>,
+    ) -> Result<(), String> {
+        match delay {
+            None => Ok(()),
+            Some(0) => self.deliver(link, step, ps, store, relays),
+            Some(d) => {
+                self.in_flight.push(InFlight {
+                    due_ns: now + d * dt_ns,
+                    link,
+                    step,
+                });
+                Ok(())
+            }
+        }
+    }
+
+    /// Delivers every sample whose delay has passed, in the order they became due.
+    fn release(
+        &mut self,
+        now: u64,
+        ps: &mut Participants,
+        store: &Store,
+        relays: &mut RoleMap<Relay>,
+    ) -> Result<(), String> {
+        if self.in_flight.iter().all(|f| f.due_ns > now) {
+            return Ok(());
+        }
+        let mut due: Vec<InFlight> = Vec::new();
+        self.in_flight.retain(|f| {
+            if f.due_ns <= now {
+                due.push(*f);
+                false
+            } else {
+                true
+            }
+        });
+        due.sort_by_key(|f| (f.due_ns, f.link as usize, f.step));
+        for f in due {
+            self.deliver(f.link, f.step, ps, store, relays)?;
+        }
+        Ok(())
+    }
+
+    /// The consumer of `link` holds the newest sample (by producer step) that has arrived: a
+    /// newer one is relayed with the other input of that consumer as it stands.
+    fn deliver(
+        &mut self,
+        link: LinkId,
+        step: i64,
+        ps: &mut Participants,
+        store: &Store,
+        relays: &mut RoleMap<Relay>,
+    ) -> Result<(), String> {
+        if step <= self.newest[link as usize] {
+            return Ok(());
+        }
+        self.newest[link as usize] = step;
+        let n = self.newest;
+        let lost = || format!("{link:?}: a delivered sample of step {step} is not in the store");
+        let link_err = |e: LinkError| e.to_string();
+        match link {
+            LinkId::Measurement => {
+                let mut req = store.controller_input(step).ok_or_else(lost)?;
+                req.header.flags |= std::mem::take(&mut self.flags[Role::Controller]);
+                relays[Role::Controller]
+                    .send(&mut ps.controller, req, [Some(step), None, None])
+                    .map_err(link_err)
+            }
+            LinkId::BarAngle => {
+                let mut req = store.plant_input(step).ok_or_else(lost)?;
+                req.header.flags |= std::mem::take(&mut self.flags[Role::Plant]);
+                relays[Role::Plant]
+                    .send(&mut ps.plant, req, [None, Some(step), None])
+                    .map_err(link_err)
+            }
+            LinkId::ActuatorCommand | LinkId::BarTwist => {
+                let (qc, qp) = (
+                    n[LinkId::ActuatorCommand as usize],
+                    n[LinkId::BarTwist as usize],
+                );
+                let mut req = store.actuator_input(qc, qp).ok_or_else(lost)?;
+                req.header.flags |= std::mem::take(&mut self.flags[Role::Actuator]);
+                relays[Role::Actuator]
+                    .send(&mut ps.actuator, req, [Some(qp), None, Some(qc)])
+                    .map_err(link_err)
+            }
+        }
+    }
 }
 
 /// Starts every participant free at `start_ns` and relays until every step of the run is in.
@@ -325,10 +441,21 @@ fn hub(
     let ticks = RoleMap::new([1, 1, period]);
     let busy_us = (s.run.controller_busy_wait_s * 1e6).round() as u32;
     let mut relays: RoleMap<Relay> = RoleMap::default();
-    let mut newest = Newest {
-        p: (store.init.0, -1),
-        c: (store.init.2, -1),
+    let faults = FaultSchedule::new(&s.faults, s.run.dt_s);
+    let mut deliveries = Deliveries {
+        newest: [-1; 4],
+        in_flight: Vec::new(),
+        flags: RoleMap::default(),
     };
+    // The fault events are written from the schedule (`fault_events`), as the replay does.
+    let mut fault_log = crate::events::EventLog::new(s.run.dt_s);
+    faults.apply(
+        0,
+        ps,
+        &mut deliveries.flags,
+        RoleMap::default(),
+        &mut fault_log,
+    );
     let start = |mut h: Header, role: Role| {
         h.flags = FLAG_FREE_START;
         h.step = ticks[role];
@@ -338,18 +465,19 @@ fn hub(
         h
     };
     let link = |e: LinkError| e.to_string();
+    let missing = || "the outputs at t₀ are not in the store".to_string();
     // Relay 0 of each consumer: its input from the outputs at t₀, carrying the start.
-    let mut tp = to_plant(&store.init.1);
+    let mut tp = store.plant_input(-1).ok_or_else(missing)?;
     tp.header = start(tp.header, Role::Plant);
     relays[Role::Plant]
         .send(&mut ps.plant, tp, [None, Some(-1), None])
         .map_err(link)?;
-    let mut ta = to_actuator(&store.init.2, &store.init.0);
+    let mut ta = store.actuator_input(-1, -1).ok_or_else(missing)?;
     ta.header = start(ta.header, Role::Actuator);
     relays[Role::Actuator]
         .send(&mut ps.actuator, ta, [Some(-1), None, Some(-1)])
         .map_err(link)?;
-    let mut tc = to_controller(&store.init.0);
+    let mut tc = store.controller_input(-1).ok_or_else(missing)?;
     tc.header = start(tc.header, Role::Controller);
     relays[Role::Controller]
         .send(&mut ps.controller, tc, [Some(-1), None, None])
@@ -384,23 +512,21 @@ fn hub(
             else {
                 continue;
             };
-            store.p[t.step as usize] = Some(*o);
+            let [meas, twist] = store.put_plant(t.step, *o);
             record(store, writer, &t, observe)?;
-            newest.p = (*o, t.step as i64);
-            relays[Role::Controller]
-                .send(
-                    &mut ps.controller,
-                    to_controller(o),
-                    [Some(t.step as i64), None, None],
-                )
-                .map_err(link)?;
-            relays[Role::Actuator]
-                .send(
-                    &mut ps.actuator,
-                    to_actuator(&newest.c.0, o),
-                    [Some(t.step as i64), None, Some(newest.c.1)],
-                )
-                .map_err(link)?;
+            let now = now_ns();
+            let q = t.step as i64;
+            for (l, d) in [(LinkId::Measurement, meas), (LinkId::BarTwist, twist)] {
+                deliveries.send(l, q, d, now, dt_ns, ps, store, &mut relays)?;
+            }
+            // The world's clock has reached tick q + 1: the faults scheduled for it happen.
+            faults.apply(
+                t.step + 1,
+                ps,
+                &mut deliveries.flags,
+                RoleMap::default(),
+                &mut fault_log,
+            );
         }
         bc.clear();
         ps.controller.take_arrived(&mut bc).map_err(link)?;
@@ -419,16 +545,19 @@ fn hub(
             else {
                 continue;
             };
-            store.c[(t.step / period) as usize] = Some(*o);
+            let d = store.put_controller(t.step, *o);
             record(store, writer, &t, observe)?;
-            newest.c = (*o, t.step as i64);
-            relays[Role::Actuator]
-                .send(
-                    &mut ps.actuator,
-                    to_actuator(o, &newest.p.0),
-                    [Some(newest.p.1), None, Some(t.step as i64)],
-                )
-                .map_err(link)?;
+            let now = now_ns();
+            deliveries.send(
+                LinkId::ActuatorCommand,
+                t.step as i64,
+                d,
+                now,
+                dt_ns,
+                ps,
+                store,
+                &mut relays,
+            )?;
         }
         ba.clear();
         ps.actuator.take_arrived(&mut ba).map_err(link)?;
@@ -447,17 +576,22 @@ fn hub(
             else {
                 continue;
             };
-            store.a[t.step as usize] = Some(*o);
+            let d = store.put_actuator(t.step, *o);
             record(store, writer, &t, observe)?;
-            relays[Role::Plant]
-                .send(
-                    &mut ps.plant,
-                    to_plant(o),
-                    [None, Some(t.step as i64), None],
-                )
-                .map_err(link)?;
+            let now = now_ns();
+            deliveries.send(
+                LinkId::BarAngle,
+                t.step as i64,
+                d,
+                now,
+                dt_ns,
+                ps,
+                store,
+                &mut relays,
+            )?;
         }
         let now = now_ns();
+        deliveries.release(now, ps, store, &mut relays)?;
         for (r, got) in [
             (Role::Plant, !bp.is_empty()),
             (Role::Actuator, !ba.is_empty()),

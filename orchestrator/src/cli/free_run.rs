@@ -26,11 +26,89 @@ fn of_free(e: FreeError) -> CliError {
     }
 }
 
+/// The analysis of a free run's or a replay's series: the same comfort and flags as a
+/// lock-step run's, or why there are none.
+enum Ride {
+    Assessed(Box<tiltsim_report::analysis::Assessment>),
+    Skipped(String),
+}
+
+impl Ride {
+    /// Adds `results`, `comfort` and `flags` (or `analysis_skipped`) to a summary.
+    fn insert_into(&self, summary: &mut serde_json::Value) {
+        let Some(m) = summary.as_object_mut() else {
+            return;
+        };
+        match self {
+            Ride::Assessed(a) => {
+                m.insert("results".into(), serde_json::json!(a.results));
+                m.insert("comfort".into(), serde_json::json!(a.comfort));
+                m.insert("flags".into(), serde_json::json!(a.flags));
+            }
+            Ride::Skipped(why) => {
+                m.insert("analysis_skipped".into(), serde_json::json!(why));
+            }
+        }
+    }
+
+    fn print(&self) {
+        match self {
+            Ride::Assessed(a) => super::report::print_ride(&a.results, &a.comfort, &a.flags),
+            Ride::Skipped(why) => println!("  analysis skipped: {why}"),
+        }
+    }
+}
+
+/// Assesses the series in `dir/timeseries.csv`.
+fn assess(s: &Scenario, dir: &Path, interrupted: bool) -> Ride {
+    if interrupted {
+        return Ride::Skipped(format!(
+            "interrupted by {}: comfort, flags and figures not computed",
+            tiltsim_master::signals::describe()
+        ));
+    }
+    match tiltsim_report::analysis::assess(s, tiltsim_master::record::Rows::File(dir)) {
+        Ok(a) => Ride::Assessed(Box::new(a)),
+        Err(e) => Ride::Skipped(format!("comfort, flags and results not computed: {e}")),
+    }
+}
+
+/// Draws the run's figures and, when `dir` holds a whole timing trace, its timing figures.
+fn draw(s: &Scenario, dir: &Path) {
+    if let Err(e) = tiltsim_report::analysis::write_plots(s, dir) {
+        eprintln!("warning: plots not written: {e}");
+    }
+    let path = dir.join(tiltsim_master::free::trace::TIMING_CSV);
+    if !path.is_file() {
+        return;
+    }
+    let steps = s.steps();
+    // A run that ended early has an incomplete trace: its figures would show a part as the
+    // whole, so none are drawn (the trace itself is kept).
+    match tiltsim_master::free::trace::read(&path, s.run.dt_s, steps, s.controller_period_ticks())
+    {
+        Ok((_, trace)) => {
+            if let Err(e) = tiltsim_report::plot::write_timing_plots(
+                dir,
+                &s.name,
+                &trace,
+                steps,
+                s.run.dt_s,
+                s.controller_period_ticks(),
+            ) {
+                eprintln!("warning: timing plots not written: {e}");
+            }
+        }
+        Err(e) => eprintln!("warning: timing plots not drawn: {e}"),
+    }
+}
+
 /// Runs `s` free and writes `summary.json` and `perf.json` beside the trace.
 pub fn exec(s: &Scenario, scenario_file: &Path, opts: &RunOptions, quiet: bool) -> CliResult {
     let out = opts.out_dir.clone();
     let r: FreeReport = tiltsim_master::free::run(s, opts).map_err(of_free)?;
-    let summary = serde_json::json!({
+    let ride = assess(s, &out, r.status == Status::Interrupted);
+    let mut summary = serde_json::json!({
         "tiltsim_version": env!("CARGO_PKG_VERSION"),
         "scenario": s.name,
         "scenario_file": scenario_file.display().to_string(),
@@ -53,6 +131,7 @@ pub fn exec(s: &Scenario, scenario_file: &Path, opts: &RunOptions, quiet: bool) 
         "leftover_ipc_files": r.leftover_ipc_files,
         "wall_clock_fields": WALL_CLOCK_FIELDS,
     });
+    ride.insert_into(&mut summary);
     let perf = serde_json::json!({
         "scenario": s.name,
         "execution": Execution::Free,
@@ -67,6 +146,9 @@ pub fn exec(s: &Scenario, scenario_file: &Path, opts: &RunOptions, quiet: bool) 
     });
     write_json(&out.join("summary.json"), &summary)?;
     write_json(&out.join("perf.json"), &perf)?;
+    if r.status != Status::Interrupted && opts.plots {
+        draw(s, &out);
+    }
     if !quiet {
         let plant = &r.participants["plant"];
         println!(
@@ -81,7 +163,11 @@ pub fn exec(s: &Scenario, scenario_file: &Path, opts: &RunOptions, quiet: bool) 
             plant["late_starts"],
             if r.not_real_time { "; NOT REAL-TIME" } else { "" }
         );
-        println!("  {}", out.join("timing.csv").display());
+        ride.print();
+        println!(
+            "  wrote {}/timeseries.csv, timing.csv, summary.json, perf.json, events.csv, scenario.toml, plots/*.svg|png",
+            out.display()
+        );
     }
     match r.status {
         Status::Completed | Status::Degraded => Ok(()),
@@ -119,6 +205,9 @@ pub struct ReplayTimingArgs {
     /// Print nothing but errors.
     #[arg(short, long)]
     quiet: bool,
+    /// Draw no figures.
+    #[arg(long)]
+    no_plots: bool,
 }
 
 /// Runs `replay-timing`.
@@ -167,18 +256,26 @@ pub fn replay_timing(a: ReplayTimingArgs) -> CliResult {
     };
     let trace = a.run_dir.join(tiltsim_master::free::trace::TIMING_CSV);
     let r = tiltsim_master::free::replay(&s, &trace, &opts).map_err(of_free)?;
-    write_json(
-        &out.join("summary.json"),
-        &serde_json::json!({
-            "scenario": s.name,
-            "scenario_file": file.display().to_string(),
-            "timing_trace": trace.display().to_string(),
-            "transport": s.run.transport,
-            "status": Status::Completed,
-            "steps_completed": r.steps_completed,
-            "exchanges": r.exchanges,
-        }),
-    )?;
+    let ride = assess(&s, &out, false);
+    let mut summary = serde_json::json!({
+        "tiltsim_version": env!("CARGO_PKG_VERSION"),
+        "scenario": s.name,
+        "scenario_file": file.display().to_string(),
+        "seed": s.run.seed,
+        "timing_trace": trace.display().to_string(),
+        "transport": s.run.transport,
+        "execution": "replay-timing",
+        "status": Status::Completed,
+        "dt_s": s.run.dt_s,
+        "steps_completed": r.steps_completed,
+        "simulated_time_s": r.steps_completed as f64 * s.run.dt_s,
+        "exchanges": r.exchanges,
+    });
+    ride.insert_into(&mut summary);
+    write_json(&out.join("summary.json"), &summary)?;
+    if !a.no_plots {
+        draw(&s, &out);
+    }
     if !a.quiet {
         println!(
             "{}: {} steps replayed from {} ({} exchanges) into {}",
@@ -188,6 +285,7 @@ pub fn replay_timing(a: ReplayTimingArgs) -> CliResult {
             r.exchanges,
             out.join("timeseries.csv").display()
         );
+        ride.print();
     }
     Ok(())
 }

@@ -41,14 +41,29 @@ pub fn print(s: &Summary, out: &Path) {
         );
         return;
     }
+    print_ride(&s.results, &s.comfort, &s.flags);
+    print_timing(s);
+    println!(
+        "  wrote {}/timeseries.csv, summary.json, perf.json, events.csv, scenario.toml{}, plots/*.svg|png",
+        out.display(),
+        optional_files(out)
+    );
+}
+
+/// The quick look, ride comfort and flags of a run's series.
+pub fn print_ride(
+    results: &tiltsim_master::engine::QuickLook,
+    comfort: &tiltsim_assessment::comfort::Comfort,
+    flags: &tiltsim_assessment::validity::Flags,
+) {
     println!(
         "  lateral acceleration: peak {:.3} m/s², mid-curve {:.3} m/s²; body roll mid-curve {:.3} deg; peak delta_a {:.3} deg",
-        s.results.lat_acc_peak,
-        s.results.lat_acc_mid_curve,
-        s.results.theta_v_mid_curve.to_degrees(),
-        s.results.delta_a_peak.to_degrees()
+        results.lat_acc_peak,
+        results.lat_acc_mid_curve,
+        results.theta_v_mid_curve.to_degrees(),
+        results.delta_a_peak.to_degrees()
     );
-    let c = &s.comfort;
+    let c = comfort;
     println!(
         "  comfort: P_CT standing {:.2} %, seated {:.2} % (whole-run peaks, as the paper; EN 12299 per transition {:.2} / {:.2} %); lateral acceleration RMS deviation {:.3} %g, peak {:.2} %g; jerk {:.2} %g/s",
         c.p_ct.standing,
@@ -59,25 +74,19 @@ pub fn print(s: &Summary, out: &Path) {
         c.lat_acc_peak_pct_g,
         c.jerk_peak_pct_g_s
     );
-    let flags = s.flags.describe();
-    if flags.is_empty() {
+    let described = flags.describe();
+    if described.is_empty() {
         println!(
             "  flags: all clear (no oscillation, bump stop, drive limit, chopper duty, motor over its continuous torque or P_CT out of range)"
         );
     } else {
-        for f in flags {
+        for f in described {
             println!("  FLAG {f}");
         }
-        if s.flags.ride_invalid() {
+        if flags.ride_invalid() {
             println!("  the comfort numbers above do not describe a working tilt system");
         }
     }
-    print_timing(s);
-    println!(
-        "  wrote {}/timeseries.csv, summary.json, perf.json, events.csv, scenario.toml{}, plots/*.svg|png",
-        out.display(),
-        optional_files(out)
-    );
 }
 
 /// The files only some runs write (`--record`, `--trace`), as ", run.mcap, trace.csv" for

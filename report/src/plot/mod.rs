@@ -12,11 +12,13 @@ mod png;
 mod run;
 mod scatter;
 mod svg;
+mod timing;
 
 pub use png::{rasterise, write_png};
 pub use run::{write_run_plots, SECTION_NOTE};
 pub use scatter::{write_scatter, Series};
 pub use svg::to_svg;
+pub use timing::write_timing_plots;
 
 /// One line of a chart.
 pub struct Line<'a> {
