@@ -120,22 +120,27 @@ for sc in paper-mpc pi-drive; do
         else
             echo DIFFERS > "$d/replay.txt"
         fi
-        # The median extra age of each input over lock-step Gauss-Seidel, as link delays.
+        # Each link's median lag behind lock-step Gauss-Seidel, as a declared delay: for the
+        # command, the ticks from a controller step to the first actuator step that read its
+        # output; for the measurement and the bar angle, the input's age.
         python3 - "$d" > "$d/equivalent.toml" <<'PY'
 import csv, statistics, sys
 d = sys.argv[1]
 lines = open(f"{d}/timing.csv").read().splitlines()
-period = int(lines[0].split("controller_period_ticks=")[1].split()[0])
-extra = {"actuator_command": [], "measurement": [], "bar_angle": []}
+first = {}
+lag = {"actuator_command": [], "measurement": [], "bar_angle": []}
 for r in csv.DictReader(lines[1:]):
     step = int(r["step"])
     if r["role"] == "actuator":
-        extra["actuator_command"].append(int(r["age_controller"]) - step % period)
+        c = int(r["from_controller"])
+        if c >= 0:
+            first[c] = min(first.get(c, step), step)
     elif r["role"] == "controller":
-        extra["measurement"].append(int(r["age_plant"]))
+        lag["measurement"].append(int(r["age_plant"]))
     else:
-        extra["bar_angle"].append(int(r["age_actuator"]))
-for link, xs in extra.items():
+        lag["bar_angle"].append(int(r["age_actuator"]))
+lag["actuator_command"] = [k - c for c, k in first.items()]
+for link, xs in lag.items():
     print(f"[links.{link}]\ndelay_ticks = {max(0, round(statistics.median(xs)))}\n")
 PY
         cat "$f/$sc-lock-step/scenario.toml" > "$d/equivalent-scenario.toml"
@@ -172,13 +177,13 @@ def raised(flags):
     return ", ".join(k for k, v in flags.items() if isinstance(v, dict) and v.get("raised")) or "clear"
 print("| scenario | case | P_CT standing (%) | peak lateral acc. (%g) | flags | command age p50 / p99 / max (ticks) "
       "| measurement age p50 / p99 / max | plant late steps | plant lateness max (ms) | not real-time | replay "
-      "| lock-step with the median extra ages as delays: P_CT standing (%) |")
-print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+      "| declared delays (command, measurement, bar angle; ticks) | lock-step with them: P_CT standing (%) |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 for sc in ["paper-mpc", "pi-drive"]:
     ref = load(f"{f}/{sc}-lock-step/summary.json")
     c = ref["comfort"]
     print(f"| {sc} | lock-step | {c['p_ct']['standing']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
-          f"| {raised(ref['flags'])} | | | | | | | |")
+          f"| {raised(ref['flags'])} | | | | | | | | |")
     for case, label in [("quiet", "free, machine as it is"), ("hogs", "free, two CPU hogs"),
                         ("busy", "free, controller +extra compute")]:
         d = f"{f}/{sc}-{case}"
@@ -188,11 +193,12 @@ for sc in ["paper-mpc", "pi-drive"]:
         a = lambda k: f"{ages[k]['p50']} / {ages[k]['p99']} / {ages[k]['max']}"
         pl = p["participants"]["plant"]
         eq = load(f"{d}/equivalent/summary.json")["comfort"]["p_ct"]["standing"]
+        delays = [l.split("=")[1].strip() for l in open(f"{d}/equivalent.toml") if l.startswith("delay_ticks")]
         c = s["comfort"]
         print(f"| {sc} | {label} | {c['p_ct']['standing']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
               f"| {raised(s['flags'])} | {a('actuator_command')} | {a('measurement')} "
               f"| {pl['late_starts']} | {pl['start_lateness_us']['max'] / 1000:.1f} "
-              f"| {'yes' if s['not_real_time'] else 'no'} | {open(f'{d}/replay.txt').read().strip()} | {eq:.2f} |")
+              f"| {'yes' if s['not_real_time'] else 'no'} | {open(f'{d}/replay.txt').read().strip()} | {', '.join(delays)} | {eq:.2f} |")
 PY
 mkdir -p docs/figures
 cp "$f/paper-mpc-hogs/plots/timing_input_age.svg" docs/figures/free-run-input-age.svg

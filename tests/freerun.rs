@@ -346,7 +346,10 @@ fn csv_rows(path: &Path) -> Vec<HashMap<String, String>> {
     r.records()
         .map(|x| {
             let x = x.unwrap();
-            head.iter().cloned().zip(x.iter().map(String::from)).collect()
+            head.iter()
+                .cloned()
+                .zip(x.iter().map(String::from))
+                .collect()
         })
         .collect()
 }
@@ -393,6 +396,7 @@ fn link_effects_and_a_stall_act_in_a_free_run_and_its_replay_repeats_them() {
         "--free-run",
         "--duration",
         "2",
+        "--record",
         "--out",
         s(&out),
         "--ipc-prefix",
@@ -403,8 +407,10 @@ fn link_effects_and_a_stall_act_in_a_free_run_and_its_replay_repeats_them() {
     assert!(leftovers(&pre).is_empty(), "shared-memory files left");
     let trace = read_trace(&out);
     check_trace(&trace, 2000, 1);
-    let by: HashMap<(String, i64), &Step> =
-        trace.iter().map(|x| ((x.role.clone(), x.step), x)).collect();
+    let by: HashMap<(String, i64), &Step> = trace
+        .iter()
+        .map(|x| ((x.role.clone(), x.step), x))
+        .collect();
 
     // The command link's 20 ticks are wall time added to the real delivery: no actuator step
     // read a command sooner than 20 ms after the controller published it (load only adds).
@@ -433,10 +439,18 @@ fn link_effects_and_a_stall_act_in_a_free_run_and_its_replay_repeats_them() {
         .map(|e| e["step"].parse().unwrap())
         .collect();
     // p = 0.1 over the 2000 samples of the run: 200 ± 6σ (σ = 13.4).
-    assert!((120..=280).contains(&dropped.len()), "{} drops", dropped.len());
+    assert!(
+        (120..=280).contains(&dropped.len()),
+        "{} drops",
+        dropped.len()
+    );
     for q in &dropped {
         for x in trace.iter().filter(|x| x.role == "plant") {
-            assert_ne!(x.from["actuator"], *q, "plant step {} read a lost sample", x.step);
+            assert_ne!(
+                x.from["actuator"], *q,
+                "plant step {} read a lost sample",
+                x.step
+            );
         }
     }
 
@@ -472,22 +486,31 @@ fn link_effects_and_a_stall_act_in_a_free_run_and_its_replay_repeats_them() {
 
     // The stall: SIGSTOP for 0.2 s of wall time when the plant reached 1.0 s. The controller
     // step due next started at least the rest of the stall late (a 1 ms period: > 0.15 s).
-    assert!(events
-        .iter()
-        .any(|e| e["source"] == "controller" && e["event"] == "fault-injected" && e["step"] == "1000"));
+    assert!(events.iter().any(|e| e["source"] == "controller"
+        && e["event"] == "fault-injected"
+        && e["step"] == "1000"));
     let late = trace
         .iter()
         .filter(|x| x.role == "controller")
         .map(|x| x.read - x.due)
         .max()
         .unwrap();
-    assert!(late >= 150_000_000, "the controller was at most {late} ns late");
+    assert!(
+        late >= 150_000_000,
+        "the controller was at most {late} ns late"
+    );
+
+    recording_holds_the_trace(&out, &by);
 
     // The replay repeats the values and the events, byte for byte.
     let (code, err) = replay(&out, &root.join("replay"), &[]);
     assert_eq!(code, 0, "{err}");
     for f in ["timeseries.csv", "events.csv"] {
-        assert_eq!(bytes(&root.join("replay").join(f)), bytes(&out.join(f)), "{f}");
+        assert_eq!(
+            bytes(&root.join("replay").join(f)),
+            bytes(&out.join(f)),
+            "{f}"
+        );
     }
     // And gives the comfort of what was replayed, as the free run's summary does.
     let free = summary(&out);
@@ -495,6 +518,74 @@ fn link_effects_and_a_stall_act_in_a_free_run_and_its_replay_repeats_them() {
     assert_eq!(free["comfort"], again["comfort"]);
     assert!(free["comfort"]["p_ct"]["standing"].as_f64().unwrap() > 0.0);
     assert_eq!(free["flags"], again["flags"]);
+}
+
+/// `--record` of a free run: the lock-step recording's channels and the trace as
+/// `/timing/<role>`, one message per step, in log-time order, read by the Python registry's
+/// `mcap` reader (as tests/record.rs reads lock-step recordings) and by the Rust one.
+fn recording_holds_the_trace(dir: &Path, by: &HashMap<(String, i64), &Step>) {
+    let file = dir.join("run.mcap");
+    let check = tiltsim_suite::root().join("tests/record/mcap_check.py");
+    let (code, out, err) = tiltsim_suite::fmi_tool("python", &[s(&check), s(&file)]);
+    assert_eq!(code, 0, "mcap_check.py: {err}");
+    let r: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(r["order"], 0, "messages out of log-time order");
+    assert_eq!(r["compression"], serde_json::json!(["zstd"]));
+    assert_eq!(r["plant_time"], 0, "/plant/out log time is not its t");
+    for topic in [
+        "/timing/plant",
+        "/timing/actuator",
+        "/timing/controller",
+        "/plant/out",
+        "/actuator/in",
+    ] {
+        assert_eq!(r["counts"][topic], 2000, "{topic}");
+    }
+    for (topic, fields) in r["schemas"].as_object().unwrap() {
+        for (field, ty) in fields.as_object().unwrap() {
+            let want = if field == "step" { "integer" } else { "number" };
+            assert_eq!(ty, want, "{topic}.{field}");
+        }
+    }
+    // Each timing message is its step's line of timing.csv; each actuator input is what the
+    // command link delivered.
+    let bytes = std::fs::read(&file).unwrap();
+    let mut checked = 0;
+    let mut delivered: HashMap<u64, f64> = HashMap::new();
+    let mut inputs: HashMap<u64, f64> = HashMap::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let v: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
+        // `/summary` and `/perf` have no step.
+        let step = v["step"].as_u64().unwrap_or(u64::MAX);
+        match m.channel.topic.as_str() {
+            "/timing/plant" | "/timing/actuator" | "/timing/controller" => {
+                let role = m.channel.topic.trim_start_matches("/timing/");
+                let x = by[&(role.to_string(), step as i64)];
+                assert_eq!(
+                    v["read_ns"].as_f64().unwrap() as u64,
+                    x.read,
+                    "{role} {step}"
+                );
+                assert_eq!(v["publish_ns"].as_f64().unwrap() as u64, x.publish);
+                for (p, q) in &x.from {
+                    assert_eq!(v[format!("from_{p}")].as_f64().unwrap() as i64, *q);
+                }
+                assert_eq!(m.log_time, step * 1_000_000);
+                checked += 1;
+            }
+            "/links/actuator_command" => {
+                delivered.insert(step, v["received"].as_f64().unwrap());
+            }
+            "/actuator/in" => {
+                inputs.insert(step, v["delta_a_cmd"].as_f64().unwrap());
+            }
+            _ => {}
+        }
+    }
+    assert_eq!(checked, 6000);
+    assert_eq!(delivered.len(), 2000);
+    assert_eq!(delivered, inputs);
 }
 
 #[test]

@@ -596,7 +596,9 @@ mod tests {
         );
         let mut ev = EventLog::new(1e-3);
         for (k, c) in carried.iter().enumerate() {
-            let (d, v) = l.pass(k as u64, k as f64 * 1e-3, k as f64, &mut ev).unwrap();
+            let (d, v) = l
+                .pass(k as u64, k as f64 * 1e-3, k as f64, &mut ev)
+                .unwrap();
             assert_eq!((d, v), (0, *c));
         }
         // A delay is the fixed part plus the jitter drawn for the sample, within its bound.
@@ -612,7 +614,10 @@ mod tests {
             .map(|k| l.pass(k, k as f64 * 1e-3, 0.0, &mut ev).unwrap().0)
             .collect();
         assert!(delays.iter().all(|d| (5..=8).contains(d)));
-        assert!((5..=8).all(|d| delays.contains(&d)), "every delay in the range drawn");
+        assert!(
+            (5..=8).all(|d| delays.contains(&d)),
+            "every delay in the range drawn"
+        );
         // Samples sent inside a drop or a freeze window are lost; a NaN window gives NaN.
         let mut l = Link::new(
             0,
@@ -636,7 +641,10 @@ mod tests {
         let got: Vec<Option<(u64, f64)>> = (0..9)
             .map(|k| l.pass(k, k as f64 * 1e-3, k as f64, &mut ev))
             .collect();
-        assert_eq!(&got[..5], &[Some((0, 0.)), Some((0, 1.)), None, None, Some((0, 4.))]);
+        assert_eq!(
+            &got[..5],
+            &[Some((0, 0.)), Some((0, 1.)), None, None, Some((0, 4.))]
+        );
         assert_eq!(got[5], None);
         assert_eq!(got[6], Some((0, 6.)));
         assert!(got[7].is_some_and(|(_, v)| v.is_nan()));

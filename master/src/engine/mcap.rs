@@ -86,8 +86,32 @@ const CHANNELS: &[(&str, &[&str])] = &[
     ("/links/bar_twist", &["sent", "received"]),
 ];
 
+/// Fields of a free run's timing channels, `/timing/plant`, `/timing/actuator` and
+/// `/timing/controller`: one message per step, the columns of `timing.csv` (instants in ns
+/// since the common start instant; a producer that is not an input of the role is left out).
+pub const TIMING_FIELDS: &[&str] = &[
+    "from_plant",
+    "from_actuator",
+    "from_controller",
+    "age_plant",
+    "age_actuator",
+    "age_controller",
+    "due_ns",
+    "read_ns",
+    "compute_end_ns",
+    "publish_ns",
+    "late_start",
+    "late_finish",
+];
+
+/// The timing channels, in `Role` order.
+const TIMING_CHANNELS: [&str; 3] = ["/timing/plant", "/timing/actuator", "/timing/controller"];
+
 /// The fields of channel `topic`.
 pub fn fields(topic: &str) -> &'static [&'static str] {
+    if TIMING_CHANNELS.contains(&topic) {
+        return TIMING_FIELDS;
+    }
     CHANNELS
         .iter()
         .find(|(t, _)| *t == topic)
@@ -215,6 +239,15 @@ fn named(path: &Path, e: impl std::fmt::Display) -> std::io::Error {
 impl McapRecorder {
     /// Creates `path` with every channel and schema; ticks are `dt` s apart.
     pub fn create(path: &Path, dt: f64) -> std::io::Result<Self> {
+        Self::create_with(path, dt, false)
+    }
+
+    /// [`McapRecorder::create`] for a free run: with the timing channels too.
+    pub fn create_free(path: &Path, dt: f64) -> std::io::Result<Self> {
+        Self::create_with(path, dt, true)
+    }
+
+    fn create_with(path: &Path, dt: f64, timing: bool) -> std::io::Result<Self> {
         let file = BufWriter::new(File::create(path).map_err(|e| named(path, e))?);
         let opts = mcap::WriteOptions::new()
             .library(concat!("tiltsim ", env!("CARGO_PKG_VERSION")))
@@ -241,6 +274,14 @@ impl McapRecorder {
                 id: add(topic, fields, None)?,
                 seq: 0,
             });
+        }
+        if timing {
+            for topic in TIMING_CHANNELS {
+                channels.push(Channel {
+                    id: add(topic, TIMING_FIELDS, None)?,
+                    seq: 0,
+                });
+            }
         }
         let object = |title: &str| {
             format!(
@@ -397,8 +438,50 @@ impl EventMessage {
 }
 
 /// Channel index of a role's `in` (the `out` is the next one).
-fn inbox(role: Role) -> usize {
+pub(crate) fn inbox(role: Role) -> usize {
     2 * role as usize
+}
+
+/// Channel index of a link's `/links/<name>`.
+pub(crate) fn link_channel(link: LinkId) -> usize {
+    6 + link as usize
+}
+
+/// Channel index of a role's `/timing/<role>` (recorders made by
+/// [`McapRecorder::create_free`]).
+pub(crate) fn timing_channel(role: Role) -> usize {
+    CHANNELS.len() + role as usize
+}
+
+impl McapRecorder {
+    /// Writes one message on channel index `channel` (see [`inbox`], [`link_channel`],
+    /// [`timing_channel`]) with the fields of its topic.
+    pub(crate) fn put_values(
+        &mut self,
+        channel: usize,
+        step: u64,
+        log: u64,
+        publish: u64,
+        values: &[f64],
+    ) -> std::io::Result<()> {
+        let fields = if channel >= CHANNELS.len() {
+            TIMING_FIELDS
+        } else {
+            CHANNELS[channel].1
+        };
+        let m = message(step, fields, values);
+        self.put(channel, log, publish, &m)
+    }
+
+    /// Writes the queued events of ticks up to `k`.
+    pub(crate) fn events_until(&mut self, k: u64) -> std::io::Result<()> {
+        self.write_events(Some(k))
+    }
+
+    /// The base tick in ns.
+    pub(crate) fn dt_ns(&self) -> u64 {
+        self.dt_ns
+    }
 }
 
 /// One tick as the recording holds it.

@@ -12,6 +12,7 @@
 //! * [`trace`]: `timing.csv`, written and read back with its checks.
 
 pub mod compose;
+pub mod record;
 pub mod replay;
 pub mod run;
 pub mod trace;

@@ -15,8 +15,8 @@ use super::trace::{age, col, inputs_of, StepTrace, TraceHead, TraceWriter, TIMIN
 use super::{init_all, write_rows, FilesGuard, FreeError};
 use crate::engine::launch::{self, Participants};
 use crate::engine::manipulator::FaultSchedule;
-use crate::links::LinkId;
 use crate::engine::{RunOptions, Status};
+use crate::links::LinkId;
 use crate::roles::RoleMap;
 use crate::scenario::Scenario;
 
@@ -73,7 +73,7 @@ struct RoleTiming {
 }
 
 /// What a free run reports beyond its files.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(serde::Serialize)]
 pub struct FreeReport {
     /// How the run ended.
     pub status: Status,
@@ -99,6 +99,9 @@ pub struct FreeReport {
     pub ipc_prefix: String,
     /// Shared-memory files left behind (empty unless something is wrong).
     pub leftover_ipc_files: Vec<String>,
+    /// `run.mcap` (`--record`), to be closed with the summary.
+    #[serde(skip)]
+    pub recording: Option<super::record::FreeRecording>,
 }
 
 /// Nanoseconds as microseconds with one decimal.
@@ -155,6 +158,8 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
     let mut writer = TraceWriter::create(&path, &head).map_err(|e| FreeError::io(&path, e))?;
     let mut timing: RoleMap<RoleTiming> = RoleMap::default();
     let mut ages: BTreeMap<&'static str, BTreeMap<i64, u64>> = BTreeMap::new();
+    // Every step's trace, kept for the recording (`--record`).
+    let mut kept: Vec<StepTrace> = Vec::new();
     let mut outcome = outcome.and_then(|()| {
         hub(
             s,
@@ -165,6 +170,9 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
             start_ns,
             dt_ns,
             &mut |t: &StepTrace| {
+                if opts.record {
+                    kept.push(*t);
+                }
                 let ticks = if t.role == Role::Controller {
                     period
                 } else {
@@ -204,6 +212,14 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
         .write(&events_csv)
         .map_err(|e| FreeError::io(&events_csv, e))?;
     let rows = rows?;
+    let recording = if opts.record {
+        let path = dir.join("run.mcap");
+        let r = super::record::record(&path, s.run.dt_s, &store, &kept, rows, start_ns, &events)
+            .map_err(|e| FreeError::io(&path, e))?;
+        Some(r)
+    } else {
+        None
+    };
     let interrupted = opts.interrupt.load(Ordering::Relaxed);
     let (status, error) = match outcome {
         Ok(()) if interrupted => (
@@ -281,6 +297,7 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
             .collect(),
         ipc_prefix: prefix,
         leftover_ipc_files: leftover,
+        recording,
     })
 }
 

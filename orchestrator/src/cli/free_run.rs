@@ -85,8 +85,7 @@ fn draw(s: &Scenario, dir: &Path) {
     let steps = s.steps();
     // A run that ended early has an incomplete trace: its figures would show a part as the
     // whole, so none are drawn (the trace itself is kept).
-    match tiltsim_master::free::trace::read(&path, s.run.dt_s, steps, s.controller_period_ticks())
-    {
+    match tiltsim_master::free::trace::read(&path, s.run.dt_s, steps, s.controller_period_ticks()) {
         Ok((_, trace)) => {
             if let Err(e) = tiltsim_report::plot::write_timing_plots(
                 dir,
@@ -106,7 +105,8 @@ fn draw(s: &Scenario, dir: &Path) {
 /// Runs `s` free and writes `summary.json` and `perf.json` beside the trace.
 pub fn exec(s: &Scenario, scenario_file: &Path, opts: &RunOptions, quiet: bool) -> CliResult {
     let out = opts.out_dir.clone();
-    let r: FreeReport = tiltsim_master::free::run(s, opts).map_err(of_free)?;
+    let mut r: FreeReport = tiltsim_master::free::run(s, opts).map_err(of_free)?;
+    let recording = r.recording.take();
     let ride = assess(s, &out, r.status == Status::Interrupted);
     let mut summary = serde_json::json!({
         "tiltsim_version": env!("CARGO_PKG_VERSION"),
@@ -146,6 +146,16 @@ pub fn exec(s: &Scenario, scenario_file: &Path, opts: &RunOptions, quiet: bool) 
     });
     write_json(&out.join("summary.json"), &summary)?;
     write_json(&out.join("perf.json"), &perf)?;
+    if let Some(rec) = recording {
+        let mut det = summary.clone();
+        if let Some(o) = det.as_object_mut() {
+            for f in WALL_CLOCK_FIELDS {
+                o.remove(*f);
+            }
+        }
+        rec.finish(&det, &perf)
+            .map_err(|e| CliError::Failed(format!("{}: {e}", out.join("run.mcap").display())))?;
+    }
     if r.status != Status::Interrupted && opts.plots {
         draw(s, &out);
     }
@@ -165,8 +175,9 @@ pub fn exec(s: &Scenario, scenario_file: &Path, opts: &RunOptions, quiet: bool) 
         );
         ride.print();
         println!(
-            "  wrote {}/timeseries.csv, timing.csv, summary.json, perf.json, events.csv, scenario.toml, plots/*.svg|png",
-            out.display()
+            "  wrote {}/timeseries.csv, timing.csv, summary.json, perf.json, events.csv, scenario.toml{}, plots/*.svg|png",
+            out.display(),
+            if opts.record { ", run.mcap" } else { "" }
         );
     }
     match r.status {

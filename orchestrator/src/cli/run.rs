@@ -129,11 +129,7 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
     }
     let free = s.run.execution == tiltsim_master::scenario::Execution::Free;
     if free {
-        for (given, flag) in [
-            (a.pace.is_some(), "--pace"),
-            (a.trace, "--trace"),
-            (a.record, "--record"),
-        ] {
+        for (given, flag) in [(a.pace.is_some(), "--pace"), (a.trace, "--trace")] {
             if given {
                 return Err(CliError::Invalid(format!(
                     "command line: {flag}: not available with run.execution = \"free\" (a free run keeps its own clock; its timing goes to timing.csv)"

@@ -70,7 +70,7 @@ pub fn write_timing_plots(
     }
     let mut held = f64::NAN;
     for (k, v) in effect.iter_mut().enumerate() {
-        if k as u64 % period.max(1) == 0 {
+        if (k as u64).is_multiple_of(period.max(1)) {
             held = *v;
         } else {
             *v = held;

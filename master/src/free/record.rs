@@ -1,0 +1,184 @@
+//! `--record` of a free run: `run.mcap` written after the run from the store and the trace,
+//! with the lock-step recording's channels (`/<role>/in`, `/<role>/out`, `/links/<name>`,
+//! `/events`, `/summary`, `/perf`) and the timing trace as `/timing/<role>`.
+//!
+//! Log times are simulated time as in lock-step (a step's input, the controller's answer, the
+//! links and the step's timing at t_k; the plant's and the actuator's outputs at t_(k+1)); the
+//! publish times are the wall clock of the trace (CLOCK_MONOTONIC ns: the read instant for an
+//! input, the publish instant for an output and for a step's timing). The links' `sent` is
+//! the producer's output as published and `received` what the link delivered, for the sample
+//! each consumer step read.
+
+use std::path::{Path, PathBuf};
+
+use cosim::Role;
+
+use super::compose::Store;
+use super::trace::{age, col, inputs_of, StepTrace};
+use crate::engine::mcap::{
+    actuator_out, controller_out, inbox, link_channel, plant_out, timing_channel, EventMessage,
+    McapRecorder,
+};
+use crate::events::EventLog;
+use crate::links::LinkId;
+
+/// A free run's recording, complete but for the summary, which the caller closes it with.
+pub struct FreeRecording {
+    rec: McapRecorder,
+    end: u64,
+}
+
+impl FreeRecording {
+    /// Writes the summary's repeatable part `det` and its wall-clock part `perf` and closes
+    /// the file; returns its path.
+    pub fn finish(
+        self,
+        det: &serde_json::Value,
+        perf: &serde_json::Value,
+    ) -> std::io::Result<PathBuf> {
+        self.rec.close(det, perf, self.end)
+    }
+}
+
+/// The steps of each role by step index (controller: step / period).
+struct Steps {
+    by_role: [Vec<Option<StepTrace>>; 3],
+    period: u64,
+}
+
+impl Steps {
+    fn new(trace: &[StepTrace], steps: u64, period: u64) -> Self {
+        let mut by_role = [
+            vec![None; steps as usize],
+            vec![None; steps as usize],
+            vec![None; steps.div_ceil(period) as usize],
+        ];
+        for t in trace {
+            let i = if t.role == Role::Controller {
+                t.step / period
+            } else {
+                t.step
+            } as usize;
+            if let Some(slot) = by_role[col(t.role)].get_mut(i) {
+                *slot = Some(*t);
+            }
+        }
+        Steps { by_role, period }
+    }
+
+    /// `role`'s step at tick `k`, if it has one there and it was recorded.
+    fn at(&self, role: Role, k: u64) -> Option<&StepTrace> {
+        let i = if role == Role::Controller {
+            if !k.is_multiple_of(self.period) {
+                return None;
+            }
+            k / self.period
+        } else {
+            k
+        };
+        self.by_role[col(role)].get(i as usize)?.as_ref()
+    }
+}
+
+/// The values of a step's `/timing/<role>` message.
+fn timing_values(t: &StepTrace, period_ticks: u64, dt_ns: u64) -> Vec<f64> {
+    let mut v = vec![f64::NAN; 12];
+    for &p in inputs_of(t.role) {
+        if let Some(f) = t.from[col(p)] {
+            v[col(p)] = f as f64;
+            v[3 + col(p)] = age(p, t.step, f) as f64;
+        }
+    }
+    let ticks = if t.role == Role::Controller {
+        period_ticks
+    } else {
+        1
+    };
+    v[6] = t.due_ns as f64;
+    v[7] = t.read_ns as f64;
+    v[8] = t.compute_end_ns as f64;
+    v[9] = t.publish_ns as f64;
+    v[10] = f64::from(u8::from(t.late_start(ticks * dt_ns)));
+    v[11] = f64::from(u8::from(t.late_finish(ticks * dt_ns)));
+    v
+}
+
+/// Writes `path` for the first `rows` ticks of a free run whose outputs are in `store`, whose
+/// steps are `trace` and whose start instant is `start_ns`; `events` are the run's events.
+pub fn record(
+    path: &Path,
+    dt_s: f64,
+    store: &Store,
+    trace: &[StepTrace],
+    rows: u64,
+    start_ns: u64,
+    events: &EventLog,
+) -> std::io::Result<FreeRecording> {
+    let mut rec = McapRecorder::create_free(path, dt_s)?;
+    rec.queue_events(events.events.iter().map(EventMessage::from));
+    let dt_ns = rec.dt_ns();
+    let period = store.period;
+    let steps = Steps::new(trace, store.p.len() as u64, period);
+    let wall = |ns: u64| start_ns + ns;
+    for k in 0..rows {
+        let log = k * dt_ns;
+        // What each consumer stepping at k read, and the links' samples it read.
+        if let Some(t) = steps.at(Role::Controller, k) {
+            let qp = t.from[col(Role::Plant)].unwrap_or(-1);
+            if let (Some(i), Some(p)) = (store.controller_input(qp), store.plant(qp)) {
+                let c = inbox(Role::Controller);
+                let v = [i.t, i.s, i.theta_v_meas];
+                rec.put_values(c, k, log, wall(t.read_ns), &v)?;
+                if let Some(o) = store.controller(k as i64) {
+                    rec.put_values(c + 1, k, log, wall(t.publish_ns), &controller_out(o))?;
+                }
+                let sent = [p.theta_v_meas, i.theta_v_meas];
+                rec.put_values(link_channel(LinkId::Measurement), k, log, log, &sent)?;
+            }
+        }
+        if let Some(t) = steps.at(Role::Actuator, k) {
+            let qc = t.from[col(Role::Controller)].unwrap_or(-1);
+            let qp = t.from[col(Role::Plant)].unwrap_or(-1);
+            if let (Some(i), Some(c), Some(p)) = (
+                store.actuator_input(qc, qp),
+                store.controller(qc),
+                store.plant(qp),
+            ) {
+                let a = inbox(Role::Actuator);
+                rec.put_values(a, k, log, wall(t.read_ns), &[i.delta_a_cmd, i.psi])?;
+                let cmd = [c.delta_a_cmd, i.delta_a_cmd];
+                rec.put_values(link_channel(LinkId::ActuatorCommand), k, log, log, &cmd)?;
+                let twist = [p.psi, i.psi];
+                rec.put_values(link_channel(LinkId::BarTwist), k, log, log, &twist)?;
+            }
+        }
+        if let Some(t) = steps.at(Role::Plant, k) {
+            let qa = t.from[col(Role::Actuator)].unwrap_or(-1);
+            if let (Some(i), Some(a)) = (store.plant_input(qa), store.actuator(qa)) {
+                rec.put_values(inbox(Role::Plant), k, log, wall(t.read_ns), &[i.delta_a])?;
+                let bar = [a.delta_a, i.delta_a];
+                rec.put_values(link_channel(LinkId::BarAngle), k, log, log, &bar)?;
+            }
+        }
+        for role in Role::ALL {
+            if let Some(t) = steps.at(role, k) {
+                let v = timing_values(t, period, dt_ns);
+                rec.put_values(timing_channel(role), k, log, wall(t.publish_ns), &v)?;
+            }
+        }
+        rec.events_until(k)?;
+        let next = log + dt_ns;
+        if let (Some(t), Some(o)) = (steps.at(Role::Actuator, k), store.actuator(k as i64)) {
+            let a = inbox(Role::Actuator) + 1;
+            rec.put_values(a, k, next, wall(t.publish_ns), &actuator_out(o))?;
+        }
+        if let (Some(t), Some(o)) = (steps.at(Role::Plant, k), store.plant(k as i64)) {
+            let p = inbox(Role::Plant) + 1;
+            rec.put_values(p, k, next, wall(t.publish_ns), &plant_out(o))?;
+        }
+    }
+    Ok(FreeRecording {
+        rec,
+        end: rows * dt_ns,
+    })
+}
