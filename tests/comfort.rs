@@ -90,7 +90,20 @@ fn assert_png_chart(path: &std::path::Path) {
         .unwrap_or_else(|e| panic!("{}: not a PNG: {e}", path.display()));
     let mut buf = vec![0; dec.output_buffer_size().unwrap()];
     let info = dec.next_frame(&mut buf).unwrap();
-    assert_eq!((info.width, info.height), (1800, 840), "{}", path.display());
+    // The canvas (900 × 420 at twice the size) and the legend's rows under it, per panel
+    // (the motor figure has two, as the paper's Fig. 18).
+    assert_eq!(info.width, 1800, "{}", path.display());
+    let panels = if path.ends_with("plots/motor.png") {
+        2
+    } else {
+        1
+    };
+    assert!(
+        (840 * panels..=1200 * panels).contains(&info.height),
+        "{}: {} px high",
+        path.display(),
+        info.height
+    );
     assert_eq!(info.color_type, png::ColorType::Rgb);
     let px = &buf[..info.buffer_size()];
     let coloured = px

@@ -334,7 +334,28 @@ const PLOT_POINTS: usize = 40_000;
 /// Writes `dir/plots/*.svg` and `*.png` from `dir/timeseries.csv`.
 pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<PathBuf>> {
     let rows = tiltsim_master::record::rows_to_plot(dir, PLOT_POINTS)?;
-    crate::plot::write_run_plots(dir, &rows, &bands(s), s.controller.u_max_deg)
+    let controller = crate::compare::controller_name(s);
+    let who = crate::plot::RunTitle {
+        scenario: &s.name,
+        controller: &controller,
+        tilts: s.controller.mode != controller_proc::Mode::Passive,
+    };
+    crate::plot::write_run_plots(dir, &rows, &bands(s), s.controller.u_max_deg, &who)
+}
+
+/// Writes the timing figures of a free run (`plots/timing_input_age`, `timing_lateness`) from
+/// `dir/timing.csv`; none when there is no trace. An incomplete trace (a run that ended early)
+/// is an error naming it: its figures would show a part as the whole.
+pub fn write_timing_plots(s: &Scenario, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let path = dir.join(tiltsim_master::free::trace::TIMING_CSV);
+    if !path.is_file() {
+        return Ok(Vec::new());
+    }
+    let steps = s.steps();
+    let period = s.controller_period_ticks();
+    let (_, trace) = tiltsim_master::free::trace::read(&path, s.run.dt_s, steps, period)
+        .map_err(|e| std::io::Error::other(e.to_string()))?;
+    crate::plot::write_timing_plots(dir, &s.name, &trace, steps, s.run.dt_s, period)
 }
 
 /// Writes the figures that put several runs side by side (`out/plots/compare_*`): lateral
@@ -370,24 +391,55 @@ pub fn write_compare_plots(
         fn(&Row) -> f64,
         f64,
     );
+    // The paper's figures of the same quantity: Figs 14-17 on its deterministic track,
+    // Figs 19 (lateral acceleration) and 20 (roll) with the track irregularity.
+    // A measured-spectrum track (ERRI B176) is in none of them.
+    use vehicle_model::params::IrregularityModel;
+    let irregularity = |s: &Scenario| {
+        let i = &s.track.irregularity;
+        match i.model {
+            IrregularityModel::Spectrum => 2,
+            IrregularityModel::Knots if i.amplitude_deg > 0.0 => 1,
+            IrregularityModel::Knots => 0,
+        }
+    };
+    let track = runs
+        .iter()
+        .map(|(_, s, _)| irregularity(s))
+        .max()
+        .unwrap_or(0);
+    let cite = |deterministic: &'static str, irregular_fig: &'static str| match track {
+        0 => deterministic,
+        1 => irregular_fig,
+        _ => irregular_fig.split(" (Fig").next().unwrap_or(irregular_fig),
+    };
     let figures: [Figure; 3] = [
         (
             "compare_lateral_acceleration",
-            "Passenger lateral acceleration of each run (Figs 14-15)",
+            cite(
+                "Passenger lateral acceleration of each run (Figs 14-15)",
+                "Passenger lateral acceleration of each run, irregular track (Fig. 19)",
+            ),
             "lateral acceleration (m/s²)",
             |r| r.lat_acc,
             1.0,
         ),
         (
             "compare_body_roll",
-            "Carbody roll of each run (Fig. 16)",
+            cite(
+                "Carbody roll of each run (Fig. 16)",
+                "Carbody roll of each run, irregular track (Fig. 20)",
+            ),
             "roll θ_v (deg)",
             |r| r.theta_v,
             1f64.to_degrees(),
         ),
         (
             "compare_control",
-            "Achieved anti-roll-bar angle of each run (Fig. 17)",
+            cite(
+                "Achieved anti-roll-bar angle of each run (Fig. 17)",
+                "Achieved anti-roll-bar angle of each run, irregular track",
+            ),
             "bar angle δ_a (deg)",
             |r| r.delta_a,
             1f64.to_degrees(),

@@ -43,15 +43,19 @@ pub struct Entry {
     pub ideal: Comfort,
 }
 
-fn label(s: &Scenario) -> String {
-    let mode = match s.controller.mode {
+/// The controller of `s` as the paper names it ("passive", "PI", "LQG", "MPC-KF").
+pub fn controller_name(s: &Scenario) -> String {
+    match s.controller.mode {
         Mode::Passive => "passive".to_string(),
         Mode::Pi => "PI".to_string(),
         Mode::Lqg => "LQG".to_string(),
         Mode::Mpc if s.controller.mpc.preview => "MPC-KF preview (ours)".to_string(),
         Mode::Mpc => "MPC-KF".to_string(),
-    };
-    format!("{mode} [{}]", s.name)
+    }
+}
+
+fn label(s: &Scenario) -> String {
+    format!("{} [{}]", controller_name(s), s.name)
 }
 
 /// Builds an entry; `ideal` is [`tiltsim_assessment::comfort::ideal_tilt`] of the run's signals.
@@ -373,9 +377,9 @@ fn flag_rows(md: &mut String, csv: &mut CsvTable, ideal_columns: usize, entries:
 fn run_table(md: &mut String, entries: &[Entry]) {
     let _ = writeln!(
         md,
-        "\n| run | status | steps | wall (s) | actuator | command shaping | torque peak (N·m) | \
+        "\n| run | status | steps | wall (s) † | actuator | command shaping | torque peak (N·m) | \
          phase current peak (A) | motoring / braking power peak (kW) | chopper (kJ) | \
-         controller compute p99 (µs) |\n|---|---|---|---|---|---|---|---|---|---|---|"
+         controller compute p99 (µs) † |\n|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for e in entries {
         let s = &e.summary;
@@ -400,6 +404,10 @@ fn run_table(md: &mut String, entries: &[Entry]) {
                 .unwrap_or(0.0)
         );
     }
+    md.push_str(
+        "\n† measured on the wall clock: differs from run to run (every other number repeats \
+         exactly).\n",
+    );
 }
 
 /// `compare.json`: the runs of a compare, each in `DIR/<dir>`, written before they start so

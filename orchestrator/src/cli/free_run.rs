@@ -78,27 +78,9 @@ fn draw(s: &Scenario, dir: &Path) {
     if let Err(e) = tiltsim_report::analysis::write_plots(s, dir) {
         eprintln!("warning: plots not written: {e}");
     }
-    let path = dir.join(tiltsim_master::free::trace::TIMING_CSV);
-    if !path.is_file() {
-        return;
-    }
-    let steps = s.steps();
-    // A run that ended early has an incomplete trace: its figures would show a part as the
-    // whole, so none are drawn (the trace itself is kept).
-    match tiltsim_master::free::trace::read(&path, s.run.dt_s, steps, s.controller_period_ticks()) {
-        Ok((_, trace)) => {
-            if let Err(e) = tiltsim_report::plot::write_timing_plots(
-                dir,
-                &s.name,
-                &trace,
-                steps,
-                s.run.dt_s,
-                s.controller_period_ticks(),
-            ) {
-                eprintln!("warning: timing plots not written: {e}");
-            }
-        }
-        Err(e) => eprintln!("warning: timing plots not drawn: {e}"),
+    // A run that ended early has an incomplete trace: no timing figures (the trace is kept).
+    if let Err(e) = tiltsim_report::analysis::write_timing_plots(s, dir) {
+        eprintln!("warning: timing plots not drawn: {e}");
     }
 }
 

@@ -15,7 +15,7 @@ mod svg;
 mod timing;
 
 pub use png::{rasterise, write_png};
-pub use run::{write_run_plots, SECTION_NOTE};
+pub use run::{write_run_plots, RunTitle, SECTION_NOTE};
 pub use scatter::{write_scatter, Series};
 pub use svg::to_svg;
 pub use timing::write_timing_plots;
@@ -175,6 +175,14 @@ pub fn layout(chart: &Chart, x: &[f64]) -> Scene {
     f.y_axis(&mut p);
     labels(&mut p, chart);
     f.lines(&mut p, chart, x);
+    let legend_h = legend(
+        &mut p,
+        chart.lines.iter().map(|l| (l.label, l.colour, l.dashed)),
+    );
+    // The white background covers the legend too.
+    if let Some(Prim::Rect { h, .. }) = p.first_mut() {
+        *h = H + legend_h;
+    }
     if !chart.note.is_empty() {
         p.push(Prim::Text {
             x: L + 6.0,
@@ -189,8 +197,52 @@ pub fn layout(chart: &Chart, x: &[f64]) -> Scene {
     }
     Scene {
         w: W,
-        h: H,
+        h: H + legend_h,
         prims: p,
+    }
+}
+
+/// Width of a legend entry's sample line and the gap to its text, and between entries (px).
+const LEGEND_LINE: f64 = 25.0;
+const LEGEND_GAP: f64 = 22.0;
+/// Height of a legend row (px).
+const LEGEND_ROW: f64 = 18.0;
+
+/// An estimate of the width of `s` at the 12 px font (DejaVu Sans averages about 0.6 em).
+fn text_width(s: &str) -> f64 {
+    s.chars().count() as f64 * 7.2
+}
+
+/// Draws the legend under the chart, clear of the data: entries (label, colour, dashed) left
+/// to right, wrapped into rows across the canvas. Returns the height it adds to the scene.
+pub(crate) fn legend<'a>(
+    p: &mut Vec<Prim>,
+    entries: impl Iterator<Item = (&'a str, &'a str, bool)>,
+) -> f64 {
+    let mut x = L;
+    let mut row = 0.0;
+    let mut any = false;
+    for (label, colour, dashed) in entries {
+        any = true;
+        let w = LEGEND_LINE + 5.0 + text_width(label);
+        if x > L && x + w > W - R {
+            x = L;
+            row += 1.0;
+        }
+        let y = H + 2.0 + LEGEND_ROW * row;
+        p.push(Prim::Path {
+            pts: vec![(x, y), (x + LEGEND_LINE, y)],
+            colour: Rgb::hex(colour),
+            width: 2.0,
+            dash: dashed.then_some((6.0, 4.0)),
+        });
+        p.push(text(x + LEGEND_LINE + 5.0, y + 4.0, label, Anchor::Start));
+        x += w + LEGEND_GAP;
+    }
+    if any {
+        LEGEND_ROW * (row + 1.0) + 6.0
+    } else {
+        0.0
     }
 }
 
@@ -310,10 +362,10 @@ impl Frame {
         });
     }
 
-    /// The data, decimated to at most about 2 points per pixel, with the legend.
+    /// The data, decimated to at most about 2 points per pixel.
     fn lines(&self, p: &mut Vec<Prim>, chart: &Chart, x: &[f64]) {
         let step = (x.len() / 1600).max(1);
-        for (k, l) in chart.lines.iter().enumerate() {
+        for l in &chart.lines {
             let colour = Rgb::hex(l.colour);
             let dash = l.dashed.then_some((6.0, 4.0));
             let path = |pts| Prim::Path {
@@ -332,14 +384,6 @@ impl Frame {
                 }
             }
             p.push(path(pts));
-            let ly = T + 14.0 + 16.0 * k as f64;
-            p.push(Prim::Path {
-                pts: vec![(W - R - 230.0, ly), (W - R - 205.0, ly)],
-                colour,
-                width: 2.0,
-                dash,
-            });
-            p.push(text(W - R - 200.0, ly + 4.0, l.label, Anchor::Start));
         }
     }
 }
@@ -389,6 +433,84 @@ pub fn write_chart(
     Ok([svg, png])
 }
 
+/// Writes `dir/NAME.svg` and `dir/NAME.png`: `charts` laid out one above the other over the
+/// same `x` (panels of one figure, each with its own y axis and legend); returns both paths.
+pub fn write_panels(
+    dir: &Path,
+    name: &str,
+    charts: &[Chart],
+    x: &[f64],
+) -> std::io::Result<[PathBuf; 2]> {
+    let mut all = Scene {
+        w: W,
+        h: 0.0,
+        prims: Vec::new(),
+    };
+    for chart in charts {
+        let sc = layout(chart, x);
+        let dy = all.h;
+        all.prims
+            .extend(sc.prims.into_iter().map(|p| shifted(p, dy)));
+        all.h += sc.h;
+    }
+    let svg = dir.join(format!("{name}.svg"));
+    tiltsim_master::files::write_atomic(&svg, to_svg(&all))?;
+    let png = dir.join(format!("{name}.png"));
+    write_png(&all, &png)?;
+    Ok([svg, png])
+}
+
+/// `p` moved down by `dy`.
+fn shifted(p: Prim, dy: f64) -> Prim {
+    match p {
+        Prim::Rect {
+            x,
+            y,
+            w,
+            h,
+            fill,
+            stroke,
+        } => Prim::Rect {
+            x,
+            y: y + dy,
+            w,
+            h,
+            fill,
+            stroke,
+        },
+        Prim::Path {
+            pts,
+            colour,
+            width,
+            dash,
+        } => Prim::Path {
+            pts: pts.into_iter().map(|(x, y)| (x, y + dy)).collect(),
+            colour,
+            width,
+            dash,
+        },
+        Prim::Text {
+            x,
+            y,
+            text,
+            size,
+            anchor,
+            vertical,
+            bold,
+            colour,
+        } => Prim::Text {
+            x,
+            y: y + dy,
+            text,
+            size,
+            anchor,
+            vertical,
+            bold,
+            colour,
+        },
+    }
+}
+
 /// Colours given to runs, lines or sweep samples in turn.
 pub const PALETTE: [&str; 8] = [
     "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
@@ -434,7 +556,8 @@ mod tests {
     fn the_raster_draws_the_line_bands_and_text_where_the_scene_puts_them() {
         let (chart, t) = demo();
         let (w, h, px) = rasterise(&layout(&chart, &t)).unwrap();
-        assert_eq!((w, h), (1800, 840));
+        // The canvas and, under it, one row of legend.
+        assert_eq!((w, h), (1800, (2.0 * (H + LEGEND_ROW + 6.0)) as u32));
         let at = |x: f64, y: f64| {
             let s = PNG_SCALE as f64;
             let i = ((y * s) as usize * w as usize + (x * s) as usize) * 3;

@@ -2,8 +2,8 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{labels, text, to_svg, write_png, Anchor, Chart, Frame, Line, Prim, Rgb, Scene};
-use super::{H, R, T, W};
+use super::{labels, legend, text, to_svg, write_png, Anchor, Chart, Frame, Line, Prim, Rgb};
+use super::{Scene, H, W};
 
 /// One series of a scatter chart: points (x, y), drawn as squares, joined in order when
 /// `joined` (a front along a swept parameter), each labelled when `labels` are given.
@@ -55,12 +55,17 @@ pub fn write_scatter(
     f.x_axis(&mut p);
     f.y_axis(&mut p);
     labels(&mut p, &range);
-    for (k, se) in series.iter().enumerate() {
-        draw_series(&mut p, &f, k, se);
+    for se in series {
+        draw_series(&mut p, &f, se);
+    }
+    let legend_h = legend(&mut p, series.iter().map(|s| (s.label, s.colour, false)));
+    // The white background covers the legend too.
+    if let Some(Prim::Rect { h, .. }) = p.first_mut() {
+        *h = H + legend_h;
     }
     let sc = Scene {
         w: W,
-        h: H,
+        h: H + legend_h,
         prims: p,
     };
     let svg = dir.join(format!("{name}.svg"));
@@ -88,9 +93,9 @@ fn ranges(series: &[Series]) -> ([f64; 2], Vec<f64>) {
     ([x0 - pad, x1 + pad], ys)
 }
 
-/// Draws series `se`, the `k`-th, in frame `f`: its points as squares (joined in order when
-/// asked, each with its label), and its legend entry.
-fn draw_series(p: &mut Vec<Prim>, f: &Frame, k: usize, se: &Series) {
+/// Draws series `se` in frame `f`: its points as squares, joined in order when asked, each
+/// with its label.
+fn draw_series(p: &mut Vec<Prim>, f: &Frame, se: &Series) {
     let colour = Rgb::hex(se.colour);
     let xy: Vec<(f64, f64)> = se
         .points
@@ -119,14 +124,4 @@ fn draw_series(p: &mut Vec<Prim>, f: &Frame, k: usize, se: &Series) {
             p.push(text(x + 6.0, y - 6.0, t.clone(), Anchor::Start));
         }
     }
-    let ly = T + 14.0 + 16.0 * k as f64;
-    p.push(Prim::Rect {
-        x: W - R - 222.0,
-        y: ly - 3.5,
-        w: 7.0,
-        h: 7.0,
-        fill: Some(colour),
-        stroke: None,
-    });
-    p.push(text(W - R - 200.0, ly + 4.0, se.label, Anchor::Start));
 }

@@ -150,6 +150,15 @@ pub(super) fn outputs(dir: &Path) -> Result<Outputs, String> {
     })
 }
 
+/// Redraws the figures of the sweep (or shard) in `dir` from its verified outputs; returns the
+/// files written.
+pub fn redraw(dir: &Path) -> Result<Vec<PathBuf>, SweepError> {
+    let o = read_outputs(dir)?;
+    let rows: Vec<Row> = o.rows.into_iter().map(|(_, r)| r).collect();
+    super::outputs::write_plots(dir, &o.base, &o.meta.plan, &rows)
+        .map_err(|e| SweepError::Files(format!("{}: {e}", dir.join("plots").display())))
+}
+
 /// Joins shard outputs: each verified ([`read_outputs`]), all of one sweep (fingerprint:
 /// scenario, plan, build), each shard of one split once, every sample of the plan exactly once
 /// with the plan's parameters. Errors name the directory or the file and line.

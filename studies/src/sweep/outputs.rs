@@ -380,12 +380,14 @@ pub(super) fn grid_plots(
     t: &[f64],
     bands: Vec<(f64, f64, bool)>,
 ) -> std::io::Result<Vec<PathBuf>> {
+    // The key is in the title; each legend entry names its value.
     let labels: Vec<String> = ok
         .iter()
-        .map(|r| format!("{key} = {}", r.params.first().copied().unwrap_or(f64::NAN)))
+        .map(|r| format!("{}", r.params.first().copied().unwrap_or(f64::NAN)))
         .collect();
+    let lat_title = format!("Lateral acceleration for each value of {key}");
     let chart = Chart {
-        title: "Lateral acceleration for each swept value",
+        title: &lat_title,
         x_label: "time (s)",
         y_label: "lateral acceleration (m/s²)",
         lines: ok
