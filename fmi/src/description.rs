@@ -361,6 +361,10 @@ pub struct VarDesc {
     pub type_name: String,
     /// Declared array dimensions (FMI 3 arrays are not supported).
     pub is_array: bool,
+    /// The `unit` the variable (or its type element in FMI 2) declares.
+    pub unit: Option<String>,
+    /// Its `description`.
+    pub description: Option<String>,
 }
 
 /// What tiltsim needs from an FMU's `modelDescription.xml`.
@@ -413,6 +417,15 @@ fn variables(mv: roxmltree::Node, version: FmiVersion) -> Vec<VarDesc> {
         ) else {
             continue;
         };
+        // FMI 3 puts the unit on the variable, FMI 2 on its type element.
+        let unit = e
+            .attribute("unit")
+            .or_else(|| {
+                e.children()
+                    .find(|c| c.is_element())
+                    .and_then(|c| c.attribute("unit"))
+            })
+            .map(str::to_string);
         vars.push(VarDesc {
             name: name.to_string(),
             vr,
@@ -420,6 +433,8 @@ fn variables(mv: roxmltree::Node, version: FmiVersion) -> Vec<VarDesc> {
             kind,
             type_name,
             is_array,
+            unit,
+            description: e.attribute("description").map(str::to_string),
         });
     }
     vars

@@ -291,11 +291,14 @@ impl Scenario {
         (self.controller.period_s / self.run.dt_s).round().max(1.0) as u64
     }
 
-    /// The scenario with the setting at dotted `key` (`vehicle.m_v`, `run.seed`) set to the
-    /// number written `text` (`tiltsim run --set KEY=VALUE`). A key that holds a whole number
-    /// takes whole numbers only, parsed as integers, so every `u64` (a seed of 2^63 or
-    /// more included) arrives exactly; any other key takes a decimal number. Not
-    /// re-validated: the caller validates once after all settings. Errors name the key.
+    /// The scenario with the setting at dotted `key` (`vehicle.m_v`, `run.seed`,
+    /// `controller.mode`) set to the value written `text` (`tiltsim run --set KEY=VALUE`). A
+    /// key that holds a whole number takes whole numbers only, parsed as integers, so every
+    /// `u64` (a seed of 2^63 or more included) arrives exactly; a decimal key takes a decimal
+    /// number; a word or choice takes the word (checked against the choices as the file's
+    /// would be); a switch takes true or false; a list or table is written as in a scenario
+    /// file. Not re-validated: the caller validates once after all settings. Errors name the
+    /// key and what it takes.
     pub fn with_setting(&self, key: &str, text: &str) -> Result<Scenario, String> {
         // JSON numbers hold u64, i64 and f64 exactly, unlike a TOML value (i64 or f64).
         let mut doc = serde_json::to_value(self).map_err(|e| e.to_string())?;
@@ -385,25 +388,51 @@ fn setting_value(
                 format!("key `{key}` takes a whole number written in digits, not `{text}`")
             }
         }),
-        Some(Value::Number(_)) | Some(Value::Null) | None => {
-            match whole(text) {
-                // A key with no value yet (an option, `design_vehicle.*`): an integer as
-                // written, which a decimal setting takes as well.
-                Some(v) if !matches!(current, Some(Value::Number(_))) => Ok(v),
-                _ => {
-                    let v: f64 = text
-                        .parse()
-                        .map_err(|_| format!("key `{key}`: `{text}` is not a number"))?;
-                    serde_json::Number::from_f64(v)
-                        .map(Value::Number)
-                        .ok_or_else(|| format!("key `{key}` = {text}: allowed a finite number"))
-                }
-            }
+        Some(Value::Number(_)) => {
+            let v: f64 = text
+                .parse()
+                .map_err(|_| format!("key `{key}`: `{text}` is not a number"))?;
+            serde_json::Number::from_f64(v)
+                .map(Value::Number)
+                .ok_or_else(|| format!("key `{key}` = {text}: allowed a finite number"))
         }
-        Some(_) => Err(format!(
-            "key `{key}` is not a numeric setting (`--set` takes numbers only)"
-        )),
+        // A key with no value yet (an option, `design_vehicle.*`): an integer as written
+        // (which a decimal setting takes as well), a number, true or false, or else a word;
+        // the scenario's own types then judge it.
+        Some(Value::Null) | None => Ok(whole(text)
+            .or_else(|| {
+                text.parse::<f64>()
+                    .ok()
+                    .and_then(serde_json::Number::from_f64)
+                    .map(Value::Number)
+            })
+            .or_else(|| text.parse::<bool>().ok().map(Value::Bool))
+            .unwrap_or_else(|| Value::String(unquoted(text).to_string()))),
+        // A word or a choice (`controller.mode=mpc`, `actuator.model=ideal`): the scenario's
+        // own type says which are allowed when it is read.
+        Some(Value::String(_)) => Ok(Value::String(unquoted(text).to_string())),
+        Some(Value::Bool(_)) => text
+            .parse::<bool>()
+            .map(Value::Bool)
+            .map_err(|_| format!("key `{key}` takes true or false, not `{text}`")),
+        // A list or a table, written as in a scenario file (`[0.1, 1000, 0.1]`).
+        Some(Value::Array(_) | Value::Object(_)) => {
+            let doc: toml::Table = toml::from_str(&format!("v = {text}")).map_err(|_| {
+                format!(
+                    "key `{key}` takes a list or table written as in a scenario file (for example `[0.1, 1000]`), not `{text}`"
+                )
+            })?;
+            serde_json::to_value(&doc["v"]).map_err(|e| format!("key `{key}`: {e}"))
+        }
     }
+}
+
+/// `text` without the quotes around it, if it has them (`"mpc"` or `'mpc'` as `mpc`).
+fn unquoted(text: &str) -> &str {
+    ['"', '\'']
+        .iter()
+        .find_map(|q| text.strip_prefix(*q).and_then(|t| t.strip_suffix(*q)))
+        .unwrap_or(text)
 }
 
 #[cfg(test)]
@@ -414,6 +443,39 @@ mod tests {
 
     fn parse(t: &str) -> Result<Scenario, ScenarioError> {
         Scenario::parse(t, Path::new("x.toml"))
+    }
+
+    #[test]
+    fn a_setting_takes_words_choices_switches_and_lists_and_names_what_is_allowed() {
+        let s = parse("").unwrap();
+        let lqg = s.with_setting("controller.mode", "lqg").unwrap();
+        assert_eq!(lqg.controller.mode, controller_proc::Mode::Lqg);
+        let quoted = s.with_setting("controller.mode", "\"mpc\"").unwrap();
+        assert_eq!(quoted.controller.mode, controller_proc::Mode::Mpc);
+        let e = s.with_setting("controller.mode", "fuzzy").unwrap_err();
+        assert!(
+            e.contains("controller.mode") && e.contains("lqg") && e.contains("mpc"),
+            "{e}"
+        );
+        let named = s.with_setting("name", "other-name").unwrap();
+        // The name stays the scenario's (its directory); the word itself arrived.
+        assert_eq!(named.name, s.name);
+        let off = s.with_setting("run.pin_cpus", "false").unwrap();
+        assert!(!off.run.pin_cpus);
+        let e = s.with_setting("run.pin_cpus", "maybe").unwrap_err();
+        assert!(e.contains("true or false"), "{e}");
+        let q = "[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0]";
+        let listed = s.with_setting("controller.lqg.q_diag", q).unwrap();
+        assert_eq!(listed.controller.lqg.q_diag[9], 10.0);
+        let e = s
+            .with_setting("controller.lqg.q_diag", "[1, 2")
+            .unwrap_err();
+        assert!(
+            e.contains("controller.lqg.q_diag") && e.contains("list"),
+            "{e}"
+        );
+        let e = s.with_setting("controller.nonsense", "1").unwrap_err();
+        assert!(e.contains("nonsense"), "{e}");
     }
 
     #[test]

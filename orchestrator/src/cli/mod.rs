@@ -9,11 +9,14 @@ mod bounds;
 mod clean;
 mod common;
 mod compare;
+mod completions;
 mod error;
 mod export_fmu;
 mod export_mcap;
 mod free_run;
+mod inspect;
 mod linearize;
+mod new;
 mod participant;
 mod plot;
 mod replay;
@@ -23,7 +26,7 @@ mod sweep;
 mod sweep_merge;
 mod validate;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 pub use error::{CliError, CliResult, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_INVALID};
 
@@ -47,10 +50,12 @@ enum Command {
     Run(run::RunArgs),
     /// Check a scenario file without running it.
     Validate(validate::ValidateArgs),
+    /// Write a commented scenario file to start from (NAME.toml), valid as written.
+    New(new::NewArgs),
     /// Run several scenarios and write DIR/table.md and DIR/table.csv laid out like the
     /// paper's Table 4 (each run's files go to DIR/<scenario name>/).
     Compare(compare::CompareArgs),
-    /// Redraw DIR/plots/*.svg and *.png from a finished run's DIR/timeseries.csv and DIR/scenario.toml.
+    /// Redraw the figures (DIR/plots/*.svg and *.png) of a finished run, compare or sweep.
     Plot(plot::PlotArgs),
     /// Robustness or parameter sweep: many runs in parallel, a table of comfort metrics
     /// (median, 5th and 95th percentile) and plots in DIR. Either --samples (Monte Carlo
@@ -79,6 +84,11 @@ enum Command {
     /// Write one participant of a scenario as an FMI 3.0 co-simulation FMU (its inputs and
     /// outputs are the participant's sample fields, its parameters the scenario's values).
     ExportFmu(export_fmu::ExportFmuArgs),
+    /// List what an FMU declares: version, interfaces, steps, and every variable with its
+    /// causality, type, unit and description.
+    Inspect(inspect::InspectArgs),
+    /// Print the completion script of a shell (bash, zsh, fish, elvish, powershell).
+    Completions(completions::CompletionsArgs),
     /// The echo side of `bench --ping-pong`.
     #[command(hide = true)]
     BenchEcho(bench::EchoArgs),
@@ -119,6 +129,9 @@ pub fn main() -> i32 {
     let result = match cli.command {
         Command::Run(a) => run::exec(a),
         Command::Validate(a) => validate::exec(a),
+        Command::New(a) => new::exec(a),
+        Command::Inspect(a) => inspect::exec(a),
+        Command::Completions(a) => completions::exec(a, &mut Cli::command()),
         Command::Compare(a) => compare::exec(a),
         Command::Plot(a) => plot::exec(a),
         Command::ReplayTiming(a) => free_run::replay_timing(a),

@@ -34,8 +34,9 @@ pub struct RunArgs {
     /// Simulated duration in s, overriding run.duration_s.
     #[arg(long, value_parser = bounds::real((1e-5, End::Closed), (3600.0, End::Closed), " s"))]
     duration: Option<f64>,
-    /// Set a numeric setting, KEY=VALUE with KEY a dotted path (`vehicle.m_v=21000`);
-    /// repeatable. The lines of `tiltsim sweep --plan-only` give a sample's settings.
+    /// Set a scenario value, KEY=VALUE with KEY a dotted path: a number
+    /// (`vehicle.m_v=21000`), a choice or word (`controller.mode=lqg`), true or false, or a
+    /// list as in a scenario file (`controller.lqg.q_diag=[0.1, 1000]`); repeatable. The lines of `tiltsim sweep --plan-only` give a sample's settings.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
     /// iceoryx2 file prefix for this run (default: unique per run).
@@ -107,7 +108,7 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
         s.run.execution = tiltsim_master::scenario::Execution::Free;
     }
     for kv in &a.set {
-        let bad = || CliError::Invalid(format!("command line: --set {kv}: expected KEY=NUMBER"));
+        let bad = || CliError::Invalid(format!("command line: --set {kv}: expected KEY=VALUE"));
         let (k, v) = kv.split_once('=').ok_or_else(bad)?;
         s = s
             .with_setting(k.trim(), v)

@@ -1,0 +1,186 @@
+//! What a new user starts with: `tiltsim new` templates that validate and run, `--set` for
+//! words, choices, switches and lists, `tiltsim inspect` against FMPy's reading of the same
+//! FMU, and shell completions that the shell accepts.
+
+use std::path::Path;
+
+use tiltsim_suite::{fmi_tool, run, scenario, temp_dir};
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+#[test]
+fn every_new_template_validates_and_runs_and_an_existing_file_is_kept() {
+    let dir = temp_dir("new-templates");
+    for c in ["passive", "pi", "lqg", "mpc"] {
+        let file = dir.join(format!("t-{c}.toml"));
+        let (code, _, err) = run(&[
+            "new",
+            &format!("t-{c}"),
+            "--controller",
+            c,
+            "--out",
+            s(&file),
+        ]);
+        assert_eq!(code, 0, "{c}: {err}");
+        let (code, out, err) = run(&["validate", s(&file)]);
+        assert_eq!(code, 0, "{c}: {err}");
+        assert!(
+            out.to_lowercase().contains(&format!("controller {c}")),
+            "{c}: {out}"
+        );
+        let out_dir = dir.join(format!("run-{c}"));
+        let (code, _, err) = run(&[
+            "run",
+            s(&file),
+            "--transport",
+            "in-process",
+            "--duration",
+            "0.5",
+            "--out",
+            s(&out_dir),
+            "-q",
+        ]);
+        assert_eq!(code, 0, "{c}: {err}");
+        let resolved = std::fs::read_to_string(out_dir.join("scenario.toml")).unwrap();
+        assert!(resolved.contains(&format!("mode = \"{c}\"")), "{c}");
+    }
+    // An existing file is never overwritten; a name a scenario cannot have is refused.
+    let kept = dir.join("t-mpc.toml");
+    let before = std::fs::read(&kept).unwrap();
+    let (code, _, err) = run(&["new", "t-mpc", "--out", s(&kept)]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("t-mpc.toml"), "{err}");
+    assert_eq!(std::fs::read(&kept).unwrap(), before);
+    let (code, _, err) = run(&["new", "a/b", "--out", s(&dir.join("x.toml"))]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("name"), "{err}");
+}
+
+#[test]
+fn set_takes_choices_switches_and_lists_and_names_what_is_allowed() {
+    let dir = temp_dir("set-words");
+    let sc = scenario("paper-lqg.toml");
+    let out = dir.join("ideal");
+    let (code, _, err) = run(&[
+        "run",
+        s(&sc),
+        "--transport",
+        "in-process",
+        "--duration",
+        "0.2",
+        "--set",
+        "actuator.model=ideal",
+        "--set",
+        "run.pin_cpus=false",
+        "--set",
+        "controller.lqg.q_diag=[0.1, 2000, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 1000]",
+        "--out",
+        s(&out),
+        "-q",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let resolved: toml::Table =
+        toml::from_str(&std::fs::read_to_string(out.join("scenario.toml")).unwrap()).unwrap();
+    assert_eq!(resolved["actuator"]["model"].as_str(), Some("ideal"));
+    assert_eq!(resolved["run"]["pin_cpus"].as_bool(), Some(false));
+    assert_eq!(
+        resolved["controller"]["lqg"]["q_diag"][1].as_float(),
+        Some(2000.0)
+    );
+    for (set, words) in [
+        (
+            "controller.mode=fuzzy",
+            vec!["controller.mode", "lqg", "mpc"],
+        ),
+        ("run.pin_cpus=maybe", vec!["run.pin_cpus", "true or false"]),
+        ("actuator.model=5", vec!["actuator.model"]),
+    ] {
+        let (code, _, err) = run(&["run", s(&sc), "--set", set, "--out", s(&dir.join("bad"))]);
+        assert_eq!(code, 2, "{set}: {err}");
+        for w in words {
+            assert!(err.contains(w), "{set}: `{w}` not in {err}");
+        }
+    }
+}
+
+#[test]
+fn inspect_lists_what_fmpy_reads_from_the_same_fmu() {
+    let dir = temp_dir("inspect");
+    let sc = scenario("paper-mpc.toml");
+    for (role, version) in [("controller", "3"), ("plant", "2")] {
+        let fmu = dir.join(format!("{role}-{version}.fmu"));
+        let (code, _, err) = run(&[
+            "export-fmu",
+            role,
+            s(&sc),
+            "--out",
+            s(&fmu),
+            "--fmi-version",
+            version,
+        ]);
+        assert_eq!(code, 0, "{err}");
+        let (code, out, err) = run(&["inspect", s(&fmu), "--json"]);
+        assert_eq!(code, 0, "{err}");
+        let ours: serde_json::Value = serde_json::from_str(&out).unwrap();
+        // FMPy's own reader of the description: name, causality and unit of every variable.
+        let script = format!(
+            "import json\nfrom fmpy import read_model_description\nmd = read_model_description({:?})\nprint(json.dumps([[v.name, v.causality, v.unit, v.valueReference] for v in md.modelVariables]))",
+            s(&fmu)
+        );
+        let (code, out, err) = fmi_tool("python", &["-c", &script]);
+        assert_eq!(code, 0, "fmpy: {err}");
+        let theirs: Vec<(String, String, Option<String>, u32)> =
+            serde_json::from_str(&out).unwrap();
+        let vars = ours["variables"].as_array().unwrap();
+        assert_eq!(vars.len(), theirs.len(), "{role} FMI {version}");
+        for (name, causality, unit, vr) in theirs {
+            let v = vars
+                .iter()
+                .find(|v| v["name"] == name.as_str())
+                .unwrap_or_else(|| panic!("{name} not listed"));
+            assert_eq!(v["causality"], causality.as_str(), "{name}");
+            assert_eq!(v["value_reference"], vr, "{name}");
+            assert_eq!(v["unit"].as_str(), unit.as_deref(), "{name}");
+        }
+        let (code, table, _) = run(&["inspect", s(&fmu)]);
+        assert_eq!(code, 0);
+        assert!(table.contains(&format!("FMI {version}.0")), "{table}");
+    }
+    let (code, _, err) = run(&["inspect", s(&sc)]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("paper-mpc.toml") && err.contains("not an FMU"),
+        "{err}"
+    );
+}
+
+#[test]
+fn the_bash_completion_script_is_accepted_by_bash_and_completes_every_command() {
+    let (code, script, err) = run(&["completions", "bash"]);
+    assert_eq!(code, 0, "{err}");
+    for cmd in [
+        "run",
+        "replay-timing",
+        "inspect",
+        "new",
+        "sweep-merge",
+        "--free-run",
+    ] {
+        assert!(script.contains(cmd), "{cmd} not completed");
+    }
+    let file = temp_dir("completions").join("tiltsim.bash");
+    std::fs::write(&file, &script).unwrap();
+    let out = std::process::Command::new("bash")
+        .args(["-n", s(&file)])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (code, _, err) = run(&["completions", "tcsh"]);
+    assert_eq!(code, 2, "{err}");
+}
