@@ -540,16 +540,17 @@ fn the_shipped_fmu_example_runs_as_documented_and_its_parameter_takes_effect() {
     std::fs::write(&example, &text).expect("write");
     export(
         "controller",
-        &scenario("paper-pi.toml"),
-        &dir.join("out/fmu/paper-pi-controller.fmu"),
+        &scenario("pi-drive.toml"),
+        &dir.join("out/fmu/pi-drive-controller.fmu"),
     );
     let with_fmu = run_ok(&example, &dir.join("fmu"), "ipc", &["--duration", "2"]);
-    // The same scenario with the native controller and kp = 30 in its own settings.
+    // The same scenario with the native controller and kp = 0.45 in its own settings.
     let start = text.find("[participants.controller]").expect("table");
     let end = text.find("[links.measurement]").expect("links");
+    assert!(text[..start].contains("\nkp = 0.5708\n"));
     let native_text = format!(
-        "{}[controller.pi]\nkp = 30.0\n\n{}",
-        &text[..start],
+        "{}{}",
+        text[..start].replace("\nkp = 0.5708\n", "\nkp = 0.45\n"),
         &text[end..]
     );
     let native_sc = dir.join("native.toml");
@@ -559,18 +560,18 @@ fn the_shipped_fmu_example_runs_as_documented_and_its_parameter_takes_effect() {
     let b = std::fs::read(with_fmu.join("timeseries.csv")).expect("csv");
     assert!(
         a == b,
-        "the example's FMU run differs from the native run with kp = 30"
+        "the example's FMU run differs from the native run with kp = 0.45"
     );
-    // And kp = 30 is not the exported scenario's 38.24: the parameter changed the result.
-    let paper = scenario_in(
+    // And kp = 0.45 is not the exported scenario's 0.5708: the parameter changed the result.
+    let drive = scenario_in(
         &dir,
-        "paper-pi.toml",
-        "paper-pi-delayed",
+        "pi-drive.toml",
+        "pi-drive-delayed",
         "[links.measurement]\ndelay_ticks = 10\n",
     );
-    let other = run_ok(&paper, &dir.join("paper"), "ipc", &["--duration", "2"]);
+    let other = run_ok(&drive, &dir.join("drive"), "ipc", &["--duration", "2"]);
     let c = std::fs::read(other.join("timeseries.csv")).expect("csv");
-    assert!(a != c, "kp = 30 gave the same rows as kp = 38.24");
+    assert!(a != c, "kp = 0.45 gave the same rows as kp = 0.5708");
 }
 
 #[test]

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use tiltsim_suite::{fmi_tool, run, scenario, temp_dir};
+use tiltsim_suite::{fmi_tool, run, scenario, temp_dir, tiltsim};
 
 fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
@@ -183,4 +183,55 @@ fn the_bash_completion_script_is_accepted_by_bash_and_completes_every_command() 
     );
     let (code, _, err) = run(&["completions", "tcsh"]);
     assert_eq!(code, 2, "{err}");
+}
+
+#[test]
+fn a_run_from_a_terminal_draws_a_progress_bar_and_a_piped_or_quiet_one_does_not() {
+    let dir = temp_dir("progress-bar");
+    let sc = scenario("paper-lqg.toml");
+    let cmd = |out: &str, quiet: bool| {
+        format!(
+            "{} run {} --transport in-process --duration 1 --out {}{}",
+            tiltsim().display(),
+            s(&sc),
+            s(&dir.join(out)),
+            if quiet { " -q" } else { "" }
+        )
+    };
+    // util-linux `script` gives the run a terminal (a pseudo-terminal) for its output.
+    let on_terminal = |c: String| {
+        let out = std::process::Command::new("script")
+            .args(["-qec", &c, "/dev/null"])
+            .stdin(std::process::Stdio::null())
+            .output()
+            .expect("util-linux `script` (Debian's bsdutils) gives the run a terminal");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let shown = on_terminal(cmd("bar", false));
+    assert!(shown.contains("% of 1.0 s simulated"), "no bar: {shown}");
+    assert!(
+        shown.contains("100%"),
+        "the bar did not reach 100 %: {shown}"
+    );
+    let quiet = on_terminal(cmd("quiet", true));
+    assert!(!quiet.contains("% of"), "a quiet run drew a bar: {quiet}");
+    let sc_s = s(&sc).to_string();
+    let out_s = s(&dir.join("piped")).to_string();
+    let (code, _, err) = run(&[
+        "run",
+        &sc_s,
+        "--transport",
+        "in-process",
+        "--duration",
+        "1",
+        "--out",
+        &out_s,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("% of"), "a piped run drew a bar: {err}");
 }

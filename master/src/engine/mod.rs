@@ -73,9 +73,13 @@ impl Observers {
             drive: DriveEvents::default(),
             trace,
             mcap,
-            progress: opts
-                .machine_progress
-                .then(|| observer::Progress::new(s.steps(), s.run.dt_s)),
+            progress: if opts.machine_progress {
+                Some(observer::Progress::new(s.steps(), s.run.dt_s))
+            } else if opts.progress_bar {
+                Some(observer::Progress::bar(s.steps(), s.run.dt_s))
+            } else {
+                None
+            },
             pacing: opts
                 .pace
                 .map(|f| Pacing::new(f, s.run.dt_s, opts.realtime.is_some())),

@@ -461,16 +461,46 @@ pub(crate) struct Progress {
     dt: f64,
     next: u64,
     started: Instant,
+    /// A bar for a person at a terminal instead of the machine lines.
+    bar: Option<indicatif::ProgressBar>,
 }
 
 impl Progress {
-    /// Progress over `steps` ticks of `dt` (s).
+    /// Progress over `steps` ticks of `dt` (s), a JSON line per percent.
     pub fn new(steps: u64, dt: f64) -> Self {
         Progress {
             steps,
             dt,
             next: 1,
             started: Instant::now(),
+            bar: None,
+        }
+    }
+
+    /// Progress over `steps` ticks of `dt` (s) as a bar of simulated seconds, redrawn at
+    /// every percent (the tick loop pays one comparison per tick).
+    pub fn bar(steps: u64, dt: f64) -> Self {
+        let total = steps as f64 * dt;
+        let bar = indicatif::ProgressBar::new(100);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {pos:>3}% {msg} [{elapsed_precise}, {eta} left]",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+        bar.set_message(format!("of {total:.1} s simulated"));
+        Progress {
+            bar: Some(bar),
+            ..Progress::new(steps, dt)
+        }
+    }
+}
+
+impl Drop for Progress {
+    fn drop(&mut self) {
+        if let Some(b) = &self.bar {
+            b.finish_and_clear();
         }
     }
 }
@@ -482,6 +512,10 @@ impl Observer for Progress {
         let percent = done * 100 / self.steps.max(1);
         if percent >= self.next {
             self.next = percent + 1;
+            if let Some(b) = &self.bar {
+                b.set_position(percent);
+                return Ok(());
+            }
             eprintln!(
                 "{{\"progress\":{percent},\"step\":{done},\"steps\":{},\"t_s\":{},\"wall_s\":{:.3}}}",
                 self.steps,

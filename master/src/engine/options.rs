@@ -30,6 +30,8 @@ pub struct RunOptions {
     pub realtime: Option<i32>,
     /// Print a JSON line to standard error at every percent of the run (`--progress machine`).
     pub machine_progress: bool,
+    /// Draw a progress bar on standard error (a run started from a terminal).
+    pub progress_bar: bool,
     /// Record the run as `run.mcap` (`--record`).
     pub record: bool,
     /// Keep the rows in memory instead of writing `timeseries.csv` (a sweep's samples, whose
@@ -58,6 +60,7 @@ impl RunOptions {
             pace: None,
             realtime: None,
             machine_progress: false,
+            progress_bar: false,
             record: false,
             keep_rows: false,
             timing: true,

@@ -243,6 +243,7 @@ pub fn replay_timing(a: ReplayTimingArgs) -> CliResult {
         pace: None,
         realtime: None,
         machine_progress: false,
+        progress_bar: false,
         record: false,
         keep_rows: false,
         timing: true,

@@ -206,6 +206,10 @@ pub fn exec(a: RunArgs) -> CliResult {
         pace: a.pace,
         realtime,
         machine_progress: a.progress.is_some(),
+        // A person watching: a bar, unless quiet or reading the machine lines.
+        progress_bar: a.progress.is_none()
+            && !a.quiet
+            && std::io::IsTerminal::is_terminal(&std::io::stderr()),
         record: a.record,
         keep_rows: false,
         timing: true,
