@@ -99,6 +99,8 @@ pub struct FreeReport {
     pub ipc_prefix: String,
     /// Shared-memory files left behind (empty unless something is wrong).
     pub leftover_ipc_files: Vec<String>,
+    /// The CPU each participant was pinned to (empty when not pinned).
+    pub cpus: BTreeMap<String, usize>,
     /// `run.mcap` (`--record`), to be closed with the summary.
     #[serde(skip)]
     pub recording: Option<super::record::FreeRecording>,
@@ -142,6 +144,7 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
     let guard = FilesGuard(prefix.clone());
     let cpus = cosim::ipc::allowed_cpus();
     let mut ps = launch::start(s, opts, &prefix).map_err(FreeError::Run)?;
+    let placement = place(s, &ps, &cpus);
     let steps = s.steps();
     let period = s.controller_period_ticks();
     let mut store = Store::new(steps, period, s.run.dt_s, &s.links, s.run.seed);
@@ -297,8 +300,34 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
             .collect(),
         ipc_prefix: prefix,
         leftover_ipc_files: leftover,
+        cpus: placement,
         recording,
     })
+}
+
+/// The CPU of each participant in a free run, when pinned: the controller moves to the
+/// orchestrator's CPU and the plant and the actuator keep theirs, so the controller's
+/// computer, however slow, never delays the vehicle or its drive (in lock-step all three
+/// share one CPU, since only one computes at a time). Empty when not pinned.
+fn place(s: &Scenario, ps: &Participants, cpus: &[usize]) -> BTreeMap<String, usize> {
+    let (Some(&first), Some(&last)) = (cpus.first(), cpus.last()) else {
+        return BTreeMap::new();
+    };
+    if !s.run.pin_cpus || first == last {
+        return BTreeMap::new();
+    }
+    let pids = ps.pids();
+    let mut placed = BTreeMap::new();
+    for (r, cpu) in [
+        (Role::Plant, last),
+        (Role::Actuator, last),
+        (Role::Controller, first),
+    ] {
+        if cosim::ipc::set_cpus_of(pids[r], &[cpu]) {
+            placed.insert(r.name().to_string(), cpu);
+        }
+    }
+    placed
 }
 
 /// Stops the participants and removes the run's files; returns their exits.

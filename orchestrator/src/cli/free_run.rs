@@ -122,6 +122,7 @@ pub fn exec(s: &Scenario, scenario_file: &Path, opts: &RunOptions, quiet: bool) 
         "not_real_time": r.not_real_time,
         "plant_max_lateness_s": r.plant_max_lateness_s,
         "free_run": {
+            "cpus": r.cpus,
             "participants": r.participants,
             "input_age_ticks": r.input_age_ticks,
         },
