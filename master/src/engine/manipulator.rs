@@ -82,6 +82,14 @@ impl FaultSchedule {
         );
     }
 
+    /// The faults due at tick `k`.
+    pub fn due_at(&self, k: u64) -> impl Iterator<Item = &ScheduledFault> {
+        self.due
+            .iter()
+            .filter(move |(at, _)| *at == k)
+            .map(|(_, f)| f)
+    }
+
     /// The events [`FaultSchedule::apply`] logs for every fault due at a tick up to `last`,
     /// in tick order, without applying any (a free run's and its replay's `events.csv`).
     pub fn log_until(&self, last: u64, ev: &mut EventLog) {

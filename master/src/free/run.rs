@@ -8,7 +8,7 @@ use std::time::Duration;
 use cosim::endpoint::check_reply;
 use cosim::msg::{now_ns, FromActuator, FromController, FromPlant, Header, Kind, Message};
 use cosim::msg::{ToActuator, ToController, ToPlant, FLAG_FREE_START};
-use cosim::{Endpoint, LinkError, Role};
+use cosim::{Endpoint, LinkError, ProcessFault, Role};
 
 use super::compose::Store;
 use super::trace::{age, col, inputs_of, StepTrace, TraceHead, TraceWriter, TIMING_CSV};
@@ -16,6 +16,7 @@ use super::{init_all, write_rows, FilesGuard, FreeError};
 use crate::engine::launch::{self, Participants};
 use crate::engine::manipulator::FaultSchedule;
 use crate::engine::{RunOptions, Status};
+use crate::faults::FaultAction;
 use crate::links::LinkId;
 use crate::roles::RoleMap;
 use crate::scenario::Scenario;
@@ -493,15 +494,8 @@ fn hub(
         in_flight: Vec::new(),
         flags: RoleMap::default(),
     };
-    // The fault events are written from the schedule (`fault_events`), as the replay does.
-    let mut fault_log = crate::events::EventLog::new(s.run.dt_s);
-    faults.apply(
-        0,
-        ps,
-        &mut deliveries.flags,
-        RoleMap::default(),
-        &mut fault_log,
-    );
+    // The fault events are written from the schedule (`run_events`), as the replay does.
+    inject(&faults, 0, ps, &mut deliveries.flags);
     let start = |mut h: Header, role: Role| {
         h.flags = FLAG_FREE_START;
         h.step = ticks[role];
@@ -566,13 +560,7 @@ fn hub(
                 deliveries.send(l, q, d, now, dt_ns, ps, store, &mut relays)?;
             }
             // The world's clock has reached tick q + 1: the faults scheduled for it happen.
-            faults.apply(
-                t.step + 1,
-                ps,
-                &mut deliveries.flags,
-                RoleMap::default(),
-                &mut fault_log,
-            );
+            inject(&faults, t.step + 1, ps, &mut deliveries.flags);
         }
         bc.clear();
         ps.controller.take_arrived(&mut bc).map_err(link)?;
@@ -660,6 +648,33 @@ fn hub(
         }
     }
     Ok(())
+}
+
+/// Applies the faults scheduled for tick `k` without waiting for their effect: a kill is a
+/// SIGKILL (the next poll that finds nothing from the process sees it gone; waiting for the
+/// exit here would leave every other participant's outputs unread meanwhile), a stall a
+/// SIGSTOP resumed later, a crash a flag on the participant's next input.
+fn inject(faults: &FaultSchedule, k: u64, ps: &mut Participants, flags: &mut RoleMap<u32>) {
+    let pids = ps.pids();
+    for f in faults.due_at(k) {
+        let role = f.participant;
+        match f.action {
+            FaultAction::Kill => {
+                // SAFETY: a signal to our own child, not reaped yet (it is reaped by the
+                // endpoint, which then reports its exit).
+                unsafe { libc::kill(pids[role] as libc::pid_t, libc::SIGKILL) };
+            }
+            FaultAction::Stall => {
+                let stall = ProcessFault::Stall(Duration::from_secs_f64(f.stall_s));
+                match role {
+                    Role::Plant => ps.plant.inject(stall),
+                    Role::Actuator => ps.actuator.inject(stall),
+                    Role::Controller => ps.controller.inject(stall),
+                }
+            }
+            FaultAction::Crash => flags[role] |= cosim::msg::FLAG_CRASH,
+        }
+    }
 }
 
 /// Checks an output against the step expected next from its role; returns its trace, or
