@@ -306,10 +306,12 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
     })
 }
 
-/// The CPU of each participant in a free run, when pinned: the controller moves to the
-/// orchestrator's CPU and the plant and the actuator keep theirs, so the controller's
-/// computer, however slow, never delays the vehicle or its drive (in lock-step all three
-/// share one CPU, since only one computes at a time). Empty when not pinned.
+/// The CPU of each participant in a free run, when pinned: the controller keeps the
+/// participants' CPU to itself, as a controller computer of its own, and the plant and the
+/// actuator (a few µs each per millisecond, woken by their timers) move to the orchestrator's,
+/// so the controller's compute, however long, never delays the vehicle or its drive, nor the
+/// hub's relays it (in lock-step all three share one CPU, since only one computes at a time).
+/// Empty when not pinned.
 fn place(s: &Scenario, ps: &Participants, cpus: &[usize]) -> BTreeMap<String, usize> {
     let (Some(&first), Some(&last)) = (cpus.first(), cpus.last()) else {
         return BTreeMap::new();
@@ -320,9 +322,9 @@ fn place(s: &Scenario, ps: &Participants, cpus: &[usize]) -> BTreeMap<String, us
     let pids = ps.pids();
     let mut placed = BTreeMap::new();
     for (r, cpu) in [
-        (Role::Plant, last),
-        (Role::Actuator, last),
-        (Role::Controller, first),
+        (Role::Plant, first),
+        (Role::Actuator, first),
+        (Role::Controller, last),
     ] {
         if cosim::ipc::set_cpus_of(pids[r], &[cpu]) {
             placed.insert(r.name().to_string(), cpu);
