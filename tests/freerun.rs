@@ -413,7 +413,8 @@ fn link_effects_and_a_stall_act_in_a_free_run_and_its_replay_repeats_them() {
         .collect();
 
     // The command link's 20 ticks are wall time added to the real delivery: no actuator step
-    // read a command sooner than 20 ms after the controller published it (load only adds).
+    // read a command sooner than 20 ms after the controller published it. A lower bound on
+    // instants the trace recorded, which load can only raise (no duration of the test).
     let mut commands = 0;
     for x in trace.iter().filter(|x| x.role == "actuator") {
         let q = x.from["controller"];
@@ -558,11 +559,11 @@ fn recording_holds_the_trace(dir: &Path, by: &HashMap<(String, i64), &Step>) {
             assert_eq!(ty, want, "{topic}.{field}");
         }
     }
-    // Each timing message is its step's line of timing.csv; each actuator input is what the
-    // command link delivered.
+    // Each timing message is its step's line of timing.csv; each actuator input's command is
+    // the output of the controller step the trace says it read.
     let bytes = std::fs::read(&file).unwrap();
     let mut checked = 0;
-    let mut delivered: HashMap<u64, f64> = HashMap::new();
+    let mut commands: HashMap<u64, f64> = HashMap::new();
     let mut inputs: HashMap<u64, f64> = HashMap::new();
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
@@ -585,8 +586,8 @@ fn recording_holds_the_trace(dir: &Path, by: &HashMap<(String, i64), &Step>) {
                 assert_eq!(m.log_time, step * 1_000_000);
                 checked += 1;
             }
-            "/links/actuator_command" => {
-                delivered.insert(step, v["received"].as_f64().unwrap());
+            "/controller/out" => {
+                commands.insert(step, v["delta_a_cmd"].as_f64().unwrap());
             }
             "/actuator/in" => {
                 inputs.insert(step, v["delta_a_cmd"].as_f64().unwrap());
@@ -595,8 +596,23 @@ fn recording_holds_the_trace(dir: &Path, by: &HashMap<(String, i64), &Step>) {
         }
     }
     assert_eq!(checked, 6000);
-    assert_eq!(delivered.len(), 2000);
-    assert_eq!(delivered, inputs);
+    assert_eq!((commands.len(), inputs.len()), (2000, 2000));
+    let mut traced = 0;
+    for (k, cmd) in &inputs {
+        let q = by[&("actuator".to_string(), *k as i64)].from["controller"];
+        if q >= 0 {
+            traced += 1;
+            assert_eq!(
+                *cmd,
+                commands[&(q as u64)],
+                "actuator step {k} read controller step {q}"
+            );
+        }
+    }
+    assert!(
+        traced > 1000,
+        "{traced} actuator steps read a controller output"
+    );
 }
 
 #[test]
@@ -631,8 +647,9 @@ fn a_participant_killed_in_a_free_run_is_named_and_the_rows_before_are_kept() {
     let sm = summary(&out);
     assert_eq!(sm["status"], "failed");
     let rows = sm["steps_completed"].as_u64().unwrap();
-    // The world went on until the loss was seen: at least the 500 steps before it.
-    assert!((500..2000).contains(&rows), "{rows} rows");
+    // The world went on until the loss was seen: at least the 500 steps before it (how many
+    // after depends on how soon the hub saw the process gone).
+    assert!(rows >= 500, "{rows} rows");
     let series = std::fs::read_to_string(out.join("timeseries.csv")).unwrap();
     assert_eq!(series.lines().count() as u64, rows + 1);
 }

@@ -43,8 +43,13 @@ fn every_new_template_validates_and_runs_and_an_existing_file_is_kept() {
             "-q",
         ]);
         assert_eq!(code, 0, "{c}: {err}");
-        let resolved = std::fs::read_to_string(out_dir.join("scenario.toml")).unwrap();
-        assert!(resolved.contains(&format!("mode = \"{c}\"")), "{c}");
+        let resolved: toml::Table =
+            toml::from_str(&std::fs::read_to_string(out_dir.join("scenario.toml")).unwrap())
+                .unwrap();
+        assert_eq!(resolved["controller"]["mode"].as_str(), Some(c));
+        // The passive vehicle has no drive to command: its bar is the ideal one.
+        let model = if c == "passive" { "ideal" } else { "bldc" };
+        assert_eq!(resolved["actuator"]["model"].as_str(), Some(model), "{c}");
     }
     // An existing file is never overwritten; a name a scenario cannot have is refused.
     let kept = dir.join("t-mpc.toml");
@@ -160,16 +165,25 @@ fn inspect_lists_what_fmpy_reads_from_the_same_fmu() {
 fn the_bash_completion_script_is_accepted_by_bash_and_completes_every_command() {
     let (code, script, err) = run(&["completions", "bash"]);
     assert_eq!(code, 0, "{err}");
+    // Every command the program has, by the function clap_complete writes for it (dashes
+    // become `__subcmd__`), and an option of `run`.
     for cmd in [
         "run",
-        "replay-timing",
-        "inspect",
+        "validate",
         "new",
-        "sweep-merge",
-        "--free-run",
+        "compare",
+        "plot",
+        "sweep__subcmd__merge",
+        "replay__subcmd__timing",
+        "export__subcmd__fmu",
+        "inspect",
+        "completions",
+        "clean",
     ] {
-        assert!(script.contains(cmd), "{cmd} not completed");
+        let f = format!("tiltsim__subcmd__{cmd})");
+        assert!(script.contains(&f), "{cmd} not completed (no `{f}`)");
     }
+    assert!(script.contains("--free-run"));
     let file = temp_dir("completions").join("tiltsim.bash");
     std::fs::write(&file, &script).unwrap();
     let out = std::process::Command::new("bash")

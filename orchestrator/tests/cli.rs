@@ -48,9 +48,9 @@ fn shipped_scenarios_validate() {
     let (code, _, err) = tiltsim(&[
         "export-fmu",
         "controller",
-        dir.join("scenarios/paper-pi.toml").to_str().unwrap(),
+        dir.join("scenarios/pi-drive.toml").to_str().unwrap(),
         "--out",
-        dir.join("out/fmu/paper-pi-controller.fmu")
+        dir.join("out/fmu/pi-drive-controller.fmu")
             .to_str()
             .unwrap(),
     ]);

@@ -6,10 +6,11 @@
 //! Link effects (`[links]`) act on each sample as it travels: every output a producer
 //! publishes is passed, in the order of its steps, through the link to each consumer
 //! ([`crate::links::Link::pass`]), at the tick its value holds from (a plant output of step q
-//! at q + 1, an actuator's or controller's at q, the outputs at t₀ at 0). The link loses it
-//! or delays it by whole ticks of wall time and gives the value it arrives with; which sample
-//! a consumer step read is in the trace, and the value it read is the link's for that
-//! sample, so the replay, passing the same samples in the same order, feeds the same values.
+//! at q + 1, an actuator's or controller's at q), with one set of random draws per sample.
+//! The link loses it or delays it by whole ticks of wall time and gives the value it arrives
+//! with; which sample a consumer step read is in the trace, and the value it read is the
+//! link's for that sample, so the replay, passing the same samples in the same order, feeds
+//! the same values. The outputs at t₀ are what every receiver holds from the start.
 
 use cosim::msg::{FromActuator, FromController, FromPlant, Header, Kind};
 use cosim::msg::{ToActuator, ToController, ToPlant};
@@ -70,32 +71,27 @@ impl Store {
         }
     }
 
-    /// Passes sample `index` (0: at t₀) of link `id`, valid from tick `k`, with value `v`;
-    /// returns its delay in ticks, `None` when lost. The outputs at t₀ always arrive: they are
-    /// what every receiver holds from the start.
+    /// Passes sample `index` (i + 1 for the producer's step index i) of link `id`, valid from
+    /// tick `k`, with value `v`; returns its delay in ticks, `None` when lost.
     fn pass(&mut self, id: LinkId, index: usize, k: u64, v: f64) -> Option<u64> {
         let i = id as usize;
         let got = self
             .links
             .pass(id, k, k as f64 * self.dt, v, &mut self.events[i]);
-        let (delay, value) = match got {
-            Some((d, x)) => (Some(d), x),
-            None if index == 0 => (Some(0), v),
-            None => (None, v),
-        };
         if let Some(slot) = self.arrived[i].get_mut(index) {
-            *slot = delay.map(|_| value);
+            *slot = got.map(|(_, value)| value);
         }
-        delay
+        got.map(|(d, _)| d)
     }
 
-    /// Keeps the outputs at t₀ and passes them through their links (every one arrives).
+    /// Keeps the outputs at t₀. They reach every receiver as they are, not through the links:
+    /// they are what each holds from the start (as in lock-step until a first sample arrives).
     pub fn put_init(&mut self, p: FromPlant, a: FromActuator, c: FromController) {
         self.init = (p, a, c);
-        self.pass(LinkId::Measurement, 0, 0, p.theta_v_meas);
-        self.pass(LinkId::BarTwist, 0, 0, p.psi);
-        self.pass(LinkId::BarAngle, 0, 0, a.delta_a);
-        self.pass(LinkId::ActuatorCommand, 0, 0, c.delta_a_cmd);
+        self.arrived[LinkId::Measurement as usize][0] = Some(p.theta_v_meas);
+        self.arrived[LinkId::BarTwist as usize][0] = Some(p.psi);
+        self.arrived[LinkId::BarAngle as usize][0] = Some(a.delta_a);
+        self.arrived[LinkId::ActuatorCommand as usize][0] = Some(c.delta_a_cmd);
     }
 
     /// Keeps the plant's output of step `q` and passes it on; returns the delays of its

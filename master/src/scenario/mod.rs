@@ -300,6 +300,12 @@ impl Scenario {
     /// file. Not re-validated: the caller validates once after all settings. Errors name the
     /// key and what it takes.
     pub fn with_setting(&self, key: &str, text: &str) -> Result<Scenario, String> {
+        if key == "name" {
+            return Err(
+                "key `name` names the scenario and its output directory; it is not a setting (write it in the file, or choose the directory with --out)"
+                    .to_string(),
+            );
+        }
         // JSON numbers hold u64, i64 and f64 exactly, unlike a TOML value (i64 or f64).
         let mut doc = serde_json::to_value(self).map_err(|e| e.to_string())?;
         let (table, last) = setting_slot(&mut doc, key)?;
@@ -360,9 +366,11 @@ fn setting_slot<'d, 'k>(
     Ok((table, last))
 }
 
-/// The number written `text` as the value of `key`, whose value now is `current`: a whole
-/// number where it holds one (every `u64` and `i64` exactly), a decimal number otherwise, an
-/// integer as written where it has none yet. Errors name the key and what it takes.
+/// The value written `text` for `key`, whose value now is `current`: a whole number where it
+/// holds one (every `u64` and `i64` exactly), a decimal number where it holds one, the word
+/// for a word or a choice, true or false for a switch, a list or table written as in a
+/// scenario file, and for a key with no value yet whatever `text` reads as. Errors name the
+/// key and what it takes.
 fn setting_value(
     key: &str,
     text: &str,
@@ -457,9 +465,10 @@ mod tests {
             e.contains("controller.mode") && e.contains("lqg") && e.contains("mpc"),
             "{e}"
         );
-        let named = s.with_setting("name", "other-name").unwrap();
-        // The name stays the scenario's (its directory); the word itself arrived.
-        assert_eq!(named.name, s.name);
+        let e = s.with_setting("name", "other-name").unwrap_err();
+        assert!(e.contains("name") && e.contains("--out"), "{e}");
+        let described = s.with_setting("description", "a word").unwrap();
+        assert_eq!(described.description, "a word");
         let off = s.with_setting("run.pin_cpus", "false").unwrap();
         assert!(!off.run.pin_cpus);
         let e = s.with_setting("run.pin_cpus", "maybe").unwrap_err();
