@@ -40,43 +40,35 @@ impl FreeRecording {
     }
 }
 
-/// The steps of each role by step index (controller: step / period).
-struct Steps {
+/// The steps of each role by its step index ([`Store::index`]).
+struct Steps<'a> {
     by_role: [Vec<Option<StepTrace>>; 3],
-    period: u64,
+    store: &'a Store,
 }
 
-impl Steps {
-    fn new(trace: &[StepTrace], steps: u64, period: u64) -> Self {
+impl<'a> Steps<'a> {
+    fn new(trace: &[StepTrace], store: &'a Store) -> Self {
         let mut by_role = [
-            vec![None; steps as usize],
-            vec![None; steps as usize],
-            vec![None; steps.div_ceil(period) as usize],
+            vec![None; store.p.len()],
+            vec![None; store.a.len()],
+            vec![None; store.c.len()],
         ];
         for t in trace {
-            let i = if t.role == Role::Controller {
-                t.step / period
-            } else {
-                t.step
-            } as usize;
-            if let Some(slot) = by_role[col(t.role)].get_mut(i) {
+            if let Some(slot) = by_role[col(t.role)].get_mut(store.index(t.role, t.step)) {
                 *slot = Some(*t);
             }
         }
-        Steps { by_role, period }
+        Steps { by_role, store }
     }
 
     /// `role`'s step at tick `k`, if it has one there and it was recorded.
     fn at(&self, role: Role, k: u64) -> Option<&StepTrace> {
-        let i = if role == Role::Controller {
-            if !k.is_multiple_of(self.period) {
-                return None;
-            }
-            k / self.period
-        } else {
-            k
-        };
-        self.by_role[col(role)].get(i as usize)?.as_ref()
+        if role == Role::Controller && !k.is_multiple_of(self.store.period) {
+            return None;
+        }
+        self.by_role[col(role)]
+            .get(self.store.index(role, k))?
+            .as_ref()
     }
 }
 
@@ -118,7 +110,7 @@ pub fn record(
     rec.queue_events(events.events.iter().map(EventMessage::from));
     let dt_ns = rec.dt_ns();
     let period = store.period;
-    let steps = Steps::new(trace, store.p.len() as u64, period);
+    let steps = Steps::new(trace, store);
     let wall = |ns: u64| start_ns + ns;
     for k in 0..rows {
         let log = k * dt_ns;
