@@ -123,7 +123,12 @@ fn a_second_run_into_a_directory_in_use_is_refused_naming_it_and_the_pid() {
     ]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains(&format!("pid {pid}")), "{err}");
-    let text = std::fs::read_to_string(d.join("scenario.toml")).unwrap();
+    // The running one writes its scenario.toml after it takes the directory (soon, or late
+    // on a loaded machine); the refused ones wrote nothing.
+    let text = wait_for(Duration::from_secs(120), || {
+        std::fs::read_to_string(d.join("scenario.toml")).ok()
+    })
+    .expect("the running run's scenario.toml");
     assert!(text.contains("name = \"paper-passive\""), "{text}");
 
     // Interrupted: its own files, not the earlier run's figures (it draws none).
