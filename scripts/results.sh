@@ -62,7 +62,7 @@ rows = []
 for kp in ["0.25", "0.40", "0.5708", "0.80", "1.10"]:
     c = json.load(open(os.path.join(d, f"pi-drive-{kp}", "summary.json")))["comfort"]
     s = json.load(open(os.path.join(d, f"straight-pi-drive-{kp}", "summary.json")))["comfort"]
-    rows.append((float(kp), c["p_ct"]["standing"], c["lat_acc_peak_pct_g"],
+    rows.append((float(kp), c["p_ct"]["standing_pct"], c["lat_acc_peak_pct_g"],
                  s["ride"]["n_mv_lateral"], s["ride"]["tilt_error_rms_deg"],
                  s["ride"]["roll_acc_rms_rad_s2"]))
 print("| K_p (K_i = K_p/0.25 s) | P_CT standing, curve (%) | lateral acceleration peak, curve (%g) "
@@ -182,7 +182,7 @@ print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 for sc in ["paper-mpc", "pi-drive"]:
     ref = load(f"{f}/{sc}-lock-step/summary.json")
     c = ref["comfort"]
-    print(f"| {sc} | lock-step | {c['p_ct']['standing']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
+    print(f"| {sc} | lock-step | {c['p_ct']['standing_pct']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
           f"| {raised(ref['flags'])} | | | | | | | | |")
     for case, label in [("quiet", "free, machine as it is"), ("hogs", "free, two CPU hogs"),
                         ("busy", "free, controller +extra compute")]:
@@ -192,10 +192,10 @@ for sc in ["paper-mpc", "pi-drive"]:
         ages = p["input_age_ticks"]
         a = lambda k: f"{ages[k]['p50']} / {ages[k]['p99']} / {ages[k]['max']}"
         pl = p["participants"]["plant"]
-        eq = load(f"{d}/equivalent/summary.json")["comfort"]["p_ct"]["standing"]
+        eq = load(f"{d}/equivalent/summary.json")["comfort"]["p_ct"]["standing_pct"]
         delays = [l.split("=")[1].strip() for l in open(f"{d}/equivalent.toml") if l.startswith("delay_ticks")]
         c = s["comfort"]
-        print(f"| {sc} | {label} | {c['p_ct']['standing']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
+        print(f"| {sc} | {label} | {c['p_ct']['standing_pct']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
               f"| {raised(s['flags'])} | {a('actuator_command')} | {a('measurement')} "
               f"| {pl['late_starts']} | {pl['start_lateness_us']['max'] / 1000:.1f} "
               f"| {'yes' if s['not_real_time'] else 'no'} | {open(f'{d}/replay.txt').read().strip()} | {', '.join(delays)} | {eq:.2f} |")

@@ -87,11 +87,14 @@ def main() -> None:
     if ev.is_file():
         with open(ev, newline="") as f:
             for e in csv.DictReader(f):
-                rec.set_time("sim_time", duration=float(e["t"]))
-                text = f"{e['source']} {e['kind']}: {e['detail']}".strip()
+                when = next((e[c] for c in TIME_COLUMNS if c in e), None)
+                if when is None:
+                    fail(f"{ev}: no time column (one of {', '.join(TIME_COLUMNS)})")
+                rec.set_time("sim_time", duration=float(when))
+                text = f"{e['source']} {e['event']}: {e['detail']}".strip()
                 rec.log("/events", rr.TextLog(text))
     rec.flush()
-    print(f"wrote {out} ({len(time)} ticks, {len(header) - 2} signals on the sim_time timeline)")
+    print(f"wrote {out} ({len(time)} rows, {len(header) - 2} signals on the sim_time timeline)")
 
 
 if __name__ == "__main__":

@@ -58,7 +58,7 @@ fn averaged_drive_tracks_the_switched_one_on_the_paper_run() {
     // ψ)/G (virtual work and an ideal gear, docs/model.md D21), current = torque/k_t,
     // speed ≈ 0, and the DC link supplies the copper loss 2 R i².
     let (t, tq, cur, spd, pw) = (
-        sw.col("t"),
+        sw.col("time"),
         sw.col("motor_torque"),
         sw.col("motor_current"),
         sw.col("motor_speed"),

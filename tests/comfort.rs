@@ -51,7 +51,7 @@ fn compare_writes_table_4_with_the_papers_values_and_our_differences() {
         pct["roll_speed_deg_s"].as_f64().unwrap(),
     );
     let standing = (28.54 * a + 20.69 * j - 11.1f64).max(0.0) + 0.185 * r.powf(2.283);
-    assert!((pct["standing"].as_f64().unwrap() - standing).abs() < 1e-9);
+    assert!((pct["standing_pct"].as_f64().unwrap() - standing).abs() < 1e-9);
 
     // Plots: every run writes SVG and PNG; `tiltsim plot DIR` redraws them from the files.
     let plots = dir.join("paper-lqg").join("plots");
@@ -133,7 +133,7 @@ fn comfort_roll_speed_is_continuous_across_every_ramp_corner() {
     let mut rate = Vec::new();
     let (mut dy_v, mut sway) = (Vec::new(), Vec::new());
     tiltsim_report::analysis::scan(&s, Rows::File(&dir), |r, x| {
-        t.push(r.t);
+        t.push(r.time);
         phi.push(r.theta_v + r.cant);
         rate.push(x.roll_speed);
         dy_v.push(r.dy_v);
@@ -266,7 +266,7 @@ fn compare_pairs_curving_comfort_with_straight_track_ride() {
         .find(|l| l.starts_with("| LQG | paper-lqg |"))
         .unwrap_or_else(|| panic!("no trade-off row:\n{md}"));
     let cells: Vec<&str> = row.split('|').map(str::trim).collect();
-    let p_ct = curve["comfort"]["p_ct"]["standing"].as_f64().unwrap();
+    let p_ct = curve["comfort"]["p_ct"]["standing_pct"].as_f64().unwrap();
     let n_mv = st["comfort"]["ride"]["n_mv_lateral"].as_f64().unwrap();
     assert!(n_mv > 0.0);
     assert!(

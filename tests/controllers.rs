@@ -30,7 +30,7 @@ fn run_file(name: &str, file: &Path, transport: &str) -> PathBuf {
 /// (t = 8.4 … 11.4 s on the paper's track at 162 km/h).
 fn steady_tracking(dir: &Path) -> (f64, f64, f64) {
     let s = Series::read(&dir.join("timeseries.csv"));
-    let (t, th, r) = (s.col("t"), s.col("theta_v"), s.col("theta_ref"));
+    let (t, th, r) = (s.col("time"), s.col("theta_v"), s.col("theta_ref"));
     let e: Vec<f64> = (0..t.len())
         .filter(|&i| (8.4..=11.4).contains(&t[i]))
         .map(|i| th[i] - r[i])

@@ -67,9 +67,11 @@ fn link_effects_change_the_recorded_signals_exactly_as_declared_on_both_transpor
     let s = Series::read(&ipc.join("timeseries.csv"));
     let (cmd, rx_cmd) = (s.col("delta_a_cmd"), s.col("rx_actuator_command"));
     // A delay of 20 ticks shifts the command series by 20 rows; before the first sample
-    // arrives, the actuator holds the first command.
-    for n in 0..cmd.len() {
-        let want = if n >= 20 { cmd[n - 20] } else { cmd[0] };
+    // arrives, the actuator holds the first command (sent in tick 0, row 1). Row 0, at the
+    // start time, holds what the controller holds.
+    assert_eq!(rx_cmd[0], cmd[0]);
+    for n in 1..cmd.len() {
+        let want = if n > 20 { cmd[n - 20] } else { cmd[1] };
         assert_eq!(rx_cmd[n], want, "row {n}");
     }
     assert!(
@@ -77,37 +79,38 @@ fn link_effects_change_the_recorded_signals_exactly_as_declared_on_both_transpor
         "the controller commands something"
     );
     // The bias is added to every measurement the controller receives. In tick k the
-    // controller gets the plant's output at t_k, recorded in row k − 1.
+    // controller gets the plant's output at t_k, recorded in row k; tick k ends at row k + 1.
     let (meas, rx_meas) = (s.col("theta_v_meas"), s.col("rx_measurement"));
     for k in 1..meas.len() {
         assert_eq!(rx_meas[k], meas[k - 1] + 0.002, "row {k}");
     }
-    // Frozen bar angle: the plant sees δ_a of row 4000 over [4.0, 4.5) s, then live again.
+    // Frozen bar angle: the plant sees δ_a of tick 4000 (row 4001) in the ticks of
+    // [4.0, 4.5) s (rows 4001 to 4500), then live again.
     let (da, rx_da) = (s.col("delta_a"), s.col("rx_bar_angle"));
     for k in 3990..4600 {
-        let want = if (4000..4500).contains(&k) {
-            da[4000]
+        let want = if (4001..4501).contains(&k) {
+            da[4001]
         } else {
             da[k]
         };
         assert_eq!(rx_da[k], want, "row {k}");
     }
     assert_ne!(
-        da[4499], da[4000],
+        da[4500], da[4001],
         "the bar moved while its reading was frozen"
     );
     let events = std::fs::read_to_string(ipc.join("events.csv")).unwrap();
-    assert!(events.starts_with("step,t,source,event,value,detail\n"));
+    assert!(events.starts_with("time,step,source,event,value,detail\n"));
     assert!(
         events.contains("0,0,actuator_command,delay,20,"),
         "{events}"
     );
     assert!(
-        events.contains("4000,4,bar_angle,freeze-window,,begins"),
+        events.contains("4,4000,bar_angle,freeze-window,,begins"),
         "{events}"
     );
     assert!(
-        events.contains("4500,4.5,bar_angle,freeze-window,,ends"),
+        events.contains("4.5,4500,bar_angle,freeze-window,,ends"),
         "{events}"
     );
 }
@@ -125,7 +128,11 @@ fn a_nan_on_a_link_is_caught_by_its_receiver_and_ends_or_degrades_the_run() {
         "{err}"
     );
     let s = Series::read(&dir.join("abort/timeseries.csv"));
-    assert_eq!(s.rows.len(), 5000, "every row before the bad sample kept");
+    assert_eq!(
+        s.rows.len(),
+        5001,
+        "the start and every tick before the bad sample kept"
+    );
 
     let sc = lqg_with(
         "nan-hold",
@@ -149,7 +156,7 @@ fn a_nan_on_a_link_is_caught_by_its_receiver_and_ends_or_degrades_the_run() {
         100,
         "one per 1 ms controller step in the 0.1 s window"
     );
-    assert!(held[0].starts_with("5000,5,controller,bad-input-held,,non-finite `theta_v_meas`"));
+    assert!(held[0].starts_with("5,5000,controller,bad-input-held,,non-finite `theta_v_meas`"));
     let s = Series::read(&dir.join("hold/timeseries.csv"));
     assert!(s.col("rx_measurement")[5050].is_nan());
     assert!(s.col("delta_a_cmd").iter().all(|v| v.is_finite()));
@@ -175,30 +182,31 @@ fn a_killed_actuator_in_degraded_mode_returns_the_bar_to_neutral_in_the_declared
         "{actuator}"
     );
     let s = Series::read(&dir.join("ipc/timeseries.csv"));
-    assert_eq!(s.rows.len(), 11_000, "the run went on to the end");
+    assert_eq!(s.rows.len(), 11_001, "the run went on to the end");
     let da = s.col("delta_a");
+    // Row k + 1 holds tick k: row 8000 is the last tick before the kill at 8 s.
     assert!(
-        da[7999].abs() > 0.03,
+        da[8000].abs() > 0.03,
         "tilted mid-curve before the kill: {}",
-        da[7999]
+        da[8000]
     );
-    // Linear ramp from δ_a(7999) to zero, reached 1.5 s (1500 ticks) after the loss.
-    for k in 8000..11_000 {
-        let n = (k - 7999) as f64;
-        let want = da[7999] * (1.0 - n / 1500.0).max(0.0);
+    // Linear ramp from δ_a(8000) to zero, reached 1.5 s (1500 ticks) after the loss.
+    for k in 8001..11_001 {
+        let n = (k - 8000) as f64;
+        let want = da[8000] * (1.0 - n / 1500.0).max(0.0);
         assert!((da[k] - want).abs() < 1e-12, "row {k}: {} vs {want}", da[k]);
     }
-    assert_eq!(da[9499], 0.0);
+    assert_eq!(da[9500], 0.0);
     let events = std::fs::read_to_string(dir.join("ipc/events.csv")).unwrap();
     assert!(
-        events.contains("8000,8,actuator,fault-injected,,kill"),
+        events.contains("8,8000,actuator,fault-injected,,kill"),
         "{events}"
     );
     assert!(
-        events.contains("8000,8,actuator,participant-lost,,exited"),
+        events.contains("8,8000,actuator,participant-lost,,exited"),
         "{events}"
     );
-    assert!(events.contains("8000,8,actuator,degraded,,bar ramps to neutral over 1.5 s"));
+    assert!(events.contains("8,8000,actuator,degraded,,bar ramps to neutral over 1.5 s"));
     // The same fault in-process gives the same rows and events, byte for byte.
     let (code, err) = go(
         &sc,
@@ -240,7 +248,7 @@ fn a_killed_controller_with_the_abort_policy_ends_the_run_naming_it_and_repeats_
             "{f}"
         );
     }
-    assert_eq!(Series::read(&dir.join("a/timeseries.csv")).rows.len(), 3000);
+    assert_eq!(Series::read(&dir.join("a/timeseries.csv")).rows.len(), 3001);
     assert_eq!(summary(&dir.join("a"))["status"], "failed");
 }
 
@@ -305,7 +313,10 @@ fn bad_samples_from_a_process_are_caught_where_they_arrive_and_named() {
             assert!(panicked < err.find(expect).unwrap(), "{err}");
         }
         let rows = Series::read(&out_dir.join("timeseries.csv")).rows.len();
-        assert_eq!(rows, 1500, "{mode}: rows before the bad sample kept");
+        assert_eq!(
+            rows, 1501,
+            "{mode}: the start and the ticks before the bad sample kept"
+        );
         assert!(leftovers(&pfx).is_empty(), "{mode}: {:?}", leftovers(&pfx));
     }
 }

@@ -182,9 +182,10 @@ fn a_pythonfmu_controller_plays_the_controller_and_its_commands_follow_its_equat
         t.col("rx_measurement"),
         t.col("delta_a_cmd"),
     );
-    assert_eq!(cmd.len(), 2000);
-    // Row k's theta_v_meas is the plant's output after tick k; the controller's request at
-    // tick k carries the output after tick k-1, here 5 ticks later: theta_v_meas[k - 6].
+    assert_eq!(cmd.len(), 2001);
+    // Row k's theta_v_meas is the plant's output at k ms (after tick k − 1); the controller in
+    // tick k − 1 (row k) is given the output at k − 1 ms, here 5 ticks later: theta_v_meas[k - 6].
+    // Before the first delayed sample arrives it holds the first (the output at t₀).
     for k in 6..rx.len() {
         assert_eq!(
             rx[k].to_bits(),
@@ -196,7 +197,9 @@ fn a_pythonfmu_controller_plays_the_controller_and_its_commands_follow_its_equat
     let (kp, ki, umax, h) = (12.0f64, 5.0f64, 0.0610865238198f64, 1e-3f64);
     let mut integral = 0.0f64;
     let mut saturated = 0;
-    for k in 0..cmd.len() {
+    // Row 0 is the start time: the FMU's initial output, no step taken.
+    assert_eq!(cmd[0], 0.0);
+    for k in 1..cmd.len() {
         let e = -rx[k];
         integral += e * h;
         let u = (kp * e + ki * integral).clamp(-umax, umax);
@@ -447,7 +450,7 @@ fn a_failing_step_is_named(dir: &Path, sc: &Path, transport: &str) {
     assert_eq!(sum["steps_completed"], 500, "{transport}");
     assert_eq!(
         Series::read(&out.join("timeseries.csv")).rows.len(),
-        500,
+        501,
         "{transport}"
     );
     assert!(

@@ -157,7 +157,8 @@ fn a_free_run_is_replayed_byte_for_byte_in_process_and_over_ipc_and_with_another
         assert_eq!(n, 2000, "{link}: one age per consumer step");
     }
     let free = bytes(&dir.join("timeseries.csv"));
-    assert_eq!(free.iter().filter(|&&b| b == b'\n').count(), 2001);
+    // The header, the start time and 2000 steps.
+    assert_eq!(free.iter().filter(|&&b| b == b'\n').count(), 2002);
 
     let root = temp_dir("freerun-replay-out");
     let (code, err) = replay(&dir, &root.join("in-process"), &[]);
@@ -212,7 +213,7 @@ fn a_free_run_is_replayed_byte_for_byte_in_process_and_over_ipc_and_with_another
     assert_eq!(code, 0, "{err}");
     let kp = tiltsim_suite::Series::read(&root.join("kp/timeseries.csv"));
     let base = tiltsim_suite::Series::read(&dir.join("timeseries.csv"));
-    assert_eq!(kp.col("t"), base.col("t"));
+    assert_eq!(kp.col("time"), base.col("time"));
     assert_ne!(kp.col("delta_a_cmd"), base.col("delta_a_cmd"));
 
     // A trace that does not belong to the scenario is refused naming the file and the field.
@@ -466,7 +467,8 @@ fn link_effects_and_a_stall_act_in_a_free_run_and_its_replay_repeats_them() {
     let num = |r: &HashMap<String, String>, c: &str| r[c].parse::<f64>().unwrap();
     // Each plant sample's noise once (a stalled controller reads one sample for many rows).
     let mut noise_of: HashMap<i64, f64> = HashMap::new();
-    for (k, r) in rows.iter().enumerate() {
+    // Row k + 1 holds plant step k (row 0 the outputs at the start time).
+    for (k, r) in rows.iter().enumerate().skip(1).map(|(i, r)| (i - 1, r)) {
         let qa = by[&("plant".to_string(), k as i64)].from["actuator"];
         if qa < 0 {
             continue;
@@ -481,7 +483,7 @@ fn link_effects_and_a_stall_act_in_a_free_run_and_its_replay_repeats_them() {
         }
         noise_of.insert(
             qp,
-            num(r, "rx_measurement") - num(&rows[qp as usize], "theta_v_meas"),
+            num(r, "rx_measurement") - num(&rows[qp as usize + 1], "theta_v_meas"),
         );
     }
     let noise: Vec<f64> = noise_of.into_values().collect();
@@ -528,7 +530,7 @@ fn link_effects_and_a_stall_act_in_a_free_run_and_its_replay_repeats_them() {
     let free = summary(&out);
     let again = summary(&root.join("replay"));
     assert_eq!(free["comfort"], again["comfort"]);
-    assert!(free["comfort"]["p_ct"]["standing"].as_f64().unwrap() > 0.0);
+    assert!(free["comfort"]["p_ct"]["standing_pct"].as_f64().unwrap() > 0.0);
     assert_eq!(free["flags"], again["flags"]);
 }
 
@@ -651,5 +653,6 @@ fn a_participant_killed_in_a_free_run_is_named_and_the_rows_before_are_kept() {
     // after depends on how soon the hub saw the process gone).
     assert!(rows >= 500, "{rows} rows");
     let series = std::fs::read_to_string(out.join("timeseries.csv")).unwrap();
-    assert_eq!(series.lines().count() as u64, rows + 1);
+    // The header, the start time and every step.
+    assert_eq!(series.lines().count() as u64, rows + 2);
 }

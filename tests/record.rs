@@ -68,7 +68,8 @@ fn links_are_the_timeseries(m: &Messages, dir: &Path) {
     for (k, (_, log, data)) in m["/links/measurement"].iter().enumerate() {
         assert_eq!(*log, k as u64 * 1_000_000);
         let v: serde_json::Value = serde_json::from_str(data).unwrap();
-        let rx = &rows[k + 1][col];
+        // Line 0 is the header, line 1 the start time: tick k ends at line k + 2.
+        let rx = &rows[k + 2][col];
         if rx == "NaN" {
             assert!(
                 v.get("received").is_none() && v["sent"].is_number(),
@@ -307,7 +308,11 @@ fn rerun_rows(printed: &str, entity: &str) -> Vec<(f64, f64)> {
         }
         // "│ │ row_… ┆ PT0.004S ┆ [7.406447632314828e-11] │ │"
         let cells: Vec<&str> = line.split('┆').map(str::trim).collect();
-        let time = cells[1].trim_start_matches("PT").trim_end_matches('S');
+        // An ISO 8601 duration: `PT0.004S`, and zero as `P0D`.
+        let time = match cells[1] {
+            "P0D" => "0",
+            d => d.trim_start_matches("PT").trim_end_matches('S'),
+        };
         let value = cells[2]
             .split(['[', ']'])
             .nth(1)
@@ -336,7 +341,8 @@ fn a_run_exported_for_rerun_holds_every_signal_as_scalars_on_simulated_time() {
     let script = root().join("scripts/to-rerun.py");
     let (code, out, err) = fmi_tool("python", &[script.to_str().unwrap(), dir.to_str().unwrap()]);
     assert_eq!(code, 0, "to-rerun.py: {err}");
-    assert!(out.contains("500 ticks"), "{out}");
+    // The start time and 500 ticks.
+    assert!(out.contains("501 rows"), "{out}");
     let rrd = dir.join("run.rrd");
     let rrd = rrd.to_str().unwrap();
     // Rerun's own tools: the file loads, and every signal of the CSV is a Scalars series.
@@ -351,14 +357,14 @@ fn a_run_exported_for_rerun_holds_every_signal_as_scalars_on_simulated_time() {
             .lines()
             .find(|l| l.ends_with(&format!("/{col} - data columns: [Scalars:scalars]")))
             .unwrap_or_else(|| panic!("{col} is not a Scalars series in Rerun:\n{listing}"));
-        assert!(line.contains("with 500 rows"), "{line}");
+        assert!(line.contains("with 501 rows"), "{line}");
     }
     // The values Rerun decodes are the CSV's, at the CSV's times.
     let (code, printed, err) = fmi_tool("rerun", &["rrd", "print", "-vvv", rrd]);
     assert_eq!(code, 0, "{err}");
     let rows = rerun_rows(&printed, "/plant/lat_acc");
-    assert_eq!(rows.len(), 500);
-    let t = table[0].iter().position(|c| c == "t").unwrap();
+    assert_eq!(rows.len(), 501);
+    let t = table[0].iter().position(|c| c == "time").unwrap();
     let a = table[0].iter().position(|c| c == "lat_acc").unwrap();
     for (r, (time, value)) in table[1..].iter().zip(&rows) {
         // Rerun keeps a duration in whole nanoseconds.

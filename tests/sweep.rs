@@ -28,8 +28,12 @@ fn every_sample_and_the_table_check_out(whole: &Path) {
     // Every factor inside ±22 %; every sample completed; the table's median is the median.
     let csv = std::fs::read_to_string(whole.join("samples.csv")).unwrap();
     let samples = csv_table(&csv);
-    // The last column names the validity flags each sample raised.
-    assert_eq!(samples[0].last().map(String::as_str), Some("flags"));
+    // The last column names the validity flags each sample raised (not `flags`, which
+    // pandas reserves for `DataFrame.flags`).
+    assert_eq!(
+        samples[0].last().map(String::as_str),
+        Some("validity_flags")
+    );
     for f in &samples[1..] {
         for x in &f[1..16] {
             let x: f64 = x.parse().unwrap();
@@ -39,11 +43,11 @@ fn every_sample_and_the_table_check_out(whole: &Path) {
     }
     let table = std::fs::read_to_string(whole.join("table.csv")).unwrap();
     let rows = csv_table(&table);
-    let row = rows.iter().find(|r| r[0] == "p_ct_standing").unwrap();
+    let row = rows.iter().find(|r| r[0] == "p_ct_standing_pct").unwrap();
     assert_eq!(row[1], "5");
     assert_eq!(
         row[2].parse::<f64>().unwrap(),
-        median_of(&csv, "p_ct_standing")
+        median_of(&csv, "p_ct_standing_pct")
     );
     let (p5, p95): (f64, f64) = (row[3].parse().unwrap(), row[4].parse().unwrap());
     assert!(p5 < row[2].parse::<f64>().unwrap() && row[2].parse::<f64>().unwrap() < p95);
@@ -157,7 +161,7 @@ fn a_grid_sweep_gives_each_value_the_metrics_of_a_plain_run_with_that_value() {
         "--quiet",
     ]);
     assert_eq!(code, 0, "{err}");
-    let want = summary(&dir.join("heavy"))["comfort"]["p_ct"]["standing"]
+    let want = summary(&dir.join("heavy"))["comfort"]["p_ct"]["standing_pct"]
         .as_f64()
         .unwrap();
     let rows = csv_table(&table);

@@ -160,7 +160,7 @@ fn the_papers_pi_is_flagged_as_oscillating_and_the_drive_designed_pi_is_clean() 
     // θ_v − θ_ref on the first straight (0-3 s).
     let dir = run_file("paper-pi", &scenario("paper-pi.toml"));
     let s = Series::read(&dir.join("timeseries.csv"));
-    let (tv, tr, t) = (s.col("theta_v"), s.col("theta_ref"), s.col("t"));
+    let (tv, tr, t) = (s.col("theta_v"), s.col("theta_ref"), s.col("time"));
     let e: Vec<f64> = tv
         .iter()
         .zip(&tr)
@@ -193,7 +193,7 @@ fn the_papers_pi_is_flagged_as_oscillating_and_the_drive_designed_pi_is_clean() 
     let (tv, tr, t, la) = (
         s.col("theta_v"),
         s.col("theta_ref"),
-        s.col("t"),
+        s.col("time"),
         s.col("lat_acc"),
     );
     let straight: Vec<f64> = (0..t.len())
@@ -213,7 +213,7 @@ fn the_papers_pi_is_flagged_as_oscillating_and_the_drive_designed_pi_is_clean() 
             .collect();
         v.iter().sum::<f64>() / v.len() as f64
     };
-    let want = 0.7 * mid(&passive.col("t"), &passive.col("lat_acc"));
+    let want = 0.7 * mid(&passive.col("time"), &passive.col("lat_acc"));
     let got = mid(&t, &la);
     assert!(
         (got / want - 1.0).abs() < 0.05,

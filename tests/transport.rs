@@ -72,7 +72,7 @@ fn both_transports_give_byte_identical_timeseries_for_each_master() {
             .collect();
         assert_eq!(pids.len(), 3);
         assert!(pids[0] != pids[1] && pids[1] != pids[2] && pids[0] != pids[2]);
-        for k in ["p50", "p99", "max"] {
+        for k in ["overhead_p50_us", "overhead_p99_us", "overhead_max_us"] {
             assert!(s["timing"][k].as_f64().unwrap() >= 0.0);
         }
     }
@@ -116,7 +116,7 @@ fn timeseries_has_one_row_per_plant_step_with_the_documented_columns() {
     );
     let s = Series::read(&d.join("timeseries.csv"));
     for c in [
-        "t",
+        "time",
         "curvature",
         "cant",
         "theta_v",
@@ -130,10 +130,15 @@ fn timeseries_has_one_row_per_plant_step_with_the_documented_columns() {
     ] {
         assert!(s.header.iter().any(|h| h == c), "missing column {c}");
     }
-    // 16.8 s at 1 ms; row k is the state at t_{k+1} = (k+1)·1 ms
-    assert_eq!(s.rows.len(), 16_800);
-    let t = s.col("t");
-    assert!((t[0] - 0.001).abs() < 1e-12 && (t[16_799] - 16.8).abs() < 1e-9);
+    // 16.8 s at 1 ms: the start time and one row per tick, row k the state at k ms, each
+    // time the double nearest to its decimal value (as FMI masters and pandas compare them).
+    assert_eq!(s.header[..2], ["time", "step"]);
+    assert_eq!(s.rows.len(), 16_801);
+    let t = s.col("time");
+    for (k, &tk) in t.iter().enumerate() {
+        let want: f64 = format!("{}.{:03}", k / 1000, k % 1000).parse().unwrap();
+        assert_eq!(tk.to_bits(), want.to_bits(), "row {k}");
+    }
     // passive: no command. The eq 18 reference at mid-curve, by hand: the passive vehicle feels
     // 1.164 m/s², so θ_v^d = v²/(gR) − 0.7·1.164/g − θ_o = 0.2064 − 0.0831 − 0.1047 rad ≈ 1.06°.
     assert!(s.col("delta_a_cmd").iter().all(|&v| v == 0.0));
@@ -179,8 +184,10 @@ fn a_slow_controller_is_held_between_its_updates() {
         for i in 1..r.len() {
             if r[i] != r[i - 1] {
                 changes += 1;
+                // Row `step` ends tick `step` − 1: a controller update at tick 50j shows
+                // at step 50j + 1.
                 assert_eq!(
-                    steps[i] as u64 % 50,
+                    (steps[i] as u64 - 1) % 50,
                     0,
                     "reference changed at step {}",
                     steps[i]

@@ -238,6 +238,11 @@ impl Bldc {
         self.stats
     }
 
+    /// DC-link voltage (V).
+    pub fn v_dc(&self) -> f64 {
+        self.link.v
+    }
+
     /// Bar angle δ_a (rad).
     pub fn delta_a(&self) -> f64 {
         self.theta_m / self.gear

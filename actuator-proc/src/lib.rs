@@ -114,12 +114,17 @@ impl Actuator {
             Bldc::new(&a.bldc, &a.dc_link, kind, init.k_vr)
                 .with_shaping(a.command_shaping, init.command_period_s)
         });
+        // At rest: no current, no torque, the DC link at its supply voltage.
+        let last = FromActuator {
+            v_dc: drive.as_ref().map_or(0.0, Bldc::v_dc),
+            ..Default::default()
+        };
         Actuator {
             settings: a.clone(),
             dt: init.dt_s,
             drive,
             shaper: Shaper::new(a.command_shaping, init.command_period_s, init.dt_s),
-            last: FromActuator::default(),
+            last,
         }
     }
     /// Settings.

@@ -122,6 +122,7 @@ pub struct Chopper {
     /// Time the chopper was on (s).
     pub time_on_s: f64,
     /// Largest DC-link voltage recorded (V).
+    #[serde(rename = "v_dc_max_v")]
     pub v_dc_max: f64,
 }
 

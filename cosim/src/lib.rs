@@ -20,6 +20,7 @@ pub mod participant;
 pub mod realtime;
 pub mod settings;
 pub mod stats;
+pub mod time;
 pub mod wait;
 
 pub use endpoint::{Endpoint, InProcess, LinkError, ProcessFault};

@@ -52,10 +52,10 @@ pub enum EventKind {
 /// One line of `events.csv`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Event {
+    /// Simulated time (s), when tick `step` starts.
+    pub time: f64,
     /// Tick.
     pub step: u64,
-    /// Simulated time (s).
-    pub t: f64,
     /// Link or participant.
     pub source: String,
     /// What happened.
@@ -67,7 +67,7 @@ pub struct Event {
 }
 
 /// `events.csv` columns.
-pub const EVENT_COLUMNS: [&str; 6] = ["step", "t", "source", "event", "value", "detail"];
+pub const EVENT_COLUMNS: [&str; 6] = ["time", "step", "source", "event", "value", "detail"];
 
 /// The events of a run, in the order they happened.
 #[derive(Debug, Clone, Default)]
@@ -107,7 +107,7 @@ impl EventLog {
     ) {
         self.events.push(Event {
             step: k,
-            t: k as f64 * self.dt,
+            time: crate::record::tick_time(k, self.dt),
             source: source.to_string(),
             kind,
             value,
@@ -131,8 +131,8 @@ impl EventLog {
                 .and_then(|v| v.as_str().map(str::to_string))
                 .unwrap_or_default();
             w.write_record([
+                crate::record::fmt_f64(e.time),
                 e.step.to_string(),
-                crate::record::fmt_f64(e.t),
                 e.source.clone(),
                 kind,
                 value,
@@ -169,9 +169,9 @@ mod tests {
         let text = std::fs::read_to_string(&p).unwrap();
         assert_eq!(
             text,
-            "step,t,source,event,value,detail\n\
-             3,0.003,actuator_command,jitter-on,2,\"uniform, 2 ticks\"\n\
-             5,0.005,controller,run-failed,,no reply\n"
+            "time,step,source,event,value,detail\n\
+             0.003,3,actuator_command,jitter-on,2,\"uniform, 2 ticks\"\n\
+             0.005,5,controller,run-failed,,no reply\n"
         );
         let mut rd = csv::Reader::from_path(&p).unwrap();
         let first = rd.records().next().unwrap().unwrap();

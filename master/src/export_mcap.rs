@@ -41,7 +41,7 @@ fn err(path: &Path, what: impl std::fmt::Display) -> ExportError {
 /// The outputs a row holds.
 fn outputs(r: &Row) -> (FromPlant, FromActuator, FromController) {
     let p = FromPlant {
-        t: r.t,
+        t: r.time,
         s: r.s,
         curvature: r.curvature,
         cant: r.cant,
@@ -125,7 +125,7 @@ fn events(dir: &Path) -> Result<Vec<EventMessage>, ExportError> {
             return Err(err(
                 &path,
                 format!(
-                    "line {line}: {} fields, not the 6 of step,t,source,kind,value,detail",
+                    "line {line}: {} fields, not the 6 of time,step,source,event,value,detail",
                     rec.len()
                 ),
             ));
@@ -133,12 +133,12 @@ fn events(dir: &Path) -> Result<Vec<EventMessage>, ExportError> {
         let f = |i: usize| rec.get(i).unwrap_or("").to_string();
         let bad = |what: &str| err(&path, format!("line {line}: {what}"));
         out.push(EventMessage {
-            step: f(0)
-                .parse()
-                .map_err(|_| bad("a step that is not a whole number"))?,
-            t: f(1)
+            t: f(0)
                 .parse()
                 .map_err(|_| bad("a time that is not a number"))?,
+            step: f(1)
+                .parse()
+                .map_err(|_| bad("a step that is not a whole number"))?,
             source: f(2),
             kind: f(3),
             // An event without a value leaves the field empty.
@@ -196,8 +196,11 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
     let gauss_seidel = s.run.master == Master::GaussSeidel;
     let mut failed: Option<std::io::Error> = None;
     let rows = crate::record::each_row(dir, |r| {
+        // Row 0 holds the outputs at the start time, which no tick wrote; row k + 1 is tick k.
+        let Some(k) = r.step.checked_sub(1) else {
+            return true;
+        };
         let (p, a, c) = outputs(r);
-        let k = r.step;
         let rx = [
             r.rx_actuator_command,
             r.rx_bar_angle,
@@ -243,8 +246,12 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
         return Err(err(&path, e));
     }
     let dt_ns = (s.run.dt_s * 1e9).round() as u64;
-    rec.close(&deterministic(summary), &perf, rows * dt_ns)
-        .map_err(|e| err(&path, e))
+    rec.close(
+        &deterministic(summary),
+        &perf,
+        rows.saturating_sub(1) * dt_ns,
+    )
+    .map_err(|e| err(&path, e))
 }
 
 /// The outputs at t₀, as each participant gives them before its first step.

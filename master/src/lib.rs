@@ -21,6 +21,7 @@
 //! The comfort and validity results the summary carries come from `tiltsim-assessment`;
 //! filling them, and drawing figures, is the caller's step (`tiltsim-report`).
 
+pub mod columns;
 pub mod degraded;
 pub mod engine;
 pub mod events;

@@ -40,8 +40,9 @@ pub const LOCK_FILE: &str = ".tiltsim.lock";
 
 /// Files a run writes at the top of its directory (engine, analysis, `tiltsim run`, a free
 /// run's `timing.csv`, `tiltsim export-mcap`, and `scripts/to-rerun.py`'s `run.rrd`).
-pub const RUN_FILES: [&str; 9] = [
+pub const RUN_FILES: [&str; 10] = [
     "timeseries.csv",
+    "columns.csv",
     "summary.json",
     "perf.json",
     "events.csv",
@@ -63,11 +64,12 @@ pub const RUN_PLOTS: [&str; 5] = [
 /// Files of `tiltsim replay` in `replay-ROLE/` of a run's directory (`ROLE` stands for the role).
 pub const REPLAY_FILES: [&str; 2] = ["replay.json", "ROLE-out.jsonl"];
 /// Files of a sweep (or a shard, or a merged sweep).
-pub const SWEEP_FILES: [&str; 6] = [
+pub const SWEEP_FILES: [&str; 7] = [
     "sweep.json",
     "scenario.toml",
     "samples.csv",
     "series.csv",
+    "columns.csv",
     "table.md",
     "table.csv",
 ];

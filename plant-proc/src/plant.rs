@@ -11,6 +11,7 @@
 //! exact velocity jumps at their instants, splitting the step there.
 
 use cosim::msg::{FromPlant, ToPlant};
+use cosim::time::tick_time;
 use cosim::{Participant, Role};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -98,8 +99,8 @@ impl Plant {
 
     /// Advances one plant step with δ_a held.
     pub fn advance(&mut self, delta_a: f64) {
-        let t0 = self.k as f64 * self.dt;
-        let t1 = (self.k + 1) as f64 * self.dt;
+        let t0 = tick_time(self.k, self.dt);
+        let t1 = tick_time(self.k + 1, self.dt);
         let v = self.vehicle.v;
         let mut t = t0;
         let mut x = self.x;
@@ -122,7 +123,7 @@ impl Plant {
 
     /// Output sample at the current time.
     pub fn output(&mut self) -> FromPlant {
-        let t = self.k as f64 * self.dt;
+        let t = tick_time(self.k, self.dt);
         let s = self.vehicle.v * t;
         let p = self.track.at(s);
         let th_v = self.x[ix::TH_V];

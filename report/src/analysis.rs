@@ -278,10 +278,10 @@ pub fn scan(
             }
         };
         tiltsim_assessment::comfort::Sample {
-            t: r.t,
+            t: r.time,
             lat_acc,
             lat_acc_ref: veh.lateral_acceleration(x.reference, r.curvature, r.cant),
-            roll_speed: r.dtheta_v + track.cant_rate_at_time(r.t, v),
+            roll_speed: r.dtheta_v + track.cant_rate_at_time(r.time, v),
             roll_speed_ref: deriv(&|d| d.row.cant + d.reference),
             deflection: ds,
             lat_acc_other,
@@ -377,7 +377,7 @@ pub fn write_compare_plots(
     let n = data.iter().map(|(_, r)| r.len()).min().unwrap_or(0);
     let t: Vec<f64> = data
         .first()
-        .map(|(_, r)| r[..n].iter().map(|x| x.t).collect())
+        .map(|(_, r)| r[..n].iter().map(|x| x.time).collect())
         .unwrap_or_default();
     let plots = out.join("plots");
     std::fs::create_dir_all(&plots)?;
@@ -489,8 +489,8 @@ impl QuickLooker {
         let q = &mut self.q;
         q.lat_acc_peak = q.lat_acc_peak.max(r.lat_acc.abs());
         q.delta_a_peak = q.delta_a_peak.max(r.delta_a.abs());
-        if (r.t - self.t_mid).abs() < self.best {
-            self.best = (r.t - self.t_mid).abs();
+        if (r.time - self.t_mid).abs() < self.best {
+            self.best = (r.time - self.t_mid).abs();
             q.lat_acc_mid_curve = r.lat_acc;
             q.theta_v_mid_curve = r.theta_v;
         }

@@ -219,7 +219,7 @@ fn metric_rows(
     // Rows the ideal tilt has no value for: it simulates no suspension, no sway, no ride.
     let not_ideal = [
         metric("deflection_peak_mm"),
-        metric("p_ct_other_form_standing"),
+        metric("p_ct_other_form_standing_pct"),
         metric("n_mv_lateral"),
         metric("a_y_rms_wd_m_s2"),
         metric("roll_acc_rms_rad_s2"),
@@ -273,17 +273,17 @@ fn ideal_differences(
         ),
         (
             "P_CT standing (whole-run peaks) over ideal tilt",
-            "p_ct_standing",
+            "p_ct_standing_pct",
             "points",
         ),
         (
             "P_CT seated (whole-run peaks) over ideal tilt",
-            "p_ct_seated",
+            "p_ct_seated_pct",
             "points",
         ),
         (
             "P_CT standing (EN 12299) over ideal tilt",
-            "p_ct_en12299_standing",
+            "p_ct_en12299_standing_pct",
             "points",
         ),
     ] {

@@ -23,8 +23,9 @@ STATE = ["y_v", "theta_v", "y_b", "theta_b", "dy_v", "dtheta_v", "dy_b", "dtheta
 
 
 # Recorded fields whose FMU variable has another name: the actuator FMU's own output `limits`
-# is `actuator_limits` in the recording, as in timeseries.csv.
-RENAMED = {"actuator_limits": "limits"}
+# is `actuator_limits` in the recording, as in timeseries.csv; the controller FMU's input `t`
+# (the time of the plant sample it is given, not a master's own `time`) is `time` there.
+RENAMED = {"actuator_limits": "limits", "time": "t"}
 
 
 def fmu_name(field):
@@ -50,7 +51,9 @@ def main():
     inputs = [k for k in ins[0] if k != "step"]
     # FMPy's communication points are start_time + n * step: the input's times are built with
     # the same arithmetic, so each request is applied exactly at its own point.
-    signal = np.zeros(len(ins), dtype=[("time", np.float64)] + [(n, np.float64) for n in inputs])
+    signal = np.zeros(
+        len(ins), dtype=[("time", np.float64)] + [(fmu_name(n), np.float64) for n in inputs]
+    )
     for n, m in enumerate(ins):
         signal[n] = tuple([0.0 + n * step] + [m[k] for k in inputs])
     fields = [k for k in outs[0] if k != "step"]

@@ -42,7 +42,7 @@ def main() -> None:
             largest = max(largest, message.log_time)
             counts[channel.topic] = counts.get(channel.topic, 0) + 1
             if channel.topic == "/plant/out":
-                t = json.loads(message.data)["t"]
+                t = json.loads(message.data)["time"]
                 if message.log_time != round(t * 1e9):
                     plant_time += 1
     print(

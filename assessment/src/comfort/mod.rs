@@ -161,8 +161,10 @@ pub struct Signals {
 #[derive(Debug, Clone, Copy, Serialize, Default, PartialEq)]
 pub struct Pct {
     /// Standing (% of passengers).
+    #[serde(rename = "standing_pct")]
     pub standing: f64,
     /// Seated (% of passengers).
+    #[serde(rename = "seated_pct")]
     pub seated: f64,
     /// ÿ_m used (m/s²).
     pub lat_acc_m_s2: f64,
@@ -236,6 +238,9 @@ pub struct Metric {
     pub key: &'static str,
     /// Label with unit, as a table row.
     pub label: &'static str,
+    /// Unit symbol in ASCII (`%g`: percent of g; `1`: a pure number), as `columns.csv`
+    /// gives it.
+    pub unit: &'static str,
     /// The value in a run's comfort.
     pub get: fn(&Comfort) -> f64,
     /// Whether it is a P_CT (%), whose formula is meaningful only up to 100 %.
@@ -247,90 +252,105 @@ pub const METRICS: [Metric; 15] = [
     Metric {
         key: "lat_acc_rms_dev_pct_g",
         label: "Lateral acceleration RMS deviation (%g)",
+        unit: "%g",
         get: |c| c.lat_acc_rms_dev_pct_g,
         is_p_ct: false,
     },
     Metric {
         key: "lat_acc_peak_pct_g",
         label: "Lateral acceleration peak (%g)",
+        unit: "%g",
         get: |c| c.lat_acc_peak_pct_g,
         is_p_ct: false,
     },
     Metric {
         key: "roll_speed_rms_dev_rad_s",
         label: "Roll speed RMS deviation (rad/s)",
+        unit: "rad/s",
         get: |c| c.roll_speed_rms_dev_rad_s,
         is_p_ct: false,
     },
     Metric {
         key: "roll_speed_peak_rad_s",
         label: "Roll speed peak (rad/s)",
+        unit: "rad/s",
         get: |c| c.roll_speed_peak_rad_s,
         is_p_ct: false,
     },
     Metric {
         key: "jerk_peak_pct_g_s",
         label: "Peak jerk level (%g/s)",
+        unit: "%g/s",
         get: |c| c.jerk_peak_pct_g_s,
         is_p_ct: false,
     },
     Metric {
-        key: "p_ct_standing",
+        key: "p_ct_standing_pct",
         label: "P_CT standing, whole-run peaks as the paper (%)",
+        unit: "%",
         get: |c| c.p_ct.standing,
         is_p_ct: true,
     },
     Metric {
-        key: "p_ct_seated",
+        key: "p_ct_seated_pct",
         label: "P_CT seated, whole-run peaks as the paper (%)",
+        unit: "%",
         get: |c| c.p_ct.seated,
         is_p_ct: true,
     },
     Metric {
-        key: "p_ct_en12299_standing",
+        key: "p_ct_en12299_standing_pct",
         label: "P_CT standing, EN 12299 per transition (%)",
+        unit: "%",
         get: |c| c.p_ct_en12299.standing,
         is_p_ct: true,
     },
     Metric {
-        key: "p_ct_en12299_seated",
+        key: "p_ct_en12299_seated_pct",
         label: "P_CT seated, EN 12299 per transition (%)",
+        unit: "%",
         get: |c| c.p_ct_en12299.seated,
         is_p_ct: true,
     },
     Metric {
         key: "deflection_peak_mm",
         label: "Secondary lateral deflection peak (mm, bump stop 60)",
+        unit: "mm",
         get: |c| c.deflection_peak_mm,
         is_p_ct: false,
     },
     Metric {
-        key: "p_ct_other_form_standing",
+        key: "p_ct_other_form_standing_pct",
         label: "P_CT standing, whole-run peaks, other ÿ form (%)",
+        unit: "%",
         get: |c| c.other_form.p_ct.standing,
         is_p_ct: true,
     },
     Metric {
         key: "n_mv_lateral",
         label: "EN 12299 N_MV, lateral part 6·a_YP95^Wd",
+        unit: "1",
         get: |c| c.ride.n_mv_lateral,
         is_p_ct: false,
     },
     Metric {
         key: "a_y_rms_wd_m_s2",
         label: "Wd-weighted carbody lateral acceleration RMS (m/s²)",
+        unit: "m/s2",
         get: |c| c.ride.a_y_rms_wd_m_s2,
         is_p_ct: false,
     },
     Metric {
         key: "tilt_error_rms_deg",
         label: "Tilt error θ_v − θ_v^d RMS (deg)",
+        unit: "deg",
         get: |c| c.ride.tilt_error_rms_deg,
         is_p_ct: false,
     },
     Metric {
         key: "roll_acc_rms_rad_s2",
         label: "Carbody roll acceleration RMS (rad/s²)",
+        unit: "rad/s2",
         get: |c| c.ride.roll_acc_rms_rad_s2,
         is_p_ct: false,
     },

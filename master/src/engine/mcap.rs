@@ -41,7 +41,7 @@ const CHANNELS: &[(&str, &[&str])] = &[
     (
         "/plant/out",
         &[
-            "t",
+            "time",
             "s",
             "curvature",
             "cant",
@@ -75,7 +75,7 @@ const CHANNELS: &[(&str, &[&str])] = &[
             "actuator_limits",
         ],
     ),
-    ("/controller/in", &["t", "s", "theta_v_meas"]),
+    ("/controller/in", &["time", "s", "theta_v_meas"]),
     (
         "/controller/out",
         &["delta_a_cmd", "theta_ref", "theta_v_hat", "solver_status"],
@@ -406,7 +406,7 @@ impl From<&crate::events::Event> for EventMessage {
     fn from(e: &crate::events::Event) -> Self {
         EventMessage {
             step: e.step,
-            t: e.t,
+            t: e.time,
             source: e.source.clone(),
             kind: serde_json::to_value(e.kind)
                 .ok()
@@ -427,9 +427,9 @@ impl EventMessage {
             String::new()
         };
         format!(
-            "{{\"step\":{},\"t\":{},\"source\":{},\"kind\":{}{value},\"detail\":{}}}",
-            self.step,
+            "{{\"time\":{},\"step\":{},\"source\":{},\"kind\":{}{value},\"detail\":{}}}",
             crate::record::fmt_f64(self.t),
+            self.step,
             serde_json::Value::from(self.source.as_str()),
             serde_json::Value::from(self.kind.as_str()),
             serde_json::Value::from(self.detail.as_str()),

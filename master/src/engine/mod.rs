@@ -39,7 +39,9 @@ use crate::record::{Recorder, Row};
 use crate::roles::RoleMap;
 use crate::scenario::{Scenario, Transport};
 pub use observer::LatencyHistogram;
-use observer::{ComputeStats, DriveEvents, Latency, Observer, Pacing, RowRecorder, TickRecord};
+use observer::{
+    ComputeStats, DriveEvents, Latency, Observer, Pacing, RowRecorder, RowSink, TickRecord,
+};
 use observer::{TickTiming, Trace};
 use team::Team;
 
@@ -135,6 +137,7 @@ fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Res
     }
     // The Init exchanges stay in `team.exchanges`: the observers see them with tick 0's.
     team.initialise()?;
+    obs.recorder.at_start(&team.held).map_err(Stop::Write)?;
     let algorithm = algorithm::of(s.run.master);
     let c_period = s.controller_period_ticks();
     for k in 0..s.steps() {
@@ -189,6 +192,7 @@ fn lockstep_pipelined(
 ) -> Result<(), Stop> {
     let s = team.scenario();
     team.initialise()?;
+    obs.recorder.at_start(&team.held).map_err(Stop::Write)?;
     let c_period = s.controller_period_ticks();
     let steps = s.steps();
     let due = |k: u64| k.is_multiple_of(c_period);
@@ -285,11 +289,12 @@ fn create_outputs(s: &Scenario, opts: &RunOptions) -> Result<Outputs, RunError> 
     let dir = &opts.out_dir;
     std::fs::create_dir_all(dir).map_err(RunError::io(dir.clone()))?;
     let rec = if opts.keep_rows {
-        RowRecorder::Kept(Vec::with_capacity(s.steps() as usize))
+        RowSink::Kept(Vec::with_capacity(s.steps() as usize + 1))
     } else {
         let csv = dir.join("timeseries.csv");
-        RowRecorder::File(Box::new(Recorder::create(&csv).map_err(RunError::io(csv))?))
+        RowSink::File(Box::new(Recorder::create(&csv).map_err(RunError::io(csv))?))
     };
+    let rec = RowRecorder::new(s.run.dt_s, rec);
     let trace = if opts.trace {
         let path = dir.join("trace.csv");
         Some(Trace::create(&path, now_ns(), s.run.dt_s).map_err(RunError::io(path))?)
@@ -445,7 +450,7 @@ pub fn run_recorded(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Res
     if let (Ok(()), Err(e)) = (&outcome, finished) {
         outcome = Err(Stop::Write(e));
     }
-    let rows = obs.recorder.rows();
+    let rows = obs.recorder.ticks();
     let kept = obs.recorder.take_kept();
     if let Err(Stop::Link(e)) = &outcome {
         team.log_failure(rows, e);
@@ -456,6 +461,9 @@ pub fn run_recorded(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Res
     // Outputs after the loop: each failure is kept for the summary, none skips another.
     let mut write_errors = Vec::new();
     if let Err(e) = events.write(&opts.out_dir.join("events.csv")) {
+        write_errors.push(e);
+    }
+    if let Err(e) = crate::columns::write_run(&opts.out_dir) {
         write_errors.push(e);
     }
     let mut latency_histogram = None;

@@ -50,8 +50,15 @@ pub(crate) trait Observer {
 }
 
 /// Streams every tick's [`Row`] to `timeseries.csv`, or keeps it in memory
-/// (`RunOptions::keep_rows`).
-pub(crate) enum RowRecorder {
+/// (`RunOptions::keep_rows`), after the row at the start time.
+pub(crate) struct RowRecorder {
+    /// Base tick (s), for each row's time.
+    dt: f64,
+    to: RowSink,
+}
+
+/// Where a [`RowRecorder`]'s rows go.
+pub(crate) enum RowSink {
     /// To `timeseries.csv`.
     File(Box<Recorder>),
     /// In memory.
@@ -59,27 +66,48 @@ pub(crate) enum RowRecorder {
 }
 
 impl RowRecorder {
+    /// Rows of a grid of `dt` s to `to`.
+    pub fn new(dt: f64, to: RowSink) -> Self {
+        RowRecorder { dt, to }
+    }
+
     /// Writes what is buffered (a no-op in memory).
     pub fn finish(&mut self) -> std::io::Result<()> {
-        match self {
-            RowRecorder::File(r) => r.finish(),
-            RowRecorder::Kept(_) => Ok(()),
+        match &mut self.to {
+            RowSink::File(r) => r.finish(),
+            RowSink::Kept(_) => Ok(()),
         }
     }
 
-    /// Complete rows recorded.
-    pub fn rows(&self) -> u64 {
-        match self {
-            RowRecorder::File(r) => r.rows_on_disk(),
-            RowRecorder::Kept(v) => v.len() as u64,
+    /// Writes row 0, the outputs at the start time (before the first tick).
+    pub fn at_start(&mut self, held: &Held) -> std::io::Result<()> {
+        self.put(Row::at_start(self.dt, &held.p, &held.a, &held.c))
+    }
+
+    fn put(&mut self, row: Row) -> std::io::Result<()> {
+        match &mut self.to {
+            RowSink::File(r) => r.write(&row),
+            RowSink::Kept(v) => {
+                v.push(row);
+                Ok(())
+            }
         }
+    }
+
+    /// Ticks whose rows are complete (the row at the start time not counted).
+    pub fn ticks(&self) -> u64 {
+        let rows = match &self.to {
+            RowSink::File(r) => r.rows_on_disk(),
+            RowSink::Kept(v) => v.len() as u64,
+        };
+        rows.saturating_sub(1)
     }
 
     /// The rows kept in memory, if that is where they went.
     pub fn take_kept(&mut self) -> Option<Vec<Row>> {
-        match self {
-            RowRecorder::File(_) => None,
-            RowRecorder::Kept(v) => Some(std::mem::take(v)),
+        match &mut self.to {
+            RowSink::File(_) => None,
+            RowSink::Kept(v) => Some(std::mem::take(v)),
         }
     }
 }
@@ -87,14 +115,7 @@ impl RowRecorder {
 impl Observer for RowRecorder {
     fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
         let h = t.held;
-        let row = Row::new(t.k, &h.p, &h.a, &h.c, t.rx);
-        match self {
-            RowRecorder::File(r) => r.write(&row),
-            RowRecorder::Kept(v) => {
-                v.push(row);
-                Ok(())
-            }
-        }
+        self.put(Row::after_tick(t.k, self.dt, &h.p, &h.a, &h.c, t.rx))
     }
 }
 

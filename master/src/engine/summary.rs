@@ -39,13 +39,17 @@ pub use cosim::endpoint::LostSamples;
 #[derive(Debug, Clone, Serialize, Default)]
 pub struct Timing {
     /// Per-tick coordination overhead (µs): tick wall time minus the participants' compute
-    /// time on the critical path (the sum for Gauss-Seidel, the largest for Jacobi).
+    /// time on the critical path (the sum for Gauss-Seidel, the largest for Jacobi). Median.
+    #[serde(rename = "overhead_p50_us")]
     pub p50: f64,
     /// 99th percentile of the overhead (µs).
+    #[serde(rename = "overhead_p99_us")]
     pub p99: f64,
     /// Largest overhead (µs).
+    #[serde(rename = "overhead_max_us")]
     pub max: f64,
     /// Mean overhead (µs).
+    #[serde(rename = "overhead_mean_us")]
     pub mean: f64,
     /// Whole tick wall time (µs).
     pub tick_us: Percentiles,
@@ -225,12 +229,16 @@ pub struct SolverReport {
 #[derive(Debug, Clone, Serialize, Default)]
 pub struct QuickLook {
     /// Largest |passenger lateral acceleration| (m/s²).
+    #[serde(rename = "lat_acc_peak_m_s2")]
     pub lat_acc_peak: f64,
     /// Lateral acceleration at the middle of the steady curve (m/s²).
+    #[serde(rename = "lat_acc_mid_curve_m_s2")]
     pub lat_acc_mid_curve: f64,
     /// Body roll θ_v at the middle of the steady curve (rad).
+    #[serde(rename = "theta_v_mid_curve_rad")]
     pub theta_v_mid_curve: f64,
     /// Largest |δ_a| (rad).
+    #[serde(rename = "delta_a_peak_rad")]
     pub delta_a_peak: f64,
 }
 

@@ -116,7 +116,7 @@ impl<'a> Team<'a> {
 
     /// Carries value `v` sent at tick `k` over `link`.
     pub fn carry(&mut self, link: LinkId, k: u64, v: f64) -> f64 {
-        let t = k as f64 * self.s.run.dt_s;
+        let t = cosim::time::tick_time(k, self.s.run.dt_s);
         self.links.carry(link, k, t, v, &mut self.events)
     }
 

@@ -75,9 +75,13 @@ impl Store {
     /// tick `k`, with value `v`; returns its delay in ticks, `None` when lost.
     fn pass(&mut self, id: LinkId, index: usize, k: u64, v: f64) -> Option<u64> {
         let i = id as usize;
-        let got = self
-            .links
-            .pass(id, k, k as f64 * self.dt, v, &mut self.events[i]);
+        let got = self.links.pass(
+            id,
+            k,
+            cosim::time::tick_time(k, self.dt),
+            v,
+            &mut self.events[i],
+        );
         if let Some(slot) = self.arrived[i].get_mut(index) {
             *slot = got.map(|(_, value)| value);
         }
@@ -250,7 +254,13 @@ impl Store {
         self.controller_input(t.from[col(Role::Plant)]?)
     }
 
-    /// Row `k` of `timeseries.csv`: the plant's output of step `k`, the actuator output that
+    /// Row 0 of `timeseries.csv`: the outputs at t₀.
+    pub fn row_at_start(&self) -> Row {
+        let (p, a, c) = &self.init;
+        Row::at_start(self.dt, p, a, c)
+    }
+
+    /// Row `k + 1` of `timeseries.csv`: the plant's output of step `k`, the actuator output that
     /// step read, the controller output that actuator step read, and as the `rx_*` columns
     /// what each of those steps received over its link (the measurement as the controller
     /// step read it, the bar twist as the actuator step read it). An output at t₀ read nothing: the outputs at
@@ -271,6 +281,6 @@ impl Store {
             self.arrived(LinkId::Measurement, qp_c)?,
             self.arrived(LinkId::BarTwist, qp_a)?,
         ];
-        Some(Row::new(k, p, a, c, &rx))
+        Some(Row::after_tick(k, self.dt, p, a, c, &rx))
     }
 }

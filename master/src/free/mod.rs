@@ -152,10 +152,12 @@ pub(crate) fn run_events(
     ev
 }
 
-/// Writes `dir/timeseries.csv` from the store: rows 0, 1, ... up to the first that cannot be
-/// composed (a run that ended early). Returns the number of rows.
+/// Writes `dir/timeseries.csv` from the store: the row at the start time, then the row after
+/// each tick up to the first that cannot be composed (a run that ended early). Returns the
+/// number of ticks written.
 pub(crate) fn write_rows(dir: &Path, store: &compose::Store, steps: u64) -> std::io::Result<u64> {
     let mut rec = Recorder::create(&dir.join("timeseries.csv"))?;
+    rec.write(&store.row_at_start())?;
     let mut n = 0;
     for k in 0..steps {
         let Some(row) = store.row(k) else { break };

@@ -113,6 +113,7 @@ pub fn replay(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Repl
     super::run_events(s, &store, rows)
         .write(&events_csv)
         .map_err(|e| FreeError::io(&events_csv, e))?;
+    crate::columns::write_run(dir).map_err(|e| FreeError::io(&dir.join("columns.csv"), e))?;
     outcome?;
     Ok(Replayed {
         steps_completed: rows,

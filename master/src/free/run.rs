@@ -215,6 +215,7 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
     events
         .write(&events_csv)
         .map_err(|e| FreeError::io(&events_csv, e))?;
+    crate::columns::write_run(dir).map_err(|e| FreeError::io(&dir.join("columns.csv"), e))?;
     let rows = rows?;
     let recording = if opts.record {
         let path = dir.join("run.mcap");

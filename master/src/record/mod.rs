@@ -21,14 +21,21 @@ pub use reader::{each_row, read_rows, rows_to_plot, whole_lines, Rows};
 pub use writer::Recorder;
 
 macro_rules! row {
-    ($(#[$m:meta])* pub struct $name:ident { $($(#[$fm:meta])* $f:ident : $t:ty),* $(,)? }) => {
+    ($(#[$m:meta])* pub struct $name:ident {
+        $(#[doc = $doc:literal] $f:ident : $t:ty => $unit:literal),* $(,)?
+    }) => {
         $(#[$m])*
         #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
         pub struct $name {
-            $($(#[$fm])* pub $f: $t,)*
+            $(#[doc = $doc] pub $f: $t,)*
         }
         /// Column names of `timeseries.csv`, in order: the fields of [`Row`].
         pub const COLUMNS: &[&str] = &[$(stringify!($f)),*];
+        /// The unit of each column of [`COLUMNS`] (UCUM codes: `1` a pure number, empty for a
+        /// code or a set of bits).
+        pub const UNITS: &[&str] = &[$($unit),*];
+        /// What each column of [`COLUMNS`] holds.
+        pub const DESCRIPTIONS: &[&str] = &[$($doc),*];
         impl $name {
             /// Appends every field, formatted, to `record` (using `buf` as scratch).
             fn write_into(&self, record: &mut csv::ByteRecord, buf: &mut String) {
@@ -61,90 +68,124 @@ macro_rules! row {
 }
 
 row!(
-    /// One row of `timeseries.csv`: every participant's latest output after tick `step`, at
-    /// `t = (step + 1)·dt`. SI units and radians (README, "Output").
+    /// One row of `timeseries.csv`: every participant's latest output at `time = step·dt`;
+    /// row 0 holds the outputs at the start time, row `k + 1` those after tick `k`. SI units
+    /// and radians (`columns.csv` beside the file gives each unit; README "Output").
     pub struct Row {
-        /// Tick.
-        step: u64,
         /// Simulated time (s).
-        t: f64,
+        time: f64 => "s",
+        /// Ticks since the start time.
+        step: u64 => "1",
         /// Position along the track (m).
-        s: f64,
+        s: f64 => "m",
         /// Curvature 1/R (1/m).
-        curvature: f64,
+        curvature: f64 => "/m",
         /// Cant θ_o with irregularity (rad).
-        cant: f64,
+        cant: f64 => "rad",
         /// Body lateral displacement (m).
-        y_v: f64,
+        y_v: f64 => "m",
         /// Body roll relative to the track (rad).
-        theta_v: f64,
+        theta_v: f64 => "rad",
         /// Bogie lateral displacement (m).
-        y_b: f64,
+        y_b: f64 => "m",
         /// Bogie roll (rad).
-        theta_b: f64,
+        theta_b: f64 => "rad",
         /// ẏ_v (m/s).
-        dy_v: f64,
+        dy_v: f64 => "m/s",
         /// θ̇_v (rad/s).
-        dtheta_v: f64,
+        dtheta_v: f64 => "rad/s",
         /// ẏ_b (m/s).
-        dy_b: f64,
+        dy_b: f64 => "m/s",
         /// θ̇_b (rad/s).
-        dtheta_b: f64,
+        dtheta_b: f64 => "rad/s",
         /// Airspring reservoir roll θ_r (rad).
-        theta_r: f64,
+        theta_r: f64 => "rad",
         /// ψ = θ_v − θ_b (rad).
-        psi: f64,
+        psi: f64 => "rad",
         /// Passenger lateral acceleration, eq 13 (m/s²).
-        lat_acc: f64,
+        lat_acc: f64 => "m/s2",
         /// Measured roll (rad).
-        theta_v_meas: f64,
+        theta_v_meas: f64 => "rad",
         /// Estimated roll (rad).
-        theta_v_hat: f64,
+        theta_v_hat: f64 => "rad",
         /// Reference of eq 18 as the controller computed it (rad).
-        theta_ref: f64,
+        theta_ref: f64 => "rad",
         /// Commanded bar angle (rad).
-        delta_a_cmd: f64,
+        delta_a_cmd: f64 => "rad",
         /// Achieved bar angle (rad).
-        delta_a: f64,
+        delta_a: f64 => "rad",
         /// Set-point after command shaping (rad).
-        delta_a_ref: f64,
+        delta_a_ref: f64 => "rad",
         /// Mean electromagnetic torque (N·m).
-        motor_torque: f64,
+        motor_torque: f64 => "N.m",
         /// Rotor speed (rad/s).
-        motor_speed: f64,
+        motor_speed: f64 => "rad/s",
         /// T_e/k_t (A).
-        motor_current: f64,
+        motor_current: f64 => "A",
         /// Power drawn from the DC link (W).
-        dc_power: f64,
+        dc_power: f64 => "W",
         /// Largest phase current of the millisecond (A).
-        phase_current_peak: f64,
+        phase_current_peak: f64 => "A",
         /// DC-link voltage (V).
-        v_dc: f64,
+        v_dc: f64 => "V",
         /// Chopper power (W).
-        chopper_power: f64,
+        chopper_power: f64 => "W",
         /// `actuator_proc::bldc::limit` bits.
-        actuator_limits: u32,
+        actuator_limits: u32 => "",
         /// 0 no QP, 1 solved, 2 failed (previous command held).
-        solver_status: u32,
+        solver_status: u32 => "",
         /// What the actuator received as its command (rad).
-        rx_actuator_command: f64,
+        rx_actuator_command: f64 => "rad",
         /// What the plant received as the bar angle (rad).
-        rx_bar_angle: f64,
+        rx_bar_angle: f64 => "rad",
         /// What the controller received as the measurement (rad).
-        rx_measurement: f64,
+        rx_measurement: f64 => "rad",
         /// What the actuator received as the bar twist (rad).
-        rx_bar_twist: f64,
+        rx_bar_twist: f64 => "rad",
     }
 );
 
+pub use cosim::time::tick_time;
+
 impl Row {
-    /// The row of tick `k` from the held outputs and what each link delivered
-    /// (`rx` = actuator command, bar angle, measurement, bar twist).
-    pub fn new(k: u64, p: &FromPlant, a: &FromActuator, c: &FromController, rx: &[f64; 4]) -> Self {
+    /// The row after tick `k` (step `k + 1`) from the held outputs and what each link
+    /// delivered (`rx` = actuator command, bar angle, measurement, bar twist).
+    pub fn after_tick(
+        k: u64,
+        dt: f64,
+        p: &FromPlant,
+        a: &FromActuator,
+        c: &FromController,
+        rx: &[f64; 4],
+    ) -> Self {
+        Self::of(k + 1, dt, p, a, c, rx)
+    }
+
+    /// Row 0: the outputs at the start time. Nothing has travelled a link yet, so each
+    /// `rx_*` column holds what its sender holds.
+    pub fn at_start(dt: f64, p: &FromPlant, a: &FromActuator, c: &FromController) -> Self {
+        Self::of(
+            0,
+            dt,
+            p,
+            a,
+            c,
+            &[c.delta_a_cmd, a.delta_a, p.theta_v_meas, p.psi],
+        )
+    }
+
+    fn of(
+        step: u64,
+        dt: f64,
+        p: &FromPlant,
+        a: &FromActuator,
+        c: &FromController,
+        rx: &[f64; 4],
+    ) -> Self {
         let x = &p.x;
         Row {
-            step: k,
-            t: p.t,
+            time: tick_time(step, dt),
+            step,
             s: p.s,
             curvature: p.curvature,
             cant: p.cant,
@@ -218,7 +259,7 @@ mod tests {
             ..Default::default()
         };
         let rows: Vec<Row> = (0..3)
-            .map(|k| Row::new(k, &p, &a, &c, &[0.1, 0.2, f64::NAN, 0.4]))
+            .map(|k| Row::of(k, 1e-3, &p, &a, &c, &[0.1, 0.2, f64::NAN, 0.4]))
             .collect();
         let mut rec = Recorder::create(&dir.join("timeseries.csv")).unwrap();
         for r in &rows {
@@ -290,7 +331,7 @@ mod tests {
                     ..Default::default()
                 };
                 let (a, c) = (FromActuator::default(), FromController::default());
-                Row::new(k, &p, &a, &c, &[0.0; 4])
+                Row::of(k, 1e-3, &p, &a, &c, &[0.0; 4])
             })
             .collect();
         let mut rec = Recorder::create(&dir.join("timeseries.csv")).unwrap();
@@ -430,7 +471,7 @@ mod tests {
         /// Every float's bits (NaN compares equal to itself).
         fn x_bits(&self) -> Vec<u64> {
             vec![
-                self.t.to_bits(),
+                self.time.to_bits(),
                 self.y_v.to_bits(),
                 self.dtheta_v.to_bits(),
                 self.dy_b.to_bits(),

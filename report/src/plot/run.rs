@@ -118,7 +118,7 @@ pub fn write_run_plots(
     u_max: f64,
     who: &RunTitle,
 ) -> std::io::Result<Vec<PathBuf>> {
-    let t: Vec<f64> = rows.iter().map(|r| r.t).collect();
+    let t: Vec<f64> = rows.iter().map(|r| r.time).collect();
     let out = dir.join("plots");
     std::fs::create_dir_all(&out)
         .map_err(|e| std::io::Error::new(e.kind(), format!("{}: {e}", out.display())))?;

@@ -198,13 +198,8 @@ pub(super) fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row 
         )
     };
     let every = (SERIES_DT / s.run.dt_s).round().max(1.0) as usize;
-    // Row k holds t_{k+1}; keep t = 10 ms, 20 ms, ...
-    let series: Vec<f64> = rows
-        .iter()
-        .skip(every - 1)
-        .step_by(every)
-        .map(|r| r.lat_acc)
-        .collect();
+    // Row k holds t_k: keep t = 0, 10 ms, 20 ms, ...
+    let series: Vec<f64> = rows.iter().step_by(every).map(|r| r.lat_acc).collect();
     if ex.keep_runs {
         if let Ok(sum) = &summary {
             let _ = tiltsim_master::files::write_atomic(

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use tiltsim_assessment::comfort::METRICS;
 use tiltsim_master::scenario::Scenario;
 
+use super::outputs::{series_time, SERIES_COLUMNS};
 use super::{check_params, identity, Plan, Row, SampleStatus, Shard, SweepError, SweepFile};
 
 pub(super) fn parse_f64s<'a>(
@@ -124,20 +125,60 @@ pub(super) fn outputs(dir: &Path) -> Result<Outputs, String> {
         .map(|(at, f)| sample_row(at, f, ncol).map(|r| (at.clone(), r)))
         .collect::<Result<Vec<_>, _>>()?;
     let series_path = dir.join("series.csv");
+    let series_bytes = verified("series.csv")?;
+    let head = csv::ReaderBuilder::new()
+        .from_reader(&series_bytes[..])
+        .headers()
+        .map(|h| h.iter().map(str::to_string).collect::<Vec<_>>())
+        .map_err(|e| format!("{}: {e}", series_path.display()))?;
+    if head != SERIES_COLUMNS {
+        return Err(format!(
+            "{} line 1: the columns are not {}",
+            series_path.display(),
+            SERIES_COLUMNS.join(",")
+        ));
+    }
+    // One block of lines per sample, its times 0, SERIES_DT, ... in order.
     let mut seen = std::collections::BTreeSet::new();
     let mut orphans = Vec::new();
-    for (at, f) in records(&series_path, &verified("series.csv")?)? {
-        let j: usize = f
-            .get(0)
-            .and_then(|x| x.parse().ok())
-            .ok_or_else(|| format!("{at}: bad sample index"))?;
-        if !seen.insert(j) {
-            return Err(format!("{at}: sample {j} appears twice"));
+    let mut current: Option<(usize, Vec<f64>)> = None;
+    let mut blocks = Vec::new();
+    for (at, f) in records(&series_path, &series_bytes)? {
+        if f.len() != SERIES_COLUMNS.len() {
+            return Err(format!("{at}: {} fields, expected 3", f.len()));
         }
-        let series = parse_f64s(f.iter().skip(1), &at)?;
+        let j: usize = f[0]
+            .parse()
+            .map_err(|_| format!("{at}: bad sample index `{}`", &f[0]))?;
+        let v = parse_f64s(f.iter().skip(1), &at)?;
+        if current.as_ref().is_none_or(|(c, _)| *c != j) {
+            if !seen.insert(j) {
+                return Err(format!("{at}: sample {j} appears twice"));
+            }
+            blocks.extend(current.take());
+            current = Some((j, Vec::new()));
+        }
+        let Some((_, series)) = current.as_mut() else {
+            continue;
+        };
+        let want = series_time(series.len());
+        if v[0].to_bits() != want.to_bits() {
+            return Err(format!(
+                "{at}: sample {j} at time {} where {} follows",
+                v[0],
+                tiltsim_master::record::fmt_f64(want)
+            ));
+        }
+        series.push(v[1]);
+    }
+    blocks.extend(current);
+    for (j, series) in blocks {
         match rows.iter_mut().find(|(_, r)| r.sample == j) {
             Some(row) => row.1.series = series,
-            None => orphans.push(format!("{at}: sample {j} is not in samples.csv")),
+            None => orphans.push(format!(
+                "{}: sample {j} is not in samples.csv",
+                series_path.display()
+            )),
         }
     }
     Ok(Outputs {

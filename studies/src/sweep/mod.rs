@@ -94,7 +94,8 @@ pub struct Row {
     pub metrics: Vec<f64>,
     /// The validity flags the run raised (`tiltsim_assessment::validity::Flags::raised`).
     pub flags: Vec<String>,
-    /// Lateral acceleration every [`SERIES_DT`] (m/s²), as far as recorded.
+    /// Lateral acceleration at 0, [`SERIES_DT`], 2·[`SERIES_DT`], ... (m/s²), as far as
+    /// recorded.
     pub series: Vec<f64>,
 }
 

@@ -94,11 +94,11 @@ pub(super) fn numbers(v: &[f64]) -> impl Iterator<Item = String> + '_ {
 /// `samples.csv`: each sample's parameters, status and metrics.
 pub(super) fn samples_csv(plan: &Plan, rows: &[Row]) -> String {
     let cols = plan.columns();
-    let head = std::iter::once("sample".to_string())
+    let head = std::iter::once(SAMPLE_COLUMN.to_string())
         .chain(cols.iter().map(|c| c.to_string()))
         .chain(std::iter::once("status".to_string()))
         .chain(METRICS.iter().map(|m| m.key.to_string()))
-        .chain(std::iter::once("flags".to_string()))
+        .chain(std::iter::once(FLAGS_COLUMN.to_string()))
         .collect();
     let body = rows.iter().map(|r| {
         let params = (0..cols.len()).map(|k| r.params.get(k).copied().unwrap_or(f64::NAN));
@@ -112,23 +112,87 @@ pub(super) fn samples_csv(plan: &Plan, rows: &[Row]) -> String {
     csv_text(std::iter::once(head).chain(body))
 }
 
-/// `series.csv`: each sample's lateral acceleration every [`SERIES_DT`].
+/// The column of `samples.csv` that lists the validity flags a sample raised (not `flags`,
+/// which pandas reserves: `DataFrame.flags`).
+pub const FLAGS_COLUMN: &str = "validity_flags";
+
+/// The column of `samples.csv` and `series.csv` that holds the sample's index (not `sample`,
+/// which pandas reserves: `DataFrame.sample`).
+pub const SAMPLE_COLUMN: &str = "sample_id";
+
+/// The columns of `series.csv`.
+pub const SERIES_COLUMNS: [&str; 3] = [SAMPLE_COLUMN, "time", "lat_acc"];
+
+/// The time of point `i` of a sample's series (s): `i`·[`SERIES_DT`], the double nearest to
+/// it.
+pub fn series_time(i: usize) -> f64 {
+    tiltsim_master::record::tick_time(i as u64, SERIES_DT)
+}
+
+/// `series.csv`, tidy (one line per sample and time): each sample's lateral acceleration at
+/// 0, [`SERIES_DT`], 2·[`SERIES_DT`], ... as far as it ran, in the shortest form that reads
+/// back exactly (as `timeseries.csv`).
 pub(super) fn series_csv(rows: &[Row]) -> String {
-    let longest = rows.iter().map(|r| r.series.len()).max().unwrap_or(0);
-    let head = std::iter::once("sample".to_string())
-        .chain((0..longest).map(|i| ((i + 1) as f64 * SERIES_DT).to_string()))
-        .collect();
-    let body = rows.iter().map(|r| {
-        std::iter::once(r.sample.to_string())
-            .chain(numbers(&r.series))
-            .collect()
-    });
-    // Series of failed samples are shorter: the csv crate needs flexible records.
-    let mut w = csv::WriterBuilder::new()
-        .flexible(true)
-        .from_writer(Vec::new());
-    for r in std::iter::once(head).chain(body) {
-        let _ = w.write_record::<&Vec<String>, &String>(&r);
+    let mut text = SERIES_COLUMNS.join(",") + "\n";
+    for r in rows {
+        for (i, v) in r.series.iter().enumerate() {
+            let _ = writeln!(
+                text,
+                "{},{},{}",
+                r.sample,
+                tiltsim_master::record::fmt_f64(series_time(i)),
+                tiltsim_master::record::fmt_f64(*v)
+            );
+        }
+    }
+    text
+}
+
+/// `columns.csv` of a sweep: each column of `samples.csv` and `series.csv` with its unit
+/// (see `tiltsim_master::columns`).
+pub(super) fn columns_csv(plan: &Plan) -> String {
+    use tiltsim_master::columns::Column;
+    let s = "samples.csv";
+    let mut all = vec![Column::new(s, SAMPLE_COLUMN, "", "Sample index")];
+    for c in plan.columns() {
+        all.push(match plan {
+            Plan::MonteCarlo { .. } => Column::new(s, &c, "1", "Factor on the nominal value"),
+            Plan::Grid { .. } => Column::new(
+                s,
+                &c,
+                "",
+                "The swept scenario value, in the unit of its key (README, scenario keys)",
+            ),
+        });
+    }
+    all.push(Column::new(s, "status", "", "completed or failed"));
+    all.extend(
+        METRICS
+            .iter()
+            .map(|m| Column::new(s, m.key, m.unit, m.label)),
+    );
+    all.push(Column::new(
+        s,
+        FLAGS_COLUMN,
+        "",
+        "The validity flags the run raised, separated by `; `",
+    ));
+    all.extend([
+        Column::new("series.csv", SAMPLE_COLUMN, "", "Sample index"),
+        Column::new("series.csv", "time", "s", "Simulated time"),
+        Column::new(
+            "series.csv",
+            "lat_acc",
+            "m/s2",
+            "Passenger lateral acceleration, eq 13",
+        ),
+    ]);
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for c in std::iter::once(["file", "column", "unit", "description"].map(String::from)).chain(
+        all.into_iter()
+            .map(|c| [c.file, c.name, c.unit, c.description]),
+    ) {
+        let _ = w.write_record(&c);
     }
     w.into_inner()
         .map(|b| String::from_utf8_lossy(&b).into_owned())
@@ -154,7 +218,7 @@ pub(super) fn monte_carlo_tables(
         rows.len(),
         s = spread
     );
-    let mut records = vec![["metric", "n", "median", "p5", "p95", "min", "max"]
+    let mut records = vec![["metric", "n", "p50", "p5", "p95", "lowest", "highest"]
         .map(String::from)
         .to_vec()];
     for (m, metric) in METRICS.iter().enumerate() {
@@ -216,9 +280,9 @@ pub(super) fn grid_tables(base: &Scenario, key: &str, rows: &[Row]) -> (String, 
     );
     let shown = [
         "lat_acc_peak_pct_g",
-        "p_ct_standing",
-        "p_ct_seated",
-        "p_ct_en12299_standing",
+        "p_ct_standing_pct",
+        "p_ct_seated_pct",
+        "p_ct_en12299_standing_pct",
         "roll_speed_peak_rad_s",
         "jerk_peak_pct_g_s",
     ];
@@ -267,6 +331,7 @@ pub fn write_outputs(
         ("series.csv", series_csv(rows)),
         ("table.md", md),
         ("table.csv", tcsv),
+        ("columns.csv", columns_csv(plan)),
     ];
     let meta = SweepFile {
         scenario: base.name.clone(),
@@ -352,7 +417,7 @@ pub(super) fn monte_carlo_plots(
     };
     let mut files =
         tiltsim_report::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)?.to_vec();
-    let mut p = column(ok, "p_ct_standing");
+    let mut p = column(ok, "p_ct_standing_pct");
     p.sort_by(|a, b| a.total_cmp(b));
     let frac: Vec<f64> = (1..=p.len()).map(|i| i as f64 / p.len() as f64).collect();
     let chart = Chart {
@@ -420,11 +485,16 @@ pub(super) fn grid_plots(
         lines: vec![
             line(
                 "P_CT standing",
-                column(ok, "p_ct_standing"),
+                column(ok, "p_ct_standing_pct"),
                 "#1f77b4",
                 false,
             ),
-            line("P_CT seated", column(ok, "p_ct_seated"), "#2ca02c", false),
+            line(
+                "P_CT seated",
+                column(ok, "p_ct_seated_pct"),
+                "#2ca02c",
+                false,
+            ),
             line(
                 "lat. acc. peak (%g)",
                 column(ok, "lat_acc_peak_pct_g"),
@@ -454,7 +524,7 @@ pub(super) fn write_plots(
     std::fs::create_dir_all(&dir)?;
     let ok: Vec<&Row> = rows.iter().filter(|r| r.status.completed()).collect();
     let n = ok.iter().map(|r| r.series.len()).min().unwrap_or(0);
-    let t: Vec<f64> = (0..n).map(|i| (i + 1) as f64 * SERIES_DT).collect();
+    let t: Vec<f64> = (0..n).map(series_time).collect();
     let bands = tiltsim_report::analysis::bands(base);
     match plan {
         Plan::MonteCarlo { .. } => monte_carlo_plots(&dir, &ok, &t, bands),
