@@ -280,6 +280,15 @@ fn compare_pairs_curving_comfort_with_straight_track_ride() {
     );
     let svg = std::fs::read_to_string(dir.join("plots/trade_off.svg")).unwrap();
     assert!(svg.contains(">LQG<"), "the point is labelled");
+    // `tiltsim plot` redraws it from the compare's files alone, the same figure.
+    std::fs::remove_file(dir.join("plots/trade_off.svg")).unwrap();
+    let (code, out, err) = run(&["plot", dir.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("trade_off.svg"), "{out}");
+    assert_eq!(
+        std::fs::read_to_string(dir.join("plots/trade_off.svg")).unwrap(),
+        svg
+    );
     // The paper's eq 13 is the default form, and the other form is reported beside it.
     assert_eq!(curve["comfort"]["lateral_acceleration"], "eq13");
     assert_eq!(

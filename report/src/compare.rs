@@ -416,6 +416,9 @@ fn run_table(md: &mut String, entries: &[Entry]) {
 pub struct Manifest {
     /// The runs in order.
     pub runs: Vec<ManifestRun>,
+    /// The trade-off figure's points, once the runs are done.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub trade_off: Vec<TradeOffPoint>,
 }
 
 /// One run of a compare.
@@ -572,28 +575,48 @@ fn trade_off(
     }
 }
 
+/// One controller's point of the trade-off figure, kept in `compare.json` so that
+/// `tiltsim plot` redraws the figure from the compare's files.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TradeOffPoint {
+    /// The controller.
+    pub controller: String,
+    /// P_CT standing on the curve, whole-run peaks (%).
+    pub p_ct_standing_pct: f64,
+    /// The lateral part of N_MV on the straight.
+    pub n_mv_lateral: f64,
+}
+
+/// The points of the trade-off figure: each curve run with a straight twin.
+pub fn trade_off_points(entries: &[Entry]) -> Vec<TradeOffPoint> {
+    let (ideal, of) = ideal_columns(entries);
+    let ideal_of: Vec<&Comfort> = of.iter().map(|i| ideal[*i].1).collect();
+    trade_offs(entries, &ideal_of)
+        .into_iter()
+        .map(|t| TradeOffPoint {
+            controller: t.controller,
+            p_ct_standing_pct: t.curve.0.summary.comfort.p_ct.standing,
+            n_mv_lateral: t.straight.summary.comfort.ride.n_mv_lateral,
+        })
+        .collect()
+}
+
 /// `out/plots/trade_off.{svg,png}`: each controller's P_CT on the curve against its lateral
 /// mean comfort on the straight (nothing when no curve run has a straight twin).
 pub fn write_trade_off_plot(
-    entries: &[Entry],
+    points: &[TradeOffPoint],
     out: &std::path::Path,
 ) -> std::io::Result<Vec<std::path::PathBuf>> {
-    let (ideal, of) = ideal_columns(entries);
-    let ideal_of: Vec<&Comfort> = of.iter().map(|i| ideal[*i].1).collect();
-    let pairs = trade_offs(entries, &ideal_of);
-    if pairs.is_empty() {
+    if points.is_empty() {
         return Ok(Vec::new());
     }
-    let series: Vec<crate::plot::Series> = pairs
+    let series: Vec<crate::plot::Series> = points
         .iter()
         .enumerate()
         .map(|(k, t)| crate::plot::Series {
             label: &t.controller,
             colour: crate::plot::PALETTE[k % crate::plot::PALETTE.len()],
-            points: vec![(
-                t.curve.0.summary.comfort.p_ct.standing,
-                t.straight.summary.comfort.ride.n_mv_lateral,
-            )],
+            points: vec![(t.p_ct_standing_pct, t.n_mv_lateral)],
             labels: vec![t.controller.clone()],
             joined: false,
         })

@@ -59,7 +59,8 @@ pub fn exec(a: CompareArgs) -> CliResult {
         tiltsim_master::outdir::claim(&a.out, tiltsim_master::outdir::Kind::Compare, "compare")
             .map_err(invalid)?;
     clear_earlier(&a.out)?;
-    let manifest = tiltsim_report::compare::Manifest {
+    let mut manifest = tiltsim_report::compare::Manifest {
+        trade_off: Vec::new(),
         runs: loaded
             .iter()
             .map(|(f, s)| tiltsim_report::compare::ManifestRun {
@@ -76,7 +77,9 @@ pub fn exec(a: CompareArgs) -> CliResult {
     for (file, s) in loaded {
         entries.push(one(&file, s, &a.out, &base)?);
     }
-    write_results(&entries, &a.out)?;
+    manifest.trade_off = tiltsim_report::compare::trade_off_points(&entries);
+    write_results(&manifest.trade_off, &entries, &a.out)?;
+    write_json(&a.out.join("compare.json"), &manifest)?;
     println!(
         "wrote {0}/table.md, {0}/table.csv and {0}/plots/compare_*.svg|png",
         a.out.display()
@@ -132,7 +135,11 @@ fn clear_earlier(out: &Path) -> Result<(), CliError> {
 }
 
 /// Writes the compare's tables and figures into `out`.
-fn write_results(entries: &[Entry], out: &Path) -> CliResult {
+fn write_results(
+    trade_off: &[tiltsim_report::compare::TradeOffPoint],
+    entries: &[Entry],
+    out: &Path,
+) -> CliResult {
     let (md, csv) = tiltsim_report::compare::tables(entries);
     for (name, text) in [("table.md", &md), ("table.csv", &csv)] {
         let p = out.join(name);
@@ -151,7 +158,7 @@ fn write_results(entries: &[Entry], out: &Path) -> CliResult {
         .collect();
     tiltsim_report::analysis::write_compare_plots(&runs, out)
         .map_err(|e| CliError::Failed(format!("{}: {e}", out.join("plots").display())))?;
-    tiltsim_report::compare::write_trade_off_plot(entries, out)
+    tiltsim_report::compare::write_trade_off_plot(trade_off, out)
         .map_err(|e| CliError::Failed(format!("{}: {e}", out.join("plots").display())))?;
     Ok(())
 }

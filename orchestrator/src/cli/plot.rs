@@ -51,9 +51,15 @@ fn compare_figures(dir: &Path) -> Result<Vec<PathBuf>, CliError> {
         files.extend(run_figures(&run)?);
         runs.push((r.dir.clone(), load(&run.join("scenario.toml"))?, run));
     }
+    let drawn = tiltsim_report::analysis::write_compare_plots(&runs, dir).and_then(|mut f| {
+        f.extend(tiltsim_report::compare::write_trade_off_plot(
+            &manifest.trade_off,
+            dir,
+        )?);
+        Ok(f)
+    });
     files.extend(
-        tiltsim_report::analysis::write_compare_plots(&runs, dir)
-            .map_err(|e| CliError::Invalid(format!("{}: {e}", dir.join("plots").display())))?,
+        drawn.map_err(|e| CliError::Invalid(format!("{}: {e}", dir.join("plots").display())))?,
     );
     Ok(files)
 }
