@@ -16,7 +16,7 @@ use crate::scenario::Scenario;
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
     /// The FMU library was not found.
-    #[error("the FMU library was not found (looked at {}); build it with `cargo build --release -p tiltsim-fmu` or name it with --library or TILTSIM_FMU_LIBRARY", .0.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "))]
+    #[error("the FMU library was not found (looked at {}); build it with `cargo build --release -p tiltsim-fmu` and name it with --library or TILTSIM_FMU_LIBRARY, or install tiltsim with it inside: `cargo install --path orchestrator --features embed-fmu`", .0.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "))]
     NoLibrary(Vec<PathBuf>),
     /// The role is an FMU in this scenario already.
     #[error("the scenario's {0} is an FMU already ([participants.{0}]); export the native participant from a scenario without it")]
@@ -71,21 +71,58 @@ pub fn library_candidates(explicit: Option<&Path>) -> Vec<PathBuf> {
     v
 }
 
-/// The tiltsim_fmu library to pack: the newest of the candidates ([`library_candidates`]).
-/// cargo leaves a copy in target/<profile>/ when the crate itself is built and one in deps/
-/// when tiltsim's build builds it: the newer is the current one.
+static EMBEDDED: std::sync::OnceLock<&'static [u8]> = std::sync::OnceLock::new();
+
+/// Makes `bytes` (the FMU library built into the executable: `tiltsim` installed with the
+/// `embed-fmu` feature) the library packed when none is named and none is found beside the
+/// executable.
+pub fn embed_library(bytes: &'static [u8]) {
+    let _ = EMBEDDED.set(bytes);
+}
+
+/// The tiltsim_fmu library to pack: the newest of the candidates ([`library_candidates`]),
+/// else the one built into the executable ([`embed_library`]). cargo leaves a copy in
+/// target/<profile>/ when the crate itself is built and one in deps/ when tiltsim's build
+/// builds it: the newer is the current one.
 fn newest_library(library: Option<&Path>) -> Result<Vec<u8>, ExportError> {
     let candidates = library_candidates(library);
-    let lib_path = candidates
-        .iter()
-        .filter_map(|p| Some((std::fs::metadata(p).ok()?.modified().ok()?, p)))
-        .max_by_key(|(t, _)| *t)
-        .map(|(_, p)| p)
-        .ok_or_else(|| ExportError::NoLibrary(candidates.clone()))?;
+    let named = library.is_some() || std::env::var_os("TILTSIM_FMU_LIBRARY").is_some();
+    let lib_path = match pick_library(&candidates, named, EMBEDDED.get().copied())? {
+        Picked::File(p) => p,
+        Picked::Embedded(bytes) => return Ok(bytes.to_vec()),
+    };
     std::fs::read(lib_path).map_err(|source| ExportError::Io {
         path: lib_path.clone(),
         source,
     })
+}
+
+/// Where the library to pack comes from.
+#[derive(Debug, PartialEq)]
+enum Picked<'a> {
+    /// The newest existing file of the candidates.
+    File(&'a PathBuf),
+    /// The executable's own copy.
+    Embedded(&'static [u8]),
+}
+
+/// The newest existing file of `candidates`; when there is none, the embedded library unless
+/// a library was `named` (a name that leads nowhere is an error, not a silent substitute).
+fn pick_library<'a>(
+    candidates: &'a [PathBuf],
+    named: bool,
+    embedded: Option<&'static [u8]>,
+) -> Result<Picked<'a>, ExportError> {
+    let found = candidates
+        .iter()
+        .filter_map(|p| Some((std::fs::metadata(p).ok()?.modified().ok()?, p)))
+        .max_by_key(|(t, _)| *t)
+        .map(|(_, p)| p);
+    match (found, embedded) {
+        (Some(p), _) => Ok(Picked::File(p)),
+        (None, Some(bytes)) if !named => Ok(Picked::Embedded(bytes)),
+        (None, _) => Err(ExportError::NoLibrary(candidates.to_vec())),
+    }
 }
 
 /// The FMU's own settings: the role, the base tick and the participant's settings of `s`.
@@ -180,6 +217,34 @@ pub fn export(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_library_is_the_newest_file_found_else_the_embedded_copy_unless_one_was_named() {
+        let dir = std::env::temp_dir().join(format!("tiltsim-pick-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (old, new, absent) = (dir.join("old.so"), dir.join("new.so"), dir.join("no.so"));
+        std::fs::write(&old, b"old").unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        std::fs::write(&new, b"new").unwrap();
+        static COPY: &[u8] = b"embedded";
+        let both = [old.clone(), new.clone(), absent.clone()];
+        assert_eq!(
+            pick_library(&both, false, Some(COPY)).unwrap(),
+            Picked::File(&new)
+        );
+        let none = [absent.clone()];
+        assert_eq!(
+            pick_library(&none, false, Some(COPY)).unwrap(),
+            Picked::Embedded(COPY)
+        );
+        // A named library that is not there is an error naming it, embedded copy or not.
+        let e = pick_library(&none, true, Some(COPY))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no.so") && e.contains("embed-fmu"), "{e}");
+        assert!(pick_library(&none, false, None).is_err());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 
     #[test]
     fn every_value_of_every_shipped_scenario_is_a_parameter_with_its_unit() {

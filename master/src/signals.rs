@@ -15,6 +15,16 @@ extern "C" fn on_signal(sig: libc::c_int) {
     }
 }
 
+/// For a command that only prints (no child processes, no shared memory): a closed pipe on
+/// stdout (`tiltsim inspect X.fmu | head`) ends the process quietly, as it does any Unix
+/// filter, instead of failing the next write.
+pub fn end_quietly_on_closed_pipe() {
+    // SAFETY: restoring the default disposition of SIGPIPE has no preconditions.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 /// Installs the handlers for SIGINT, SIGTERM and SIGHUP once; returns the flag they set.
 pub fn install() -> Arc<AtomicBool> {
     let flag = FLAG

@@ -122,3 +122,23 @@ fn bad_command_line_values_exit_2() {
     let (code, _, _) = tiltsim(&["run", p.to_str().unwrap(), "--transport", "smoke-signals"]);
     assert_eq!(code, 2);
 }
+
+#[test]
+fn a_listing_piped_into_a_reader_that_stops_early_ends_quietly() {
+    // `head` closes the pipe after one line; the plan has 20 000 more to write. The command
+    // ends as any Unix filter does (SIGPIPE), never with a panic's message.
+    let sc = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/paper-lqg.toml");
+    let line = format!(
+        "'{}' sweep '{}' --samples 20000 --plan-only | head -n 1",
+        env!("CARGO_BIN_EXE_tiltsim"),
+        sc.display()
+    );
+    let out = Command::new("sh").args(["-c", &line]).output().unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert_eq!(stdout.lines().count(), 1, "{stdout}");
+    assert!(stdout.starts_with("{\"sample\":0"), "{stdout}");
+    assert!(stderr.is_empty(), "{stderr}");
+}

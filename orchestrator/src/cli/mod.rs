@@ -126,6 +126,12 @@ pub fn main() -> i32 {
         }
     };
     init_logging(cli.verbose);
+    if matches!(
+        cli.command,
+        Command::Validate(_) | Command::New(_) | Command::Inspect(_) | Command::Completions(_)
+    ) {
+        tiltsim_master::signals::end_quietly_on_closed_pipe();
+    }
     let result = match cli.command {
         Command::Run(a) => run::exec(a),
         Command::Validate(a) => validate::exec(a),

@@ -150,6 +150,7 @@ pub fn exec(a: SweepArgs) -> CliResult {
     .transpose()
     .map_err(|e| CliError::Invalid(e.to_string()))?;
     if a.plan_only {
+        tiltsim_master::signals::end_quietly_on_closed_pipe();
         return print_plan(&s, &plan, shard);
     }
     let (interrupt, exe) = interrupt_and_exe()?;
