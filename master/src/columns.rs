@@ -76,18 +76,21 @@ pub fn events() -> Vec<Column> {
         .collect()
 }
 
+/// The text of `columns.csv` for `columns`.
+pub fn csv_text(columns: &[Column]) -> String {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let _ = w.write_record(["file", "column", "unit", "description"]);
+    for c in columns {
+        let _ = w.write_record([&c.file, &c.name, &c.unit, &c.description]);
+    }
+    w.into_inner()
+        .map(|b| String::from_utf8_lossy(&b).into_owned())
+        .unwrap_or_default()
+}
+
 /// Writes `dir/columns.csv` for `columns`, whole or not at all.
 pub fn write(dir: &Path, columns: &[Column]) -> std::io::Result<()> {
-    let mut w = csv::Writer::from_writer(Vec::new());
-    let mut put = |r: [&str; 4]| w.write_record(r).map_err(std::io::Error::other);
-    put(["file", "column", "unit", "description"])?;
-    for c in columns {
-        put([&c.file, &c.name, &c.unit, &c.description])?;
-    }
-    let bytes = w
-        .into_inner()
-        .map_err(|e| std::io::Error::other(e.to_string()))?;
-    crate::files::write_atomic(&dir.join("columns.csv"), bytes)
+    crate::files::write_atomic(&dir.join("columns.csv"), csv_text(columns))
 }
 
 /// Writes `dir/columns.csv` for a run's tables (`timeseries.csv` and `events.csv`).

@@ -177,6 +177,15 @@ pub enum LinkId {
 }
 
 impl LinkId {
+    /// What each link carries from the outputs `p`, `a`, `c`, in [`LinkId`] order.
+    pub fn carried(
+        p: &cosim::msg::FromPlant,
+        a: &cosim::msg::FromActuator,
+        c: &cosim::msg::FromController,
+    ) -> [f64; 4] {
+        [c.delta_a_cmd, a.delta_a, p.theta_v_meas, p.psi]
+    }
+
     /// All links, in column order.
     pub const ALL: [LinkId; 4] = [
         LinkId::ActuatorCommand,

@@ -91,11 +91,10 @@ impl Store {
     /// Keeps the outputs at t₀. They reach every receiver as they are, not through the links:
     /// they are what each holds from the start (as in lock-step until a first sample arrives).
     pub fn put_init(&mut self, p: FromPlant, a: FromActuator, c: FromController) {
+        for (arrived, v) in self.arrived.iter_mut().zip(LinkId::carried(&p, &a, &c)) {
+            arrived[0] = Some(v);
+        }
         self.init = (p, a, c);
-        self.arrived[LinkId::Measurement as usize][0] = Some(p.theta_v_meas);
-        self.arrived[LinkId::BarTwist as usize][0] = Some(p.psi);
-        self.arrived[LinkId::BarAngle as usize][0] = Some(a.delta_a);
-        self.arrived[LinkId::ActuatorCommand as usize][0] = Some(c.delta_a_cmd);
     }
 
     /// Keeps the plant's output of step `q` and passes it on; returns the delays of its

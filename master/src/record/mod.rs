@@ -164,14 +164,7 @@ impl Row {
     /// Row 0: the outputs at the start time. Nothing has travelled a link yet, so each
     /// `rx_*` column holds what its sender holds.
     pub fn at_start(dt: f64, p: &FromPlant, a: &FromActuator, c: &FromController) -> Self {
-        Self::of(
-            0,
-            dt,
-            p,
-            a,
-            c,
-            &[c.delta_a_cmd, a.delta_a, p.theta_v_meas, p.psi],
-        )
+        Self::of(0, dt, p, a, c, &crate::links::LinkId::carried(p, a, c))
     }
 
     fn of(

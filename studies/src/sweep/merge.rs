@@ -158,9 +158,7 @@ pub(super) fn outputs(dir: &Path) -> Result<Outputs, String> {
             blocks.extend(current.take());
             current = Some((j, Vec::new()));
         }
-        let Some((_, series)) = current.as_mut() else {
-            continue;
-        };
+        let (_, series) = current.get_or_insert((j, Vec::new()));
         let want = series_time(series.len());
         if v[0].to_bits() != want.to_bits() {
             return Err(format!(

@@ -187,16 +187,7 @@ pub(super) fn columns_csv(plan: &Plan) -> String {
             "Passenger lateral acceleration, eq 13",
         ),
     ]);
-    let mut w = csv::Writer::from_writer(Vec::new());
-    for c in std::iter::once(["file", "column", "unit", "description"].map(String::from)).chain(
-        all.into_iter()
-            .map(|c| [c.file, c.name, c.unit, c.description]),
-    ) {
-        let _ = w.write_record(&c);
-    }
-    w.into_inner()
-        .map(|b| String::from_utf8_lossy(&b).into_owned())
-        .unwrap_or_default()
+    tiltsim_master::columns::csv_text(&all)
 }
 
 /// `table.md` and `table.csv` of a Monte Carlo sweep: each metric's distribution.
