@@ -34,7 +34,7 @@ pub fn print(s: &Summary, out: &Path) {
         println!("  analysis skipped: {why}");
         print_timing(s);
         println!(
-            "  wrote {}/timeseries.csv, summary.json, events.csv, scenario.toml{} (`tiltsim plot {}` draws the figures)",
+            "  wrote {}/timeseries.csv, columns.csv, summary.json, events.csv, scenario.toml{} (`tiltsim plot {}` draws the figures)",
             out.display(),
             optional_files(out),
             out.display()
@@ -44,7 +44,7 @@ pub fn print(s: &Summary, out: &Path) {
     print_ride(&s.results, &s.comfort, &s.flags);
     print_timing(s);
     println!(
-        "  wrote {}/timeseries.csv, summary.json, perf.json, events.csv, scenario.toml{}, plots/*.svg|png",
+        "  wrote {}/timeseries.csv, columns.csv, summary.json, perf.json, events.csv, scenario.toml{}, plots/*.svg|png",
         out.display(),
         optional_files(out)
     );
