@@ -19,8 +19,12 @@ pub struct ExportInfo {
     pub token: String,
     /// What the model is (the scenario's description).
     pub description: String,
-    /// The fixed communication step (s).
+    /// The step it takes inside (s): FMI 3 `fixedInternalStepSize`, and the
+    /// `<DefaultExperiment stepSize>`. The importer steps with whole multiples of it.
     pub step_s: f64,
+    /// Whether the communication step may change from call to call
+    /// (`canHandleVariableCommunicationStepSize`).
+    pub variable_step: bool,
     /// The scenario's duration (s), for `<DefaultExperiment>`.
     pub stop_s: f64,
 }
@@ -59,8 +63,9 @@ pub fn write_fmi3(layout: &Layout, info: &ExportInfo) -> String {
     );
     let _ = writeln!(
         x,
-        r#"  <CoSimulation modelIdentifier="{}" canHandleVariableCommunicationStepSize="false" fixedInternalStepSize="{}" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="false" canSerializeFMUState="false" hasEventMode="false" providesIntermediateUpdate="false"/>"#,
+        r#"  <CoSimulation modelIdentifier="{}" canHandleVariableCommunicationStepSize="{}" fixedInternalStepSize="{}" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="false" canSerializeFMUState="false" hasEventMode="false" providesIntermediateUpdate="false" mightReturnEarlyFromDoStep="false"/>"#,
         esc(&info.model_identifier),
+        info.variable_step,
         real(info.step_s)
     );
     units_xml(layout, &mut x);
@@ -177,8 +182,9 @@ pub fn write_fmi2(layout: &Layout, info: &ExportInfo) -> Result<String, String> 
     );
     let _ = writeln!(
         x,
-        r#"  <CoSimulation modelIdentifier="{}" canHandleVariableCommunicationStepSize="false" canInterpolateInputs="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="false" canSerializeFMUstate="false"/>"#,
+        r#"  <CoSimulation modelIdentifier="{}" canHandleVariableCommunicationStepSize="{}" canInterpolateInputs="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="false" canSerializeFMUstate="false"/>"#,
         esc(&info.model_identifier),
+        info.variable_step,
     );
     units_xml(layout, &mut x);
     let _ = writeln!(

@@ -285,6 +285,30 @@ fn flatten(
     Ok(())
 }
 
+/// Which communication steps an exported FMU takes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Stepping {
+    /// Any whole multiple of the base tick, down to one tick: the participant computes on its
+    /// own period (the ticks the lock-step master steps it on) and holds its outputs between
+    /// (`canHandleVariableCommunicationStepSize = true`, `fixedInternalStepSize` = the tick).
+    #[default]
+    Tick,
+    /// Whole multiples of the participant's own period only, from a multiple of it
+    /// (`canHandleVariableCommunicationStepSize = false`, `fixedInternalStepSize` = the period).
+    Period,
+}
+
+impl Stepping {
+    /// The name on the command line and in `resources/tiltsim.json`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stepping::Tick => "tick",
+            Stepping::Period => "period",
+        }
+    }
+}
+
 /// `resources/tiltsim.json` of an exported FMU: what the library builds its participant from.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FmuConfig {
@@ -292,8 +316,19 @@ pub struct FmuConfig {
     pub role: Role,
     /// The run's base step (s): a communication point `t` is tick `round(t / dt_s)`.
     pub dt_s: f64,
+    /// Which communication steps the FMU takes.
+    #[serde(default)]
+    pub stepping: Stepping,
     /// The participant's settings, exactly as its process receives them.
     pub settings: Value,
+}
+
+/// The period of `role` in whole base ticks of `dt_s` (at least 1), as the lock-step master
+/// counts it; `None` when the settings give no period or it is not a whole number of ticks.
+pub fn period_ticks(role: Role, settings: &Value, dt_s: f64) -> Option<u64> {
+    let p = period_of(role, settings)?;
+    let n = (p / dt_s).round();
+    (n >= 1.0 && (p - n * dt_s).abs() <= 1e-9 * p).then_some(n as u64)
 }
 
 /// The instantiation token of an FMU whose `resources/tiltsim.json` holds `config`: a GUID

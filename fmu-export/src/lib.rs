@@ -3,8 +3,11 @@
 //!
 //! An instance reads `resources/tiltsim.json` (role, base step, settings), lays out its
 //! variables with [`tiltsim_fmi::Layout`] exactly as the exporter did, takes parameter values
-//! until initialisation ends, then builds its participant with [`model::build`] and steps it
-//! once per `fmi3DoStep` of the fixed communication step. Model exchange and scheduled
+//! until initialisation ends, then builds its participant with [`model::build`]. Time is counted
+//! in whole base ticks ([`grid`]): a `fmi3DoStep` of any whole multiple of the tick (or, when
+//! exported with `--steps period`, of the participant's period) steps the participant on the
+//! ticks of its period within it, as the lock-step master does, and its outputs hold between.
+//! Model exchange and scheduled
 //! execution are not offered: their functions exist (the standard asks every FMU to export
 //! them) and return `fmi3Error`.
 
@@ -18,6 +21,7 @@
 #![allow(clippy::missing_safety_doc)]
 
 pub mod fmi2;
+pub mod grid;
 pub mod model;
 mod values;
 
@@ -26,7 +30,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use cosim::msg::{ScalarType, ScalarValue};
 use serde_json::Value;
-use tiltsim_fmi::layout::{period_of, token, FmuConfig, Layout, ParamValue, Slot};
+use tiltsim_fmi::layout::{period_ticks, token, FmuConfig, Layout, ParamValue, Slot, Stepping};
 
 use model::Model;
 pub(crate) use values::{get_one, set_one, FmiValue};
@@ -56,12 +60,15 @@ pub struct Instance {
     pub(crate) inputs: Vec<ScalarValue>,
     /// A parameter was set after the model was built.
     pub(crate) params_changed: bool,
-    /// The communication period of the built model (s).
-    pub(crate) period: f64,
+    /// The period of the built model in base ticks: it computes on the multiples of it.
+    pub(crate) period: u64,
     pub(crate) model: Option<Box<dyn Model>>,
     pub(crate) state: State,
-    pub(crate) time: f64,
+    /// The base tick the instance has reached.
+    pub(crate) tick: u64,
     pub(crate) dt_s: f64,
+    /// Which communication steps it takes.
+    pub(crate) stepping: Stepping,
     pub(crate) log: Option<LogFn>,
     /// The FMI 2.0 logger, for instances made by `fmi2Instantiate`.
     pub(crate) log2: Option<fmi2::Logger>,
@@ -101,8 +108,18 @@ impl Instance {
     pub(crate) fn model(&mut self) -> Result<&mut Box<dyn Model>, String> {
         if self.model.is_none() || self.params_changed {
             let settings = self.settings();
-            self.period = period_of(self.layout.role, &settings).unwrap_or(f64::NAN);
-            self.model = Some(model::build(self.layout.role, &settings)?);
+            let role = self.layout.role;
+            self.period = period_ticks(role, &settings, self.dt_s).ok_or_else(|| {
+                format!(
+                    "the {role}'s period ({}) is not a whole multiple of the base tick {} s",
+                    match role {
+                        cosim::Role::Controller => "controller.period_s",
+                        _ => "dt_s",
+                    },
+                    self.dt_s
+                )
+            })?;
+            self.model = Some(model::build(role, &settings)?);
             self.params_changed = false;
         }
         Ok(self.model.as_mut().expect("built above"))
@@ -117,36 +134,32 @@ impl Instance {
             .ok_or_else(|| format!("no output {i}"))
     }
 
-    /// A communication step of `h`: the participant's period `p` (fixedInternalStepSize) or a
-    /// whole multiple of it, taken as that many steps with the inputs held.
+    /// The time of the tick reached (s).
+    pub(crate) fn time(&self) -> f64 {
+        cosim::time::tick_time(self.tick, self.dt_s)
+    }
+
+    /// A communication step from `t` of `h` s: whole base ticks ([`grid::span`]; a step that
+    /// ends within the tolerance of the tick reached takes no tick). The participant computes
+    /// on the ticks of its period within the step, each time with the inputs as set, and its
+    /// outputs hold between.
     pub(crate) fn do_step(&mut self, t: f64, h: f64) -> Result<(), String> {
         if self.state != State::Step {
             return Err(format!("fmi3DoStep called in {:?} mode", self.state));
         }
         self.model()?;
-        let p = self.period;
-        let n = (h / p).round();
-        if n < 1.0 || (h - n * p).abs() > 1e-9 * p {
-            return Err(format!(
-                "communicationStepSize {h} s: this FMU steps with its fixed period {p} s or a whole multiple of it"
-            ));
+        let span = grid::span(t, h, self.tick, self.dt_s, self.period, self.stepping)?;
+        let mut due = span.due(self.period).peekable();
+        if due.peek().is_some() {
+            let m = self.model.as_mut().expect("built above");
+            for (i, v) in self.inputs.iter().enumerate() {
+                m.set_input(i, *v);
+            }
+            for k in due {
+                m.step(k)?;
+            }
         }
-        if (t - self.time).abs() > 1e-9 * p.max(self.time.abs() * 1e-3) {
-            return Err(format!(
-                "currentCommunicationPoint {t} s: the FMU is at {} s",
-                self.time
-            ));
-        }
-        let dt = self.dt_s;
-        let m = self.model.as_mut().expect("built above");
-        for (i, v) in self.inputs.iter().enumerate() {
-            m.set_input(i, *v);
-        }
-        for j in 0..n as u64 {
-            let k = ((t + j as f64 * p) / dt).round() as u64;
-            m.step(k)?;
-        }
-        self.time = t + h;
+        self.tick = span.to;
         Ok(())
     }
 }
@@ -193,11 +206,12 @@ pub(crate) fn instantiate(
         layout,
         base: cfg.settings,
         params_changed: false,
-        period: f64::NAN,
+        period: 1,
         model: None,
         state: State::Instantiated,
-        time: 0.0,
+        tick: 0,
         dt_s: cfg.dt_s,
+        stepping: cfg.stepping,
         log,
         log2: None,
         env,
@@ -377,14 +391,14 @@ pub unsafe extern "C" fn fmi3Reset(inst: *mut c_void) -> Status {
             });
             i.model = None;
             i.params_changed = false;
-            i.time = 0.0;
+            i.tick = 0;
             i.state = State::Instantiated;
             OK
         })
     }
 }
 
-/// `fmi3DoStep`: one step of the participant's fixed period.
+/// `fmi3DoStep`: whole base ticks ([`Instance::do_step`]).
 #[no_mangle]
 #[allow(clippy::too_many_arguments)]
 pub unsafe extern "C" fn fmi3DoStep(
@@ -407,7 +421,7 @@ pub unsafe extern "C" fn fmi3DoStep(
                 }
             }
             if !last_successful_time.is_null() {
-                *last_successful_time = i.time;
+                *last_successful_time = i.time();
             }
             match r {
                 Ok(()) => OK,

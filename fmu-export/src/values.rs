@@ -95,7 +95,7 @@ pub(crate) fn get_one<T: FmiValue>(i: &mut Instance, vr: Vr) -> Result<T, String
         .slot(vr)
         .ok_or_else(|| format!("no variable has value reference {vr}"))?;
     let v = match slot {
-        Slot::Time => T::from_time(i.time),
+        Slot::Time => T::from_time(i.time()),
         Slot::Input(k) => T::from_scalar(i.inputs[k]),
         Slot::Output(k) => T::from_scalar(i.output(k)?),
         Slot::Param(k) => T::from_param(&i.params[k]),

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use cosim::Role;
 use tiltsim_fmi::description::{write_fmi2, write_fmi3, ExportInfo, FmiVersion};
-use tiltsim_fmi::layout::{period_of, token, FmuConfig};
+use tiltsim_fmi::layout::{period_ticks, token, FmuConfig, Stepping};
 use tiltsim_fmi::Layout;
 
 use crate::engine::Inits;
@@ -34,11 +34,25 @@ pub enum ExportError {
     },
 }
 
+/// How an FMU is written.
+#[derive(Debug, Clone)]
+pub struct FmuOptions<'a> {
+    /// FMI 2.0 or 3.0.
+    pub version: FmiVersion,
+    /// Which communication steps it takes.
+    pub stepping: Stepping,
+    /// The FMU library to pack (see [`library_candidates`]).
+    pub library: Option<&'a Path>,
+}
+
 /// What was written.
 #[derive(Debug, Clone)]
 pub struct Exported {
-    /// Communication step (s).
+    /// The step it takes inside and declares (s): the base tick, or with
+    /// [`Stepping::Period`] the participant's period.
     pub step_s: f64,
+    /// The participant's own period (s): it computes on its multiples.
+    pub period_s: f64,
     /// Number of inputs.
     pub inputs: usize,
     /// Number of outputs.
@@ -125,8 +139,9 @@ fn pick_library<'a>(
     }
 }
 
-/// The FMU's own settings: the role, the base tick and the participant's settings of `s`.
-fn config_of(s: &Scenario, role: Role) -> Result<FmuConfig, ExportError> {
+/// The FMU's own settings: the role, the base tick, the stepping and the participant's
+/// settings of `s`.
+fn config_of(s: &Scenario, role: Role, stepping: Stepping) -> Result<FmuConfig, ExportError> {
     let inits = Inits::from(s);
     let settings = match role {
         Role::Plant => serde_json::to_value(&inits.plant),
@@ -137,6 +152,7 @@ fn config_of(s: &Scenario, role: Role) -> Result<FmuConfig, ExportError> {
     Ok(FmuConfig {
         role,
         dt_s: s.run.dt_s,
+        stepping,
         settings,
     })
 }
@@ -148,6 +164,7 @@ fn export_info(
     identifier: &str,
     token: String,
     step_s: f64,
+    stepping: Stepping,
 ) -> ExportInfo {
     ExportInfo {
         model_name: format!("tiltsim {} ({})", role.name(), s.name),
@@ -160,6 +177,7 @@ fn export_info(
             s.description
         ),
         step_s,
+        variable_step: stepping == Stepping::Tick,
         stop_s: s.duration(),
     }
 }
@@ -168,22 +186,34 @@ fn export_info(
 pub fn export(
     s: &Scenario,
     role: Role,
-    version: FmiVersion,
     out: &Path,
-    library: Option<&Path>,
+    options: &FmuOptions,
 ) -> Result<Exported, ExportError> {
     if s.participants.get(role).is_some() {
         return Err(ExportError::AlreadyFmu(role));
     }
-    let lib = newest_library(library)?;
-    let config = config_of(s, role)?;
+    let version = options.version;
+    let lib = newest_library(options.library)?;
+    let config = config_of(s, role, options.stepping)?;
     let bytes =
         serde_json::to_vec_pretty(&config).map_err(|e| ExportError::Layout(e.to_string()))?;
     let layout =
         Layout::new(role, &config.settings).map_err(|e| ExportError::Layout(e.to_string()))?;
-    let step_s = period_of(role, &config.settings).unwrap_or(s.run.dt_s);
+    let period = period_ticks(role, &config.settings, s.run.dt_s).unwrap_or(1);
+    let period_s = cosim::time::tick_time(period, s.run.dt_s);
+    let step_s = match options.stepping {
+        Stepping::Tick => s.run.dt_s,
+        Stepping::Period => period_s,
+    };
     let identifier = format!("tiltsim_{}", role.name());
-    let info = export_info(s, role, &identifier, token(&bytes), step_s);
+    let info = export_info(
+        s,
+        role,
+        &identifier,
+        token(&bytes),
+        step_s,
+        options.stepping,
+    );
     let xml = match version {
         FmiVersion::V3 => write_fmi3(&layout, &info),
         FmiVersion::V2 => write_fmi2(&layout, &info).map_err(ExportError::Layout)?,
@@ -208,6 +238,7 @@ pub fn export(
     })?;
     Ok(Exported {
         step_s,
+        period_s,
         inputs: layout.inputs.len(),
         outputs: layout.outputs.len(),
         parameters: layout.params.len(),

@@ -474,9 +474,12 @@ pub fn fmu(
         tiltsim_master::export_fmu::export(
             &s,
             role,
-            tiltsim_fmi::description::FmiVersion::V3,
             &path,
-            None,
+            &tiltsim_master::export_fmu::FmuOptions {
+                version: tiltsim_fmi::description::FmiVersion::V3,
+                stepping: tiltsim_fmi::layout::Stepping::Tick,
+                library: None,
+            },
         )
         .map_err(|e| BenchError::Run {
             config: format!("export {role}"),

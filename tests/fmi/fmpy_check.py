@@ -4,7 +4,8 @@
 
 1. FMPy's validation of the FMU (its list of problems must be empty);
 2. FMPy's own co-simulation of the FMU (fmpy.simulate_fmu), fed the inputs the participant
-   received in a tiltsim run (RUN_MCAP's /ROLE/in channel), with the FMU's fixed step;
+   received in a tiltsim run (RUN_MCAP's /ROLE/in channel), stepping with the participant's
+   period (the ticks between its recorded requests, of the FMU's base tick, its stepSize);
 3. every output FMPy recorded compared with the reply the participant gave in that run
    (/ROLE/out): the reply to request k is the output at the next communication point.
 
@@ -39,8 +40,6 @@ def main():
     fmu, mcap_path, role = sys.argv[1:4]
     problems = validate_fmu(fmu)
     md = read_model_description(fmu)
-    step = md.defaultExperiment.stepSize
-    step = float(step)
     messages = {"in": [], "out": []}
     with open(mcap_path, "rb") as f:
         for _, channel, message in make_reader(f).iter_messages(
@@ -49,6 +48,7 @@ def main():
             messages[channel.topic.rsplit("/", 1)[1]].append(json.loads(message.data))
     ins, outs = messages["in"], messages["out"]
     inputs = [k for k in ins[0] if k != "step"]
+    step = float(md.defaultExperiment.stepSize) * (ins[1]["step"] - ins[0]["step"])
     # FMPy's communication points are start_time + n * step: the input's times are built with
     # the same arithmetic, so each request is applied exactly at its own point.
     signal = np.zeros(
