@@ -1,6 +1,7 @@
 //! FMI, both directions, checked with clients tiltsim did not write.
 //!
-//! * Export: FMPy validates tiltsim's FMUs, and FMPy's own co-simulation of each, fed the
+//! * Export: FMPy validates tiltsim's FMUs (their ModelStructure declares every output free of
+//!   direct feedthrough), and FMPy's own co-simulation of each, fed the
 //!   inputs a participant received in a recorded run, gives that run's outputs bit for bit
 //!   (the same model code runs the same IEEE arithmetic in the same order).
 //! * Import: an FMU built by pythonfmu (FMI 2.0, equations in Python) plays the controller;
@@ -121,15 +122,16 @@ fn fmpy_validates_the_exported_fmus_and_its_cosimulation_reproduces_a_recorded_r
         &["--record", "--duration", "1"],
     );
     let check = root().join("tests/fmi/fmpy_check.py");
+    // (role, requests in 1 s, recorded fields compared, FMU outputs)
     let roles = [
-        ("controller", 20, 4),
-        ("actuator", 1000, 10),
-        ("plant", 1000, 16),
+        ("controller", 20, 4, 5),
+        ("actuator", 1000, 10, 10),
+        ("plant", 1000, 16, 16),
     ];
     let mcap = rec.join("run.mcap");
     // FMI 3.0 (the default) and FMI 2.0 exports of each participant.
     for version in ["3", "2"] {
-        for (role, requests, fields) in roles {
+        for (role, requests, fields, outputs) in roles {
             let what = format!("{role} (FMI {version})");
             let fmu = export_version(
                 role,
@@ -145,6 +147,17 @@ fn fmpy_validates_the_exported_fmus_and_its_cosimulation_reproduces_a_recorded_r
                 serde_json::json!([]),
                 "{what}: FMPy validation"
             );
+            // Every output in ModelStructure, each declared without direct feedthrough
+            // (dependencies=""): the library's outputs change only in a step.
+            let deps = r["dependencies"].as_object().expect("dependencies");
+            assert_eq!(deps.len(), outputs, "{what}: outputs in ModelStructure");
+            for (name, d) in deps {
+                assert_eq!(
+                    d,
+                    &serde_json::json!([]),
+                    "{what}: dependencies of `{name}`"
+                );
+            }
             assert_eq!(r["requests"], requests, "{what}: recorded requests");
             assert_eq!(r["steps"], requests, "{what}: FMPy's communication steps");
             assert_eq!(r["compared"], requests * fields, "{what}: values compared");

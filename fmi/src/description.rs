@@ -82,10 +82,16 @@ pub fn write_fmi3(layout: &Layout, info: &ExportInfo) -> String {
     fmi3_parameters(layout, &mut x);
     x.push_str("  </ModelVariables>\n  <ModelStructure>\n");
     for i in 0..layout.outputs.len() {
+        let deps: Vec<String> = layout
+            .direct_inputs(i)
+            .iter()
+            .map(|&j| layout.input_vr(j).to_string())
+            .collect();
         let _ = writeln!(
             x,
-            r#"    <Output valueReference="{}"/>"#,
-            layout.output_vr(i)
+            r#"    <Output valueReference="{}" dependencies="{}"/>"#,
+            layout.output_vr(i),
+            deps.join(" ")
         );
     }
     for i in 0..layout.outputs.len() {
@@ -197,8 +203,18 @@ pub fn write_fmi2(layout: &Layout, info: &ExportInfo) -> Result<String, String> 
     let outputs = fmi2_scalars(layout, &mut x);
     fmi2_parameters(layout, &mut x)?;
     x.push_str("  </ModelVariables>\n  <ModelStructure>\n    <Outputs>\n");
-    for i in &outputs {
-        let _ = writeln!(x, r#"      <Unknown index="{i}"/>"#);
+    for (o, i) in outputs.iter().enumerate() {
+        // The inputs are the first variables: input j has index j + 1.
+        let deps: Vec<String> = layout
+            .direct_inputs(o)
+            .iter()
+            .map(|&j| (j + 1).to_string())
+            .collect();
+        let _ = writeln!(
+            x,
+            r#"      <Unknown index="{i}" dependencies="{}"/>"#,
+            deps.join(" ")
+        );
     }
     x.push_str("    </Outputs>\n    <InitialUnknowns>\n");
     for i in &outputs {

@@ -187,6 +187,17 @@ impl Layout {
         (1 + self.inputs.len() + self.outputs.len() + i) as u32
     }
 
+    /// The inputs (indices into [`Layout::inputs`]) that output `i` depends on directly, at one
+    /// communication point (FMI's `dependencies` of the output). None, for every role: an FMU's
+    /// outputs are its participant's latest reply, which only a step replaces
+    /// (`Participant::step` takes the inputs held over the step and answers with the outputs at
+    /// its end, functions of the state), so an input set at a communication point changes no
+    /// output before the next step. `tiltsim-fmu`'s tests observe this on every role's library.
+    pub fn direct_inputs(&self, i: usize) -> &'static [usize] {
+        debug_assert!(i < self.outputs.len(), "output {i}");
+        &[]
+    }
+
     /// The settings with every parameter set to `values` (in [`Layout::params`] order).
     pub fn settings_with(&self, base: &Value, values: &[ParamValue]) -> Value {
         let mut v = base.clone();

@@ -56,10 +56,10 @@ pub fn span(
     period: u64,
     stepping: Stepping,
 ) -> Result<Span, String> {
-    let now = cosim::time::tick_time(at, dt);
     if tick_of(t, dt) != Some(at) {
         return Err(format!(
-            "currentCommunicationPoint {t} s: the FMU is at {now} s (tick {at} of {dt} s)"
+            "currentCommunicationPoint {t} s: the FMU is at {} s (tick {at} of {dt} s)",
+            cosim::time::tick_time(at, dt)
         ));
     }
     if !h.is_finite() || h < 0.0 {
@@ -67,28 +67,28 @@ pub fn span(
             "communicationStepSize {h} s: allowed a step of zero or more seconds"
         ));
     }
-    let unit = match stepping {
-        Stepping::Tick => dt,
-        Stepping::Period => dt * period as f64,
-    };
-    let what = match stepping {
+    // The messages are made only on the way out: a step that is taken costs no formatting.
+    let takes = || match stepping {
         Stepping::Tick => format!("its base tick {dt} s"),
         Stepping::Period => format!(
-            "its fixed period {unit} s (exported with --steps period; an FMU exported with \
-             --steps tick takes any whole multiple of {dt} s)"
+            "its fixed period {} s (exported with --steps period; an FMU exported with \
+             --steps tick takes any whole multiple of {dt} s)",
+            dt * period as f64
         ),
     };
     let Some(to) = tick_of(t + h, dt) else {
         return Err(format!(
             "communicationStepSize {h} s: the step from {t} s ends between the FMU's ticks; \
-             this FMU steps with {what} or a whole multiple of it"
+             this FMU steps with {} or a whole multiple of it",
+            takes()
         ));
     };
     let n = to.saturating_sub(at);
     let p = period.max(1);
     if stepping == Stepping::Period && !(at.is_multiple_of(p) && n.is_multiple_of(p)) {
         return Err(format!(
-            "communicationStepSize {h} s at {t} s: this FMU steps with {what} or a whole multiple of it, from a multiple of it"
+            "communicationStepSize {h} s at {t} s: this FMU steps with {} or a whole multiple of it, from a multiple of it",
+            takes()
         ));
     }
     Ok(Span {

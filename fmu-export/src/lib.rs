@@ -23,6 +23,8 @@
 pub mod fmi2;
 pub mod grid;
 pub mod model;
+#[cfg(test)]
+mod tests;
 mod values;
 
 use std::ffi::{c_char, c_void, CStr, CString};

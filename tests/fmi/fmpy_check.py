@@ -2,14 +2,16 @@
 
     python fmpy_check.py FMU RUN_MCAP ROLE
 
-1. FMPy's validation of the FMU (its list of problems must be empty);
+1. FMPy's validation of the FMU (its list of problems must be empty), and the direct
+   dependencies of each output as FMPy reads them from ModelStructure (null where none are
+   declared);
 2. FMPy's own co-simulation of the FMU (fmpy.simulate_fmu), fed the inputs the participant
    received in a tiltsim run (RUN_MCAP's /ROLE/in channel), stepping with the participant's
    period (the ticks between its recorded requests, of the FMU's base tick, its stepSize);
 3. every output FMPy recorded compared with the reply the participant gave in that run
    (/ROLE/out): the reply to request k is the output at the next communication point.
 
-Prints one JSON object: problems, steps, compared, mismatches, first mismatch, and the largest
+Prints one JSON object: problems, dependencies, steps, compared, mismatches, first mismatch, and the largest
 |difference| per field.
 """
 import json
@@ -81,8 +83,13 @@ def main():
                     largest[f] = max(largest[f], abs(got - float(want)))
                 if first is None:
                     first = {"step": m["step"], "field": f, "recorded": want, "fmpy": got}
+    dependencies = {
+        u.variable.name: None if u.dependencies is None else [v.name for v in u.dependencies]
+        for u in md.outputs
+    }
     print(json.dumps({
         "problems": [str(p) for p in problems],
+        "dependencies": dependencies,
         "steps": len(result) - 1,
         "requests": len(ins),
         "compared": compared,
