@@ -6,6 +6,7 @@
 //! * [`archive`]: FMU archives, written and unpacked.
 //! * [`binding`]: a small hand-written binding of the FMI C API over `libloading`.
 //! * [`import`]: any co-simulation FMU as a participant.
+//! * [`ssd`]: SSP 1.0 system structures of FMUs (`SystemStructure.ssd`).
 //! * [`units`]: units of the variables.
 
 pub mod archive;
@@ -13,6 +14,7 @@ pub mod binding;
 pub mod description;
 pub mod import;
 pub mod layout;
+pub mod ssd;
 pub mod units;
 
 pub use import::{FmuInit, FmuParticipant, FmuSettings};

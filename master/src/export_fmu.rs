@@ -21,6 +21,16 @@ pub enum ExportError {
     /// The role is an FMU in this scenario already.
     #[error("the scenario's {0} is an FMU already ([participants.{0}]); export the native participant from a scenario without it")]
     AlreadyFmu(Role),
+    /// A setting an SSP system cannot carry (`export-ssp`).
+    #[error("{field} = {value}: allowed {allowed}")]
+    NotInSsp {
+        /// The scenario's key.
+        field: String,
+        /// Its value.
+        value: String,
+        /// What is allowed, and why.
+        allowed: String,
+    },
     /// A setting without a unit (the unit table is incomplete).
     #[error("{0}")]
     Layout(String),
@@ -59,6 +69,8 @@ pub struct Exported {
     pub outputs: usize,
     /// Number of parameters.
     pub parameters: usize,
+    /// The FMU's variables.
+    pub layout: Layout,
 }
 
 /// Where the FMU library is looked for: `explicit`, `TILTSIM_FMU_LIBRARY`, then beside this
@@ -242,6 +254,7 @@ pub fn export(
         inputs: layout.inputs.len(),
         outputs: layout.outputs.len(),
         parameters: layout.params.len(),
+        layout,
     })
 }
 

@@ -17,7 +17,8 @@
 //! manipulators, algorithms, observers, summary), [`record`] (`timeseries.csv`),
 //! [`export_mcap`] (`run.mcap` from a finished run), [`replay`] (one participant against its
 //! recorded inputs), [`outdir`] (one run per output directory), [`export_fmu`] (a scenario's
-//! participant as an FMU), [`files`] and [`signals`] (atomic writes, interrupting signals).
+//! participant as an FMU), [`export_ssp`] (a scenario as an SSP system of FMUs), [`files`] and
+//! [`signals`] (atomic writes, interrupting signals).
 //! The comfort and validity results the summary carries come from `tiltsim-assessment`;
 //! filling them, and drawing figures, is the caller's step (`tiltsim-report`).
 
@@ -27,6 +28,7 @@ pub mod engine;
 pub mod events;
 pub mod export_fmu;
 pub mod export_mcap;
+pub mod export_ssp;
 pub mod faults;
 pub mod files;
 pub mod free;

@@ -13,6 +13,7 @@ mod completions;
 mod error;
 mod export_fmu;
 mod export_mcap;
+mod export_ssp;
 mod free_run;
 mod inspect;
 mod linearize;
@@ -84,6 +85,10 @@ enum Command {
     /// Write one participant of a scenario as an FMI 3.0 co-simulation FMU (its inputs and
     /// outputs are the participant's sample fields, its parameters the scenario's values).
     ExportFmu(export_fmu::ExportFmuArgs),
+    /// Write a scenario as an SSP 1.0 system for other co-simulation masters (libcosim,
+    /// OMSimulator): its three participants as FMI 2.0 FMUs and SystemStructure.ssd with their
+    /// connections, parameters and steps.
+    ExportSsp(export_ssp::ExportSspArgs),
     /// List what an FMU declares: version, interfaces, steps, and every variable with its
     /// causality, type, unit and description.
     Inspect(inspect::InspectArgs),
@@ -152,6 +157,7 @@ pub fn main() -> i32 {
         Command::Participant(a) => participant::exec(a),
         Command::FmuParticipant(a) => participant::exec_fmu(a),
         Command::ExportFmu(a) => export_fmu::exec(a),
+        Command::ExportSsp(a) => export_ssp::exec(a),
     };
     match result {
         Ok(()) => 0,
