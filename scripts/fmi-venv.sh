@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# Makes the Python environment of the outside checks (FMI, MCAP, Rerun) in DIR (default target/fmi-venv) from
+# Makes the Python environment of the outside checks (FMI and its masters, MCAP, Rerun) in DIR (default target/fmi-venv) from
 # scripts/fmi-requirements.txt; does nothing when it is there and complete. The tests call
 # it themselves, so `cargo test --release --workspace` needs nothing else.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 venv="${1:-$here/../target/fmi-venv}"
 if [ -x "$venv/bin/python" ] && [ "$venv/.requirements" -nt "$here/fmi-requirements.txt" ] \
-    && "$venv/bin/python" -c "import fmpy, pythonfmu, mcap, rerun, pandas" 2>/dev/null; then
+    && "$venv/bin/python" -c "import fmpy, libcosimpy, pythonfmu, mcap, rerun, pandas" 2>/dev/null; then
     exit 0
 fi
 rm -rf "$venv"

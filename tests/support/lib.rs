@@ -221,7 +221,7 @@ pub fn leftovers(prefix: &str) -> Vec<PathBuf> {
     cosim::ipc::leftover_files(prefix)
 }
 
-/// The Python of the outside checks' environment (FMPy, pythonfmu, mcap, rerun-sdk from PyPI), made by
+/// The Python of the outside checks' environment (FMPy, libcosimpy, pythonfmu, mcap, rerun-sdk from PyPI), made by
 /// `scripts/fmi-venv.sh` in `target/fmi-venv` the first time a test needs it. Concurrent
 /// tests wait for one another (a lock file); a failure to make it fails the test, never skips.
 pub fn fmi_python() -> PathBuf {
@@ -246,7 +246,7 @@ pub fn fmi_python() -> PathBuf {
         .expect("run scripts/fmi-venv.sh");
     assert!(
         out.status.success(),
-        "scripts/fmi-venv.sh could not make the FMI check environment (FMPy, pythonfmu from PyPI):\n{}",
+        "scripts/fmi-venv.sh could not make the FMI check environment (FMPy, libcosimpy, pythonfmu from PyPI):\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
     let py = venv.join("bin/python");
