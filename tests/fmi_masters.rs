@@ -7,6 +7,9 @@
 //!   for the LQG and the MPC scenario (the MPC controller computing every 50th step and holding
 //!   its outputs between).
 //! * FMPy's container FMU does the same with the three FMI 3.0 FMUs.
+//! * libcosim with the controller stepped every 50 ms (its own period) equals tiltsim's Jacobi
+//!   run with `[links.actuator_command] delay_ticks = 49`: how a decimated participant's
+//!   outputs reach the others in an FMI master (docs/architecture.md, "Coupling").
 //!
 //! The masters come from PyPI in `target/fmi-venv` (scripts/fmi-requirements.txt); one that
 //! cannot be imported fails these tests, naming it.
@@ -241,4 +244,69 @@ fn export_ssp_refuses_what_an_ssp_system_cannot_carry_naming_the_field() {
         assert!(err.contains("link effects"), "{err}");
         assert!(!out.join("SystemStructure.ssd").exists());
     }
+}
+
+#[test]
+fn libcosim_with_the_controller_at_its_own_period_is_tiltsim_with_the_command_49_ticks_late() {
+    let dir = temp_dir("fmi-decimated");
+    let base = scenario("paper-mpc.toml");
+    let ssd = export_ssp(&base, &dir.join("ssp"));
+    // The same system with the controller stepped every 50 ms (libcosim's decimation).
+    let text = std::fs::read_to_string(&ssd).expect("ssd");
+    let at = text
+        .find("<ssd:Component name=\"controller\"")
+        .expect("the controller's component");
+    let hint = "<osp:StepSizeHint value=\"1e-3\"/>";
+    let h = at + text[at..].find(hint).expect("the controller's step");
+    let decimated = format!(
+        "{}<osp:StepSizeHint value=\"5e-2\"/>{}",
+        &text[..h],
+        &text[h + hint.len()..]
+    );
+    let ssd50 = ssd.with_file_name("SystemStructure-controller-50ms.ssd");
+    std::fs::write(&ssd50, decimated).expect("write");
+    let rows = dir.join("libcosim-50ms.csv");
+    let steps = (SECONDS * 1000).to_string();
+    helper(
+        "libcosim",
+        "libcosim_run.py",
+        &[s(&ssd50), &steps, s(&rows)],
+    );
+    // tiltsim's Jacobi run with the command 49 ticks late on its link.
+    let text = std::fs::read_to_string(&base).expect("scenario");
+    let delayed = dir.join("paper-mpc-delayed.toml");
+    std::fs::write(
+        &delayed,
+        format!("{text}\n[links.actuator_command]\ndelay_ticks = 49\n"),
+    )
+    .expect("write");
+    let series = jacobi(&delayed, &dir.join("jacobi-delayed"));
+    // libcosim's observer, too, sees a decimated FMU's outputs at the end of its step: the
+    // controller's columns 49 rows after tiltsim's. The plant's and the actuator's are equal
+    // row for row: the command reached the actuator 49 ticks late in both.
+    let n = same_bits_seen_late(
+        "libcosim, controller at 50 ms",
+        &rows,
+        &series,
+        "controller.",
+        49,
+    );
+    assert_eq!(n, COLUMNS.len() * SECONDS as usize * 1000);
+    // And the delay matters: without it the actuator's rows differ from libcosim's.
+    let undelayed = jacobi(&base, &dir.join("jacobi"));
+    let (header, body) = read_rows(&rows);
+    let i = header
+        .iter()
+        .position(|h| h == "actuator.delta_a")
+        .expect("column");
+    let ours = undelayed.col("delta_a");
+    let differ = body
+        .iter()
+        .enumerate()
+        .filter(|(k, r)| r[i].parse::<f64>().expect("number").to_bits() != ours[k + 1].to_bits())
+        .count();
+    assert!(
+        differ > 1000,
+        "the 50 ms controller left the bar angle as tiltsim's undelayed run ({differ} rows differ)"
+    );
 }
