@@ -625,3 +625,96 @@ fn a_recorded_run_with_an_fmu_replays_the_fmu_itself() {
         );
     }
 }
+
+#[test]
+fn an_fmu_description_lacking_what_tiltsim_relies_on_is_named_in_a_warning() {
+    let dir = temp_dir("fmi-lacking");
+    let pi = scenario("paper-pi.toml");
+    let whole = export_version("plant", &pi, &dir.join("whole.fmu"), "2");
+    // The same FMU without <ModelStructure> and <DefaultExperiment> (Python's zipfile and re).
+    rewrite_fmu(
+        &whole,
+        &dir.join("bare.fmu"),
+        "    if i.filename == 'modelDescription.xml':\n\
+         \x20       import re\n\
+         \x20       data = re.sub(rb'<ModelStructure>.*</ModelStructure>', b'', data, flags=re.S)\n\
+         \x20       data = re.sub(rb'<DefaultExperiment[^>]*/>', b'', data)\n\
+         \x20   dst.writestr(i, data)",
+    );
+    let runs = |name: &str, fmu: &str| {
+        let sc = scenario_in(
+            &dir,
+            "paper-pi.toml",
+            name,
+            &format!("[participants.plant]\nfmu = \"{fmu}\"\n"),
+        );
+        let out = dir.join(name);
+        run(&[
+            "run",
+            s(&sc),
+            "--out",
+            s(&out),
+            "--transport",
+            "in-process",
+            "--duration",
+            "0.2",
+            "-q",
+        ])
+    };
+    let (code, _, err) = runs("bare", "bare.fmu");
+    assert_eq!(code, 0, "{err}");
+    for says in [
+        "participants.plant.fmu",
+        "bare.fmu",
+        "no <ModelStructure>",
+        "no <DefaultExperiment>",
+        "every 0.001 s",
+    ] {
+        assert!(err.contains(says), "`{says}` not in: {err}");
+    }
+    // The FMU as exported: nothing to say.
+    let (code, _, err) = runs("whole", "whole.fmu");
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("participants.plant.fmu"), "{err}");
+
+    // A step it declares it cannot take: an FMI 2.0 controller that steps with its period only
+    // (0.05 s, canHandleVariableCommunicationStepSize=false) in a run that steps it every 0.02 s.
+    let mpc = scenario("paper-mpc.toml");
+    let (code, _, err) = run(&[
+        "export-fmu",
+        "controller",
+        s(&mpc),
+        "--out",
+        s(&dir.join("period.fmu")),
+        "--fmi-version",
+        "2",
+        "--steps",
+        "period",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&mpc).expect("scenario");
+    assert!(text.contains("period_s = 0.05"), "paper-mpc's period");
+    let sc = dir.join("fast.toml");
+    std::fs::write(
+        &sc,
+        format!(
+            "{}\n[participants.controller]\nfmu = \"period.fmu\"\n",
+            text.replace("period_s = 0.05", "period_s = 0.02").replacen(
+                "name = \"paper-mpc\"",
+                "name = \"fast\"",
+                1
+            )
+        ),
+    )
+    .expect("write");
+    let (code, _, err) = run(&["run", s(&sc), "--out", s(&dir.join("fast")), "-q"]);
+    assert!(
+        err.contains("participants.controller.fmu")
+            && err.contains("stepSize=\"0.05\"")
+            && err.contains("period 0.02 s is not a whole multiple"),
+        "{err}"
+    );
+    // And it did refuse: the run fails naming the step.
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("fmi2DoStep"), "{err}");
+}

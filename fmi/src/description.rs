@@ -408,8 +408,45 @@ pub struct ModelDescription {
     pub fixed_step: Option<f64>,
     /// `<DefaultExperiment stepSize>`.
     pub default_step: Option<f64>,
+    /// Whether it has a `<DefaultExperiment>`.
+    pub has_default_experiment: bool,
+    /// The value references `<ModelStructure>` lists as outputs (FMI 3 `<Output>`, FMI 2
+    /// `<Outputs><Unknown index>`); `None` without a `<ModelStructure>`.
+    pub structure_outputs: Option<Vec<u32>>,
     /// The variables.
     pub vars: Vec<VarDesc>,
+}
+
+/// The value references of the outputs `<ModelStructure>` lists.
+fn structure_outputs(
+    ms: roxmltree::Node,
+    mv: Option<roxmltree::Node>,
+    version: FmiVersion,
+) -> Vec<u32> {
+    match version {
+        FmiVersion::V3 => ms
+            .children()
+            .filter(|c| c.has_tag_name("Output"))
+            .filter_map(|c| c.attribute("valueReference")?.trim().parse().ok())
+            .collect(),
+        FmiVersion::V2 => {
+            // FMI 2 names a variable by its 1-based place among <ModelVariables>' elements.
+            let order: Vec<Option<u32>> = mv.map_or_else(Vec::new, |mv| {
+                mv.children()
+                    .filter(|c| c.is_element())
+                    .map(|e| e.attribute("valueReference")?.trim().parse().ok())
+                    .collect()
+            });
+            ms.children()
+                .filter(|c| c.has_tag_name("Outputs"))
+                .flat_map(|o| o.children().filter(|c| c.has_tag_name("Unknown")))
+                .filter_map(|u| {
+                    let i: usize = u.attribute("index")?.trim().parse().ok()?;
+                    *order.get(i.checked_sub(1)?)?
+                })
+                .collect()
+        }
+    }
 }
 
 /// The FMI version an `fmiModelDescription` element declares (2.x or 3.x).
@@ -536,6 +573,9 @@ impl ModelDescription {
             variable_step: flag("canHandleVariableCommunicationStepSize"),
             fixed_step: num(cs, "fixedInternalStepSize"),
             default_step: num(child("DefaultExperiment"), "stepSize"),
+            has_default_experiment: child("DefaultExperiment").is_some(),
+            structure_outputs: child("ModelStructure")
+                .map(|ms| structure_outputs(ms, child("ModelVariables"), version)),
             vars,
         })
     }

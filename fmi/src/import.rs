@@ -63,6 +63,9 @@ pub struct Plan {
     pub outputs: Vec<Binding>,
     /// Reply fields no FMU output provides (recorded as 0).
     pub missing_outputs: Vec<String>,
+    /// What the description lacks of what tiltsim relies on, said before the run (the run
+    /// goes ahead).
+    pub warnings: Vec<String>,
     /// Parameters: value reference, kind, value.
     pub params: Vec<(u32, VarKind, Value, String)>,
 }
@@ -152,12 +155,58 @@ pub fn plan(
         });
     }
     let params = parameters(settings, md)?;
+    let warnings = warnings(role, md, period_s, &outputs);
     Ok(Plan {
         inputs,
         outputs,
         missing_outputs,
+        warnings,
         params,
     })
+}
+
+/// What the description lacks of what tiltsim relies on but can do without: the outputs it
+/// reads declared in `<ModelStructure>`, a `<DefaultExperiment>` saying which step the FMU was
+/// made for, a step it declares it can take.
+fn warnings(role: Role, md: &ModelDescription, period_s: f64, outputs: &[Binding]) -> Vec<String> {
+    let mut w = Vec::new();
+    match &md.structure_outputs {
+        None => w.push(format!(
+            "its modelDescription.xml has no <ModelStructure>: the outputs tiltsim reads ({}) are not declared as outputs with their dependencies",
+            outputs.iter().map(|b| b.var.as_str()).collect::<Vec<_>>().join(", ")
+        )),
+        Some(listed) => {
+            let absent: Vec<&str> = outputs
+                .iter()
+                .filter(|b| !listed.contains(&b.vr))
+                .map(|b| b.var.as_str())
+                .collect();
+            if !absent.is_empty() {
+                w.push(format!(
+                    "its <ModelStructure> does not list {} among its <Outputs>, which FMI requires of every output",
+                    absent.join(", ")
+                ));
+            }
+        }
+    }
+    if !md.has_default_experiment {
+        w.push(format!(
+            "its modelDescription.xml has no <DefaultExperiment>: nothing says which step it was made for; tiltsim steps it every {period_s} s (the {role}'s period)"
+        ));
+    }
+    if let Some(h) = md
+        .default_step
+        .filter(|h| *h > 0.0 && md.fixed_step.is_none())
+    {
+        let n = period_s / h;
+        let whole = (n - n.round()).abs() <= 1e-9 * n.max(1.0) && n.round() >= 1.0;
+        if !md.variable_step && !whole {
+            w.push(format!(
+                "it declares <DefaultExperiment stepSize=\"{h}\"> and canHandleVariableCommunicationStepSize=\"false\", and the {role}'s period {period_s} s is not a whole multiple of {h} s: it may refuse tiltsim's steps"
+            ));
+        }
+    }
+    w
 }
 
 /// Whether the FMU can play `role` stepping with period `period_s`: a co-simulation FMU whose

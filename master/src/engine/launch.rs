@@ -156,14 +156,24 @@ pub(crate) fn start(
     }
 }
 
-/// Reply fields an FMU does not provide are recorded as 0: says so once, before the run.
+/// Reply fields an FMU does not provide are recorded as 0, and what its description lacks of
+/// what tiltsim relies on: says so once, before the run, naming the FMU.
 fn warn_missing_fmu_outputs(s: &Scenario) {
     for role in Role::ALL {
-        if let Some(Ok((_, plan))) = s.fmu_init(role).map(|i| tiltsim_fmi::import::check(&i)) {
+        let Some(init) = s.fmu_init(role) else {
+            continue;
+        };
+        if let Ok((_, plan)) = tiltsim_fmi::import::check(&init) {
             if !plan.missing_outputs.is_empty() {
                 tracing::warn!(
                     "the {role}'s FMU provides no {}: recorded as 0",
                     plan.missing_outputs.join(", ")
+                );
+            }
+            for w in &plan.warnings {
+                tracing::warn!(
+                    "participants.{role}.fmu {}: {w}",
+                    init.settings.fmu.display()
                 );
             }
         }
