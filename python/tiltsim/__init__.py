@@ -455,7 +455,11 @@ class Linearization:
 
 
 def linearize(scenario: Scenario, *, set: Optional[Mapping[str, Any]] = None) -> Linearization:
-    """The design model (A, B, Γ, C, continuous and discrete) and the controller's gains
-    (K, L) of a scenario, as NumPy arrays (:class:`Linearization`)."""
+    """The design model and the controller's gains of a scenario, as ``tiltsim linearize``
+    reports them, as NumPy arrays (:class:`Linearization`): A, B, Γ (``G``), C of the nine
+    states, their zero-order-hold discretisation at the controller's period, and K and L
+    (LQG state feedback and Kalman gain; L alone for the MPC's Kalman filter), ready for
+    python-control (``control.ss(lin.A, lin.B, lin.C, 0)``). ``set`` changes scenario
+    values by dotted key as in :func:`run`."""
     kind, value, origin = _scenario(scenario)
     return Linearization(json.loads(_tiltsim.linearize(kind, value, origin, _settings(set))))
