@@ -355,6 +355,7 @@ fn run<'py>(
     exe: Option<String>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let started = std::time::Instant::now();
     let s = scenario_with(
         py, kind, value, origin, settings, transport, master, seed, duration,
     )?;
@@ -423,6 +424,8 @@ fn run<'py>(
         },
     );
     drop(lock);
+    drop(scratch);
+    let library_s = started.elapsed().as_secs_f64();
     let ((summary, rows), kept) = ran.map_err(|e| run_error(py, e, origin))?;
     if let Some(e) = raised {
         if !e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py) {
@@ -443,6 +446,7 @@ fn run<'py>(
     )?;
     result.set_item("columns", columns(py, rows)?)?;
     result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
+    result.set_item("library_s", library_s)?;
     Ok(result)
 }
 

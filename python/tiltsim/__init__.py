@@ -182,6 +182,10 @@ class Result:
         self.summary: dict[str, Any] = json.loads(raw["summary"])
         #: The directory the run wrote, or None for a run that kept no files.
         self.out_dir: Optional[Path] = Path(raw["out_dir"]) if raw.get("out_dir") else None
+        #: Seconds the library spent in the call (from reading the scenario to the analysed
+        #: summary, temporary files removed): the rest of the call's time is the Python side's
+        #: (its arguments, the result's arrays, the summary's JSON).
+        self.library_s: float = float(raw.get("library_s", float("nan")))
 
     @property
     def time(self) -> np.ndarray:

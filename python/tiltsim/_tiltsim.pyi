@@ -26,7 +26,8 @@ def run(
     exe: Optional[str] = None,
     progress: Optional[Callable[[int, int], Any]] = None,
 ) -> dict[str, Any]:
-    """``{"summary": JSON text, "columns": {name: read-only array}, "out_dir": str | None}``."""
+    """``{"summary": JSON text, "columns": {name: read-only array}, "out_dir": str | None,
+    "library_s": float}``."""
 
 def sweep(
     kind: str,
