@@ -12,5 +12,6 @@
 
 pub mod analysis;
 pub mod compare;
+pub mod comparison;
 pub mod linearize;
 pub mod plot;

@@ -55,6 +55,7 @@ struct Observers {
     trace: Option<Trace>,
     pacing: Option<Pacing>,
     progress: Option<observer::Progress>,
+    ticks_done: Option<std::sync::Arc<std::sync::atomic::AtomicU64>>,
     mcap: Option<mcap::McapRecorder>,
     cpu_plan: Option<cpu_plan::CpuPlanner>,
 }
@@ -82,6 +83,7 @@ impl Observers {
             } else {
                 None
             },
+            ticks_done: opts.ticks_done.clone(),
             pacing: opts
                 .pace
                 .map(|f| Pacing::new(f, s.run.dt_s, opts.realtime.is_some())),
@@ -110,6 +112,9 @@ impl Observers {
         }
         if let Some(p) = &mut self.progress {
             p.after_tick(t, ev)?;
+        }
+        if let Some(n) = &self.ticks_done {
+            n.store(t.k + 1, std::sync::atomic::Ordering::Relaxed);
         }
         if let Some(m) = &mut self.mcap {
             m.after_tick(t, ev)?;

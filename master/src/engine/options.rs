@@ -43,6 +43,9 @@ pub struct RunOptions {
     /// sweep's in-process samples turn it off: they report none of it, and the clock reads
     /// cost about 5 % of a sample. Values never depend on it.
     pub timing: bool,
+    /// Ticks finished so far, stored after each tick for a caller that watches the run from
+    /// another thread (a notebook's progress bar).
+    pub ticks_done: Option<Arc<std::sync::atomic::AtomicU64>>,
 }
 
 impl RunOptions {
@@ -64,6 +67,7 @@ impl RunOptions {
             record: false,
             keep_rows: false,
             timing: true,
+            ticks_done: None,
         }
     }
 }

@@ -36,6 +36,12 @@ macro_rules! row {
         pub const UNITS: &[&str] = &[$($unit),*];
         /// What each column of [`COLUMNS`] holds.
         pub const DESCRIPTIONS: &[&str] = &[$($doc),*];
+        /// The Rust type of each column of [`COLUMNS`] (`f64`, `u64`, `u32`, `i32`).
+        pub const TYPES: &[&str] = &[$(stringify!($t)),*];
+        /// Where each column of [`COLUMNS`] lies in a [`Row`] (bytes from its start): rows
+        /// kept in memory are read column-wise in place, a column being every
+        /// `size_of::<Row>()` bytes from its offset.
+        pub const OFFSETS: &[usize] = &[$(std::mem::offset_of!($name, $f)),*];
         impl $name {
             /// Appends every field, formatted, to `record` (using `buf` as scratch).
             fn write_into(&self, record: &mut csv::ByteRecord, buf: &mut String) {

@@ -77,12 +77,21 @@ pub fn load(path: &Path) -> Result<Scenario, CliError> {
     Scenario::load(path).map_err(|e| CliError::Invalid(e.to_string()))
 }
 
+/// The environment variable that names the executable serving participants, where it is not
+/// this program's own executable.
+pub const PARTICIPANT_EXE_VAR: &str = "TILTSIM_PARTICIPANT_EXE";
+
 /// The interrupt flag (set by SIGINT, SIGTERM or SIGHUP) and the executable that serves
 /// participants.
 pub fn interrupt_and_exe() -> Result<(Arc<AtomicBool>, PathBuf), CliError> {
     let interrupt = tiltsim_master::signals::install();
     // An FMU unpacked in this process (the in-process transport) stops at Ctrl-C too.
     tiltsim_fmi::archive::stop_unpacking_when(interrupt.clone());
+    // A program that carries tiltsim as a library (the Python package's `tiltsim` command,
+    // an interpreter running a script) names the executable that serves participants.
+    if let Some(exe) = std::env::var_os(PARTICIPANT_EXE_VAR) {
+        return Ok((interrupt, PathBuf::from(exe)));
+    }
     let exe = std::env::current_exe().map_err(|e| {
         CliError::Failed(format!(
             "cannot find the tiltsim executable to start participants: {e}"

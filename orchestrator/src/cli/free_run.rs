@@ -248,6 +248,7 @@ pub fn replay_timing(a: ReplayTimingArgs) -> CliResult {
         record: false,
         keep_rows: false,
         timing: true,
+        ticks_done: None,
     };
     let trace = a.run_dir.join(tiltsim_master::free::trace::TIMING_CSV);
     let r = tiltsim_master::free::replay(&s, &trace, &opts).map_err(of_free)?;

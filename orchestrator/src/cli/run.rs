@@ -213,6 +213,7 @@ pub fn exec(a: RunArgs) -> CliResult {
         record: a.record,
         keep_rows: false,
         timing: true,
+        ticks_done: None,
     };
     if s.run.execution == tiltsim_master::scenario::Execution::Free {
         return super::free_run::exec(&s, &a.scenario, &opts, a.quiet);

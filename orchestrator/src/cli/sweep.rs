@@ -81,24 +81,8 @@ fn plan(a: &SweepArgs, s: &Scenario) -> Result<Plan, CliError> {
             ))
         }
     };
-    if let Plan::Grid { key, values } = &plan {
-        // A key that holds a whole number takes whole numbers that a grid value (f64) holds
-        // exactly: at most 2^53 in magnitude.
-        if s.holds_integer(key) {
-            if let Some(v) = values
-                .iter()
-                .find(|v| v.fract() != 0.0 || v.abs() > 9_007_199_254_740_992.0)
-            {
-                return Err(CliError::Invalid(format!(
-                    "--grid {key}: {v}: allowed whole numbers from -9007199254740992 to 9007199254740992 for this key"
-                )));
-            }
-        }
-        for v in values {
-            tiltsim_studies::sweep::with_key(s, key, *v)
-                .map_err(|e| CliError::Invalid(format!("{}: {e}", a.scenario.display())))?;
-        }
-    }
+    tiltsim_studies::sweep::check_plan(s, &plan)
+        .map_err(|e| CliError::Invalid(format!("{}: {e}", a.scenario.display())))?;
     Ok(plan)
 }
 
@@ -170,6 +154,7 @@ pub fn exec(a: SweepArgs) -> CliResult {
         exe,
         interrupt,
         progress: !a.quiet,
+        samples_done: None,
     };
     // Held until the sweep ends: one sweep (or shard) per directory.
     let _lock = tiltsim_master::outdir::claim(&out, tiltsim_master::outdir::Kind::Sweep, "sweep")

@@ -160,6 +160,9 @@ pub struct Exec {
     pub interrupt: Arc<AtomicBool>,
     /// Show a progress bar (on a terminal).
     pub progress: bool,
+    /// Samples finished so far, counted up as each ends, for a caller that watches the sweep
+    /// from another thread.
+    pub samples_done: Option<Arc<AtomicUsize>>,
 }
 
 pub(super) fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row {
@@ -328,6 +331,9 @@ fn run_parallel(
                     r[i] = Some(row);
                 }
                 bar.inc(1);
+                if let Some(n) = &ex.samples_done {
+                    n.fetch_add(1, Ordering::Relaxed);
+                }
             });
         }
     });

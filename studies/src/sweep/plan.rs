@@ -128,6 +128,31 @@ pub fn with_key(base: &Scenario, key: &str, v: f64) -> Result<Scenario, SweepErr
     Ok(s)
 }
 
+/// Checks a plan against its base scenario before anything runs: every grid value is one
+/// the key takes (a whole number, exactly held, where the key holds one) and gives a valid
+/// scenario. The error names the key, the value and what is allowed.
+pub fn check_plan(base: &Scenario, plan: &Plan) -> Result<(), SweepError> {
+    let Plan::Grid { key, values } = plan else {
+        return Ok(());
+    };
+    // A key that holds a whole number takes whole numbers that a grid value (f64) holds
+    // exactly: at most 2^53 in magnitude.
+    if base.holds_integer(key) {
+        if let Some(v) = values
+            .iter()
+            .find(|v| v.fract() != 0.0 || v.abs() > 9_007_199_254_740_992.0)
+        {
+            return Err(SweepError::Argument(format!(
+                "grid key `{key}` = {v}: allowed whole numbers from -9007199254740992 to 9007199254740992 for this key"
+            )));
+        }
+    }
+    for v in values {
+        with_key(base, key, *v)?;
+    }
+    Ok(())
+}
+
 /// The scenario of sample `j` and its parameter values (factors or the grid value).
 pub fn sample(base: &Scenario, plan: &Plan, j: usize) -> Result<(Scenario, Vec<f64>), SweepError> {
     match plan {

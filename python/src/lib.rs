@@ -1,0 +1,774 @@
+//! `tiltsim._tiltsim`, the extension module under the `tiltsim` Python package: runs,
+//! sweeps, comparisons and the linear design through the library crates, in this process.
+//!
+//! The simulation runs on a thread of its own while the calling thread waits with the GIL
+//! released; every 50 ms it takes the GIL back to look for Ctrl-C (which sets the run's
+//! interrupt flag, as SIGINT does for the command line) and to call the progress callback.
+//! A run's rows stay where the engine kept them: each column reaches Python as a read-only
+//! NumPy view into them (a stride of one row), without a copy. Errors are raised as the
+//! classes of `tiltsim.errors`, with the message the command line prints.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{mpsc, Arc};
+use std::time::Duration;
+
+use numpy::ndarray::{ArrayView1, ShapeBuilder};
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use tiltsim_master::engine::{RunError, RunOptions};
+use tiltsim_master::record::{Row, COLUMNS, OFFSETS, TYPES};
+use tiltsim_master::scenario::{Master, Scenario, Transport};
+use tiltsim_studies::sweep::{Exec, Plan};
+
+/// How often the waiting thread looks for Ctrl-C and reports progress.
+const POLL: Duration = Duration::from_millis(50);
+
+/// An exception of `tiltsim.errors` by class name, carrying `message`.
+fn error(py: Python<'_>, class: &str, message: String) -> PyErr {
+    let made = py
+        .import("tiltsim.errors")
+        .and_then(|m| m.getattr(class))
+        .and_then(|c| c.call1((message.clone(),)));
+    match made {
+        Ok(e) => PyErr::from_value(e),
+        Err(e) => e,
+    }
+}
+
+/// Invalid input: names the origin, the field and what is allowed.
+fn invalid(py: Python<'_>, message: impl Into<String>) -> PyErr {
+    error(py, "ScenarioError", message.into())
+}
+
+/// The scenario a Python call names: `kind` is `file` (a path), `toml` (TOML text) or
+/// `json` (a dict, as JSON text); `origin` names it in messages.
+fn scenario(py: Python<'_>, kind: &str, value: &str, origin: &str) -> PyResult<Scenario> {
+    let parsed = match kind {
+        "file" => Scenario::load(Path::new(value)),
+        "toml" => Scenario::parse(value, Path::new(origin)),
+        "json" => {
+            let text = serde_json::from_str::<serde_json::Value>(value)
+                .map_err(|e| e.to_string())
+                .and_then(|v| toml::Value::try_from(v).map_err(|e| e.to_string()))
+                .and_then(|v| toml::to_string(&v).map_err(|e| e.to_string()))
+                .map_err(|e| {
+                    invalid(
+                        py,
+                        format!("{origin}: not a scenario table (numbers, strings, booleans, lists and tables only; no None): {e}"),
+                    )
+                })?;
+            Scenario::parse(&text, Path::new(origin))
+        }
+        other => return Err(invalid(py, format!("scenario kind `{other}`"))),
+    };
+    let mut s = parsed.map_err(|e| invalid(py, e.to_string()))?;
+    if s.name.is_empty() {
+        s.name = "scenario".into();
+    }
+    Ok(s)
+}
+
+/// The options a call adds to its scenario, as the command line's flags do.
+#[derive(Default)]
+struct Overrides {
+    settings: Vec<(String, String)>,
+    transport: Option<String>,
+    master: Option<String>,
+    seed: Option<u64>,
+    duration: Option<f64>,
+}
+
+impl Overrides {
+    fn apply(&self, py: Python<'_>, mut s: Scenario, origin: &str) -> PyResult<Scenario> {
+        if let Some(t) = &self.transport {
+            s.run.transport = match t.as_str() {
+                "in-process" => Transport::InProcess,
+                "ipc" => Transport::Ipc,
+                t => {
+                    return Err(invalid(
+                        py,
+                        format!("transport = {t:?}: allowed \"in-process\" or \"ipc\""),
+                    ))
+                }
+            };
+        }
+        if let Some(m) = &self.master {
+            s.run.master = match m.as_str() {
+                "gauss-seidel" => Master::GaussSeidel,
+                "jacobi" => Master::Jacobi,
+                m => {
+                    return Err(invalid(
+                        py,
+                        format!("master = {m:?}: allowed \"gauss-seidel\" or \"jacobi\""),
+                    ))
+                }
+            };
+        }
+        if let Some(seed) = self.seed {
+            s.run.seed = seed;
+        }
+        if let Some(d) = self.duration {
+            if !(1e-5..=3600.0).contains(&d) {
+                return Err(invalid(
+                    py,
+                    format!("duration = {d}: allowed 1e-05 to 3600 s"),
+                ));
+            }
+            s.run.duration_s = Some(d);
+        }
+        for (k, v) in &self.settings {
+            s = s
+                .with_setting(k.trim(), v)
+                .map_err(|e| invalid(py, format!("{origin}: set {k}={v}: {e}")))?;
+        }
+        let errors = s.validate();
+        if !errors.is_empty() {
+            let lines: Vec<String> = errors.iter().map(|e| format!("{origin}: {e}")).collect();
+            return Err(invalid(py, lines.join("\n")));
+        }
+        Ok(s)
+    }
+}
+
+/// A directory of this process for a study that keeps no files; removed when dropped.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(what: &str) -> std::io::Result<Self> {
+        static NEXT: AtomicUsize = AtomicUsize::new(0);
+        let dir = std::env::temp_dir().join(format!(
+            "tiltsim-py-{what}-{}-{}",
+            std::process::id(),
+            NEXT.fetch_add(1, Ordering::Relaxed)
+        ));
+        std::fs::create_dir_all(&dir)?;
+        Ok(Scratch(dir))
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Runs `work` on a thread of its own and waits for it with the GIL released. Every
+/// [`POLL`] it looks for Ctrl-C (or any signal Python raises for) and calls `progress`
+/// with `(done, total)` read from `counter`; a signal or a callback that raises sets
+/// `interrupt`, the work ends as interrupted, and the error is handed back with its result.
+fn supervise<T: Send + 'static>(
+    py: Python<'_>,
+    interrupt: &Arc<AtomicBool>,
+    counter: (&dyn Fn() -> u64, u64),
+    progress: Option<&Bound<'_, PyAny>>,
+    work: impl FnOnce() -> T + Send + 'static,
+) -> (T, Option<PyErr>) {
+    let (tx, rx) = mpsc::channel();
+    let worker = std::thread::spawn(move || {
+        let _ = tx.send(work());
+    });
+    let mut raised: Option<PyErr> = None;
+    let mut told = u64::MAX;
+    let mut rx = Some(rx);
+    let result = loop {
+        let held = rx.take();
+        let (got, back) = py.detach(move || {
+            let r = held.map(|rx| (rx.recv_timeout(POLL), rx));
+            match r {
+                Some((got, rx)) => (got, Some(rx)),
+                None => (Err(mpsc::RecvTimeoutError::Disconnected), None),
+            }
+        });
+        rx = back;
+        match got {
+            Ok(r) => break Some(r),
+            Err(mpsc::RecvTimeoutError::Disconnected) => break None,
+            Err(mpsc::RecvTimeoutError::Timeout) => {}
+        }
+        if raised.is_none() {
+            if let Err(e) = py.check_signals() {
+                interrupt.store(true, Ordering::Relaxed);
+                raised = Some(e);
+            }
+        }
+        if let (Some(cb), None) = (progress, &raised) {
+            let done = (counter.0)();
+            if done != told {
+                told = done;
+                if let Err(e) = cb.call1((done, counter.1)) {
+                    interrupt.store(true, Ordering::Relaxed);
+                    raised = Some(e);
+                }
+            }
+        }
+    };
+    let joined = py.detach(|| worker.join());
+    match (result, joined) {
+        (Some(r), _) => {
+            if let (Some(cb), None) = (progress, &raised) {
+                let done = (counter.0)();
+                if done != told {
+                    if let Err(e) = cb.call1((done, counter.1)) {
+                        raised = Some(e);
+                    }
+                }
+            }
+            (r, raised)
+        }
+        // The worker panicked: a defect, reported as one rather than taking Python down.
+        (None, Err(p)) => {
+            let why = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default();
+            std::panic::resume_unwind(Box::new(format!("tiltsim worker panicked: {why}")))
+        }
+        (None, Ok(())) => unreachable!("the worker sends its result before it ends"),
+    }
+}
+
+/// The rows of a run, owned here; NumPy arrays view them in place.
+#[pyclass(frozen, module = "tiltsim._tiltsim")]
+struct Rows {
+    rows: Vec<Row>,
+}
+
+/// A read-only view of column `k` of `rows` (every `size_of::<Row>()` bytes from its offset).
+///
+/// # Safety
+/// `owner` must own `rows`, which must not change while any view of them lives.
+unsafe fn column_view<'py, T: numpy::Element>(
+    owner: &Bound<'py, Rows>,
+    rows: &[Row],
+    k: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let stride = std::mem::size_of::<Row>() / std::mem::size_of::<T>();
+    debug_assert_eq!(std::mem::size_of::<Row>() % std::mem::size_of::<T>(), 0);
+    debug_assert_eq!(OFFSETS[k] % std::mem::align_of::<T>(), 0);
+    let array = if rows.is_empty() {
+        PyArray1::<T>::zeros(owner.py(), 0, false)
+    } else {
+        let first = (rows.as_ptr() as *const u8).add(OFFSETS[k]) as *const T;
+        let view = ArrayView1::from_shape_ptr((rows.len(),).strides((stride,)), first);
+        PyArray1::borrow_from_array(&view, owner.clone().into_any())
+    };
+    array.readwrite().make_nonwriteable();
+    Ok(array.into_any())
+}
+
+/// Every column of `rows` as a read-only NumPy array viewing them in place, by name.
+fn columns<'py>(py: Python<'py>, rows: Vec<Row>) -> PyResult<Bound<'py, PyDict>> {
+    let owner = Bound::new(py, Rows { rows })?;
+    let out = PyDict::new(py);
+    let held = owner.get();
+    for (k, name) in COLUMNS.iter().enumerate() {
+        // SAFETY: `owner` owns the rows and is frozen: they are never changed or moved.
+        let a = unsafe {
+            match TYPES[k] {
+                "f64" => column_view::<f64>(&owner, &held.rows, k)?,
+                "u64" => column_view::<u64>(&owner, &held.rows, k)?,
+                "u32" => column_view::<u32>(&owner, &held.rows, k)?,
+                "i32" => column_view::<i32>(&owner, &held.rows, k)?,
+                "i64" => column_view::<i64>(&owner, &held.rows, k)?,
+                t => {
+                    return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+                        "column {name}: type {t} has no NumPy view"
+                    )))
+                }
+            }
+        };
+        out.set_item(*name, a)?;
+    }
+    Ok(out)
+}
+
+/// The scenario a call names, with its overrides applied.
+#[allow(clippy::too_many_arguments)]
+fn scenario_with(
+    py: Python<'_>,
+    kind: &str,
+    value: &str,
+    origin: &str,
+    settings: Vec<(String, String)>,
+    transport: Option<String>,
+    master: Option<String>,
+    seed: Option<u64>,
+    duration: Option<f64>,
+) -> PyResult<Scenario> {
+    let s = scenario(py, kind, value, origin)?;
+    Overrides {
+        settings,
+        transport,
+        master,
+        seed,
+        duration,
+    }
+    .apply(py, s, origin)
+}
+
+/// The executable that serves participant processes (the IPC transport).
+fn participant_exe(py: Python<'_>, exe: Option<String>, s: &Scenario) -> PyResult<PathBuf> {
+    match exe {
+        Some(e) => Ok(PathBuf::from(e)),
+        None if s.run.transport == Transport::Ipc => Err(invalid(
+            py,
+            "transport = \"ipc\": no tiltsim executable found to serve the participants (install the package's `tiltsim` command, or pass exe=PATH)",
+        )),
+        // Not started with the in-process transport.
+        None => Ok(PathBuf::from("tiltsim")),
+    }
+}
+
+/// The message of a run that could not start or end.
+fn run_error(py: Python<'_>, e: RunError, origin: &str) -> PyErr {
+    match e {
+        RunError::Interrupted { .. } => error(py, "Interrupted", format!("{origin}: {e}")),
+        e => error(py, "ParticipantError", format!("{origin}: {e}")),
+    }
+}
+
+/// Runs a scenario; returns `{"summary": JSON text, "columns": {name: array}, "out_dir":
+/// str or None}`. With `out` the run writes its files there as `tiltsim run` does (figures
+/// when `plots`); without, it keeps its rows in memory and leaves no file.
+#[pyfunction]
+#[pyo3(signature = (kind, value, origin, settings, out=None, transport=None, master=None,
+                    seed=None, duration=None, record=false, plots=false, exe=None,
+                    progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn run<'py>(
+    py: Python<'py>,
+    kind: &str,
+    value: &str,
+    origin: &str,
+    settings: Vec<(String, String)>,
+    out: Option<PathBuf>,
+    transport: Option<String>,
+    master: Option<String>,
+    seed: Option<u64>,
+    duration: Option<f64>,
+    record: bool,
+    plots: bool,
+    exe: Option<String>,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let started = std::time::Instant::now();
+    let s = scenario_with(
+        py, kind, value, origin, settings, transport, master, seed, duration,
+    )?;
+    if s.run.execution == tiltsim_master::scenario::Execution::Free {
+        return Err(invalid(
+            py,
+            format!("{origin}: run.execution = \"free\": a free run is started with `tiltsim run --free-run`; from Python, allowed \"lockstep\""),
+        ));
+    }
+    let exe = participant_exe(py, exe, &s)?;
+    let scratch = match &out {
+        Some(_) => None,
+        None => Some(
+            Scratch::new("run")
+                .map_err(|e| error(py, "ParticipantError", format!("temporary directory: {e}")))?,
+        ),
+    };
+    let dir = out
+        .clone()
+        .unwrap_or_else(|| scratch.as_ref().map(|d| d.0.clone()).unwrap_or_default());
+    let lock = match &out {
+        Some(o) => Some(
+            tiltsim_master::outdir::claim_run(o, "run").map_err(|e| invalid(py, e.to_string()))?,
+        ),
+        None => None,
+    };
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let ticks = Arc::new(AtomicU64::new(0));
+    let mut opts = RunOptions::new(dir.clone(), exe);
+    opts.interrupt = interrupt.clone();
+    opts.plots = plots;
+    opts.record = record;
+    opts.keep_rows = out.is_none();
+    opts.ticks_done = Some(ticks.clone());
+    let steps = s.steps();
+    let file = origin.to_string();
+    let keep_files = out.is_some();
+    let (ran, raised) = supervise(
+        py,
+        &interrupt,
+        (&|| ticks.load(Ordering::Relaxed), steps),
+        progress.as_ref(),
+        {
+            let dir = dir.clone();
+            move || {
+                if keep_files {
+                    let mut kept = Ok(());
+                    tiltsim_report::analysis::run_then(&s, &file, &opts, |sm| {
+                        kept = write_json(&dir.join("summary.json"), sm);
+                    })
+                    .map(|sm| {
+                        // What the run wrote is what the arrays hold.
+                        let rows = tiltsim_master::record::read_rows(&dir);
+                        let kept = kept.and(
+                            rows.as_ref()
+                                .map(|_| ())
+                                .map_err(|e| std::io::Error::new(e.kind(), e.to_string())),
+                        );
+                        ((sm, rows.unwrap_or_default()), kept)
+                    })
+                } else {
+                    tiltsim_report::analysis::run_keeping_rows(&s, &file, &opts)
+                        .map(|r| (r, Ok(())))
+                }
+            }
+        },
+    );
+    drop(lock);
+    drop(scratch);
+    let library_s = started.elapsed().as_secs_f64();
+    let ((summary, rows), kept) = ran.map_err(|e| run_error(py, e, origin))?;
+    if let Some(e) = raised {
+        if !e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py) {
+            return Err(e);
+        }
+    }
+    if let Err(e) = kept {
+        return Err(error(
+            py,
+            "ParticipantError",
+            format!("{}: {e}", dir.display()),
+        ));
+    }
+    let result = PyDict::new(py);
+    result.set_item(
+        "summary",
+        serde_json::to_string(&summary).unwrap_or_default(),
+    )?;
+    result.set_item("columns", columns(py, rows)?)?;
+    result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
+    result.set_item("library_s", library_s)?;
+    Ok(result)
+}
+
+fn write_json<T: serde::Serialize>(path: &Path, v: &T) -> std::io::Result<()> {
+    let text = serde_json::to_string_pretty(v).unwrap_or_default() + "\n";
+    tiltsim_master::files::write_atomic(path, text)
+}
+
+/// Runs a sweep; returns its samples' columns (as `samples.csv` has them), the tidy lateral
+/// acceleration series (`series.csv`), whether it was interrupted and its directory.
+#[pyfunction]
+#[pyo3(signature = (kind, value, origin, settings, samples=None, spread=0.22, seed=1,
+                    grid=None, jobs=None, transport=None, out=None, exe=None, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn sweep<'py>(
+    py: Python<'py>,
+    kind: &str,
+    value: &str,
+    origin: &str,
+    settings: Vec<(String, String)>,
+    samples: Option<usize>,
+    spread: f64,
+    seed: u64,
+    grid: Option<(String, Vec<f64>)>,
+    jobs: Option<usize>,
+    transport: Option<String>,
+    out: Option<PathBuf>,
+    exe: Option<String>,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    // In-process by default, as `tiltsim sweep`.
+    let transport = transport.or(Some("in-process".into()));
+    let s = scenario_with(
+        py, kind, value, origin, settings, transport, None, None, None,
+    )?;
+    let plan = match (grid, samples) {
+        (Some((key, values)), None) => {
+            if key.trim().is_empty() || values.is_empty() {
+                return Err(invalid(py, "grid: need a key and at least one value"));
+            }
+            Plan::Grid { key, values }
+        }
+        (None, Some(n)) if (1..=100_000).contains(&n) => {
+            if !(0.0..1.0).contains(&spread) {
+                return Err(invalid(
+                    py,
+                    format!("spread = {spread}: allowed 0 to 1 (1 excluded)"),
+                ));
+            }
+            Plan::MonteCarlo {
+                samples: n,
+                spread,
+                seed,
+            }
+        }
+        (None, Some(n)) => return Err(invalid(py, format!("samples = {n}: allowed 1 to 100000"))),
+        _ => {
+            return Err(invalid(
+                py,
+                "give samples=N (Monte Carlo) or grid=(KEY, VALUES), one of them",
+            ))
+        }
+    };
+    tiltsim_studies::sweep::check_plan(&s, &plan)
+        .map_err(|e| invalid(py, format!("{origin}: {e}")))?;
+    let exe = participant_exe(py, exe, &s)?;
+    let scratch = match &out {
+        Some(_) => None,
+        None => Some(
+            Scratch::new("sweep")
+                .map_err(|e| error(py, "ParticipantError", format!("temporary directory: {e}")))?,
+        ),
+    };
+    let dir = out
+        .clone()
+        .unwrap_or_else(|| scratch.as_ref().map(|d| d.0.clone()).unwrap_or_default());
+    let lock = tiltsim_master::outdir::claim(&dir, tiltsim_master::outdir::Kind::Sweep, "sweep")
+        .map_err(|e| invalid(py, e.to_string()))?;
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let done = Arc::new(AtomicUsize::new(0));
+    let jobs = jobs.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    if !(1..=256).contains(&jobs) {
+        return Err(invalid(py, format!("jobs = {jobs}: allowed 1 to 256")));
+    }
+    let ex = Exec {
+        out: dir.clone(),
+        jobs,
+        keep_runs: false,
+        exe,
+        interrupt: interrupt.clone(),
+        progress: false,
+        samples_done: Some(done.clone()),
+    };
+    let total = plan.len() as u64;
+    let write = out.is_some();
+    let count = move || done.load(Ordering::Relaxed) as u64;
+    let (swept, raised) = supervise(py, &interrupt, (&count, total), progress.as_ref(), {
+        let plan = plan.clone();
+        move || {
+            let swept = tiltsim_studies::sweep::run(&s, &plan, None, &ex)?;
+            if write {
+                let build = tiltsim_studies::sweep::identity::build();
+                tiltsim_studies::sweep::write_outputs(
+                    &ex.out,
+                    &s,
+                    &plan,
+                    None,
+                    &swept.rows,
+                    swept.interrupted,
+                    build,
+                )
+                .map_err(|e| {
+                    tiltsim_studies::sweep::SweepError::Files(format!("{}: {e}", ex.out.display()))
+                })?;
+            }
+            Ok::<_, tiltsim_studies::sweep::SweepError>(swept)
+        }
+    });
+    drop(lock);
+    let swept = swept.map_err(|e| error(py, "ParticipantError", e.to_string()))?;
+    if let Some(e) = raised {
+        if !e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py) {
+            return Err(e);
+        }
+    }
+    let cols = plan.columns();
+    let frame = PyDict::new(py);
+    let rows = &swept.rows;
+    frame.set_item(
+        tiltsim_studies::sweep::SAMPLE_COLUMN,
+        PyArray1::from_iter(py, rows.iter().map(|r| r.sample as i64)),
+    )?;
+    for (k, c) in cols.iter().enumerate() {
+        let v = rows
+            .iter()
+            .map(|r| r.params.get(k).copied().unwrap_or(f64::NAN));
+        frame.set_item(c, PyArray1::from_iter(py, v))?;
+    }
+    let status: Vec<String> = rows.iter().map(|r| r.status.to_string()).collect();
+    frame.set_item("status", PyList::new(py, status)?)?;
+    for (m, metric) in tiltsim_assessment::comfort::METRICS.iter().enumerate() {
+        let v = rows
+            .iter()
+            .map(|r| r.metrics.get(m).copied().unwrap_or(f64::NAN));
+        frame.set_item(metric.key, PyArray1::from_iter(py, v))?;
+    }
+    let flags: Vec<String> = rows.iter().map(|r| r.flags.join("; ")).collect();
+    frame.set_item(
+        tiltsim_studies::sweep::FLAGS_COLUMN,
+        PyList::new(py, flags)?,
+    )?;
+    let series = PyDict::new(py);
+    let ids = rows
+        .iter()
+        .flat_map(|r| std::iter::repeat_n(r.sample as i64, r.series.len()));
+    let times = rows
+        .iter()
+        .flat_map(|r| (0..r.series.len()).map(tiltsim_studies::sweep::series_time));
+    let values = rows.iter().flat_map(|r| r.series.iter().copied());
+    let [c_id, c_time, c_value] = tiltsim_studies::sweep::SERIES_COLUMNS;
+    series.set_item(c_id, PyArray1::from_iter(py, ids))?;
+    series.set_item(c_time, PyArray1::from_iter(py, times))?;
+    series.set_item(c_value, PyArray1::from_iter(py, values))?;
+    let result = PyDict::new(py);
+    result.set_item("samples", frame)?;
+    result.set_item("series", series)?;
+    result.set_item("interrupted", swept.interrupted)?;
+    result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
+    Ok(result)
+}
+
+/// Compares scenarios as `tiltsim compare` does; returns `table.csv`'s text, each run's
+/// summary (JSON text) and the directory (the runs stay there only when `out` is given).
+#[pyfunction]
+#[pyo3(signature = (scenarios, transport=None, out=None, exe=None, progress=None))]
+fn compare<'py>(
+    py: Python<'py>,
+    scenarios: Vec<(String, String, String)>,
+    transport: Option<String>,
+    out: Option<PathBuf>,
+    exe: Option<String>,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    if scenarios.is_empty() {
+        return Err(invalid(py, "compare: give at least one scenario"));
+    }
+    let mut loaded = Vec::new();
+    for (kind, value, origin) in &scenarios {
+        let s = scenario_with(
+            py,
+            kind,
+            value,
+            origin,
+            Vec::new(),
+            transport.clone(),
+            None,
+            None,
+            None,
+        )?;
+        let exe = participant_exe(py, exe.clone(), &s)?;
+        loaded.push((PathBuf::from(origin), s, exe));
+    }
+    let scratch = match &out {
+        Some(_) => None,
+        None => Some(
+            Scratch::new("compare")
+                .map_err(|e| error(py, "ParticipantError", format!("temporary directory: {e}")))?,
+        ),
+    };
+    let dir = out
+        .clone()
+        .unwrap_or_else(|| scratch.as_ref().map(|d| d.0.clone()).unwrap_or_default());
+    let mut pairs: Vec<(PathBuf, Scenario)> = loaded
+        .iter()
+        .map(|(f, s, _)| (f.clone(), s.clone()))
+        .collect();
+    let notes = tiltsim_report::comparison::distinct(&mut pairs, &dir);
+    let exe = loaded[0].2.clone();
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let done = Arc::new(AtomicU64::new(0));
+    let total = pairs.len() as u64;
+    let (compared, raised) = supervise(
+        py,
+        &interrupt,
+        (&|| done.load(Ordering::Relaxed), total),
+        progress.as_ref(),
+        {
+            let interrupt = interrupt.clone();
+            let done = done.clone();
+            move || {
+                use tiltsim_report::comparison::Comparison;
+                let mut cmp = Comparison::start(&dir, &pairs)?;
+                let mut base = RunOptions::new(dir.clone(), exe);
+                base.interrupt = interrupt;
+                base.plots = true;
+                let mut summaries = Vec::new();
+                for (file, s) in pairs {
+                    let sm = cmp.run(&file, s, &base)?;
+                    summaries.push(serde_json::to_string(sm).unwrap_or_default());
+                    done.fetch_add(1, Ordering::Relaxed);
+                }
+                let (_, csv) = cmp.finish()?;
+                Ok::<_, tiltsim_report::comparison::CompareError>((csv, summaries))
+            }
+        },
+    );
+    let (csv, summaries) = compared.map_err(|e| {
+        use tiltsim_report::comparison::CompareError as E;
+        match e {
+            E::Invalid(m) => invalid(py, m),
+            E::Failed(m) => error(py, "ParticipantError", m),
+            E::Interrupted(m) => error(py, "Interrupted", m),
+        }
+    })?;
+    if let Some(e) = raised {
+        return Err(e);
+    }
+    let result = PyDict::new(py);
+    result.set_item("table_csv", csv)?;
+    result.set_item("summaries", summaries)?;
+    result.set_item("notes", notes)?;
+    result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
+    Ok(result)
+}
+
+/// The design model and the controller's gains (`tiltsim linearize`), as JSON text.
+#[pyfunction]
+#[pyo3(signature = (kind, value, origin, settings))]
+fn linearize(
+    py: Python<'_>,
+    kind: &str,
+    value: &str,
+    origin: &str,
+    settings: Vec<(String, String)>,
+) -> PyResult<String> {
+    let s = scenario_with(py, kind, value, origin, settings, None, None, None, None)?;
+    let report = tiltsim_report::linearize::report(&s, None)
+        .map_err(|e| invalid(py, format!("{origin}: controller design: {e}")))?;
+    Ok(serde_json::to_string(&report).unwrap_or_default())
+}
+
+/// A grid as the command line's `--grid KEY=START:STOP:STEP` or `KEY=V1,V2,...` gives it:
+/// `(key, values)`.
+#[pyfunction]
+fn parse_grid(py: Python<'_>, spec: &str) -> PyResult<(String, Vec<f64>)> {
+    match tiltsim_studies::sweep::parse_grid(spec).map_err(|e| invalid(py, e.to_string()))? {
+        Plan::Grid { key, values } => Ok((key, values)),
+        Plan::MonteCarlo { .. } => Err(invalid(py, format!("grid `{spec}`"))),
+    }
+}
+
+/// The columns of a run's time series: `(name, unit, description)` in order.
+#[pyfunction]
+fn signals() -> Vec<(String, String, String)> {
+    tiltsim_master::columns::timeseries()
+        .into_iter()
+        .map(|c| (c.name, c.unit, c.description))
+        .collect()
+}
+
+/// The command line, `tiltsim ARGS...`; returns its exit code. Participant processes of an
+/// IPC run are served by the package's `tiltsim` command through it.
+#[pyfunction]
+fn cli(py: Python<'_>, argv: Vec<String>) -> i32 {
+    py.detach(|| orchestrator::cli::main_from(argv))
+}
+
+/// The extension module.
+#[pymodule]
+fn _tiltsim(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(run, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(compare, m)?)?;
+    m.add_function(wrap_pyfunction!(linearize, m)?)?;
+    m.add_function(wrap_pyfunction!(signals, m)?)?;
+    m.add_function(wrap_pyfunction!(parse_grid, m)?)?;
+    m.add_function(wrap_pyfunction!(cli, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("BUILD", tiltsim_studies::sweep::identity::build())?;
+    Ok(())
+}

@@ -1,0 +1,125 @@
+"""Sweeps, comparisons and the linear design from Python against the command line."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import threading
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import tiltsim
+from conftest import tiltsim_cli
+
+
+def read(path: Path) -> pd.DataFrame:
+    return pd.read_csv(path, float_precision="round_trip", keep_default_na=False,
+                       na_values=["NaN", "nan"])
+
+
+def test_a_monte_carlo_sweep_is_the_command_lines_byte_for_byte(tmp_path: Path) -> None:
+    tiltsim_cli("sweep", "scenarios/paper-lqg.toml", "--samples", "4", "--seed", "3",
+                "--jobs", "2", "--out", str(tmp_path / "cli"), "--quiet")
+    df, series = tiltsim.sweep("scenarios/paper-lqg.toml", samples=4, seed=3, jobs=2,
+                               out=tmp_path / "py", series=True)
+    for name in ("samples.csv", "series.csv", "table.csv"):
+        assert (tmp_path / "py" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
+    cli = read(tmp_path / "cli" / "samples.csv")
+    assert list(df.columns) == list(cli.columns)
+    pd.testing.assert_frame_equal(df, cli, check_dtype=False)
+    cli_series = read(tmp_path / "cli" / "series.csv")
+    pd.testing.assert_frame_equal(series, cli_series, check_dtype=False)
+    # The factors spread the masses: the samples differ.
+    assert df["p_ct_standing_pct"].nunique() == 4
+
+
+def test_a_grid_sweep_without_a_directory_leaves_no_file(tmp_path: Path) -> None:
+    before = set(os.listdir(os.environ.get("TMPDIR", "/tmp")))
+    df = tiltsim.sweep("scenarios/paper-lqg.toml", grid="links.actuator_command.delay_ticks=0,20")
+    assert list(df["links.actuator_command.delay_ticks"]) == [0.0, 20.0]
+    assert list(df["status"]) == ["completed", "completed"]
+    # A delay on the command makes the ride worse.
+    assert df["p_ct_standing_pct"][1] > df["p_ct_standing_pct"][0]
+    after = set(os.listdir(os.environ.get("TMPDIR", "/tmp")))
+    assert not [n for n in after - before if n.startswith("tiltsim-py-")]
+    # The same grid as a pair and as a dict.
+    df2 = tiltsim.sweep("scenarios/paper-lqg.toml",
+                        grid=("links.actuator_command.delay_ticks", [0, 20]))
+    pd.testing.assert_frame_equal(df, df2)
+
+
+def test_an_interrupted_sweep_stops_and_keeps_the_samples_that_finished() -> None:
+    seen: list[int] = []
+
+    def progress(done: int, total: int) -> None:
+        seen.append(done)
+        if done >= 1 and len(seen) < 1000:
+            # What Ctrl-C does in a notebook: SIGINT to this process.
+            os.kill(os.getpid(), signal.SIGINT)
+
+    with pytest.raises(tiltsim.Interrupted) as e:
+        tiltsim.sweep("scenarios/paper-lqg.toml", samples=200, seed=3, jobs=2, progress=progress)
+    partial = e.value.result
+    assert isinstance(e.value, KeyboardInterrupt)
+    assert 1 <= len(partial) < 200
+    assert (partial["status"] == "completed").all()
+
+
+def test_a_callback_that_raises_interrupts_a_run_and_keeps_its_rows() -> None:
+    def progress(done: int, total: int) -> None:
+        if done > 3000:
+            raise KeyboardInterrupt
+
+    with pytest.raises(tiltsim.Interrupted) as e:
+        tiltsim.run("scenarios/paper-lqg.toml", transport="in-process", progress=progress)
+    r = e.value.result
+    assert r.status == "interrupted"
+    assert 3000 < len(r) < 16801
+
+
+def test_compare_gives_the_command_lines_table(tmp_path: Path) -> None:
+    files = ["scenarios/paper-passive.toml", "scenarios/paper-lqg.toml"]
+    tiltsim_cli("compare", *files, "--transport", "in-process", "--out", str(tmp_path / "cli"))
+    df = tiltsim.compare(files, transport="in-process", out=tmp_path / "py")
+    assert (tmp_path / "py" / "table.csv").read_bytes() == (tmp_path / "cli" / "table.csv").read_bytes()
+    cli = pd.read_csv(tmp_path / "cli" / "table.csv", float_precision="round_trip",
+                      keep_default_na=False, na_values=[""])
+    pd.testing.assert_frame_equal(df, cli)
+    assert (tmp_path / "py" / "paper-lqg" / "timeseries.csv").exists()
+    # Without a directory: the same table, no files.
+    pd.testing.assert_frame_equal(tiltsim.compare(files, transport="in-process"), cli)
+
+
+def expm(a: np.ndarray) -> np.ndarray:
+    """exp(a) by scaling and squaring of its Taylor series (independent of tiltsim's)."""
+    s = max(0, int(np.ceil(np.log2(max(np.linalg.norm(a, 1), 1e-300)))) + 1)
+    b = a / 2.0**s
+    out, term = np.eye(len(a)), np.eye(len(a))
+    for k in range(1, 30):
+        term = term @ b / k
+        out = out + term
+    for _ in range(s):
+        out = out @ out
+    return out
+
+
+def test_linearize_gives_the_design_model_and_gains_as_arrays(tmp_path: Path) -> None:
+    lin = tiltsim.linearize("scenarios/paper-lqg.toml")
+    assert lin.A.shape == (9, 9) and lin.B.shape == (9, 1) and lin.Gamma.shape == (9, 6)
+    assert lin.K.shape == (1, 10) and lin.L.shape == (9, 1)
+    tiltsim_cli("linearize", "scenarios/paper-lqg.toml", "--out", str(tmp_path / "lin.json"))
+    cli = json.loads((tmp_path / "lin.json").read_text())
+    np.testing.assert_array_equal(lin.A, np.array(cli["continuous"]["A"]))
+    np.testing.assert_array_equal(lin.K, np.array(cli["lqg"]["K_op"]))
+    # The zero-order hold: Ad = exp(A T), checked against an independent matrix exponential
+    # (the series' rounding is far below 1e-9 of the entries).
+    np.testing.assert_allclose(lin.Ad, expm(lin.A * lin.period_s), rtol=1e-9, atol=1e-12)
+    # The passive vehicle is stable; the Kalman filter's error dynamics A - L C are too.
+    assert np.linalg.eigvals(lin.A).real.max() < 0
+    assert np.linalg.eigvals(lin.A - lin.L @ lin.C).real.max() < 0
+    mpc = tiltsim.linearize("scenarios/paper-mpc.toml")
+    assert mpc.K is None and mpc.L is not None and mpc.period_s == 0.05

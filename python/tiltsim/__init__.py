@@ -1,0 +1,469 @@
+"""tiltsim for notebooks: run, sweep and compare tilt-control studies of a railway vehicle.
+
+The simulations run in this process through tiltsim's library crates (the same code as the
+``tiltsim`` command line, byte for byte the same numbers). The interpreter's lock is released
+while they run; Ctrl-C stops them within a second and raises :class:`Interrupted`.
+
+    >>> import tiltsim
+    >>> r = tiltsim.run("scenarios/paper-mpc.toml", set={"controller.mpc.output_weight": 5.0})
+    >>> r.time, r.lat_acc             # NumPy arrays, one value per row (SI units)
+    >>> r.comfort["p_ct"]["standing_pct"], r.raised_flags
+    >>> df = r.frame()                # a pandas DataFrame (pandas optional)
+
+A scenario is a path to a TOML file, TOML text, or a dict of the same tables.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import shutil
+import sys
+import sysconfig
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping, Optional, Sequence, Union
+
+import numpy as np
+
+from . import _tiltsim
+from .errors import Interrupted, ParticipantError, ScenarioError, TiltsimError
+
+__all__ = [
+    "run",
+    "sweep",
+    "compare",
+    "linearize",
+    "signals",
+    "Result",
+    "Linearization",
+    "TiltsimError",
+    "ScenarioError",
+    "ParticipantError",
+    "Interrupted",
+]
+
+__version__: str = _tiltsim.__version__
+
+Scenario = Union[str, "os.PathLike[str]", Mapping[str, Any]]
+Progress = Union[None, bool, Callable[[int, int], Any]]
+
+
+def _scenario(scenario: Scenario) -> tuple[str, str, str]:
+    """(kind, value, origin) of a scenario given as a path, TOML text or a dict."""
+    if isinstance(scenario, Mapping):
+        try:
+            text = json.dumps(scenario, allow_nan=False)
+        except (TypeError, ValueError) as e:
+            raise ScenarioError(
+                f"<dict>: {e}: allowed numbers, strings, booleans, lists and dicts"
+            ) from None
+        return ("json", text, "<dict>")
+    if isinstance(scenario, os.PathLike):
+        p = os.fspath(scenario)
+        return ("file", str(p), str(p))
+    if isinstance(scenario, str):
+        if "\n" in scenario or ("=" in scenario and not os.path.exists(scenario)):
+            return ("toml", scenario, "<string>")
+        return ("file", scenario, scenario)
+    raise ScenarioError(
+        f"scenario: a {type(scenario).__name__}: allowed a path, TOML text or a dict"
+    )
+
+
+def _setting_text(key: str, v: Any) -> str:
+    """A setting's value as the command line's ``--set KEY=VALUE`` writes it."""
+    if isinstance(v, (bool, np.bool_)):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_setting_text(key, x) for x in v) + "]"
+    raise ScenarioError(
+        f"set {key}: {v!r}: allowed a number, a word, True/False or a list of numbers"
+    )
+
+
+def _settings(set: Optional[Mapping[str, Any]]) -> list[tuple[str, str]]:
+    if set is None:
+        return []
+    if not isinstance(set, Mapping):
+        raise ScenarioError(f"set: a {type(set).__name__}: allowed a dict of KEY: VALUE")
+    return [(str(k), _setting_text(str(k), v)) for k, v in set.items()]
+
+
+def _participant_exe() -> Optional[str]:
+    """The ``tiltsim`` command that serves participant processes (the IPC transport): the
+    one named by ``TILTSIM_PARTICIPANT_EXE``, else this package's own."""
+    named = os.environ.get("TILTSIM_PARTICIPANT_EXE")
+    if named:
+        return named
+    for scripts in (sysconfig.get_path("scripts"), os.path.dirname(sys.executable)):
+        found = shutil.which("tiltsim", path=scripts)
+        if found:
+            return found
+    return None
+
+
+class _Bar:
+    """A progress bar: tqdm's when it is installed, else a line on standard error."""
+
+    def __init__(self, unit: str) -> None:
+        self.unit = unit
+        self.bar: Any = None
+        self.last = -1
+
+    def __call__(self, done: int, total: int) -> None:
+        try:
+            from tqdm.auto import tqdm
+        except ImportError:
+            percent = done * 100 // max(total, 1)
+            if percent != self.last:
+                self.last = percent
+                sys.stderr.write(f"\r{percent:3d} % of {total} {self.unit}")
+                if done >= total:
+                    sys.stderr.write("\n")
+                sys.stderr.flush()
+            return
+        if self.bar is None:
+            self.bar = tqdm(total=total, unit=self.unit)
+        self.bar.update(done - self.bar.n)
+        if done >= total:
+            self.bar.close()
+
+
+def _progress(progress: Progress, unit: str) -> Optional[Callable[[int, int], Any]]:
+    if progress is None or progress is False:
+        return None
+    if progress is True:
+        return _Bar(unit)
+    if callable(progress):
+        return progress
+    raise ScenarioError(f"progress: {progress!r}: allowed None, True or a callable(done, total)")
+
+
+def _path(p: Union[None, str, "os.PathLike[str]"]) -> Optional[str]:
+    return None if p is None else os.fspath(p)
+
+
+def _frame(columns: Mapping[str, Any]) -> Any:
+    """A pandas DataFrame of the columns, or the dict itself when pandas is not installed."""
+    try:
+        import pandas as pd
+    except ImportError:
+        return dict(columns)
+    return pd.DataFrame(dict(columns))
+
+
+_SIGNALS: list[tuple[str, str, str]] = [tuple(s) for s in _tiltsim.signals()]  # type: ignore[misc]
+
+
+def signals() -> list[tuple[str, str, str]]:
+    """Every recorded signal of a run as ``(name, unit, description)``, in column order
+    (the columns of ``timeseries.csv``; units as in ``columns.csv``)."""
+    return list(_SIGNALS)
+
+
+class Result:
+    """One run: its recorded signals as NumPy arrays and its summary.
+
+    Every signal of :func:`signals` is an attribute (``r.lat_acc``) and an item
+    (``r["lat_acc"]``): a read-only array with one value per row, row 0 at the start time and
+    row k+1 after tick k. The arrays view the rows the run recorded in place (no copy).
+    """
+
+    def __init__(self, raw: Mapping[str, Any]) -> None:
+        self._columns: dict[str, np.ndarray] = dict(raw["columns"])
+        #: The run's summary (the content of ``summary.json``), keys carrying their units.
+        self.summary: dict[str, Any] = json.loads(raw["summary"])
+        #: The directory the run wrote, or None for a run that kept no files.
+        self.out_dir: Optional[Path] = Path(raw["out_dir"]) if raw.get("out_dir") else None
+        #: Seconds the library spent in the call (from reading the scenario to the analysed
+        #: summary, temporary files removed): the rest of the call's time is the Python side's
+        #: (its arguments, the result's arrays, the summary's JSON).
+        self.library_s: float = float(raw.get("library_s", float("nan")))
+
+    @property
+    def time(self) -> np.ndarray:
+        """Simulated time of each row (s)."""
+        return self._columns["time"]
+
+    @property
+    def signals(self) -> tuple[str, ...]:
+        """The names of the recorded signals, in column order."""
+        return tuple(self._columns)
+
+    @property
+    def units(self) -> dict[str, str]:
+        """The unit of each signal (ASCII symbols; ``1`` a pure number, empty for a code)."""
+        return {name: unit for name, unit, _ in _SIGNALS}
+
+    @property
+    def status(self) -> str:
+        """How the run ended: ``completed``, ``degraded``, ``failed`` or ``interrupted``."""
+        return str(self.summary["status"])
+
+    @property
+    def comfort(self) -> dict[str, Any]:
+        """Ride comfort: P_CT (standing and seated, %), lateral acceleration and roll speed
+        statistics, as in ``summary.json``."""
+        return dict(self.summary.get("comfort") or {})
+
+    @property
+    def flags(self) -> dict[str, dict[str, Any]]:
+        """The validity checks, each with ``raised`` and its measures (oscillation, bump
+        stop, drive limit, chopper, thermal, P_CT range)."""
+        return dict(self.summary.get("flags") or {})
+
+    @property
+    def raised_flags(self) -> list[str]:
+        """The names of the validity flags this run raised: a result with any is not valid
+        as a comfort figure."""
+        return [k for k, v in self.flags.items() if isinstance(v, dict) and v.get("raised")]
+
+    @property
+    def valid(self) -> bool:
+        """Completed with no validity flag raised."""
+        return self.status == "completed" and not self.raised_flags
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self._columns[name]
+        except KeyError:
+            raise KeyError(f"{name!r}: not a signal; the signals are {', '.join(self._columns)}") from None
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        columns = self.__dict__.get("_columns", {})
+        if name in columns:
+            return columns[name]
+        raise AttributeError(f"{type(self).__name__} has no attribute or signal {name!r}")
+
+    def __dir__(self) -> Iterable[str]:
+        return sorted(set(super().__dir__()) | set(self._columns))
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+    def frame(self) -> Any:
+        """The signals as a pandas DataFrame (one column per signal; pandas copies them).
+        Raises ImportError when pandas is not installed."""
+        import pandas as pd
+
+        return pd.DataFrame(self._columns)
+
+    def __repr__(self) -> str:
+        p = (self.comfort.get("p_ct") or {}).get("standing_pct")
+        p_text = f", P_CT standing {p:.2f} %" if isinstance(p, (int, float)) else ""
+        flags = ", flags: " + ", ".join(self.raised_flags) if self.raised_flags else ""
+        return (
+            f"<tiltsim.Result {self.summary.get('scenario')!r}: {self.status}, {len(self)} rows"
+            f"{p_text}{flags}>"
+        )
+
+
+def run(
+    scenario: Scenario,
+    *,
+    set: Optional[Mapping[str, Any]] = None,
+    transport: Optional[str] = None,
+    master: Optional[str] = None,
+    seed: Optional[int] = None,
+    duration: Optional[float] = None,
+    out: Union[None, str, "os.PathLike[str]"] = None,
+    record: bool = False,
+    plots: bool = False,
+    progress: Progress = None,
+    raise_on_failure: bool = True,
+) -> Result:
+    """Runs a scenario, as ``tiltsim run`` does, and returns its :class:`Result`.
+
+    ``set`` changes scenario values by dotted key (``{"controller.mpc.output_weight": 5.0}``).
+    ``transport`` is ``"in-process"`` or ``"ipc"`` (participants as processes over shared
+    memory); ``master`` ``"gauss-seidel"`` or ``"jacobi"``; ``seed`` and ``duration`` (s)
+    override the file's. With ``out`` the run writes its files there (``timeseries.csv``,
+    ``summary.json``, ``events.csv``, and with ``plots`` its figures, with ``record`` its
+    ``run.mcap``); without, it leaves no file. ``progress`` is True for a bar or a
+    callable(done, total) called with ticks done.
+
+    Raises :class:`ScenarioError` for invalid input, :class:`ParticipantError` when the run
+    fails (its ``result`` holds what was recorded; with ``raise_on_failure=False`` the
+    result is returned instead) and :class:`Interrupted` on Ctrl-C.
+    """
+    kind, value, origin = _scenario(scenario)
+    raw = _tiltsim.run(
+        kind,
+        value,
+        origin,
+        _settings(set),
+        out=_path(out),
+        transport=transport,
+        master=master,
+        seed=seed,
+        duration=duration,
+        record=record,
+        plots=plots,
+        exe=_participant_exe(),
+        progress=_progress(progress, "ticks"),
+    )
+    result = Result(raw)
+    s = result.summary
+    if result.status == "interrupted":
+        raise Interrupted(
+            f"interrupted: {s.get('steps_completed')} of {s.get('steps_planned')} steps recorded",
+            result,
+        )
+    if result.status == "failed" and raise_on_failure:
+        raise ParticipantError(
+            f"{s.get('error') or 'run failed'}; {s.get('steps_completed')} of "
+            f"{s.get('steps_planned')} steps recorded",
+            result,
+        )
+    return result
+
+
+def sweep(
+    scenario: Scenario,
+    *,
+    samples: Optional[int] = None,
+    spread: float = 0.22,
+    seed: int = 1,
+    grid: Union[None, str, tuple[str, Sequence[float]], Mapping[str, Sequence[float]]] = None,
+    set: Optional[Mapping[str, Any]] = None,
+    jobs: Optional[int] = None,
+    transport: Optional[str] = None,
+    out: Union[None, str, "os.PathLike[str]"] = None,
+    series: bool = False,
+    progress: Progress = None,
+) -> Any:
+    """Runs many samples in parallel, as ``tiltsim sweep`` does; returns their table (the
+    columns of ``samples.csv``: ``sample_id``, the parameters, ``status``, every comfort
+    metric, ``validity_flags``) as a DataFrame (a dict of arrays without pandas).
+
+    Either ``samples=N`` (Monte Carlo: uniform factors of half-width ``spread`` on masses,
+    inertias and suspension, drawn from ``seed``) or ``grid``: ``"KEY=START:STOP:STEP"``,
+    ``"KEY=V1,V2"``, ``(KEY, values)`` or ``{KEY: values}``. ``jobs`` parallel runs (default:
+    the CPUs). With ``out`` the sweep writes its files there (the same bytes as the command
+    line). With ``series=True`` returns ``(samples, series)``, ``series`` being the tidy
+    lateral acceleration (``sample_id``, ``time``, ``lat_acc``) every 10 ms.
+
+    Raises :class:`Interrupted` on Ctrl-C, its ``result`` holding the samples that had
+    finished.
+    """
+    kind, value, origin = _scenario(scenario)
+    if isinstance(grid, str):
+        grid = _tiltsim.parse_grid(grid)
+    elif isinstance(grid, Mapping):
+        if len(grid) != 1:
+            raise ScenarioError(f"grid: {len(grid)} keys: allowed one KEY: values")
+        grid = next(iter(grid.items()))
+    if grid is not None:
+        key, values = grid
+        grid = (str(key), [float(v) for v in values])
+    raw = _tiltsim.sweep(
+        kind,
+        value,
+        origin,
+        _settings(set),
+        samples=samples,
+        spread=spread,
+        seed=seed,
+        grid=grid,
+        jobs=jobs,
+        transport=transport,
+        out=_path(out),
+        exe=_participant_exe(),
+        progress=_progress(progress, "samples"),
+    )
+    table = _frame(raw["samples"])
+    result = (table, _frame(raw["series"])) if series else table
+    if raw["interrupted"]:
+        n = len(raw["samples"]["sample_id"])
+        raise Interrupted(f"interrupted: {n} samples had finished", result)
+    return result
+
+
+def compare(
+    scenarios: Sequence[Scenario],
+    *,
+    transport: Optional[str] = None,
+    out: Union[None, str, "os.PathLike[str]"] = None,
+    progress: Progress = None,
+) -> Any:
+    """Runs each scenario and lays them out like the paper's Table 4, as ``tiltsim compare``
+    does: the rows of its ``table.csv`` (every comfort metric for each controller and the
+    ideal tilt, the differences to the ideal tilt, the validity flags and the trade-off) as
+    a DataFrame (a dict of arrays without pandas). Pivot with
+    ``df.pivot_table(index="metric", columns="column", values="value", aggfunc="first")``.
+    With ``out`` the runs, tables and figures stay there.
+    """
+    specs = [_scenario(s) for s in scenarios]
+    raw = _tiltsim.compare(
+        specs,
+        transport=transport,
+        out=_path(out),
+        exe=_participant_exe(),
+        progress=_progress(progress, "runs"),
+    )
+    for note in raw["notes"]:
+        sys.stderr.write(f"note: {note}\n")
+    text = raw["table_csv"]
+    try:
+        import pandas as pd
+    except ImportError:
+        import csv
+
+        rows = list(csv.DictReader(io.StringIO(text)))
+        return {k: [r[k] for r in rows] for k in (rows[0] if rows else {})}
+    return pd.read_csv(io.StringIO(text), float_precision="round_trip", keep_default_na=False,
+                       na_values=[""])
+
+
+class Linearization:
+    """The design model of a scenario and its controller's gains (``tiltsim linearize``).
+
+    ``A``, ``B``, ``G`` (Γ, the disturbance input), ``C``: the continuous model of the nine
+    states; ``Ad``, ``Bd``, ``Gd``, ``Cd`` its zero-order-hold discretisation at the
+    controller's period; ``K`` the state-feedback gain and ``L`` the estimator gain of an
+    LQG (``L`` alone for an MPC's Kalman filter; None where the controller has none).
+    ``report`` is the whole report as a dict.
+    """
+
+    def __init__(self, report: dict[str, Any]) -> None:
+        self.report = report
+        cont, disc = report["continuous"], report["discrete"]
+        self.A, self.B, self.G, self.C = (np.array(cont[k], dtype=float) for k in "ABGC")
+        self.Ad, self.Bd, self.Gd, self.Cd = (np.array(disc[k], dtype=float) for k in "ABGC")
+        self.period_s: float = float(disc["period_s"])
+        self.states: list[str] = list(report["states"])
+        lqg, mpc = report.get("lqg"), report.get("mpc")
+        self.K: Optional[np.ndarray] = np.array(lqg["K_op"], dtype=float) if lqg else None
+        if lqg:
+            self.L: Optional[np.ndarray] = np.array(lqg["K_est"], dtype=float)
+        elif mpc:
+            self.L = np.array(mpc["L_est"], dtype=float)
+        else:
+            self.L = None
+
+    @property
+    def Gamma(self) -> np.ndarray:
+        """Γ, the disturbance input matrix (the same as ``G``)."""
+        return self.G
+
+    def __repr__(self) -> str:
+        gains = [n for n in ("K", "L") if getattr(self, n) is not None]
+        return f"<tiltsim.Linearization {self.report.get('scenario')!r}: 9 states, gains {gains}>"
+
+
+def linearize(scenario: Scenario, *, set: Optional[Mapping[str, Any]] = None) -> Linearization:
+    """The design model and the controller's gains of a scenario, as ``tiltsim linearize``
+    reports them, as NumPy arrays (:class:`Linearization`): A, B, Γ (``G``), C of the nine
+    states, their zero-order-hold discretisation at the controller's period, and K and L
+    (LQG state feedback and Kalman gain; L alone for the MPC's Kalman filter), ready for
+    python-control (``control.ss(lin.A, lin.B, lin.C, 0)``). ``set`` changes scenario
+    values by dotted key as in :func:`run`."""
+    kind, value, origin = _scenario(scenario)
+    return Linearization(json.loads(_tiltsim.linearize(kind, value, origin, _settings(set))))
