@@ -29,7 +29,8 @@ pub struct ExportInfo {
     pub stop_s: f64,
 }
 
-fn esc(s: &str) -> String {
+/// `s` as XML attribute text: markup characters escaped, line breaks and tabs as spaces.
+pub(crate) fn esc(s: &str) -> String {
     let mut o = String::with_capacity(s.len());
     for c in s.chars() {
         match c {

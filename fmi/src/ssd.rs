@@ -10,7 +10,7 @@
 
 use std::fmt::Write as _;
 
-use crate::description::real;
+use crate::description::{esc, real};
 use crate::layout::ParamValue;
 
 /// The type of a connector.
@@ -72,21 +72,6 @@ pub struct System {
     pub components: Vec<Component>,
     /// The connections.
     pub connections: Vec<Connection>,
-}
-
-fn esc(s: &str) -> String {
-    let mut o = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => o.push_str("&amp;"),
-            '<' => o.push_str("&lt;"),
-            '>' => o.push_str("&gt;"),
-            '"' => o.push_str("&quot;"),
-            '\n' | '\r' | '\t' => o.push(' '),
-            c => o.push(c),
-        }
-    }
-    o
 }
 
 /// Why a system cannot be written as SSP 1.0.

@@ -149,6 +149,23 @@ impl Scratch {
     }
 }
 
+/// The directory a study writes into: `out` when given, else a [`Scratch`] directory for
+/// `what` (held by the caller until the study's files are no longer needed).
+fn directory(
+    py: Python<'_>,
+    out: Option<&Path>,
+    what: &str,
+) -> PyResult<(PathBuf, Option<Scratch>)> {
+    match out {
+        Some(o) => Ok((o.to_path_buf(), None)),
+        None => {
+            let s = Scratch::new(what)
+                .map_err(|e| error(py, "ParticipantError", format!("temporary directory: {e}")))?;
+            Ok((s.0.clone(), Some(s)))
+        }
+    }
+}
+
 impl Drop for Scratch {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.0);
@@ -366,16 +383,7 @@ fn run<'py>(
         ));
     }
     let exe = participant_exe(py, exe, &s)?;
-    let scratch = match &out {
-        Some(_) => None,
-        None => Some(
-            Scratch::new("run")
-                .map_err(|e| error(py, "ParticipantError", format!("temporary directory: {e}")))?,
-        ),
-    };
-    let dir = out
-        .clone()
-        .unwrap_or_else(|| scratch.as_ref().map(|d| d.0.clone()).unwrap_or_default());
+    let (dir, scratch) = directory(py, out.as_deref(), "run")?;
     let lock = match &out {
         Some(o) => Some(
             tiltsim_master::outdir::claim_run(o, "run").map_err(|e| invalid(py, e.to_string()))?,
@@ -513,16 +521,7 @@ fn sweep<'py>(
     tiltsim_studies::sweep::check_plan(&s, &plan)
         .map_err(|e| invalid(py, format!("{origin}: {e}")))?;
     let exe = participant_exe(py, exe, &s)?;
-    let scratch = match &out {
-        Some(_) => None,
-        None => Some(
-            Scratch::new("sweep")
-                .map_err(|e| error(py, "ParticipantError", format!("temporary directory: {e}")))?,
-        ),
-    };
-    let dir = out
-        .clone()
-        .unwrap_or_else(|| scratch.as_ref().map(|d| d.0.clone()).unwrap_or_default());
+    let (dir, _scratch) = directory(py, out.as_deref(), "sweep")?;
     let lock = tiltsim_master::outdir::claim(&dir, tiltsim_master::outdir::Kind::Sweep, "sweep")
         .map_err(|e| invalid(py, e.to_string()))?;
     let interrupt = Arc::new(AtomicBool::new(false));
@@ -653,16 +652,7 @@ fn compare<'py>(
         let exe = participant_exe(py, exe.clone(), &s)?;
         loaded.push((PathBuf::from(origin), s, exe));
     }
-    let scratch = match &out {
-        Some(_) => None,
-        None => Some(
-            Scratch::new("compare")
-                .map_err(|e| error(py, "ParticipantError", format!("temporary directory: {e}")))?,
-        ),
-    };
-    let dir = out
-        .clone()
-        .unwrap_or_else(|| scratch.as_ref().map(|d| d.0.clone()).unwrap_or_default());
+    let (dir, _scratch) = directory(py, out.as_deref(), "compare")?;
     let mut pairs: Vec<(PathBuf, Scenario)> = loaded
         .iter()
         .map(|(f, s, _)| (f.clone(), s.clone()))
