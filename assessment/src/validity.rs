@@ -161,6 +161,19 @@ pub struct PctRange {
     pub largest_pct: f64,
 }
 
+/// A free run that did not keep real time: its plant fell behind its own clock, so the ride it
+/// recorded is not the one the real-time system would give (the controller saw older
+/// measurements than it would have). Raised by the run, not by the series.
+#[derive(Debug, Clone, Serialize, Default, PartialEq)]
+pub struct NotRealTime {
+    /// Raised.
+    pub raised: bool,
+    /// The plant's largest start lateness (s).
+    pub plant_max_lateness_s: f64,
+    /// The lateness above which a run is not real-time (s).
+    pub margin_s: f64,
+}
+
 /// Every flag of a run.
 #[derive(Debug, Clone, Serialize, Default, PartialEq)]
 pub struct Flags {
@@ -176,6 +189,10 @@ pub struct Flags {
     pub thermal: Thermal,
     /// P_CT above 100 %.
     pub p_ct_range: PctRange,
+    /// A free run's real-time judgement (absent for lock-step runs, whose values do not
+    /// depend on time).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_real_time: Option<NotRealTime>,
 }
 
 /// One row's inputs to the flags.
@@ -354,6 +371,7 @@ impl Flagger {
                 raised: largest > 100.0,
                 largest_pct: largest,
             },
+            not_real_time: None,
         }
     }
 }
@@ -368,6 +386,10 @@ impl Flags {
             (self.chopper.raised, "chopper"),
             (self.thermal.raised, "thermal"),
             (self.p_ct_range.raised, "P_CT > 100 %"),
+            (
+                self.not_real_time.as_ref().is_some_and(|n| n.raised),
+                "not real-time",
+            ),
         ]
         .into_iter()
         .filter_map(|(r, n)| r.then_some(n))
@@ -380,9 +402,27 @@ impl Flags {
         self.oscillation.raised || self.bump_stop.raised
     }
 
+    /// A free run that fell behind real time: its comfort numbers do not answer the
+    /// real-time question (what the passengers of the real system would feel).
+    pub fn not_real_time(&self) -> bool {
+        self.not_real_time.as_ref().is_some_and(|n| n.raised)
+    }
+
+    /// Whether the comfort numbers are to be shown as not valid (never as plain results).
+    pub fn comfort_not_valid(&self) -> bool {
+        self.ride_invalid() || self.not_real_time()
+    }
+
     /// One line per raised flag, with its value.
     pub fn describe(&self) -> Vec<String> {
         let mut v = Vec::new();
+        if let Some(n) = self.not_real_time.as_ref().filter(|n| n.raised) {
+            v.push(format!(
+                "not real-time: a plant step started {:.1} ms after it was due (more than {:.1} ms): the ride is not the real-time system's",
+                n.plant_max_lateness_s * 1e3,
+                n.margin_s * 1e3
+            ));
+        }
         let o = &self.oscillation;
         if o.raised {
             v.push(format!(

@@ -15,13 +15,15 @@
 //! [`faults`] (process faults), [`events`] (`events.csv`), [`degraded`] (stand-ins for a
 //! lost participant), [`roles`] (a value per role), [`engine`] (launch, lock-step, team,
 //! manipulators, algorithms, observers, summary), [`record`] (`timeseries.csv`),
-//! [`export_mcap`] (`run.mcap` from a finished run), [`replay`] (one participant against its
+//! [`export_mcap`] (`run.mcap` from a finished run), [`budget`] (a run's outputs against the
+//! disk's free space, checked before it starts), [`replay`] (one participant against its
 //! recorded inputs), [`outdir`] (one run per output directory), [`export_fmu`] (a scenario's
 //! participant as an FMU), [`export_ssp`] (a scenario as an SSP system of FMUs), [`files`] and
 //! [`signals`] (atomic writes, interrupting signals).
 //! The comfort and validity results the summary carries come from `tiltsim-assessment`;
 //! filling them, and drawing figures, is the caller's step (`tiltsim-report`).
 
+pub mod budget;
 pub mod columns;
 pub mod degraded;
 pub mod engine;

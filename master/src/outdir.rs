@@ -61,6 +61,9 @@ pub const RUN_PLOTS: [&str; 5] = [
     "motor",
     "latency_histogram",
 ];
+/// The directory of a run's participant logs: `logs/ROLE.log`, the standard error of each
+/// participant process (kept only when it wrote something; `engine::finish_logs`).
+pub const RUN_LOGS: &str = "logs";
 /// Files of `tiltsim replay` in `replay-ROLE/` of a run's directory (`ROLE` stands for the role).
 pub const REPLAY_FILES: [&str; 2] = ["replay.json", "ROLE-out.jsonl"];
 /// Files of a sweep (or a shard, or a merged sweep).
@@ -439,12 +442,19 @@ pub fn clear_plots(dir: &Path, stems: &[&str]) -> Result<usize, OutDirError> {
 }
 
 /// Removes every file a run writes from `dir` (its series, summaries, events, scenario,
-/// trace, recording, figures and the replays of its recording): called by a run before it
+/// trace, recording, figures, participant logs and the replays of its recording): called by a run before it
 /// writes, so that what it does not write again (`run.mcap` without `--record`, figures of an
 /// interrupted run, ...) is not left from an earlier one. Returns how many files went.
 pub fn clear_run(dir: &Path) -> Result<usize, OutDirError> {
     let mut n = remove_named(dir, &names(&RUN_FILES))?;
     n += clear_plots(dir, &RUN_PLOTS)?;
+    let logs = dir.join(RUN_LOGS);
+    let files: Vec<String> = cosim::Role::ALL
+        .iter()
+        .map(|r| format!("{}.log", r.name()))
+        .collect();
+    n += remove_named(&logs, &files)?;
+    remove_if_empty(&logs);
     for role in cosim::Role::ALL {
         let sub = dir.join(format!("replay-{}", role.name()));
         let files: Vec<String> = REPLAY_FILES
@@ -570,6 +580,7 @@ mod tests {
         let d = temp("clear");
         std::fs::create_dir_all(d.join("plots")).unwrap();
         std::fs::create_dir_all(d.join("replay-plant")).unwrap();
+        std::fs::create_dir_all(d.join("logs")).unwrap();
         for f in [
             "run.mcap",
             "trace.csv",
@@ -580,13 +591,16 @@ mod tests {
             "plots/mine.svg",
             "replay-plant/replay.json",
             "replay-plant/plant-out.jsonl",
+            "logs/plant.log",
+            "logs/controller.log",
         ] {
             std::fs::write(d.join(f), "x").unwrap();
         }
-        assert_eq!(clear_run(&d).unwrap(), 7);
+        assert_eq!(clear_run(&d).unwrap(), 9);
         assert!(d.join("notes.txt").exists() && d.join("plots/mine.svg").exists());
         assert!(!d.join("run.mcap").exists() && !d.join("replay-plant").exists());
         assert!(!d.join("timing.csv").exists());
+        assert!(!d.join("logs").exists());
         let _ = std::fs::remove_dir_all(&d);
     }
 }

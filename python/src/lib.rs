@@ -340,6 +340,17 @@ fn participant_exe(py: Python<'_>, exe: Option<String>, s: &Scenario) -> PyResul
     }
 }
 
+/// The exception of a job that could not be carried out.
+fn job_error(py: Python<'_>, e: tiltsim_report::pipeline::JobError, origin: &str) -> PyErr {
+    use tiltsim_report::pipeline::JobError;
+    match e {
+        JobError::Run(r) => run_error(py, r, origin),
+        JobError::Invalid(m) => invalid(py, m),
+        JobError::Trace(t) => invalid(py, t.to_string()),
+        JobError::Failed(m) => error(py, "ParticipantError", format!("{origin}: {m}")),
+    }
+}
+
 /// The message of a run that could not start or end.
 fn run_error(py: Python<'_>, e: RunError, origin: &str) -> PyErr {
     match e {
@@ -354,7 +365,7 @@ fn run_error(py: Python<'_>, e: RunError, origin: &str) -> PyErr {
 #[pyfunction]
 #[pyo3(signature = (kind, value, origin, settings, out=None, transport=None, master=None,
                     seed=None, duration=None, record=false, plots=false, exe=None,
-                    progress=None))]
+                    progress=None, execution=None, replay_trace=None))]
 #[allow(clippy::too_many_arguments)]
 fn run<'py>(
     py: Python<'py>,
@@ -371,25 +382,38 @@ fn run<'py>(
     plots: bool,
     exe: Option<String>,
     progress: Option<Bound<'py, PyAny>>,
+    execution: Option<String>,
+    replay_trace: Option<PathBuf>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let started = std::time::Instant::now();
-    let s = scenario_with(
+    let mut s = scenario_with(
         py, kind, value, origin, settings, transport, master, seed, duration,
     )?;
-    if s.run.execution == tiltsim_master::scenario::Execution::Free {
-        return Err(invalid(
-            py,
-            format!("{origin}: run.execution = \"free\": a free run is started with `tiltsim run --free-run`; from Python, allowed \"lockstep\""),
-        ));
+    match execution.as_deref() {
+        None => {}
+        Some("lock-step") | Some("lockstep") => {
+            s.run.execution = tiltsim_master::scenario::Execution::LockStep
+        }
+        Some("free") => s.run.execution = tiltsim_master::scenario::Execution::Free,
+        Some(other) => {
+            return Err(invalid(
+                py,
+                format!("execution = \"{other}\": allowed \"lock-step\" or \"free\""),
+            ))
+        }
+    }
+    if replay_trace.is_some() {
+        // The replay is a lock-step run; a study's busy wait changes no value.
+        s.run.execution = tiltsim_master::scenario::Execution::LockStep;
+        s.run.controller_busy_wait_s = 0.0;
+    }
+    let errors = s.validate();
+    if !errors.is_empty() {
+        let lines: Vec<String> = errors.iter().map(|e| format!("{origin}: {e}")).collect();
+        return Err(invalid(py, lines.join("\n")));
     }
     let exe = participant_exe(py, exe, &s)?;
     let (dir, scratch) = directory(py, out.as_deref(), "run")?;
-    let lock = match &out {
-        Some(o) => Some(
-            tiltsim_master::outdir::claim_run(o, "run").map_err(|e| invalid(py, e.to_string()))?,
-        ),
-        None => None,
-    };
     let interrupt = Arc::new(AtomicBool::new(false));
     let ticks = Arc::new(AtomicU64::new(0));
     let mut opts = RunOptions::new(dir.clone(), exe);
@@ -406,47 +430,39 @@ fn run<'py>(
         &interrupt,
         (&|| ticks.load(Ordering::Relaxed), steps),
         progress.as_ref(),
-        {
-            let dir = dir.clone();
-            move || {
-                if keep_files {
-                    let mut kept = Ok(());
-                    tiltsim_report::analysis::run_then(&s, &file, &opts, |sm| {
-                        kept = write_json(&dir.join("summary.json"), sm);
-                    })
-                    .map(|sm| {
-                        // What the run wrote is what the arrays hold.
-                        let rows = tiltsim_master::record::read_rows(&dir);
-                        let kept = kept.and(
-                            rows.as_ref()
-                                .map(|_| ())
-                                .map_err(|e| std::io::Error::new(e.kind(), e.to_string())),
-                        );
-                        ((sm, rows.unwrap_or_default()), kept)
-                    })
-                } else {
-                    tiltsim_report::analysis::run_keeping_rows(&s, &file, &opts)
-                        .map(|r| (r, Ok(())))
+        move || {
+            let mut job = tiltsim_report::pipeline::Job::new(&s, file, opts);
+            job.replay_trace = replay_trace;
+            // Without `out` the run writes into a scratch directory removed afterwards.
+            job.claim = keep_files;
+            tiltsim_report::pipeline::carry_out(&job).and_then(|done| {
+                if !keep_files {
+                    return Ok(done);
                 }
-            }
+                // What the run wrote is what the arrays hold.
+                let rows = tiltsim_master::record::read_rows(&job.opts.out_dir).map_err(|e| {
+                    tiltsim_report::pipeline::JobError::Failed(format!(
+                        "{}: {e}",
+                        job.opts.out_dir.display()
+                    ))
+                })?;
+                Ok(tiltsim_report::pipeline::Done { rows, ..done })
+            })
         },
     );
-    drop(lock);
     drop(scratch);
     let library_s = started.elapsed().as_secs_f64();
-    let ((summary, rows), kept) = ran.map_err(|e| run_error(py, e, origin))?;
+    let done = ran.map_err(|e| job_error(py, e, origin))?;
     if let Some(e) = raised {
         if !e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py) {
             return Err(e);
         }
     }
-    if let Err(e) = kept {
-        return Err(error(
-            py,
-            "ParticipantError",
-            format!("{}: {e}", dir.display()),
-        ));
+    for w in &done.warnings {
+        let warnings = py.import("warnings")?;
+        warnings.call_method1("warn", (w.as_str(),))?;
     }
+    let (summary, rows) = (done.summary, done.rows);
     let result = PyDict::new(py);
     result.set_item(
         "summary",
@@ -456,11 +472,6 @@ fn run<'py>(
     result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
     result.set_item("library_s", library_s)?;
     Ok(result)
-}
-
-fn write_json<T: serde::Serialize>(path: &Path, v: &T) -> std::io::Result<()> {
-    let text = serde_json::to_string_pretty(v).unwrap_or_default() + "\n";
-    tiltsim_master::files::write_atomic(path, text)
 }
 
 /// Runs a sweep; returns its samples' columns (as `samples.csv` has them), the tidy lateral

@@ -1,109 +1,12 @@
-//! Analysis of a run, composed by the caller after the engine has run (or on a finished run's
-//! directory): the quick look, ride comfort, validity flags and figures, all read back from
+//! Analysis of a run, composed by the run pipeline after the engine has run
+//! ([`crate::pipeline`]), or on a finished run's directory: the quick look, ride comfort, validity flags and figures, all read back from
 //! `timeseries.csv` as typed rows (or from the rows a sweep's sample kept in memory).
 
 use std::path::{Path, PathBuf};
 
-use tiltsim_master::engine::{
-    LatencyHistogram, QuickLook, Ran, RunError, RunOptions, Status, Summary,
-};
-use tiltsim_master::record::{Row, Rows};
+use tiltsim_master::engine::{LatencyHistogram, QuickLook};
+use tiltsim_master::record::Rows;
 use tiltsim_master::scenario::Scenario;
-
-/// Runs `s` with the engine, then completes its summary with the analysis of what it recorded
-/// and, when `opts.plots`, draws its figures (see [`run_then`]).
-pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summary, RunError> {
-    run_then(s, scenario_file, opts, |_| {})
-}
-
-/// [`run`] with the rows kept in memory (`opts.keep_rows` must be set; no `timeseries.csv`, no
-/// figures): the summary and the rows. A sweep's samples run this way.
-pub fn run_keeping_rows(
-    s: &Scenario,
-    scenario_file: &str,
-    opts: &RunOptions,
-) -> Result<(Summary, Vec<Row>), RunError> {
-    debug_assert!(opts.keep_rows);
-    run_inner(s, scenario_file, opts, |_| {})
-}
-
-/// [`run`], calling `keep` with the analysed summary before the figures are drawn: the
-/// caller writes `summary.json` there, so that on a nearly full disk the summary takes the
-/// space before the figures do.
-pub fn run_then(
-    s: &Scenario,
-    scenario_file: &str,
-    opts: &RunOptions,
-    keep: impl FnOnce(&Summary),
-) -> Result<Summary, RunError> {
-    Ok(run_inner(s, scenario_file, opts, keep)?.0)
-}
-
-/// [`run_then`], also returning the rows kept in memory (empty when they went to a file).
-fn run_inner(
-    s: &Scenario,
-    scenario_file: &str,
-    opts: &RunOptions,
-    keep: impl FnOnce(&Summary),
-) -> Result<(Summary, Vec<Row>), RunError> {
-    let Ran {
-        mut summary,
-        recording,
-        rows,
-        latency_histogram: latency,
-    } = tiltsim_master::engine::run_recorded(s, scenario_file, opts)?;
-    // With `--trace`: a figure that cannot be written fails the run, as the trace would.
-    if let Some(h) = latency {
-        if let Err(e) = latency_histogram(&opts.out_dir, &h) {
-            if summary.error.is_none() {
-                summary.status = Status::Failed;
-                summary.error = Some(format!("cannot write {e}"));
-            }
-        }
-    }
-    let kept = rows.unwrap_or_default();
-    // The recording closes with the summary as the caller keeps it (analysed or not).
-    let keep = |sm: &Summary| {
-        keep(sm);
-        if let Some(r) = recording {
-            match r.finish(sm) {
-                Ok(p) => tracing::info!("recorded {}", p.display()),
-                Err(e) => tracing::warn!("recording not completed: {e}"),
-            }
-        }
-    };
-    // An interrupted run ends at once: an hour's series takes tens of seconds to analyse.
-    // `tiltsim plot DIR` draws it later; the summary says the analysis was skipped.
-    if opts.interrupt.load(std::sync::atomic::Ordering::Relaxed) {
-        summary.analysis_skipped = Some(format!(
-            "interrupted by {}: comfort, flags and figures not computed",
-            tiltsim_master::signals::describe()
-        ));
-        keep(&summary);
-        return Ok((summary, kept));
-    }
-    let source = if opts.keep_rows {
-        Rows::Kept(&kept)
-    } else {
-        Rows::File(&opts.out_dir)
-    };
-    analyse(s, source, &mut summary);
-    if tiltsim_master::signals::received() {
-        summary.analysis_skipped = Some(format!(
-            "interrupted by {} during the analysis: comfort and flags incomplete, figures not drawn",
-            tiltsim_master::signals::describe()
-        ));
-        keep(&summary);
-        return Ok((summary, kept));
-    }
-    keep(&summary);
-    if opts.plots && !opts.keep_rows {
-        if let Err(e) = write_plots(s, &opts.out_dir) {
-            tracing::warn!("plots not written: {e}");
-        }
-    }
-    Ok((summary, kept))
-}
 
 /// What the analysis of a recorded series finds: the quick look, ride comfort and the
 /// validity flags.
@@ -115,20 +18,6 @@ pub struct Assessment {
     pub comfort: tiltsim_assessment::comfort::Comfort,
     /// Whether the numbers are valid.
     pub flags: tiltsim_assessment::validity::Flags,
-}
-
-/// Fills `results`, `comfort` and `flags` of `summary` from the series recorded in `rows`
-/// (see [`assess`]); leaves them as they are when the series cannot be read.
-pub fn analyse(s: &Scenario, rows: Rows, summary: &mut Summary) {
-    match assess(s, rows) {
-        Ok(a) => {
-            summary.results = a.results;
-            summary.comfort = a.comfort;
-            summary.flags = a.flags;
-        }
-        // Results from part of a series would read as the run's: none are given.
-        Err(e) => tracing::warn!("comfort, flags and results not computed: {e}"),
-    }
 }
 
 /// The quick look, ride comfort and flags of the series recorded in `rows` (works on partial
@@ -353,9 +242,12 @@ pub fn write_timing_plots(s: &Scenario, dir: &Path) -> std::io::Result<Vec<PathB
     }
     let steps = s.steps();
     let period = s.controller_period_ticks();
-    let (_, trace) = tiltsim_master::free::trace::read(&path, s.run.dt_s, steps, period)
+    let trace = tiltsim_master::free::trace::read(&path, s.run.dt_s, steps, period)
         .map_err(|e| std::io::Error::other(e.to_string()))?;
-    crate::plot::write_timing_plots(dir, &s.name, &trace, steps, s.run.dt_s, period)
+    if let Some(why) = trace.partial {
+        return Err(std::io::Error::other(format!("{}: {why}", path.display())));
+    }
+    crate::plot::write_timing_plots(dir, &s.name, &trace.steps, steps, s.run.dt_s, period)
 }
 
 /// Writes the figures that put several runs side by side (`out/plots/compare_*`): lateral

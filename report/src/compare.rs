@@ -138,6 +138,12 @@ fn cell_flags(e: &Entry, r: usize, v: f64) -> Vec<String> {
     if METRICS[r].is_p_ct && v > 100.0 {
         tags.push("P_CT > 100 %".into());
     }
+    if let Some(n) = f.not_real_time.as_ref().filter(|n| n.raised) {
+        tags.push(format!(
+            "not real-time (plant {:.1} ms late)",
+            n.plant_max_lateness_s * 1e3
+        ));
+    }
     tags
 }
 

@@ -101,14 +101,18 @@ impl Comparison {
         let _lock = outdir::claim_run(&dir, "compare").map_err(invalid)?;
         let mut opts = base.clone();
         opts.out_dir = dir.clone();
-        let summary =
-            crate::analysis::run(&s, &file.display().to_string(), &opts).map_err(|e| match e {
-                tiltsim_master::engine::RunError::Interrupted { .. } => {
-                    CompareError::Interrupted(format!("{}: {e}", file.display()))
-                }
-                e => CompareError::Failed(format!("{}: {e}", file.display())),
-            })?;
-        write_json(&dir.join("summary.json"), &summary)?;
+        let mut job = crate::pipeline::Job::new(&s, file.display().to_string(), opts);
+        job.claim = false;
+        let done = crate::pipeline::carry_out(&job).map_err(|e| match e {
+            crate::pipeline::JobError::Run(tiltsim_master::engine::RunError::Interrupted {
+                ..
+            }) => CompareError::Interrupted(format!("{}: {e}", file.display())),
+            e => CompareError::Failed(format!("{}: {e}", file.display())),
+        })?;
+        for w in &done.warnings {
+            tracing::warn!("{w}");
+        }
+        let summary = done.summary;
         match summary.status {
             Status::Completed | Status::Degraded => {}
             Status::Interrupted => {

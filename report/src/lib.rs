@@ -1,11 +1,13 @@
 //! `tiltsim-report`: what a run shows, read from what it recorded. It takes the master's
-//! typed rows and summaries and starts no process of its own; [`analysis::run`] is the one
-//! entry that runs a scenario (through `tiltsim_master::engine`) and then reports on it.
+//! typed rows and summaries; [`pipeline::carry_out`] is the one entry that runs a scenario
+//! (lock-step, free, or a replay of a free run's timing, through `tiltsim_master`) and then
+//! reports on it, for every front end.
 //!
 //! A caller uses:
-//! * [`analysis::run`] / [`analysis::run_then`]: run a scenario, then fill the summary's
-//!   quick look, comfort and flags from its rows and draw its figures;
-//! * [`analysis::analyse`] and [`analysis::write_plots`] on a finished run's directory;
+//! * [`pipeline::carry_out`] with a [`pipeline::Job`]: run a scenario into a directory (or
+//!   with its rows in memory), then fill the summary's quick look, comfort and flags from its
+//!   rows, write `summary.json` and `perf.json` and draw its figures;
+//! * [`analysis::assess`] and [`analysis::write_plots`] on a finished run's directory;
 //! * [`compare::entry`] and [`compare::tables`]: the paper's Table 4 from several runs;
 //! * [`linearize::report`]: the controllers' linear design model and the PI loop's margins;
 //! * [`plot`]: one chart layout written as SVG and rendered to PNG.
@@ -14,4 +16,5 @@ pub mod analysis;
 pub mod compare;
 pub mod comparison;
 pub mod linearize;
+pub mod pipeline;
 pub mod plot;

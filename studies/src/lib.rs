@@ -8,5 +8,5 @@
 //! * [`budget`]: what a run will write, estimated before it starts ([`budget::check`]).
 
 pub mod bench;
-pub mod budget;
+pub use tiltsim_master::budget;
 pub mod sweep;

@@ -125,15 +125,27 @@ fn node(cfg: &Config, name: &str) -> Result<Node<ipc::Service>, IpcError> {
         .map_err(iox("create node"))
 }
 
-/// Samples a subscriber holds before the oldest is overwritten. The lock-step has one in
-/// flight; a free run's participants publish without waiting for the hub, which may be
-/// starved by other load: 1024 replies are a second of plant steps before one is lost (and a
-/// lost one ends the run, named, instead of leaving a gap in the trace).
+/// Samples a subscriber holds. The lock-step has one in flight; a free run's participants
+/// publish without waiting for the hub, and a participant that catches up after a stall sends
+/// a burst: a full reply buffer holds its publisher back ([`Direction::Reply`]) until the hub
+/// has drained it, so no reply is ever lost to the buffer's size.
 const BUFFER: usize = 1024;
+
+/// Which way a service carries samples, and so what a full subscriber buffer does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Direction {
+    /// Orchestrator to participant: the oldest request is overwritten (a free-running
+    /// consumer reads only the newest input; the lock-step has one request in flight).
+    Request,
+    /// Participant to orchestrator: never overwritten; the participant's publisher waits for
+    /// room ([`reply_publisher`]), since every reply is a step of the record.
+    Reply,
+}
 
 fn service<T: Message>(
     node: &Node<ipc::Service>,
     name: &str,
+    direction: Direction,
 ) -> Result<PubSubFactory<ipc::Service, T, ()>, IpcError> {
     let name: ServiceName = name.try_into().map_err(iox("service name"))?;
     node.service_builder(&name)
@@ -142,8 +154,36 @@ fn service<T: Message>(
         .max_subscribers(1)
         .history_size(0)
         .subscriber_max_buffer_size(BUFFER)
+        .enable_safe_overflow(direction == Direction::Request)
         .open_or_create()
         .map_err(iox("open or create service"))
+}
+
+/// Pause of a participant whose reply buffer is full before it tries again.
+const BACKPRESSURE_NAP: std::time::Duration = std::time::Duration::from_micros(100);
+
+/// The participant's reply publisher: when the orchestrator's buffer is full it waits, a nap at
+/// a time, for the orchestrator to drain it, and gives the sample up only when the
+/// orchestrator (process `parent`) has gone. The wait is part of the step's publish instant, so
+/// a free run's trace records it as timing like any other.
+fn reply_publisher<T: Message>(
+    factory: &PubSubFactory<ipc::Service, T, ()>,
+    parent: libc::pid_t,
+) -> Result<iceoryx2::port::publisher::Publisher<ipc::Service, T, ()>, IpcError> {
+    use iceoryx2::port::{BackpressureAction, BackpressureInfo};
+    factory
+        .publisher_builder()
+        .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
+        .set_backpressure_handler(move |_: &BackpressureInfo| {
+            // SAFETY: getppid has no preconditions.
+            if unsafe { libc::getppid() } != parent {
+                return BackpressureAction::DiscardDataAndFail;
+            }
+            std::thread::sleep(BACKPRESSURE_NAP);
+            BackpressureAction::Retry
+        })
+        .create()
+        .map_err(iox("create publisher"))
 }
 
 fn request_service(role: Role) -> String {

@@ -11,8 +11,8 @@ use crate::wait::{sleep_until_ns, Backoff, Cadence, WaitStrategy};
 
 use super::supervise::{Status, StatusWords};
 use super::{
-    config, iox, node, pin_to_cpu, quiet_iceoryx_logs, reply_service, request_service, service,
-    DropPlan, IpcError,
+    config, iox, node, pin_to_cpu, quiet_iceoryx_logs, reply_publisher, reply_service,
+    request_service, service, Direction, DropPlan, IpcError,
 };
 
 /// Participant side: serves requests for model `p` until asked to stop.
@@ -59,16 +59,13 @@ pub(crate) fn serve_dropping<P: Participant>(
     let parent = unsafe { libc::getppid() };
     let cfg = config(prefix)?;
     let node = node(&cfg, role.process_name())?;
-    let req = service::<P::Input>(&node, &request_service(role))?;
-    let rep = service::<P::Output>(&node, &reply_service(role))?;
+    let req = service::<P::Input>(&node, &request_service(role), Direction::Request)?;
+    let rep = service::<P::Output>(&node, &reply_service(role), Direction::Reply)?;
     let subscriber = req
         .subscriber_builder()
         .create()
         .map_err(iox("create subscriber"))?;
-    let publisher = rep
-        .publisher_builder()
-        .create()
-        .map_err(iox("create publisher"))?;
+    let publisher = reply_publisher(&rep, parent)?;
 
     // Steps must arrive in increasing order after Init; multi-rate participants are asked only
     // on their own ticks, so the next step may be any later one.

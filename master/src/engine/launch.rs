@@ -1,6 +1,7 @@
 //! Launch and shut-down of the participants: their settings derived from the scenario, the
 //! endpoints over either transport, and what each exit left behind.
 
+use std::path::Path;
 use std::time::Duration;
 
 use actuator_proc::{Actuator, ActuatorInit};
@@ -242,7 +243,8 @@ fn start_processes(
         ceiling: Duration::from_millis(s.run.hang_ceiling_ms),
         participant_cpu: plan.map(|p| p.1),
     })?
-    .interrupted_by(opts.interrupt.clone());
+    .interrupted_by(opts.interrupt.clone())
+    .logs_into(opts.out_dir.join(crate::outdir::RUN_LOGS));
     if let Some((own, _)) = plan {
         cosim::ipc::pin_to_cpu(own);
     }
@@ -275,6 +277,33 @@ fn start_processes(
         hub: Some(hub),
         shares_cpu: RoleMap::default(),
     })
+}
+
+/// Ends the participant logs of the run in `out_dir` (`logs/ROLE.log`, each participant
+/// process's standard error), once its participants have stopped: removes the empty ones, and
+/// `logs/` when that empties it, and returns the others as paths relative to `out_dir`
+/// (`logs/plant.log`), in role order, for the run's outcome to name. A run whose directory is
+/// removed afterwards (a sweep's sample, a run from Python without a directory) loses its logs
+/// with it.
+pub fn finish_logs(out_dir: &Path) -> Vec<String> {
+    let logs = out_dir.join(crate::outdir::RUN_LOGS);
+    let mut kept = Vec::new();
+    for role in Role::ALL {
+        let path = IpcHub::log_file(&logs, role);
+        match std::fs::metadata(&path) {
+            Ok(m) if m.len() == 0 => {
+                let _ = std::fs::remove_file(&path);
+            }
+            Ok(_) => {
+                if let Ok(rel) = path.strip_prefix(out_dir) {
+                    kept.push(rel.display().to_string());
+                }
+            }
+            Err(_) => {}
+        }
+    }
+    crate::outdir::remove_if_empty(&logs);
+    kept
 }
 
 /// How the process of `role` is started: `participant ROLE --params PARAMS`, or, for an FMU,

@@ -28,10 +28,11 @@ use std::time::Instant;
 use cosim::msg::now_ns;
 use cosim::{LinkError, Role};
 
-pub use launch::Inits;
+pub use launch::{finish_logs, Inits};
 pub use options::{RunError, RunOptions, Status};
 pub use summary::{
-    CpuTime, LinkLatency, PacingReport, ParticipantReport, QuickLook, SolverReport, Summary, Timing,
+    CpuTime, LinkLatency, PacingReport, ParticipantReport, QuickLook, RunMode, SolverReport,
+    Summary, Timing,
 };
 
 use crate::events::EventLog;
@@ -331,13 +332,15 @@ struct Ended {
     pids: RoleMap<u32>,
     counts: RoleMap<cosim::endpoint::ExchangeCounts>,
     leftover: Vec<String>,
+    participant_logs: Vec<String>,
     degraded: bool,
 }
 
-/// Stops every participant, removes the run's shared-memory files and restores this
-/// process's CPU set.
+/// Stops every participant, removes the run's shared-memory files and the empty participant
+/// logs in `out_dir`, and restores this process's CPU set.
 fn shut_down(
     mut team: Team,
+    out_dir: &std::path::Path,
     prefix: &str,
     cpus: &[usize],
     outcome: Result<(), Stop>,
@@ -354,6 +357,7 @@ fn shut_down(
     }
     let degraded = team.degraded();
     let mut leftover = Vec::new();
+    let mut participant_logs = Vec::new();
     if let Some(hub) = team.ps.hub.take() {
         hub.cleanup_dead();
         drop(team);
@@ -363,6 +367,7 @@ fn shut_down(
             .iter()
             .map(|p| p.display().to_string())
             .collect();
+        participant_logs = finish_logs(out_dir);
     }
     if !cpus.is_empty() {
         cosim::ipc::set_cpus(cpus);
@@ -375,6 +380,7 @@ fn shut_down(
         pids,
         counts,
         leftover,
+        participant_logs,
         degraded,
     }
 }
@@ -439,7 +445,13 @@ pub fn run_recorded(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Res
     // `start` may pin this process to one CPU for the run; the set is restored afterwards so
     // a process that runs several scenarios (sweeps, benchmarks) starts each one alike.
     let cpus = cosim::ipc::allowed_cpus();
-    let ps = launch::start(s, opts, &prefix)?;
+    let ps = launch::start(s, opts, &prefix).inspect_err(|_| {
+        // Participants that were started are stopped by now; the log of one that ended while
+        // starting stays (its error quotes its last line).
+        if s.run.transport == Transport::Ipc {
+            finish_logs(&opts.out_dir);
+        }
+    })?;
     let mut team = Team::new(s, ps);
     team.timed = opts.timing;
     let mut obs = Observers::new(s, opts, outputs);
@@ -462,7 +474,7 @@ pub fn run_recorded(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Res
     }
     let mut events = EventLog::default();
     std::mem::swap(&mut events, &mut team.events);
-    let ended = shut_down(team, &prefix, &cpus, outcome, wall, cpu0);
+    let ended = shut_down(team, &opts.out_dir, &prefix, &cpus, outcome, wall, cpu0);
     // Outputs after the loop: each failure is kept for the summary, none skips another.
     let mut write_errors = Vec::new();
     if let Err(e) = events.write(&opts.out_dir.join("events.csv")) {
@@ -505,41 +517,19 @@ fn report(
     rows: u64,
 ) -> Summary {
     let (status, error) = status(&e, opts);
-    let participants = participants(s, &mut obs, &e);
-    let simulated = rows as f64 * s.run.dt_s;
-    Summary {
-        tiltsim_version: env!("CARGO_PKG_VERSION"),
-        scenario: s.name.clone(),
-        scenario_file: scenario_file.to_string(),
-        seed: s.run.seed,
-        transport: s.run.transport,
-        master_algorithm: s.run.master,
-        wait_strategy: s.run.wait,
-        status,
-        error,
-        participants,
-        dt_s: s.run.dt_s,
-        steps_planned: s.steps(),
-        steps_completed: rows,
-        simulated_time_s: simulated,
-        wall_time_s: e.wall,
-        realtime_factor: if e.wall > 0.0 {
-            simulated / e.wall
-        } else {
-            0.0
-        },
-        timing: timing(&mut obs, &e),
-        results: QuickLook::default(),
-        link_latency: obs.latency.report(),
-        pacing: obs.pacing.as_mut().map(|p| p.report(rows, e.wall)),
-        controller_solver: obs.compute.solver(),
-        comfort: Default::default(),
-        flags: Default::default(),
-        analysis_skipped: None,
-        ipc_prefix: prefix.to_string(),
-        leftover_ipc_files: e.leftover,
-        wall_clock_fields: summary::WALL_CLOCK_FIELDS,
-    }
+    let mut sm = Summary::blank(s, scenario_file, summary::RunMode::LockStep);
+    sm.status = status;
+    sm.error = error;
+    sm.participants = participants(s, &mut obs, &e);
+    sm.set_progress(rows, e.wall);
+    sm.timing = timing(&mut obs, &e);
+    sm.link_latency = obs.latency.report();
+    sm.pacing = obs.pacing.as_mut().map(|p| p.report(rows, e.wall));
+    sm.controller_solver = obs.compute.solver();
+    sm.ipc_prefix = prefix.to_string();
+    sm.leftover_ipc_files = e.leftover;
+    sm.participant_logs = e.participant_logs;
+    sm
 }
 
 /// How the run ended, in the summary's words: an interrupt (even one that ended a

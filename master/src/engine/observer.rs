@@ -84,7 +84,8 @@ impl RowRecorder {
         self.put(Row::at_start(self.dt, &held.p, &held.a, &held.c))
     }
 
-    fn put(&mut self, row: Row) -> std::io::Result<()> {
+    /// Writes one row.
+    pub fn put(&mut self, row: Row) -> std::io::Result<()> {
         match &mut self.to {
             RowSink::File(r) => r.write(&row),
             RowSink::Kept(v) => {

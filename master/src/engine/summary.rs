@@ -86,6 +86,8 @@ pub struct Summary {
     pub master_algorithm: Master,
     /// Wait strategy.
     pub wait_strategy: WaitStrategy,
+    /// How the run was carried out.
+    pub execution: RunMode,
     /// Outcome.
     pub status: Status,
     /// The failure, naming participant and step.
@@ -126,9 +128,94 @@ pub struct Summary {
     pub ipc_prefix: String,
     /// Files of the run still present after clean-up (must be empty).
     pub leftover_ipc_files: Vec<String>,
+    /// Participant logs that are not empty, relative to the run's directory
+    /// (`logs/plant.log`): what a participant process wrote to its standard error. Absent
+    /// when none wrote anything.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub participant_logs: Vec<String>,
+    /// A free run's wall-clock timing: real time kept or not, lateness, input ages (absent
+    /// for lock-step runs and replays).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub free_run: Option<crate::free::run::FreeTiming>,
+    /// The timing trace a free run wrote (`timing.csv`) or a replay replayed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub timing_trace: Option<String>,
+    /// A replay of a partial trace (a free run that ended early or was killed): what the
+    /// trace lacked. Only the steps it holds were replayed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trace_partial: Option<String>,
+    /// Consumer steps a replay fed from the trace.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub replayed_exchanges: Option<u64>,
     /// The fields above measured on the wall clock, which differ between repeats of the same
     /// run; everything else repeats exactly. The same values are in `perf.json`.
     pub wall_clock_fields: &'static [&'static str],
+}
+
+/// How a run was carried out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RunMode {
+    /// The orchestrator steps every participant (`run.execution = "lock-step"`).
+    LockStep,
+    /// Every participant on its own clock (`run.execution = "free"`).
+    Free,
+    /// A lock-step replay of a free run's timing trace (`tiltsim replay-timing`).
+    ReplayTiming,
+}
+
+impl Summary {
+    /// The part of a summary every run has, for a run of `s` in `mode` that ended with
+    /// `status`: participants, timing and results left empty for the caller to fill.
+    pub fn blank(s: &crate::scenario::Scenario, scenario_file: &str, mode: RunMode) -> Summary {
+        Summary {
+            tiltsim_version: env!("CARGO_PKG_VERSION"),
+            scenario: s.name.clone(),
+            scenario_file: scenario_file.to_string(),
+            seed: s.run.seed,
+            transport: s.run.transport,
+            master_algorithm: s.run.master,
+            wait_strategy: s.run.wait,
+            execution: mode,
+            status: Status::Completed,
+            error: None,
+            participants: Vec::new(),
+            dt_s: s.run.dt_s,
+            steps_planned: s.steps(),
+            steps_completed: 0,
+            simulated_time_s: 0.0,
+            wall_time_s: 0.0,
+            realtime_factor: 0.0,
+            timing: Timing::default(),
+            results: QuickLook::default(),
+            link_latency: Vec::new(),
+            pacing: None,
+            controller_solver: None,
+            comfort: Default::default(),
+            flags: Default::default(),
+            analysis_skipped: None,
+            ipc_prefix: String::new(),
+            leftover_ipc_files: Vec::new(),
+            participant_logs: Vec::new(),
+            free_run: None,
+            timing_trace: None,
+            trace_partial: None,
+            replayed_exchanges: None,
+            wall_clock_fields: WALL_CLOCK_FIELDS,
+        }
+    }
+
+    /// Sets the steps completed, the simulated time and the wall time of the run.
+    pub fn set_progress(&mut self, steps: u64, wall_s: f64) {
+        self.steps_completed = steps;
+        self.simulated_time_s = steps as f64 * self.dt_s;
+        self.wall_time_s = wall_s;
+        self.realtime_factor = if wall_s > 0.0 {
+            self.simulated_time_s / wall_s
+        } else {
+            0.0
+        };
+    }
 }
 
 /// The fields of `summary.json` that are measured on the wall clock (or name a process or a
@@ -145,6 +232,7 @@ pub const WALL_CLOCK_FIELDS: &[&str] = &[
     "link_latency",
     "pacing",
     "ipc_prefix",
+    "free_run",
 ];
 
 /// A summary's JSON without its wall-clock fields
@@ -199,6 +287,7 @@ impl Summary {
             .collect();
         serde_json::json!({
             "scenario": self.scenario,
+            "execution": self.execution,
             "transport": self.transport,
             "master_algorithm": self.master_algorithm,
             "wait_strategy": self.wait_strategy,
@@ -208,6 +297,7 @@ impl Summary {
             "timing": self.timing,
             "link_latency": self.link_latency,
             "pacing": self.pacing,
+            "free_run": self.free_run,
             "participants": participants,
             "ipc_prefix": self.ipc_prefix,
         })

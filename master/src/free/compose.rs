@@ -21,54 +21,135 @@ use crate::events::EventLog;
 use crate::links::{LinkId, LinkSet, Links};
 use crate::record::Row;
 
-/// Every output of a run by producer step, what the links made of each, and the producer
-/// steps each consumer step read.
+/// A sequence indexed from 0 of which only a window is kept: entries are set as they come
+/// (any index at or past the window's start) and forgotten from the front once nothing can
+/// name them again, so a run of any length holds only what is still in use.
+#[derive(Debug, Clone)]
+pub struct Window<T> {
+    base: usize,
+    items: std::collections::VecDeque<Option<T>>,
+}
+
+impl<T: Clone> Default for Window<T> {
+    fn default() -> Self {
+        Window {
+            base: 0,
+            items: std::collections::VecDeque::new(),
+        }
+    }
+}
+
+impl<T: Clone> Window<T> {
+    /// Entry `i`, when set and not forgotten.
+    pub fn get(&self, i: usize) -> Option<&T> {
+        self.items.get(i.checked_sub(self.base)?)?.as_ref()
+    }
+    /// Sets entry `i` (ignored when it was already forgotten).
+    pub fn set(&mut self, i: usize, v: T) {
+        let Some(j) = i.checked_sub(self.base) else {
+            return;
+        };
+        if self.items.len() <= j {
+            self.items.resize(j + 1, None);
+        }
+        self.items[j] = Some(v);
+    }
+    /// Forgets every entry before `i`.
+    pub fn forget_before(&mut self, i: usize) {
+        while self.base < i && !self.items.is_empty() {
+            self.items.pop_front();
+            self.base += 1;
+        }
+        self.base = self.base.max(i);
+    }
+    /// Entries held (set or not) in the window.
+    pub fn held(&self) -> usize {
+        self.items.len()
+    }
+}
+
+/// The outputs of a run by producer step, what the links made of each, and the producer steps
+/// each consumer step read: of each, only what a later step, relay or row can still name
+/// ([`Store::forget_before`]).
 pub struct Store {
     /// Controller period in ticks.
     pub period: u64,
     /// Outputs at t₀.
     pub init: (FromPlant, FromActuator, FromController),
     /// Plant outputs by step.
-    pub p: Vec<Option<FromPlant>>,
+    p: Window<FromPlant>,
     /// Actuator outputs by step.
-    pub a: Vec<Option<FromActuator>>,
+    a: Window<FromActuator>,
     /// Controller outputs by step / period.
-    pub c: Vec<Option<FromController>>,
+    c: Window<FromController>,
     /// What each step read, per role column, by the role's step index.
-    pub read: [Vec<[Option<i64>; 3]>; 3],
+    read: [Window<[Option<i64>; 3]>; 3],
     /// The links, each passed its producer's samples in step order.
     links: LinkSet,
     /// Per link ([`LinkId`] order), the value each sample arrived with by sample index (0:
     /// the output at t₀, i + 1: the producer's step index i); `None` = lost or not yet sent.
-    arrived: [Vec<Option<f64>>; 4],
+    arrived: [Window<Option<f64>>; 4],
     /// What the links did, per link (merged in tick order by [`Store::events`]).
     events: [EventLog; 4],
     dt: f64,
 }
 
 impl Store {
-    /// An empty store for `steps` plant steps of `dt` s, a controller of `period` ticks and
-    /// the links `links` with their random streams from `seed`.
-    pub fn new(steps: u64, period: u64, dt: f64, links: &Links, seed: u64) -> Self {
-        let n = steps as usize;
-        let nc = steps.div_ceil(period) as usize;
+    /// An empty store for a controller of `period` ticks, a base tick of `dt` s and the links
+    /// `links` with their random streams from `seed`.
+    pub fn new(period: u64, dt: f64, links: &Links, seed: u64) -> Self {
         Store {
             period,
             init: Default::default(),
-            p: vec![None; n],
-            a: vec![None; n],
-            c: vec![None; nc],
-            read: [vec![[None; 3]; n], vec![[None; 3]; n], vec![[None; 3]; nc]],
+            p: Window::default(),
+            a: Window::default(),
+            c: Window::default(),
+            read: Default::default(),
             links: LinkSet::new(links, seed),
-            arrived: [
-                vec![None; nc + 1],
-                vec![None; n + 1],
-                vec![None; n + 1],
-                vec![None; n + 1],
-            ],
+            arrived: Default::default(),
             events: std::array::from_fn(|_| EventLog::new(dt)),
             dt,
         }
+    }
+
+    /// Forgets what no later step, relay or row can name: plant, actuator and controller
+    /// outputs (and what their steps read, and their samples on the links) before steps
+    /// `floor` (per producer column, [`col`]; a controller floor is a step, not an index).
+    pub fn forget_before(&mut self, floor: [i64; 3]) {
+        // Index of step q in its role's windows; the output at t₀ (q < 0) is kept apart.
+        let idx =
+            |role: Role, q: i64| -> Option<usize> { (q >= 0).then(|| self.index(role, q as u64)) };
+        let [fp, fa, fc] = [
+            idx(Role::Plant, floor[0]),
+            idx(Role::Actuator, floor[1]),
+            idx(Role::Controller, floor[2]),
+        ];
+        let start = |i: Option<usize>| i.unwrap_or(0);
+        self.p.forget_before(start(fp));
+        self.a.forget_before(start(fa));
+        self.c.forget_before(start(fc));
+        self.read[0].forget_before(start(fp));
+        self.read[1].forget_before(start(fa));
+        self.read[2].forget_before(start(fc));
+        // Sample index i + 1 is the producer's step index i; 0 is the output at t₀, kept
+        // while any floor is at t₀.
+        for (l, f) in [
+            (LinkId::ActuatorCommand, fc),
+            (LinkId::BarAngle, fa),
+            (LinkId::Measurement, fp),
+            (LinkId::BarTwist, fp),
+        ] {
+            self.arrived[l as usize].forget_before(f.map_or(0, |i| i + 1));
+        }
+    }
+
+    /// Entries held in memory (for tests that memory stays bounded).
+    pub fn held(&self) -> usize {
+        self.p.held()
+            + self.a.held()
+            + self.c.held()
+            + self.read.iter().map(Window::held).sum::<usize>()
+            + self.arrived.iter().map(Window::held).sum::<usize>()
     }
 
     /// Passes sample `index` (i + 1 for the producer's step index i) of link `id`, valid from
@@ -82,9 +163,7 @@ impl Store {
             v,
             &mut self.events[i],
         );
-        if let Some(slot) = self.arrived[i].get_mut(index) {
-            *slot = got.map(|(_, value)| value);
-        }
+        self.arrived[i].set(index, got.map(|(_, value)| value));
         got.map(|(d, _)| d)
     }
 
@@ -92,7 +171,7 @@ impl Store {
     /// they are what each holds from the start (as in lock-step until a first sample arrives).
     pub fn put_init(&mut self, p: FromPlant, a: FromActuator, c: FromController) {
         for (arrived, v) in self.arrived.iter_mut().zip(LinkId::carried(&p, &a, &c)) {
-            arrived[0] = Some(v);
+            arrived.set(0, Some(v));
         }
         self.init = (p, a, c);
     }
@@ -101,9 +180,7 @@ impl Store {
     /// samples on the measurement and bar-twist links (`None`: lost).
     pub fn put_plant(&mut self, q: u64, o: FromPlant) -> [Option<u64>; 2] {
         let i = q as usize;
-        if let Some(slot) = self.p.get_mut(i) {
-            *slot = Some(o);
-        }
+        self.p.set(i, o);
         [
             self.pass(LinkId::Measurement, i + 1, q + 1, o.theta_v_meas),
             self.pass(LinkId::BarTwist, i + 1, q + 1, o.psi),
@@ -113,18 +190,14 @@ impl Store {
     /// Keeps the actuator's output of step `q` and passes it on the bar-angle link.
     pub fn put_actuator(&mut self, q: u64, o: FromActuator) -> Option<u64> {
         let i = q as usize;
-        if let Some(slot) = self.a.get_mut(i) {
-            *slot = Some(o);
-        }
+        self.a.set(i, o);
         self.pass(LinkId::BarAngle, i + 1, q, o.delta_a)
     }
 
     /// Keeps the controller's output of step `q` and passes it on the command link.
     pub fn put_controller(&mut self, q: u64, o: FromController) -> Option<u64> {
         let i = (q / self.period) as usize;
-        if let Some(slot) = self.c.get_mut(i) {
-            *slot = Some(o);
-        }
+        self.c.set(i, o);
         self.pass(LinkId::ActuatorCommand, i + 1, q, o.delta_a_cmd)
     }
 
@@ -170,7 +243,7 @@ impl Store {
         if q < 0 {
             Some(&self.init.0)
         } else {
-            self.p.get(q as usize)?.as_ref()
+            self.p.get(q as usize)
         }
     }
     /// Actuator output of step `q` (−1: at t₀).
@@ -178,7 +251,7 @@ impl Store {
         if q < 0 {
             Some(&self.init.1)
         } else {
-            self.a.get(q as usize)?.as_ref()
+            self.a.get(q as usize)
         }
     }
     /// Controller output of step `q` (−1: at t₀).
@@ -186,27 +259,24 @@ impl Store {
         if q < 0 {
             Some(&self.init.2)
         } else {
-            self.c.get((q as u64 / self.period) as usize)?.as_ref()
+            self.c.get((q as u64 / self.period) as usize)
         }
     }
 
     /// Records that `t.role`'s step `t.step` read `t.from`.
     pub fn note_read(&mut self, t: &StepTrace) {
         let i = self.index(t.role, t.step);
-        if let Some(slot) = self.read[col(t.role)].get_mut(i) {
-            *slot = t.from;
-        }
+        self.read[col(t.role)].set(i, t.from);
     }
 
-    fn read_of(&self, role: Role, q: i64, producer: Role) -> i64 {
+    /// The step of `producer` that `role`'s step `q` read (−1 for an output at t₀, which read
+    /// nothing); `None` when that step's reading is not known (not yet, or forgotten).
+    fn read_of(&self, role: Role, q: i64, producer: Role) -> Option<i64> {
         if q < 0 {
-            return -1;
+            return Some(-1);
         }
         let i = self.index(role, q as u64);
-        self.read[col(role)]
-            .get(i)
-            .and_then(|r| r[col(producer)])
-            .unwrap_or(-1)
+        self.read[col(role)].get(i)?[col(producer)]
     }
 
     /// The input of a plant step that read actuator step `qa`, as the bar-angle link
@@ -265,13 +335,20 @@ impl Store {
     /// step read it, the bar twist as the actuator step read it). An output at t₀ read nothing: the outputs at
     /// t₀ stand for what it would have read. `None` if an output is missing.
     pub fn row(&self, k: u64) -> Option<Row> {
-        let p = self.p.get(k as usize)?.as_ref()?;
-        let qa = self.read_of(Role::Plant, k as i64, Role::Actuator);
+        self.row_and_reads(k).map(|(row, _)| row)
+    }
+
+    /// [`Store::row`] and the oldest step of each producer (by [`col`]) the row names: every
+    /// later row names only these steps or later ones (each consumer reads its inputs in the
+    /// order they were sent, and they were sent in step order).
+    pub fn row_and_reads(&self, k: u64) -> Option<(Row, [i64; 3])> {
+        let p = self.p.get(k as usize)?;
+        let qa = self.read_of(Role::Plant, k as i64, Role::Actuator)?;
         let a = self.actuator(qa)?;
-        let qc = self.read_of(Role::Actuator, qa, Role::Controller);
-        let qp_a = self.read_of(Role::Actuator, qa, Role::Plant);
+        let qc = self.read_of(Role::Actuator, qa, Role::Controller)?;
+        let qp_a = self.read_of(Role::Actuator, qa, Role::Plant)?;
         let c = self.controller(qc)?;
-        let qp_c = self.read_of(Role::Controller, qc, Role::Plant);
+        let qp_c = self.read_of(Role::Controller, qc, Role::Plant)?;
         self.plant(qp_c)?;
         self.plant(qp_a)?;
         let rx = [
@@ -280,6 +357,7 @@ impl Store {
             self.arrived(LinkId::Measurement, qp_c)?,
             self.arrived(LinkId::BarTwist, qp_a)?,
         ];
-        Some(Row::after_tick(k, self.dt, p, a, c, &rx))
+        let row = Row::after_tick(k, self.dt, p, a, c, &rx);
+        Some((row, [qp_c.min(qp_a), qa, qc]))
     }
 }

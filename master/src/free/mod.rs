@@ -25,12 +25,13 @@ use cosim::settings::Checker;
 use cosim::LinkError;
 
 use crate::engine::launch::Participants;
-use crate::engine::RunError;
-use crate::record::Recorder;
+use crate::engine::observer::{RowRecorder, RowSink};
+use crate::engine::{RunError, RunMode, Status, Summary};
+use crate::record::{Recorder, Row};
 use crate::scenario::{Execution, Scenario, Transport};
 
-pub use replay::replay;
-pub use run::{run, FreeReport};
+pub use replay::{replay, Replayed};
+pub use run::{run, FreeReport, FreeTiming};
 pub use trace::TraceError;
 
 /// Why a free run or a replay could not be carried out.
@@ -152,18 +153,129 @@ pub(crate) fn run_events(
     ev
 }
 
-/// Writes `dir/timeseries.csv` from the store: the row at the start time, then the row after
-/// each tick up to the first that cannot be composed (a run that ended early). Returns the
-/// number of ticks written.
-pub(crate) fn write_rows(dir: &Path, store: &compose::Store, steps: u64) -> std::io::Result<u64> {
-    let mut rec = Recorder::create(&dir.join("timeseries.csv"))?;
-    rec.write(&store.row_at_start())?;
-    let mut n = 0;
-    for k in 0..steps {
-        let Some(row) = store.row(k) else { break };
-        rec.write(&row)?;
-        n += 1;
+/// The rows of a free run or its replay, written as they complete: the row at the start time,
+/// then each tick's row as soon as the plant's step of that tick is in (everything a row names
+/// was sent before the plant read it), to `timeseries.csv` or kept in memory
+/// (`RunOptions::keep_rows`).
+pub(crate) struct RowStream {
+    rec: RowRecorder,
+    /// The next tick to write.
+    next: u64,
+    /// The oldest producer steps (by [`trace::col`]) the last row written names.
+    reads: [i64; 3],
+}
+
+impl RowStream {
+    /// Creates `timeseries.csv` (header first), or the rows' place in memory.
+    pub(crate) fn create(s: &Scenario, opts: &crate::engine::RunOptions) -> Result<Self, RunError> {
+        let sink = if opts.keep_rows {
+            RowSink::Kept(Vec::new())
+        } else {
+            let csv = opts.out_dir.join("timeseries.csv");
+            RowSink::File(Box::new(Recorder::create(&csv).map_err(RunError::io(csv))?))
+        };
+        Ok(RowStream {
+            rec: RowRecorder::new(s.run.dt_s, sink),
+            next: 0,
+            reads: [-1; 3],
+        })
     }
-    rec.finish()?;
-    Ok(n)
+
+    /// Writes the row at the start time.
+    pub(crate) fn start(&mut self, store: &compose::Store) -> std::io::Result<()> {
+        self.rec.put(store.row_at_start())
+    }
+
+    /// Writes every row that can be composed now, in tick order, up to tick `steps`.
+    pub(crate) fn advance(&mut self, store: &compose::Store, steps: u64) -> std::io::Result<()> {
+        while self.next < steps {
+            let Some((row, reads)) = store.row_and_reads(self.next) else {
+                break;
+            };
+            self.rec.put(row)?;
+            self.reads = reads;
+            self.next += 1;
+        }
+        Ok(())
+    }
+
+    /// The oldest producer steps a later row can name.
+    pub(crate) fn floor(&self) -> [i64; 3] {
+        let [p, a, c] = self.reads;
+        [p.min(self.next as i64), a, c]
+    }
+
+    /// Writes what is buffered; returns the ticks whose rows are complete, the rows when kept
+    /// in memory, and the error of a write that failed.
+    pub(crate) fn finish(mut self) -> (u64, Option<Vec<Row>>, Option<String>) {
+        let err = self.rec.finish().err().map(|e| e.to_string());
+        (self.rec.ticks(), self.rec.take_kept(), err)
+    }
+}
+
+/// Each participant's part of a free run's or a replay's summary: process, period and exit
+/// (compute, waits and lost samples are lock-step measurements).
+fn participants(
+    s: &Scenario,
+    pids: &crate::roles::RoleMap<u32>,
+    exits: &crate::roles::RoleMap<cosim::endpoint::ExitReport>,
+) -> Vec<crate::engine::ParticipantReport> {
+    let periods = [s.run.dt_s, s.run.dt_s, s.controller.period_s];
+    cosim::Role::ALL
+        .into_iter()
+        .zip(periods)
+        .map(|(role, period_s)| crate::engine::ParticipantReport {
+            role,
+            process: role.process_name(),
+            pid: pids[role],
+            period_s,
+            exit: exits[role].clone(),
+            compute_us: Default::default(),
+            starved_waits: 0,
+            lost_samples: Default::default(),
+        })
+        .collect()
+}
+
+/// The summary of free run `r` of `s` (not yet analysed); takes its write errors.
+pub fn summary_of_run(s: &Scenario, scenario_file: &str, r: &mut FreeReport) -> Summary {
+    let mut sm = Summary::blank(s, scenario_file, RunMode::Free);
+    sm.status = r.status;
+    sm.error = r.error.clone();
+    if let Some(e) = r.write_errors.first() {
+        if sm.error.is_none() {
+            sm.status = Status::Failed;
+            sm.error = Some(format!("cannot write {e}"));
+        }
+    }
+    sm.participants = participants(s, &r.pids, &r.exits);
+    sm.set_progress(r.steps_completed, r.wall_time_s);
+    sm.ipc_prefix = r.ipc_prefix.clone();
+    sm.leftover_ipc_files = r.leftover_ipc_files.clone();
+    sm.participant_logs = r.participant_logs.clone();
+    sm.free_run = Some(r.timing.clone());
+    sm.timing_trace = Some(trace::TIMING_CSV.to_string());
+    sm
+}
+
+/// The summary of replay `r` of the trace at `trace_path` with `s` (not yet analysed).
+pub fn summary_of_replay(
+    s: &Scenario,
+    scenario_file: &str,
+    trace_path: &Path,
+    r: &Replayed,
+) -> Summary {
+    let mut sm = Summary::blank(s, scenario_file, RunMode::ReplayTiming);
+    if let Some(e) = &r.error {
+        sm.status = Status::Failed;
+        sm.error = Some(e.clone());
+    }
+    sm.participants = participants(s, &r.pids, &r.exits);
+    sm.set_progress(r.steps_completed, 0.0);
+    sm.ipc_prefix = r.ipc_prefix.clone();
+    sm.participant_logs = r.participant_logs.clone();
+    sm.timing_trace = Some(trace_path.display().to_string());
+    sm.trace_partial = r.partial.clone();
+    sm.replayed_exchanges = Some(r.exchanges);
+    sm
 }

@@ -48,11 +48,14 @@ struct Steps<'a> {
 
 impl<'a> Steps<'a> {
     fn new(trace: &[StepTrace], store: &'a Store) -> Self {
-        let mut by_role = [
-            vec![None; store.p.len()],
-            vec![None; store.a.len()],
-            vec![None; store.c.len()],
-        ];
+        let mut by_role: [Vec<Option<StepTrace>>; 3] = Default::default();
+        for t in trace {
+            let i = store.index(t.role, t.step);
+            let v = &mut by_role[col(t.role)];
+            if v.len() <= i {
+                v.resize(i + 1, None);
+            }
+        }
         for t in trace {
             if let Some(slot) = by_role[col(t.role)].get_mut(store.index(t.role, t.step)) {
                 *slot = Some(*t);

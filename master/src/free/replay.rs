@@ -14,19 +14,51 @@ use cosim::{Endpoint, LinkError, Role};
 
 use super::compose::Store;
 use super::trace::{self, col, StepTrace, TraceError};
-use super::{init_all, write_rows, FilesGuard, FreeError};
+use super::{init_all, FilesGuard, FreeError, RowStream};
 use crate::engine::launch;
 use crate::engine::RunOptions;
 use crate::scenario::{Scenario, Transport};
 
 /// What a replay did.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone)]
 pub struct Replayed {
-    /// Rows written to `timeseries.csv`.
+    /// Rows written to `timeseries.csv` after the one at the start time.
     pub steps_completed: u64,
     /// Consumer steps replayed.
     pub exchanges: u64,
+    /// What a partial trace lacks (`None`: the whole run was replayed).
+    pub partial: Option<String>,
+    /// The rows, when kept in memory (`RunOptions::keep_rows`).
+    pub rows: Option<Vec<crate::record::Row>>,
+    /// Each participant's exit.
+    pub exits: crate::roles::RoleMap<cosim::endpoint::ExitReport>,
+    /// Each participant's process id.
+    pub pids: crate::roles::RoleMap<u32>,
+    /// Why the replay stopped before the end of the trace (a participant failed).
+    pub error: Option<String>,
+    /// The run's iceoryx2 prefix (empty in one process).
+    pub ipc_prefix: String,
+    /// Participant logs that are not empty (`logs/<role>.log`).
+    pub participant_logs: Vec<String>,
 }
+
+/// Per step of `order`, the oldest producer steps (by [`col`]) named by it or any later step.
+fn floors(order: &[StepTrace]) -> Vec<[i64; 3]> {
+    let mut out = vec![[i64::MAX; 3]; order.len() + 1];
+    for (i, t) in order.iter().enumerate().rev() {
+        let mut f = out[i + 1];
+        for (p, q) in t.from.iter().enumerate() {
+            if let Some(q) = q {
+                f[p] = f[p].min(*q);
+            }
+        }
+        out[i] = f;
+    }
+    out
+}
+
+/// Steps replayed between two clean-ups of the store.
+const FORGET_EVERY: usize = 1024;
 
 /// One lock-step exchange of step `step`.
 fn ask<I: Message, O: Message>(
@@ -47,9 +79,11 @@ fn ask<I: Message, O: Message>(
 pub fn replay(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Replayed, FreeError> {
     let period = s.controller_period_ticks();
     let steps = s.steps();
-    let (_, mut order) = trace::read(trace_path, s.run.dt_s, steps, period)?;
+    let trace = trace::read(trace_path, s.run.dt_s, steps, period)?;
+    let mut order = trace.steps;
     order.sort_by_key(|t| (t.read_ns, col(t.role)));
     check_causal(trace_path, &order, period)?;
+    let floors = floors(&order);
     let dir = &opts.out_dir;
     std::fs::create_dir_all(dir).map_err(|e| FreeError::io(dir, e))?;
     let resolved = dir.join("scenario.toml");
@@ -64,11 +98,17 @@ pub fn replay(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Repl
     };
     let guard = FilesGuard(prefix.clone());
     let cpus = cosim::ipc::allowed_cpus();
+    let mut rows = RowStream::create(s, opts).map_err(FreeError::Run)?;
     let mut ps = launch::start(s, opts, &prefix).map_err(FreeError::Run)?;
-    let mut store = Store::new(steps, period, s.run.dt_s, &s.links, s.run.seed);
-    let outcome = (|| -> Result<(), LinkError> {
-        init_all(&mut ps, &mut store)?;
-        for t in &order {
+    let mut store = Store::new(period, s.run.dt_s, &s.links, s.run.seed);
+    let write = |e: std::io::Error| format!("cannot write timeseries.csv: {e}");
+    let outcome = (|| -> Result<(), String> {
+        init_all(&mut ps, &mut store).map_err(|e| e.to_string())?;
+        rows.start(&store).map_err(write)?;
+        for (i, t) in order.iter().enumerate() {
+            if opts.interrupt.load(std::sync::atomic::Ordering::Relaxed) {
+                return Ok(());
+            }
             store.note_read(t);
             // The inputs exist: `check_causal` has seen each produced before it is read.
             let missing = || LinkError::Malformed {
@@ -76,27 +116,40 @@ pub fn replay(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Repl
                 step: t.step,
                 what: "an input the trace names was not computed".into(),
             };
+            let step = |e: LinkError| e.to_string();
             match t.role {
                 Role::Plant => {
-                    let req = store.input_plant(t).ok_or_else(missing)?;
-                    let o = ask(&mut ps.plant, req, t.step)?;
+                    let req = store.input_plant(t).ok_or_else(missing).map_err(step)?;
+                    let o = ask(&mut ps.plant, req, t.step).map_err(step)?;
                     store.put_plant(t.step, o);
+                    rows.advance(&store, steps).map_err(write)?;
                 }
                 Role::Actuator => {
-                    let req = store.input_actuator(t).ok_or_else(missing)?;
-                    let o = ask(&mut ps.actuator, req, t.step)?;
+                    let req = store.input_actuator(t).ok_or_else(missing).map_err(step)?;
+                    let o = ask(&mut ps.actuator, req, t.step).map_err(step)?;
                     store.put_actuator(t.step, o);
                 }
                 Role::Controller => {
-                    let req = store.input_controller(t).ok_or_else(missing)?;
-                    let o = ask(&mut ps.controller, req, t.step)?;
+                    let req = store
+                        .input_controller(t)
+                        .ok_or_else(missing)
+                        .map_err(step)?;
+                    let o = ask(&mut ps.controller, req, t.step).map_err(step)?;
                     store.put_controller(t.step, o);
                 }
+            }
+            if i % FORGET_EVERY == FORGET_EVERY - 1 {
+                let mut floor = rows.floor();
+                for p in 0..3 {
+                    floor[p] = floor[p].min(floors[i + 1][p]);
+                }
+                store.forget_before(floor);
             }
         }
         Ok(())
     })();
-    ps.shut_down(crate::roles::RoleMap::default());
+    let pids = ps.pids();
+    let exits = ps.shut_down(crate::roles::RoleMap::default());
     if let Some(hub) = ps.hub.take() {
         hub.cleanup_dead();
         drop(ps);
@@ -107,17 +160,33 @@ pub fn replay(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Repl
     if !cpus.is_empty() {
         cosim::ipc::set_cpus(&cpus);
     }
-    let rows = write_rows(dir, &store, steps)
-        .map_err(|e| FreeError::io(&dir.join("timeseries.csv"), e))?;
+    let participant_logs = if s.run.transport == Transport::Ipc {
+        crate::engine::finish_logs(dir)
+    } else {
+        Vec::new()
+    };
+    let (ticks, kept, row_error) = rows.finish();
     let events_csv = dir.join("events.csv");
-    super::run_events(s, &store, rows)
-        .write(&events_csv)
-        .map_err(|e| FreeError::io(&events_csv, e))?;
-    crate::columns::write_run(dir).map_err(|e| FreeError::io(&dir.join("columns.csv"), e))?;
-    outcome?;
+    let mut error = outcome.err();
+    if let Err(e) = super::run_events(s, &store, ticks).write(&events_csv) {
+        error.get_or_insert(format!("cannot write {}: {e}", events_csv.display()));
+    }
+    if let Err(e) = crate::columns::write_run(dir) {
+        error.get_or_insert(format!("cannot write columns.csv: {e}"));
+    }
+    if let Some(e) = row_error {
+        error.get_or_insert(format!("cannot write timeseries.csv: {e}"));
+    }
     Ok(Replayed {
-        steps_completed: rows,
+        steps_completed: ticks,
         exchanges: order.len() as u64,
+        partial: trace.partial,
+        rows: kept,
+        exits,
+        pids,
+        error,
+        ipc_prefix: prefix,
+        participant_logs,
     })
 }
 

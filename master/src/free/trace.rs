@@ -96,9 +96,16 @@ pub struct TraceHead {
     pub start_ns: u64,
 }
 
-/// Writes `timing.csv` (streamed, one line per step as the orchestrator records it).
+/// Bytes of whole lines gathered before they are handed to the system in one write.
+const TRACE_BATCH: usize = 1 << 16;
+
+/// Writes `timing.csv`, streamed as the orchestrator records the steps: whole lines gathered in
+/// memory and written in batches of about [`TRACE_BATCH`] bytes, so the file only ever ends
+/// with a complete line (a process killed in the middle of one write may leave part of a last
+/// line, which [`read`] drops) and a run killed at any point leaves a prefix of its trace.
 pub struct TraceWriter {
-    out: std::io::BufWriter<std::fs::File>,
+    out: std::fs::File,
+    buf: Vec<u8>,
     dt_ns: f64,
     period_ticks: u64,
 }
@@ -110,7 +117,7 @@ fn opt(v: Option<i64>) -> String {
 impl TraceWriter {
     /// Creates the file with its head line and column names.
     pub fn create(path: &Path, head: &TraceHead) -> std::io::Result<Self> {
-        let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+        let mut out = std::fs::File::create(path)?;
         writeln!(
             out,
             "# tiltsim timing trace: dt_s={} steps={} controller_period_ticks={} start_ns={}",
@@ -119,6 +126,7 @@ impl TraceWriter {
         writeln!(out, "{COLUMNS}")?;
         Ok(TraceWriter {
             out,
+            buf: Vec::with_capacity(TRACE_BATCH + 256),
             dt_ns: head.dt_s * 1e9,
             period_ticks: head.controller_period_ticks,
         })
@@ -137,7 +145,7 @@ impl TraceWriter {
             .map(|&p| opt(t.from[col(p)].map(|f| age(p, t.step, f))))
             .collect();
         writeln!(
-            self.out,
+            self.buf,
             "{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             t.role.name(),
             t.step,
@@ -153,12 +161,22 @@ impl TraceWriter {
             t.publish_ns,
             u8::from(t.late_start(period_ns)),
             u8::from(t.late_finish(period_ns)),
-        )
+        )?;
+        if self.buf.len() >= TRACE_BATCH {
+            self.commit()?;
+        }
+        Ok(())
     }
 
-    /// Flushes the file.
+    fn commit(&mut self) -> std::io::Result<()> {
+        self.out.write_all(&self.buf)?;
+        self.buf.clear();
+        Ok(())
+    }
+
+    /// Writes the lines still held.
     pub fn finish(mut self) -> std::io::Result<()> {
-        self.out.flush()
+        self.commit()
     }
 }
 
@@ -174,15 +192,29 @@ pub struct TraceError {
     pub what: String,
 }
 
+/// A trace as read: its head, its steps, and, when it holds only the first steps of some
+/// role (a free run that failed, was interrupted or killed), what it lacks.
+#[derive(Debug, Clone)]
+pub struct Trace {
+    /// The head line.
+    pub head: TraceHead,
+    /// The steps, in the order of the file.
+    pub steps: Vec<StepTrace>,
+    /// `None` for a whole trace; else what is missing, in words.
+    pub partial: Option<String>,
+}
+
 /// Reads a trace and checks it against the steps a scenario of `dt_s`, `steps` and
-/// `controller_period_ticks` has: the head must match, every consumer step must appear
-/// exactly once, and every input must name a producer step that exists.
+/// `controller_period_ticks` has: the head must match, every consumer step may appear at most
+/// once, each role's steps must be its first ones without a gap, and every input must name a
+/// producer step that exists. A last line cut short (the writer killed in the middle of a
+/// write) is dropped; a trace with fewer steps than the scenario is partial.
 pub fn read(
     path: &Path,
     dt_s: f64,
     steps: u64,
     controller_period_ticks: u64,
-) -> Result<(TraceHead, Vec<StepTrace>), TraceError> {
+) -> Result<Trace, TraceError> {
     let file = path.display().to_string();
     let err = |field: String, what: String| TraceError {
         file: file.clone(),
@@ -190,7 +222,13 @@ pub fn read(
         what,
     };
     let text = std::fs::read_to_string(path).map_err(|e| err("file".into(), e.to_string()))?;
-    let mut lines = text.lines();
+    // A last line without its newline was cut short by a kill: it is not part of the trace.
+    let whole = match text.rfind('\n') {
+        Some(i) if i + 1 < text.len() => &text[..=i],
+        _ => &text[..],
+    };
+    let cut_short = whole.len() < text.len();
+    let mut lines = whole.lines();
     let head_line = lines.next().unwrap_or_default();
     let head = parse_head(head_line).ok_or_else(|| {
         err(
@@ -309,20 +347,43 @@ pub fn read(
             publish_ns: int(11, "publish_ns")?,
         });
     }
+    let mut lacking = Vec::new();
     for r in Role::ALL {
-        if let Some(missing) = seen[col(r)].iter().position(|s| !s) {
-            let ticks = if r == Role::Controller {
-                controller_period_ticks
-            } else {
-                1
-            };
+        let ticks = if r == Role::Controller {
+            controller_period_ticks
+        } else {
+            1
+        };
+        let present = seen[col(r)].iter().filter(|s| **s).count();
+        if let Some(missing) = seen[col(r)][..present].iter().position(|s| !s) {
             return Err(err(
                 "step".into(),
-                format!("{r} step {} is missing", missing as u64 * ticks),
+                format!(
+                    "{r} step {} is missing, though later steps of the {r} are there",
+                    missing as u64 * ticks
+                ),
             ));
         }
+        if present < seen[col(r)].len() {
+            lacking.push(format!("{r} {} of {} steps", present, seen[col(r)].len()));
+        }
     }
-    Ok((head, out))
+    let partial = (!lacking.is_empty() || cut_short).then(|| {
+        let mut what = if lacking.is_empty() {
+            "every step".to_string()
+        } else {
+            lacking.join(", ")
+        };
+        if cut_short {
+            what.push_str("; a last line cut short was dropped");
+        }
+        format!("the trace holds {what} (the free run ended early or was killed)")
+    });
+    Ok(Trace {
+        head,
+        steps: out,
+        partial,
+    })
 }
 
 fn parse_head(line: &str) -> Option<TraceHead> {

@@ -42,6 +42,18 @@ pub type CliResult = Result<(), CliError>;
 impl CliError {
     /// A run that could not start or end: an interrupt during the start-up exits as an
     /// interrupt (130), naming the signal; anything else is a failure with `context` first.
+    /// The error of a job that could not be carried out, with its exit code.
+    pub fn of_job(e: tiltsim_report::pipeline::JobError) -> CliError {
+        use tiltsim_report::pipeline::JobError;
+        match e {
+            JobError::Invalid(m) => CliError::Invalid(m),
+            JobError::Trace(t) => CliError::Invalid(t.to_string()),
+            JobError::Run(r) => CliError::of_run(r, ""),
+            JobError::Failed(m) => CliError::Failed(m),
+        }
+    }
+
+    /// The error of a run that could not start, with `context` before its message.
     pub fn of_run(e: tiltsim_master::engine::RunError, context: &str) -> CliError {
         match e {
             tiltsim_master::engine::RunError::Interrupted { role } => {

@@ -2,10 +2,56 @@
 
 use std::path::Path;
 
-use tiltsim_master::engine::Summary;
+use tiltsim_master::engine::{RunMode, Summary};
 
-/// Prints what a run did and found.
+/// Prints what a run did and found: its own line (lock-step, free or replayed), the ride, the
+/// participants' logs and, for lock-step runs, the timing.
 pub fn print(s: &Summary, out: &Path) {
+    match s.execution {
+        RunMode::LockStep => print_lock_step(s),
+        RunMode::Free => print_free(s),
+        RunMode::ReplayTiming => println!(
+            "{}: {:?}, {} of {} steps replayed from {} ({} exchanges){}",
+            s.scenario,
+            s.status,
+            s.steps_completed,
+            s.steps_planned,
+            s.timing_trace.as_deref().unwrap_or(""),
+            s.replayed_exchanges.unwrap_or(0),
+            s.trace_partial
+                .as_deref()
+                .map(|p| format!("; partial: {p}"))
+                .unwrap_or_default()
+        ),
+    }
+    for log in &s.participant_logs {
+        println!(
+            "  a participant wrote to its standard error: {}",
+            out.join(log).display()
+        );
+    }
+    let figures = if s.analysis_skipped.is_some() {
+        format!(" (`tiltsim plot {}` draws the figures)", out.display())
+    } else {
+        ", plots/*.svg|png".to_string()
+    };
+    if let Some(why) = &s.analysis_skipped {
+        println!("  analysis skipped: {why}");
+    } else {
+        print_ride(&s.results, &s.comfort, &s.flags);
+    }
+    if s.execution == RunMode::LockStep {
+        print_timing(s);
+    }
+    println!(
+        "  wrote {}/timeseries.csv, columns.csv, summary.json, perf.json, events.csv, scenario.toml{}{}",
+        out.display(),
+        optional_files(out),
+        figures
+    );
+}
+
+fn print_lock_step(s: &Summary) {
     println!(
         "{}: {:?}, {} steps ({:.3} s simulated) in {:.3} s wall ({:.1}x real time)",
         s.scenario,
@@ -30,23 +76,23 @@ pub fn print(s: &Summary, out: &Path) {
         "  coordination overhead per tick: p50 {:.2} us, p99 {:.2} us, max {:.1} us; CPU: orchestrator {:.2} s, participants {:.2} s",
         s.timing.p50, s.timing.p99, s.timing.max, s.timing.cpu_s.orchestrator, s.timing.cpu_s.participants
     );
-    if let Some(why) = &s.analysis_skipped {
-        println!("  analysis skipped: {why}");
-        print_timing(s);
-        println!(
-            "  wrote {}/timeseries.csv, columns.csv, summary.json, events.csv, scenario.toml{} (`tiltsim plot {}` draws the figures)",
-            out.display(),
-            optional_files(out),
-            out.display()
-        );
-        return;
-    }
-    print_ride(&s.results, &s.comfort, &s.flags);
-    print_timing(s);
+}
+
+fn print_free(s: &Summary) {
+    let Some(f) = &s.free_run else { return };
+    let plant = f.participants.get("plant").cloned().unwrap_or_default();
     println!(
-        "  wrote {}/timeseries.csv, columns.csv, summary.json, perf.json, events.csv, scenario.toml{}, plots/*.svg|png",
-        out.display(),
-        optional_files(out)
+        "{}: free run, {:?}, {} of {} steps in {:.2} s; plant start lateness p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs, {} late steps{}",
+        s.scenario,
+        s.status,
+        s.steps_completed,
+        s.steps_planned,
+        s.wall_time_s,
+        plant.start_lateness_us.p50,
+        plant.start_lateness_us.p99,
+        plant.start_lateness_us.max,
+        plant.late_starts,
+        if f.not_real_time { "; NOT REAL-TIME" } else { "" }
     );
 }
 
@@ -64,8 +110,16 @@ pub fn print_ride(
         results.delta_a_peak.to_degrees()
     );
     let c = comfort;
+    // A number the flags make meaningless is never printed as a plain result.
+    let label = if flags.not_real_time() {
+        "comfort NOT VALID for real time (the run fell behind its clock; see the flag below)"
+    } else if flags.ride_invalid() {
+        "comfort NOT VALID (see the flags below)"
+    } else {
+        "comfort"
+    };
     println!(
-        "  comfort: P_CT standing {:.2} %, seated {:.2} % (whole-run peaks, as the paper; EN 12299 per transition {:.2} / {:.2} %); lateral acceleration RMS deviation {:.3} %g, peak {:.2} %g; jerk {:.2} %g/s",
+        "  {label}: P_CT standing {:.2} %, seated {:.2} % (whole-run peaks, as the paper; EN 12299 per transition {:.2} / {:.2} %); lateral acceleration RMS deviation {:.3} %g, peak {:.2} %g; jerk {:.2} %g/s",
         c.p_ct.standing,
         c.p_ct.seated,
         c.p_ct_en12299.standing,
@@ -85,6 +139,11 @@ pub fn print_ride(
         }
         if flags.ride_invalid() {
             println!("  the comfort numbers above do not describe a working tilt system");
+        }
+        if flags.not_real_time() {
+            println!(
+                "  the comfort numbers above do not answer the real-time question; `tiltsim replay-timing` replays this timing exactly"
+            );
         }
     }
 }

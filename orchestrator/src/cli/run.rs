@@ -3,10 +3,11 @@
 use std::path::PathBuf;
 
 use super::bounds::{self, End};
-use super::common::{interrupt_and_exe, load, write_json, MasterArg, TransportArg, WaitArg};
+use super::common::{interrupt_and_exe, load, MasterArg, TransportArg, WaitArg};
 use super::error::{CliError, CliResult};
 use tiltsim_master::engine::{RunOptions, Status, Summary};
 use tiltsim_master::scenario::Scenario;
+use tiltsim_report::pipeline::{carry_out, Job};
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -170,23 +171,6 @@ pub fn exec(a: RunArgs) -> CliResult {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("out").join(&s.name));
-    let extras = tiltsim_studies::budget::Extras {
-        trace: a.trace,
-        record: a.record,
-    };
-    match tiltsim_studies::budget::check(&s, &out, extras) {
-        tiltsim_studies::budget::Verdict::Fits => {}
-        tiltsim_studies::budget::Verdict::Warn(m) => {
-            eprintln!("warning: {}: {m}", a.scenario.display())
-        }
-        tiltsim_studies::budget::Verdict::Refuse(m) => {
-            return Err(CliError::Invalid(format!("{}: {m}", a.scenario.display())))
-        }
-    }
-    // Held until the run ends, taken before anything is written there; an earlier run's files
-    // go (what this run does not write again must not stay beside its own).
-    let _lock = tiltsim_master::outdir::claim_run(&out, "run")
-        .map_err(|e| CliError::Invalid(e.to_string()))?;
     let (interrupt, exe) = interrupt_and_exe()?;
     let realtime = if a.realtime {
         cosim::realtime::enter(cosim::realtime::PRIORITY)
@@ -215,31 +199,19 @@ pub fn exec(a: RunArgs) -> CliResult {
         timing: true,
         ticks_done: None,
     };
-    if s.run.execution == tiltsim_master::scenario::Execution::Free {
-        return super::free_run::exec(&s, &a.scenario, &opts, a.quiet);
-    }
-    let mut kept = Ok(());
-    let summary =
-        tiltsim_report::analysis::run_then(&s, &a.scenario.display().to_string(), &opts, |sm| {
-            kept = write_json(&out.join("summary.json"), sm)
-                .and_then(|_| write_json(&out.join("perf.json"), &sm.perf()));
-        })
-        .map_err(|e| CliError::of_run(e, ""))?;
-    if let Err(e) = kept {
-        // The run's own outcome is the more important message; the summary's loss is told too.
-        eprintln!("error: summary not written: {e}");
-        if summary.status == Status::Completed {
-            return Err(e);
-        }
+    let job = Job::new(&s, a.scenario.display().to_string(), opts);
+    let done = carry_out(&job).map_err(CliError::of_job)?;
+    for w in &done.warnings {
+        eprintln!("warning: {w}");
     }
     if !a.quiet {
-        super::report::print(&summary, &out);
+        super::report::print(&done.summary, &out);
     }
-    outcome(&summary, &out)
+    outcome(&done.summary, &out)
 }
 
 /// The exit of a finished run, by its status.
-fn outcome(summary: &Summary, out: &std::path::Path) -> CliResult {
+pub(super) fn outcome(summary: &Summary, out: &std::path::Path) -> CliResult {
     match summary.status {
         Status::Completed => Ok(()),
         Status::Degraded => {

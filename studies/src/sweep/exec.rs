@@ -188,29 +188,21 @@ pub(super) fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row 
     // Nor does it report wall-clock timing: no clock reads per exchange (`RunOptions::timing`).
     opts.timing = ex.keep_runs;
     let name = format!("{} (sample {j})", base.name);
-    let (summary, rows) = if opts.keep_rows {
-        match tiltsim_report::analysis::run_keeping_rows(&s, &name, &opts) {
-            Ok((sum, rows)) => (Ok(sum), rows),
-            Err(e) => (Err(e), Vec::new()),
-        }
-    } else {
-        let summary = tiltsim_report::analysis::run(&s, &name, &opts);
-        (
-            summary,
+    let mut job = tiltsim_report::pipeline::Job::new(&s, name, opts);
+    // The sweep holds its directory; each sample's is its own.
+    job.claim = false;
+    let (summary, rows) = match tiltsim_report::pipeline::carry_out(&job) {
+        Ok(done) if job.opts.keep_rows => (Ok(done.summary), done.rows),
+        Ok(done) => (
+            Ok(done.summary),
             tiltsim_master::record::read_rows(&dir).unwrap_or_default(),
-        )
+        ),
+        Err(e) => (Err(e), Vec::new()),
     };
     let every = (SERIES_DT / s.run.dt_s).round().max(1.0) as usize;
     // Row k holds t_k: keep t = 0, 10 ms, 20 ms, ...
     let series: Vec<f64> = rows.iter().step_by(every).map(|r| r.lat_acc).collect();
-    if ex.keep_runs {
-        if let Ok(sum) = &summary {
-            let _ = tiltsim_master::files::write_atomic(
-                &dir.join("summary.json"),
-                serde_json::to_string_pretty(sum).unwrap_or_default() + "\n",
-            );
-        }
-    } else {
+    if !ex.keep_runs {
         let _ = std::fs::remove_dir_all(&dir);
     }
     match summary {

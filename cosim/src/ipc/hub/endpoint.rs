@@ -467,6 +467,9 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         while report.is_none() && started.elapsed() < Duration::from_millis(500) {
             report = try_reap(self.pid, false);
             if report.is_none() {
+                // A free-running participant held back by a full reply buffer reads its
+                // Stop only once it has room again: its last replies are let through.
+                while let Ok(Some(_)) = self.subscriber.receive() {}
                 std::thread::sleep(Duration::from_millis(1));
                 let due = started.elapsed().as_millis() as u32 / 50;
                 if due > attempt {

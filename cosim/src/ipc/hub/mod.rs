@@ -1,9 +1,10 @@
 //! The orchestrator's side of the transport: the run's hub, which starts the participant
 //! processes ([`IpcHub`]), and one endpoint per participant ([`IpcEndpoint`], in `endpoint`),
-//! whose stall check judges a silent participant (`liveness`).
+//! whose stall check judges a silent participant (`liveness`). Each participant's standard
+//! error goes to a file (`logs`).
 
 use std::ffi::OsString;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
@@ -12,22 +13,24 @@ use iceoryx2::prelude::*;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-use crate::endpoint::ExchangeCounts;
+use crate::endpoint::{ExchangeCounts, LinkError};
 use crate::msg::Message;
 use crate::participant::Role;
 
 use super::supervise::Status;
 use super::{
-    config, iox, node, quiet_iceoryx_logs, reply_service, request_service, service, DropPlan,
-    IpcError, IpcSettings,
+    config, iox, node, quiet_iceoryx_logs, reply_service, request_service, service, Direction,
+    DropPlan, IpcError, IpcSettings,
 };
 
 mod endpoint;
 mod liveness;
+mod logs;
 #[cfg(test)]
 mod tests;
 
 pub use endpoint::IpcEndpoint;
+use logs::LogDir;
 
 /// The orchestrator's side of the transport for one run.
 pub struct IpcHub {
@@ -35,6 +38,7 @@ pub struct IpcHub {
     cfg: Config,
     node: Node<ipc::Service>,
     interrupt: Option<Arc<AtomicBool>>,
+    logs: LogDir,
 }
 
 /// How to start a participant's process.
@@ -56,12 +60,30 @@ impl IpcHub {
         super::claim_prefix(&settings.prefix)
             .map_err(|e| IpcError::Iceoryx(format!("owner file of {}: {e}", settings.prefix)))?;
         let node = node(&cfg, "orchestrator")?;
+        let logs = LogDir::scratch(&settings.prefix);
         Ok(IpcHub {
             settings,
             cfg,
             node,
             interrupt: None,
+            logs,
         })
+    }
+
+    /// Writes each participant's standard error to `dir/ROLE.log` ([`IpcHub::log_file`]),
+    /// created at its start, and leaves the files there for the caller (who removes the empty
+    /// ones and reports the others). Without it, a hub writes them to a directory of its own
+    /// under the system's temporary directory, removed with them when the hub is dropped: what
+    /// a participant wrote is then lost, except the last line of one that ended while starting,
+    /// which its error quotes.
+    pub fn logs_into(mut self, dir: PathBuf) -> Self {
+        self.logs = LogDir::Run(dir);
+        self
+    }
+
+    /// The standard error of the participant `role` in a log directory `dir`: `dir/ROLE.log`.
+    pub fn log_file(dir: &Path, role: Role) -> PathBuf {
+        logs::log_file(dir, role)
     }
 
     /// Makes [`IpcHub::spawn`] stop waiting for a participant to connect, and stop it, once
@@ -83,8 +105,8 @@ impl IpcHub {
         launch: &Launch,
         startup: Duration,
     ) -> Result<IpcEndpoint<I, O>, IpcError> {
-        let req = service::<I>(&self.node, &request_service(role))?;
-        let rep = service::<O>(&self.node, &reply_service(role))?;
+        let req = service::<I>(&self.node, &request_service(role), Direction::Request)?;
+        let rep = service::<O>(&self.node, &reply_service(role), Direction::Reply)?;
         let publisher = req
             .publisher_builder()
             .create()
@@ -96,6 +118,13 @@ impl IpcHub {
 
         let status = Status::create(&self.settings.prefix, role)
             .map_err(|e| IpcError::Iceoryx(format!("status of {role}: {e}")))?;
+        let spawn_error = |source| IpcError::Spawn {
+            role,
+            program: launch.program.display().to_string(),
+            source,
+        };
+        // A file, never a pipe: a participant never waits for a reader of its output.
+        let (log, stderr) = self.logs.open(role).map_err(spawn_error)?;
         let mut cmd = Command::new(&launch.program);
         cmd.args(&launch.args)
             .arg("--prefix")
@@ -107,7 +136,7 @@ impl IpcHub {
         }
         cmd.stdin(Stdio::null())
             .stdout(Stdio::null())
-            .stderr(Stdio::inherit());
+            .stderr(Stdio::from(stderr));
         {
             use std::os::unix::process::CommandExt;
             // Own process group: a terminal Ctrl-C reaches the orchestrator only, which then
@@ -122,11 +151,7 @@ impl IpcHub {
                 });
             }
         }
-        let child = cmd.spawn().map_err(|source| IpcError::Spawn {
-            role,
-            program: launch.program.display().to_string(),
-            source,
-        })?;
+        let child = cmd.spawn().map_err(spawn_error)?;
         let mut ep = IpcEndpoint {
             role,
             pid: child.id(),
@@ -146,7 +171,27 @@ impl IpcHub {
             resent: None,
             drops: DropPlan::from_env(role),
         };
-        if !ep.await_connection(startup, self.interrupt.as_deref())? {
+        let connected = ep
+            .await_connection(startup, self.interrupt.as_deref())
+            .map_err(|e| match e {
+                // Why it ended is usually the last thing it wrote.
+                LinkError::Exited {
+                    role,
+                    pid,
+                    step,
+                    status,
+                } => LinkError::Exited {
+                    role,
+                    pid,
+                    step,
+                    status: match logs::last_line(&log) {
+                        Some(line) => format!("{status}; its standard error ends: {line}"),
+                        None => status,
+                    },
+                },
+                e => e,
+            })?;
+        if !connected {
             // Dropping the endpoint stops the process.
             return Err(IpcError::Interrupted { role });
         }
@@ -156,8 +201,8 @@ impl IpcHub {
     /// An endpoint for a participant served in this process (tests of the exchange itself).
     #[cfg(test)]
     fn attach<I: Message, O: Message>(&self, role: Role) -> Result<IpcEndpoint<I, O>, IpcError> {
-        let req = service::<I>(&self.node, &request_service(role))?;
-        let rep = service::<O>(&self.node, &reply_service(role))?;
+        let req = service::<I>(&self.node, &request_service(role), Direction::Request)?;
+        let rep = service::<O>(&self.node, &reply_service(role), Direction::Reply)?;
         Ok(IpcEndpoint {
             role,
             pid: std::process::id(),

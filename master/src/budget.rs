@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use tiltsim_master::scenario::Scenario;
+use crate::scenario::Scenario;
 
 /// Bytes per row of `timeseries.csv` with the ideal actuator: its drive columns stay 0, the
 /// other 25 hold up to 17 significant digits once the run is under way (measured 373 B on
@@ -23,6 +23,10 @@ pub const TRACE_BYTES_PER_TICK: u64 = 300;
 /// link, in zstd chunks; measured 386 B on paper-passive, 429-574 B on the controlled,
 /// irregular-track and jittered scenarios); 10 % above the largest measured.
 pub const RECORD_BYTES_PER_TICK: u64 = 640;
+/// Bytes per tick of a free run's `timing.csv`: a line of about 60-75 B for the plant's and
+/// the actuator's step of each tick and one per controller period (about 150 B a tick at a
+/// 1 ms tick); a third above that.
+pub const TIMING_BYTES_PER_TICK: u64 = 200;
 /// What every run writes whatever its length: figures (about 1 MB), summary, perf, events,
 /// scenario.
 pub const FIXED_BYTES: u64 = 2 << 20;
@@ -68,6 +72,11 @@ pub fn estimate(s: &Scenario, extras: Extras) -> Estimate {
         }
         + if extras.record {
             RECORD_BYTES_PER_TICK
+        } else {
+            0
+        }
+        + if s.run.execution == crate::scenario::Execution::Free {
+            TIMING_BYTES_PER_TICK
         } else {
             0
         };

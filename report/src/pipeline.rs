@@ -1,0 +1,291 @@
+//! One run, whatever its execution and whichever front end asks for it (`tiltsim run`,
+//! `--free-run`, `replay-timing`, `compare`, `sweep`, the Python package): the output-size
+//! check, the directory claim, the engine of the mode (lock-step, free, or the lock-step
+//! replay of a free run's timing), the rows streamed as they complete, the analysis, one
+//! typed `summary.json` and one `perf.json`, `run.mcap` closed with the summary, and the
+//! figures. A front end builds a [`Job`], calls [`carry_out`] and prints what it returns.
+
+use std::path::{Path, PathBuf};
+
+use tiltsim_master::budget::{self, Verdict};
+use tiltsim_master::engine::{RunError, RunMode, RunOptions, Status, Summary};
+use tiltsim_master::free::{FreeError, TraceError};
+use tiltsim_master::record::{Row, Rows};
+use tiltsim_master::scenario::{Execution, Scenario};
+
+/// What to run and how.
+#[derive(Debug, Clone)]
+pub struct Job<'a> {
+    /// The scenario, validated.
+    pub scenario: &'a Scenario,
+    /// Where it came from, for the summary (a path, or a name).
+    pub scenario_file: String,
+    /// How to run it; `opts.keep_rows` keeps the rows in memory and writes no file.
+    pub opts: RunOptions,
+    /// Replay this free run's timing trace in lock-step instead of running the scenario's
+    /// execution (`tiltsim replay-timing`).
+    pub replay_trace: Option<PathBuf>,
+    /// Take the output directory for this run (refused while another run holds it; an
+    /// earlier run's files there are removed). A caller that has taken it already (a
+    /// comparison's directory, a sweep's sample) sets this false.
+    pub claim: bool,
+}
+
+impl<'a> Job<'a> {
+    /// A job that runs `scenario` as its file says, claiming `opts.out_dir`.
+    pub fn new(scenario: &'a Scenario, scenario_file: impl Into<String>, opts: RunOptions) -> Self {
+        Job {
+            scenario,
+            scenario_file: scenario_file.into(),
+            opts,
+            replay_trace: None,
+            claim: true,
+        }
+    }
+
+    /// How this job runs.
+    pub fn mode(&self) -> RunMode {
+        match (&self.replay_trace, self.scenario.run.execution) {
+            (Some(_), _) => RunMode::ReplayTiming,
+            (None, Execution::Free) => RunMode::Free,
+            (None, Execution::LockStep) => RunMode::LockStep,
+        }
+    }
+}
+
+/// What a finished run hands back (its files are in `opts.out_dir`).
+#[derive(Debug)]
+pub struct Done {
+    /// The run's summary, analysed (as written to `summary.json`).
+    pub summary: Summary,
+    /// The rows, when kept in memory (`opts.keep_rows`); empty otherwise.
+    pub rows: Vec<Row>,
+    /// What the user should know that did not stop the run (a large share of the disk, a
+    /// figure not drawn, a file not written).
+    pub warnings: Vec<String>,
+}
+
+/// Why a run could not be carried out (a run that started and then failed is a [`Done`]
+/// whose summary says so).
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    /// Bad input: the message names the file, the field and what is allowed.
+    #[error("{0}")]
+    Invalid(String),
+    /// The participants could not be started, or a file not written.
+    #[error(transparent)]
+    Run(#[from] RunError),
+    /// The timing trace does not belong to the scenario.
+    #[error(transparent)]
+    Trace(#[from] TraceError),
+    /// A participant failed before the run could begin.
+    #[error("{0}")]
+    Failed(String),
+}
+
+impl From<FreeError> for JobError {
+    fn from(e: FreeError) -> Self {
+        match e {
+            FreeError::Run(r) => JobError::Run(r),
+            FreeError::Trace(t) => JobError::Trace(t),
+            FreeError::Link(l) => JobError::Failed(l.to_string()),
+        }
+    }
+}
+
+/// Carries out `job`: see the module's description. Refuses before anything is written when
+/// the outputs would not fit on the disk or the directory is another run's.
+pub fn carry_out(job: &Job) -> Result<Done, JobError> {
+    let s = job.scenario;
+    let opts = &job.opts;
+    let files = !opts.keep_rows;
+    let mut warnings = Vec::new();
+    if files {
+        let extras = budget::Extras {
+            trace: opts.trace,
+            record: opts.record,
+        };
+        match budget::check(s, &opts.out_dir, extras) {
+            Verdict::Fits => {}
+            Verdict::Warn(m) => warnings.push(format!("{}: {m}", job.scenario_file)),
+            Verdict::Refuse(m) => {
+                return Err(JobError::Invalid(format!("{}: {m}", job.scenario_file)))
+            }
+        }
+    }
+    let _lock = if files && job.claim {
+        Some(
+            tiltsim_master::outdir::claim_run(&opts.out_dir, "run")
+                .map_err(|e| JobError::Invalid(e.to_string()))?,
+        )
+    } else {
+        None
+    };
+    let ran = match job.mode() {
+        RunMode::LockStep => lock_step(job, &mut warnings)?,
+        RunMode::Free => free(job)?,
+        RunMode::ReplayTiming => replay(job)?,
+    };
+    Ok(finish(job, ran, warnings))
+}
+
+/// What an engine hands to the analysis.
+struct Ran {
+    summary: Summary,
+    rows: Vec<Row>,
+    recording: Option<Recording>,
+}
+
+/// `run.mcap`, open until the summary closes it.
+enum Recording {
+    LockStep(tiltsim_master::engine::Recording),
+    Free(tiltsim_master::free::record::FreeRecording),
+}
+
+fn lock_step(job: &Job, warnings: &mut Vec<String>) -> Result<Ran, JobError> {
+    let opts = &job.opts;
+    let ran = tiltsim_master::engine::run_recorded(job.scenario, &job.scenario_file, opts)?;
+    let mut summary = ran.summary;
+    // With `--trace`: a figure that cannot be written fails the run, as the trace would.
+    if let Some(h) = ran.latency_histogram {
+        if let Err(e) = crate::analysis::latency_histogram(&opts.out_dir, &h) {
+            if summary.error.is_none() {
+                summary.status = Status::Failed;
+                summary.error = Some(format!("cannot write {e}"));
+            } else {
+                warnings.push(format!("latency histogram not drawn: {e}"));
+            }
+        }
+    }
+    Ok(Ran {
+        summary,
+        rows: ran.rows.unwrap_or_default(),
+        recording: ran.recording.map(Recording::LockStep),
+    })
+}
+
+fn free(job: &Job) -> Result<Ran, JobError> {
+    let s = job.scenario;
+    let mut r = tiltsim_master::free::run(s, &job.opts)?;
+    let summary = tiltsim_master::free::summary_of_run(s, &job.scenario_file, &mut r);
+    Ok(Ran {
+        summary,
+        rows: r.rows.take().unwrap_or_default(),
+        recording: r.recording.take().map(Recording::Free),
+    })
+}
+
+fn replay(job: &Job) -> Result<Ran, JobError> {
+    let s = job.scenario;
+    let trace = job.replay_trace.as_deref().unwrap_or(Path::new(""));
+    let mut r = tiltsim_master::free::replay(s, trace, &job.opts)?;
+    let summary = tiltsim_master::free::summary_of_replay(s, &job.scenario_file, trace, &r);
+    Ok(Ran {
+        summary,
+        rows: r.rows.take().unwrap_or_default(),
+        recording: None,
+    })
+}
+
+/// The analysis, `summary.json`, `perf.json`, the recording's close and the figures.
+fn finish(job: &Job, ran: Ran, mut warnings: Vec<String>) -> Done {
+    let s = job.scenario;
+    let opts = &job.opts;
+    let files = !opts.keep_rows;
+    let Ran {
+        mut summary,
+        rows,
+        recording,
+    } = ran;
+    let interrupted = opts.interrupt.load(std::sync::atomic::Ordering::Relaxed);
+    if interrupted {
+        // An hour's series takes tens of seconds to analyse: `tiltsim plot DIR` draws it later.
+        summary.analysis_skipped = Some(format!(
+            "interrupted by {}: comfort, flags and figures not computed",
+            tiltsim_master::signals::describe()
+        ));
+    } else {
+        let source = if files {
+            Rows::File(&opts.out_dir)
+        } else {
+            Rows::Kept(&rows)
+        };
+        match crate::analysis::assess(s, source) {
+            Ok(a) => {
+                summary.results = a.results;
+                summary.comfort = a.comfort;
+                summary.flags = a.flags;
+            }
+            // Results from part of a series would read as the run's: none are given.
+            Err(e) => {
+                summary.analysis_skipped =
+                    Some(format!("comfort, flags and results not computed: {e}"))
+            }
+        }
+        if let Some(f) = &summary.free_run {
+            summary.flags.not_real_time = Some(tiltsim_assessment::validity::NotRealTime {
+                raised: f.not_real_time,
+                plant_max_lateness_s: f.plant_max_lateness_s,
+                margin_s: f.not_real_time_margin_s,
+            });
+        }
+        if tiltsim_master::signals::received() {
+            summary.analysis_skipped = Some(format!(
+                "interrupted by {} during the analysis: comfort and flags incomplete, figures not drawn",
+                tiltsim_master::signals::describe()
+            ));
+        }
+    }
+    if files {
+        // The summary takes the disk's space before the figures do.
+        for (name, value) in [
+            ("summary.json", serde_json::to_value(&summary)),
+            ("perf.json", Ok(summary.perf())),
+        ] {
+            let path = opts.out_dir.join(name);
+            let text = value
+                .map(|v| serde_json::to_string_pretty(&v).unwrap_or_default() + "\n")
+                .unwrap_or_default();
+            if let Err(e) = tiltsim_master::files::write_atomic(&path, text) {
+                let what = format!("cannot write {}: {e}", path.display());
+                if summary.error.is_none() && summary.status == Status::Completed {
+                    summary.status = Status::Failed;
+                    summary.error = Some(what);
+                } else {
+                    warnings.push(what);
+                }
+            }
+        }
+    }
+    if let Some(rec) = recording {
+        let closed = match rec {
+            Recording::LockStep(r) => r.finish(&summary),
+            Recording::Free(r) => {
+                let det = tiltsim_master::engine::summary::deterministic(
+                    serde_json::to_value(&summary).unwrap_or_default(),
+                );
+                r.finish(&det, &summary.perf())
+            }
+        };
+        if let Err(e) = closed {
+            warnings.push(format!("recording not completed: {e}"));
+        }
+    }
+    let drawn = files && opts.plots && summary.analysis_skipped.is_none();
+    if drawn {
+        if let Err(e) = crate::analysis::write_plots(s, &opts.out_dir) {
+            warnings.push(format!("plots not written: {e}"));
+        }
+        if summary.execution == RunMode::Free {
+            // A run that ended early has a partial trace: no timing figures (the trace stays).
+            if let Err(e) = crate::analysis::write_timing_plots(s, &opts.out_dir) {
+                warnings.push(format!("timing plots not drawn: {e}"));
+            }
+        }
+    }
+    Done {
+        summary,
+        rows,
+        warnings,
+    }
+}
