@@ -656,3 +656,259 @@ fn a_participant_killed_in_a_free_run_is_named_and_the_rows_before_are_kept() {
     // The header, the start time and every step.
     assert_eq!(series.lines().count() as u64, rows + 2);
 }
+
+/// pi-drive with `faults` (TOML of `[[faults.schedule]]` tables) appended, written as
+/// `dir/name.toml`.
+fn pi_drive_with(dir: &Path, name: &str, faults: &str) -> PathBuf {
+    let base = std::fs::read_to_string(scenario("pi-drive.toml")).unwrap();
+    std::fs::create_dir_all(dir).unwrap();
+    let file = dir.join(format!("{name}.toml"));
+    std::fs::write(&file, format!("{base}\n{faults}")).unwrap();
+    file
+}
+
+/// Runs `sc` free for `duration` s into `out` (waiting for it however long it takes), checks
+/// that it completed with every step in its trace and no shared-memory file left, replays
+/// its trace in process and checks that the replay's rows and events are the free run's
+/// bytes.
+fn completes_and_replays(sc: &Path, out: &Path, duration: &str, pre: &str) {
+    let (code, _, err) = run(&[
+        "run",
+        s(sc),
+        "--free-run",
+        "--duration",
+        duration,
+        "--out",
+        s(out),
+        "--ipc-prefix",
+        pre,
+        "-q",
+    ]);
+    assert_eq!(code, 0, "{}: {err}", sc.display());
+    assert!(leftovers(pre).is_empty(), "{pre}: shared-memory files left");
+    let sm = summary(out);
+    assert_eq!(sm["status"], "completed", "{}", sc.display());
+    assert_eq!(sm["execution"], "free");
+    let steps = (duration.parse::<f64>().unwrap() * 1000.0).round() as i64;
+    check_trace(&read_trace(out), steps, 1);
+    let again = out.join("replay");
+    let (code, err) = replay(out, &again, &[]);
+    assert_eq!(code, 0, "{err}");
+    for f in ["timeseries.csv", "events.csv"] {
+        assert!(
+            bytes(&out.join(f)) == bytes(&again.join(f)),
+            "{}: the replay's {f} differs from the free run's",
+            sc.display()
+        );
+    }
+}
+
+/// A stall is the timing a free run records, however long: the stalled participant catches
+/// up in a burst of steps that no buffer of the exchange drops, and the others go on reading
+/// the newest input they have. Each participant is stalled once (3, 10 and 30 s, longer
+/// than any buffer of the exchange holds at a 1 ms step), the runs side by side.
+#[test]
+fn long_stalls_of_each_participant_complete_and_replay_byte_for_byte() {
+    let root = temp_dir("freerun-stalls");
+    let cases = [
+        ("plant", "3.0"),
+        ("actuator", "10.0"),
+        ("controller", "30.0"),
+    ];
+    std::thread::scope(|scope| {
+        for (role, stall) in cases {
+            let root = &root;
+            scope.spawn(move || {
+                let faults = format!(
+                    "[[faults.schedule]]\nparticipant = \"{role}\"\naction = \"stall\"\nat_s = 0.5\nstall_s = {stall}\n"
+                );
+                let sc = pi_drive_with(root, &format!("stall-{role}"), &faults);
+                let out = root.join(format!("{role}-free"));
+                completes_and_replays(&sc, &out, "2", &prefix(&format!("freerun-stall-{role}")));
+                let t = read_trace(&out);
+                // The stalled participant's step due when it was stopped started at least the
+                // stall late (SIGSTOP for the wall time of the stall).
+                let stall_ns = (stall.parse::<f64>().unwrap() * 1e9) as i64;
+                let late = t
+                    .iter()
+                    .filter(|x| x.role == role)
+                    .map(|x| x.read as i64 - x.due as i64)
+                    .max()
+                    .unwrap();
+                assert!(
+                    late >= stall_ns - 50_000_000,
+                    "{role}: largest start lateness {late} ns for a stall of {stall} s"
+                );
+                if role == "plant" {
+                    let sm = summary(&out);
+                    assert_eq!(sm["flags"]["not_real_time"]["raised"], true);
+                }
+            });
+        }
+    });
+}
+
+/// A participant stopped from outside (SIGSTOP, SIGCONT 10 s later) is waited for as a
+/// scheduled stall is, and the run completes and replays exactly.
+#[test]
+fn a_participant_stopped_from_outside_is_waited_for_and_the_run_replays() {
+    let root = temp_dir("freerun-sigstop");
+    let out = root.join("free");
+    let pre = prefix("freerun-sigstop");
+    let sc = scenario("pi-drive.toml");
+    let mut child = tiltsim_suite::spawn(&[
+        "run",
+        s(&sc),
+        "--free-run",
+        "--duration",
+        "3",
+        "--out",
+        s(&out),
+        "--ipc-prefix",
+        &pre,
+        "-q",
+    ]);
+    // The plant process, once it exists, and the run under way (its trace growing).
+    let plant = tiltsim_suite::wait_for(std::time::Duration::from_secs(600), || {
+        tiltsim_suite::children_of(child.id())
+            .into_iter()
+            .find(|(_, name)| name.contains("plant"))
+            .map(|(pid, _)| pid)
+    })
+    .expect("the plant process never appeared");
+    tiltsim_suite::wait_for(std::time::Duration::from_secs(600), || {
+        std::fs::metadata(out.join("timing.csv"))
+            .ok()
+            .filter(|m| m.len() > 0)
+    })
+    .expect("the trace never appeared");
+    // SAFETY: signals to a child process of the run under test.
+    unsafe { libc::kill(plant as i32, libc::SIGSTOP) };
+    std::thread::sleep(std::time::Duration::from_secs(10));
+    unsafe { libc::kill(plant as i32, libc::SIGCONT) };
+    let status = child.wait().unwrap();
+    assert!(status.success(), "the run failed: {status}");
+    assert!(leftovers(&pre).is_empty(), "shared-memory files left");
+    check_trace(&read_trace(&out), 3000, 1);
+    let again = out.join("replay");
+    let (code, err) = replay(&out, &again, &[]);
+    assert_eq!(code, 0, "{err}");
+    assert!(bytes(&out.join("timeseries.csv")) == bytes(&again.join("timeseries.csv")));
+}
+
+/// Two CPU hogs for as long as the value lives.
+struct Hogs(Vec<std::process::Child>);
+
+impl Hogs {
+    fn start(n: usize) -> Hogs {
+        Hogs(
+            (0..n)
+                .map(|_| {
+                    std::process::Command::new("yes")
+                        .stdout(std::process::Stdio::null())
+                        .spawn()
+                        .expect("yes")
+                })
+                .collect(),
+        )
+    }
+}
+
+impl Drop for Hogs {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// Four free runs at once beside two CPU hogs, on a machine of two CPUs: every participant
+/// falls behind, catches up in bursts and is starved again; every run completes, its trace
+/// whole, and replays byte for byte.
+#[test]
+fn four_free_runs_beside_two_cpu_hogs_complete_and_replay_byte_for_byte() {
+    let root = temp_dir("freerun-load");
+    let _hogs = Hogs::start(2);
+    std::thread::scope(|scope| {
+        for i in 0..4 {
+            let root = &root;
+            scope.spawn(move || {
+                let out = root.join(format!("run-{i}"));
+                completes_and_replays(
+                    &scenario("pi-drive.toml"),
+                    &out,
+                    "2",
+                    &prefix(&format!("freerun-load-{i}")),
+                );
+            });
+        }
+    });
+}
+
+/// An orchestrator killed with SIGKILL in the middle of a free run leaves whole rows and a
+/// prefix of its trace; `replay-timing` replays that prefix, says it is partial, and gives
+/// the rows the free run had written, byte for byte.
+#[test]
+fn a_killed_free_run_leaves_a_trace_prefix_that_replays_its_rows() {
+    let root = temp_dir("freerun-sigkill");
+    let out = root.join("free");
+    let pre = prefix("freerun-sigkill");
+    let sc = scenario("pi-drive.toml");
+    let mut child = tiltsim_suite::spawn(&[
+        "run",
+        s(&sc),
+        "--free-run",
+        "--duration",
+        "10",
+        "--out",
+        s(&out),
+        "--ipc-prefix",
+        &pre,
+        "-q",
+    ]);
+    // Killed once a few thousand rows are on disk (rows are written in batches of 1000).
+    tiltsim_suite::wait_for(std::time::Duration::from_secs(600), || {
+        std::fs::read_to_string(out.join("timeseries.csv"))
+            .ok()
+            .filter(|t| t.lines().count() > 3000)
+    })
+    .expect("the rows never reached 3000");
+    child.kill().unwrap();
+    child.wait().unwrap();
+    // The participants see their orchestrator gone and end; its files are removed by `clean`.
+    let (code, _, err) = run(&["clean"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        leftovers(&pre).is_empty(),
+        "shared-memory files left after clean"
+    );
+    let again = root.join("replay");
+    let (code, err) = replay(&out, &again, &[]);
+    assert_eq!(code, 0, "{err}");
+    let sm = summary(&again);
+    assert!(
+        sm["trace_partial"].is_string(),
+        "the replay of a killed run's trace must say it is partial: {sm}"
+    );
+    let free = std::fs::read_to_string(out.join("timeseries.csv")).unwrap();
+    let replayed = std::fs::read_to_string(again.join("timeseries.csv")).unwrap();
+    // Whole lines only in the free run's file; the replay has as many rows as the trace holds
+    // plant steps, which may be more or fewer than the rows on disk.
+    let mut free: Vec<&str> = free.lines().collect();
+    if !std::fs::read_to_string(out.join("timeseries.csv"))
+        .unwrap()
+        .ends_with('\n')
+    {
+        // A batch cut short by the kill: its last line is not a row.
+        free.pop();
+    }
+    let replayed: Vec<&str> = replayed.lines().collect();
+    let n = free.len().min(replayed.len());
+    assert!(n > 1000, "{n} rows in common");
+    assert_eq!(
+        free[..n],
+        replayed[..n],
+        "the replay's rows differ from the free run's"
+    );
+}

@@ -31,6 +31,7 @@ from .errors import Interrupted, ParticipantError, ScenarioError, TiltsimError
 
 __all__ = [
     "run",
+    "replay_timing",
     "sweep",
     "compare",
     "linearize",
@@ -278,8 +279,14 @@ def run(
     plots: bool = False,
     progress: Progress = None,
     raise_on_failure: bool = True,
+    execution: Optional[str] = None,
 ) -> Result:
     """Runs a scenario, as ``tiltsim run`` does, and returns its :class:`Result`.
+
+    ``execution`` is ``"lock-step"`` or ``"free"`` (every participant on its own clock over
+    ``transport="ipc"``; the timing goes to ``timing.csv`` in ``out``, which
+    :func:`replay_timing` replays exactly). A free run that fell behind real time has the
+    ``not real-time`` flag raised and ``valid`` False.
 
     ``set`` changes scenario values by dotted key (``{"controller.mpc.output_weight": 5.0}``).
     ``transport`` is ``"in-process"`` or ``"ipc"`` (participants as processes over shared
@@ -308,8 +315,48 @@ def run(
         plots=plots,
         exe=_participant_exe(),
         progress=_progress(progress, "ticks"),
+        execution=execution,
     )
-    result = Result(raw)
+    return _checked(Result(raw), raise_on_failure)
+
+
+def replay_timing(
+    run_dir: Union[str, "os.PathLike[str]"],
+    *,
+    scenario: Optional[Scenario] = None,
+    transport: Optional[str] = None,
+    out: Union[None, str, "os.PathLike[str]"] = None,
+    plots: bool = False,
+    progress: Progress = None,
+    raise_on_failure: bool = True,
+) -> Result:
+    """Replays the timing a free run recorded in ``run_dir/timing.csv`` exactly, in
+    lock-step, as ``tiltsim replay-timing`` does; returns its :class:`Result`, whose rows are
+    the free run's bit for bit. ``scenario`` (default: ``run_dir/scenario.toml``) may be
+    another system, which then sees the same timing. A partial trace (a free run that
+    ended early or was killed) is replayed as far as it goes; ``summary["trace_partial"]``
+    says what it lacked. ``out`` as for :func:`run`.
+    """
+    run_dir = os.fspath(run_dir)
+    kind, value, origin = _scenario(
+        scenario if scenario is not None else os.path.join(run_dir, "scenario.toml")
+    )
+    raw = _tiltsim.run(
+        kind,
+        value,
+        origin,
+        [],
+        out=_path(out),
+        transport=transport or "in-process",
+        plots=plots,
+        exe=_participant_exe(),
+        progress=_progress(progress, "ticks"),
+        replay_trace=os.path.join(run_dir, "timing.csv"),
+    )
+    return _checked(Result(raw), raise_on_failure)
+
+
+def _checked(result: Result, raise_on_failure: bool) -> Result:
     s = result.summary
     if result.status == "interrupted":
         raise Interrupted(

@@ -25,6 +25,8 @@ def run(
     plots: bool = False,
     exe: Optional[str] = None,
     progress: Optional[Callable[[int, int], Any]] = None,
+    execution: Optional[str] = None,
+    replay_trace: Optional[str] = None,
 ) -> dict[str, Any]:
     """``{"summary": JSON text, "columns": {name: read-only array}, "out_dir": str | None,
     "library_s": float}``."""

@@ -279,3 +279,67 @@ pub fn summary_of_replay(
     sm.replayed_exchanges = Some(r.exchanges);
     sm
 }
+
+#[cfg(test)]
+mod tests {
+    use super::trace::StepTrace;
+    use super::*;
+    use cosim::Role;
+
+    fn step(role: Role, step: u64, from: [Option<i64>; 3]) -> StepTrace {
+        StepTrace {
+            role,
+            step,
+            from,
+            due_ns: 0,
+            read_ns: 0,
+            compute_end_ns: 0,
+            publish_ns: 0,
+        }
+    }
+
+    /// What a free run holds in memory does not grow with its length: over 200 000 ticks
+    /// (200 s at 1 ms) of the lock-step data flow, every row written, the store holds a few
+    /// entries of each kind once it forgets what no later step or row can name.
+    #[test]
+    fn the_store_holds_a_bounded_window_whatever_the_run_length() {
+        let period = 10;
+        let steps = 200_000u64;
+        let mut store = compose::Store::new(period, 1e-3, &Default::default(), 1);
+        store.put_init(Default::default(), Default::default(), Default::default());
+        let mut rows = RowStream {
+            rec: RowRecorder::new(1e-3, RowSink::Kept(Vec::new())),
+            next: 0,
+            reads: [-1; 3],
+        };
+        rows.start(&store).unwrap();
+        let mut largest = 0;
+        let mut qc = -1i64;
+        for k in 0..steps {
+            let qp = k as i64 - 1;
+            if k % period == 0 {
+                store.note_read(&step(Role::Controller, k, [Some(qp), None, None]));
+                store.put_controller(k, Default::default());
+                qc = k as i64;
+            }
+            store.note_read(&step(Role::Actuator, k, [Some(qp), None, Some(qc)]));
+            store.put_actuator(k, Default::default());
+            store.note_read(&step(Role::Plant, k, [None, Some(k as i64), None]));
+            store.put_plant(k, Default::default());
+            rows.advance(&store, steps).unwrap();
+            assert_eq!(rows.next, k + 1, "row {k} could not be composed");
+            // What later steps will name: this tick's outputs and the controller's last.
+            let mut floor = rows.floor();
+            floor[0] = floor[0].min(k as i64);
+            floor[2] = floor[2].min(qc);
+            store.forget_before(floor);
+            largest = largest.max(store.held());
+        }
+        let (ticks, kept, err) = rows.finish();
+        assert_eq!((ticks, err), (steps, None));
+        assert_eq!(kept.map(|r| r.len() as u64), Some(steps + 1));
+        // Per window, the entries since the oldest step still named: at most a controller
+        // period of plant and actuator steps.
+        assert!(largest <= 12 * period as usize, "{largest} entries held");
+    }
+}
