@@ -756,7 +756,7 @@ fn a_participant_stopped_from_outside_is_waited_for_and_the_run_replays() {
     let out = root.join("free");
     let pre = prefix("freerun-sigstop");
     let sc = scenario("pi-drive.toml");
-    let mut child = tiltsim_suite::spawn(&[
+    let child = tiltsim_suite::spawn(&[
         "run",
         s(&sc),
         "--free-run",
@@ -786,8 +786,13 @@ fn a_participant_stopped_from_outside_is_waited_for_and_the_run_replays() {
     unsafe { libc::kill(plant as i32, libc::SIGSTOP) };
     std::thread::sleep(std::time::Duration::from_secs(10));
     unsafe { libc::kill(plant as i32, libc::SIGCONT) };
-    let status = child.wait().unwrap();
-    assert!(status.success(), "the run failed: {status}");
+    let output = child.wait_with_output().unwrap();
+    assert!(
+        output.status.success(),
+        "the run failed: {}: {}",
+        output.status,
+        String::from_utf8_lossy(&output.stderr)
+    );
     assert!(leftovers(&pre).is_empty(), "shared-memory files left");
     check_trace(&read_trace(&out), 3000, 1);
     let again = out.join("replay");
