@@ -1,5 +1,6 @@
 //! A participant that dies or stalls, and Ctrl-C: detected, named, the run ends cleanly with
-//! its rows on disk and no shared-memory files left.
+//! its rows on disk and no shared-memory files left. A participant that writes a lot to its
+//! standard error is not held up by it.
 
 use std::time::Duration;
 
@@ -239,6 +240,62 @@ fn a_run_killed_whole_under_a_prefix_of_its_own_is_removed_by_tiltsim_clean() {
     let (code, out, err) = tiltsim_suite::run(&["clean"]);
     assert_eq!(code, 0, "{out}{err}");
     assert!(leftovers(&pfx).is_empty(), "{:?}", leftovers(&pfx));
+}
+
+#[test]
+fn a_participant_that_writes_a_lot_is_not_held_up_and_its_output_is_kept_in_its_log() {
+    let dir = temp_dir("chatter");
+    let pfx = prefix("chatter");
+    let sc = scenario("paper-passive.toml");
+    let exe = env!("CARGO_BIN_EXE_faulty-plant");
+    let bytes = 1 << 20;
+    let go = |chatter: Option<usize>| {
+        let mut cmd = std::process::Command::new(tiltsim_suite::tiltsim());
+        cmd.args([
+            "run",
+            sc.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+            "--transport",
+            "ipc",
+            "--ipc-prefix",
+            &pfx,
+            "--duration",
+            "0.2",
+            "--participant-exe",
+            &format!("plant={exe}"),
+            "-q",
+        ]);
+        if let Some(n) = chatter {
+            cmd.env("TILTSIM_STDERR_BYTES", n.to_string());
+        }
+        // The orchestrator's standard error is a pipe read only after it ends: a participant
+        // writing there would fill it (64 KiB) and wait forever.
+        let child = cmd
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("start tiltsim");
+        let (code, _, err) = wait_with_limit(child, Duration::from_secs(600));
+        assert_eq!(code, 0, "{err}");
+        assert!(leftovers(&pfx).is_empty(), "{:?}", leftovers(&pfx));
+        summary(&dir)
+    };
+    let s = go(Some(bytes));
+    assert_eq!(s["status"], "completed");
+    assert_eq!(s["participant_logs"], serde_json::json!(["logs/plant.log"]));
+    let log = std::fs::read_to_string(dir.join("logs/plant.log")).unwrap();
+    assert_eq!(log.len(), bytes);
+    assert!(log.ends_with(&format!("faulty plant: wrote {bytes} bytes\n")));
+    // The others wrote nothing: their empty logs are gone.
+    assert!(!dir.join("logs/actuator.log").exists());
+    assert!(!dir.join("logs/controller.log").exists());
+    // A quiet run into the same directory leaves no logs, and none of the earlier run's.
+    let s = go(None);
+    assert_eq!(s["status"], "completed");
+    assert!(s.get("participant_logs").is_none(), "{s}");
+    assert!(!dir.join("logs").exists());
 }
 
 /// `paper-passive` with its plant played by an exported FMU that carries `bytes` of zeros as

@@ -442,9 +442,10 @@ pub fn clear_plots(dir: &Path, stems: &[&str]) -> Result<usize, OutDirError> {
 }
 
 /// Removes every file a run writes from `dir` (its series, summaries, events, scenario,
-/// trace, recording, figures, participant logs and the replays of its recording): called by a run before it
-/// writes, so that what it does not write again (`run.mcap` without `--record`, figures of an
-/// interrupted run, ...) is not left from an earlier one. Returns how many files went.
+/// trace, recording, figures, participant logs and the replays of its recording): called by a
+/// run before it writes, so that what it does not write again (`run.mcap` without `--record`,
+/// figures of an interrupted run, the log of a participant quiet this time, ...) is not left
+/// from an earlier one. Returns how many files went.
 pub fn clear_run(dir: &Path) -> Result<usize, OutDirError> {
     let mut n = remove_named(dir, &names(&RUN_FILES))?;
     n += clear_plots(dir, &RUN_PLOTS)?;

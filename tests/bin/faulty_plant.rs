@@ -3,14 +3,23 @@
 //! plant=PATH`. `TILTSIM_FAULT=MODE@STEP` (inherited from the test) chooses:
 //! `nan` (NaN lateral acceleration in the reply), `version` (wrong protocol version),
 //! `size` (wrong sample size), `skip` (reply carries the next step's index), `hang` (never
-//! answers again), `panic` (crashes with a panic).
+//! answers again), `panic` (crashes with a panic). `TILTSIM_STDERR_BYTES=N` makes it write
+//! N bytes of text to its standard error before it connects, the last line
+//! `faulty plant: wrote N bytes`.
 
+use std::io::Write as _;
 use std::time::Duration;
 
 use cosim::msg::FromPlant;
 use plant_proc::{Plant, PlantSettings};
 
 fn main() {
+    if let Some(n) = std::env::var("TILTSIM_STDERR_BYTES")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+    {
+        chatter(n);
+    }
     let args: Vec<String> = std::env::args().collect();
     // Same command line as `tiltsim participant plant ...`.
     let rest = args.get(3..).unwrap_or_default().to_vec();
@@ -37,4 +46,19 @@ fn main() {
         eprintln!("{e}");
         std::process::exit(1);
     }
+}
+
+/// Writes `n` bytes of text to standard error (at least its last line), in one locked stream.
+fn chatter(n: usize) {
+    let last = format!("faulty plant: wrote {n} bytes\n");
+    let line = "faulty plant: a line of chatter on standard error\n";
+    let mut err = std::io::stderr().lock();
+    let mut left = n.saturating_sub(last.len());
+    while left > 0 {
+        let part = &line.as_bytes()[line.len() - left.min(line.len())..];
+        let _ = err.write_all(part);
+        left -= part.len();
+    }
+    let _ = err.write_all(last.as_bytes());
+    let _ = err.flush();
 }
