@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use tiltsim_suite::{leftovers, prefix, run, scenario, summary, temp_dir};
+use tiltsim_suite::{leftovers, prefix, run, scenario, summary, temp_dir, Hogs};
 
 fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
@@ -799,33 +799,6 @@ fn a_participant_stopped_from_outside_is_waited_for_and_the_run_replays() {
     let (code, err) = replay(&out, &again, &[]);
     assert_eq!(code, 0, "{err}");
     assert!(bytes(&out.join("timeseries.csv")) == bytes(&again.join("timeseries.csv")));
-}
-
-/// Two CPU hogs for as long as the value lives.
-struct Hogs(Vec<std::process::Child>);
-
-impl Hogs {
-    fn start(n: usize) -> Hogs {
-        Hogs(
-            (0..n)
-                .map(|_| {
-                    std::process::Command::new("yes")
-                        .stdout(std::process::Stdio::null())
-                        .spawn()
-                        .expect("yes")
-                })
-                .collect(),
-        )
-    }
-}
-
-impl Drop for Hogs {
-    fn drop(&mut self) {
-        for c in &mut self.0 {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
 }
 
 /// Four free runs at once beside two CPU hogs, on a machine of two CPUs: every participant

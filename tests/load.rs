@@ -5,40 +5,10 @@
 //! here reads a clock.
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Child;
 use std::time::Duration;
 
-use tiltsim_suite::{leftovers, prefix, scenario, spawn, temp_dir, wait_with_limit};
-
-/// Two `yes > /dev/null` processes, each keeping a CPU busy, killed when dropped: at the end of
-/// the test and on every way out of it, a failed assertion included.
-struct Hogs(Vec<Child>);
-
-impl Hogs {
-    fn start(n: usize) -> Hogs {
-        Hogs(
-            (0..n)
-                .map(|_| {
-                    Command::new("yes")
-                        .stdin(Stdio::null())
-                        .stdout(Stdio::null())
-                        .stderr(Stdio::null())
-                        .spawn()
-                        .expect("start a CPU hog (yes)")
-                })
-                .collect(),
-        )
-    }
-}
-
-impl Drop for Hogs {
-    fn drop(&mut self) {
-        for c in &mut self.0 {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
+use tiltsim_suite::{leftovers, prefix, scenario, spawn, temp_dir, wait_with_limit, Hogs};
 
 /// The timeseries of scenario `sc` run alone in this process under `master`, in `name`'s
 /// directory.

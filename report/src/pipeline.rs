@@ -78,7 +78,7 @@ pub enum JobError {
     /// The timing trace does not belong to the scenario.
     #[error(transparent)]
     Trace(#[from] TraceError),
-    /// A participant failed before the run could begin.
+    /// The run's outputs could not be read back (the Python package's arrays).
     #[error("{0}")]
     Failed(String),
 }
@@ -88,7 +88,6 @@ impl From<FreeError> for JobError {
         match e {
             FreeError::Run(r) => JobError::Run(r),
             FreeError::Trace(t) => JobError::Trace(t),
-            FreeError::Link(l) => JobError::Failed(l.to_string()),
         }
     }
 }

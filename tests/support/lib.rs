@@ -312,3 +312,34 @@ pub fn copy_dir(from: &Path, to: &Path) {
         }
     }
 }
+
+/// CPU hogs (`yes` processes) running for as long as the value lives: load for tests that
+/// must pass on a busy machine.
+pub struct Hogs(Vec<Child>);
+
+impl Hogs {
+    /// Starts `n` hogs.
+    pub fn start(n: usize) -> Hogs {
+        Hogs(
+            (0..n)
+                .map(|_| {
+                    Command::new("yes")
+                        .stdin(Stdio::null())
+                        .stdout(Stdio::null())
+                        .stderr(Stdio::null())
+                        .spawn()
+                        .expect("start a CPU hog (yes)")
+                })
+                .collect(),
+        )
+    }
+}
+
+impl Drop for Hogs {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}

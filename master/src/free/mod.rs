@@ -43,9 +43,6 @@ pub enum FreeError {
     /// The timing trace does not belong to the scenario.
     #[error(transparent)]
     Trace(#[from] TraceError),
-    /// A participant failed during a replay.
-    #[error(transparent)]
-    Link(#[from] LinkError),
 }
 
 impl FreeError {
