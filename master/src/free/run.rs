@@ -416,6 +416,10 @@ struct Deliveries {
     in_flight: Vec<InFlight>,
     /// Flags for the next request of each role (a scheduled crash).
     flags: RoleMap<u32>,
+    /// Which consumers have published a step (and so read their starting request).
+    started: RoleMap<bool>,
+    /// Consumers with a newer input held back until they have started.
+    held: RoleMap<bool>,
 }
 
 impl Deliveries {
@@ -488,32 +492,74 @@ impl Deliveries {
             return Ok(());
         }
         self.newest[link as usize] = step;
+        let consumer = match link {
+            LinkId::Measurement => Role::Controller,
+            LinkId::BarAngle => Role::Plant,
+            LinkId::ActuatorCommand | LinkId::BarTwist => Role::Actuator,
+        };
+        if self.started[consumer] {
+            self.relay(consumer, ps, store, relays)
+        } else {
+            // Not yet started: a relay now could overwrite its starting request, unread (a
+            // participant stopped before its first step). It gets the newest at its first output.
+            self.held[consumer] = true;
+            Ok(())
+        }
+    }
+
+    /// `role` has published its first step, so it has read its starting request: the input
+    /// held back since then is relayed.
+    fn started(
+        &mut self,
+        role: Role,
+        ps: &mut Participants,
+        store: &Store,
+        relays: &mut RoleMap<Relay>,
+    ) -> Result<(), String> {
+        self.started[role] = true;
+        if std::mem::take(&mut self.held[role]) {
+            self.relay(role, ps, store, relays)?;
+        }
+        Ok(())
+    }
+
+    /// Relays to `consumer` its input composed from the newest samples delivered to it.
+    fn relay(
+        &mut self,
+        consumer: Role,
+        ps: &mut Participants,
+        store: &Store,
+        relays: &mut RoleMap<Relay>,
+    ) -> Result<(), String> {
         let n = self.newest;
-        let lost = || format!("{link:?}: a delivered sample of step {step} is not in the store");
+        let lost = || format!("{consumer}: a delivered sample is not in the store");
         let link_err = |e: LinkError| e.to_string();
-        match link {
-            LinkId::Measurement => {
-                let mut req = store.controller_input(step).ok_or_else(lost)?;
-                req.header.flags |= std::mem::take(&mut self.flags[Role::Controller]);
-                relays[Role::Controller]
-                    .send(&mut ps.controller, req, [Some(step), None, None])
+        let flags = std::mem::take(&mut self.flags[consumer]);
+        match consumer {
+            Role::Controller => {
+                let q = n[LinkId::Measurement as usize];
+                let mut req = store.controller_input(q).ok_or_else(lost)?;
+                req.header.flags |= flags;
+                relays[consumer]
+                    .send(&mut ps.controller, req, [Some(q), None, None])
                     .map_err(link_err)
             }
-            LinkId::BarAngle => {
-                let mut req = store.plant_input(step).ok_or_else(lost)?;
-                req.header.flags |= std::mem::take(&mut self.flags[Role::Plant]);
-                relays[Role::Plant]
-                    .send(&mut ps.plant, req, [None, Some(step), None])
+            Role::Plant => {
+                let q = n[LinkId::BarAngle as usize];
+                let mut req = store.plant_input(q).ok_or_else(lost)?;
+                req.header.flags |= flags;
+                relays[consumer]
+                    .send(&mut ps.plant, req, [None, Some(q), None])
                     .map_err(link_err)
             }
-            LinkId::ActuatorCommand | LinkId::BarTwist => {
+            Role::Actuator => {
                 let (qc, qp) = (
                     n[LinkId::ActuatorCommand as usize],
                     n[LinkId::BarTwist as usize],
                 );
                 let mut req = store.actuator_input(qc, qp).ok_or_else(lost)?;
-                req.header.flags |= std::mem::take(&mut self.flags[Role::Actuator]);
-                relays[Role::Actuator]
+                req.header.flags |= flags;
+                relays[consumer]
                     .send(&mut ps.actuator, req, [Some(qp), None, Some(qc)])
                     .map_err(link_err)
             }
@@ -603,6 +649,8 @@ impl<'a> Hub<'a> {
                 newest: [-1; 4],
                 in_flight: Vec::new(),
                 flags: RoleMap::default(),
+                started: RoleMap::default(),
+                held: RoleMap::default(),
             },
             faults: FaultSchedule::new(&s.faults, s.run.dt_s),
             stats: Stats {
@@ -770,6 +818,9 @@ impl<'a> Hub<'a> {
             dt_ns,
             ..
         } = self;
+        if step == 0 {
+            deliveries.started(role, ps, store, relays)?;
+        }
         match o {
             Output::Plant(o) => {
                 let [meas, twist] = store.put_plant(step, o);

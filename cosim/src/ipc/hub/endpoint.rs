@@ -45,6 +45,8 @@ pub struct IpcEndpoint<I: Message, O: Message> {
     pub(super) resent: Option<Resent>,
     /// Samples dropped on purpose (tests only).
     pub(super) drops: DropPlan,
+    /// The participant's standard error (`None` for one served in this process).
+    pub(super) log: Option<std::path::PathBuf>,
 }
 
 /// Silence after which a pending exchange is looked into (the participant's status read) and
@@ -56,16 +58,24 @@ pub struct IpcEndpoint<I: Message, O: Message> {
 pub const RESEND_AFTER: Duration = Duration::from_micros(500);
 
 impl<I: Message, O: Message> IpcEndpoint<I, O> {
+    /// How the process ended, if it has, with the last line of its standard error (why it
+    /// ended is usually the last thing it wrote).
     fn exited(&mut self) -> Option<String> {
-        if let Some(r) = &self.exit {
-            return Some(r.status.clone());
-        }
-        self.child.as_ref()?;
-        let report = try_reap(self.pid, false)?;
-        self.child = None;
-        let status = report.status.clone();
-        self.exit = Some(report);
-        Some(status)
+        let status = match &self.exit {
+            Some(r) => r.status.clone(),
+            None => {
+                self.child.as_ref()?;
+                let report = try_reap(self.pid, false)?;
+                self.child = None;
+                let status = report.status.clone();
+                self.exit = Some(report);
+                status
+            }
+        };
+        Some(match self.log.as_deref().and_then(super::logs::last_line) {
+            Some(line) => format!("{status}; its standard error ends: {line}"),
+            None => status,
+        })
     }
 
     /// Waits until the participant's ports are connected. The liveness rule of every exchange

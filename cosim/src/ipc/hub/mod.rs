@@ -13,7 +13,7 @@ use iceoryx2::prelude::*;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-use crate::endpoint::{ExchangeCounts, LinkError};
+use crate::endpoint::ExchangeCounts;
 use crate::msg::Message;
 use crate::participant::Role;
 
@@ -170,27 +170,9 @@ impl IpcHub {
             last_request: None,
             resent: None,
             drops: DropPlan::from_env(role),
+            log: Some(log),
         };
-        let connected = ep
-            .await_connection(startup, self.interrupt.as_deref())
-            .map_err(|e| match e {
-                // Why it ended is usually the last thing it wrote.
-                LinkError::Exited {
-                    role,
-                    pid,
-                    step,
-                    status,
-                } => LinkError::Exited {
-                    role,
-                    pid,
-                    step,
-                    status: match logs::last_line(&log) {
-                        Some(line) => format!("{status}; its standard error ends: {line}"),
-                        None => status,
-                    },
-                },
-                e => e,
-            })?;
+        let connected = ep.await_connection(startup, self.interrupt.as_deref())?;
         if !connected {
             // Dropping the endpoint stops the process.
             return Err(IpcError::Interrupted { role });
@@ -228,6 +210,7 @@ impl IpcHub {
             last_request: None,
             resent: None,
             drops: DropPlan::default(),
+            log: None,
         })
     }
 
