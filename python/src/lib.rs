@@ -20,7 +20,7 @@ use pyo3::types::{PyDict, PyList};
 
 use tiltsim_master::engine::{RunError, RunOptions};
 use tiltsim_master::record::{Row, COLUMNS, OFFSETS, TYPES};
-use tiltsim_master::scenario::{Master, Scenario, Transport};
+use tiltsim_master::scenario::{Execution, Master, Scenario, Transport};
 use tiltsim_studies::sweep::{Exec, Plan};
 
 /// How often the waiting thread looks for Ctrl-C and reports progress.
@@ -79,6 +79,10 @@ struct Overrides {
     master: Option<String>,
     seed: Option<u64>,
     duration: Option<f64>,
+    /// `"lock-step"` or `"free"`, as the call gave it.
+    execution: Option<String>,
+    /// The run replays a free run's timing trace.
+    timing_replay: bool,
 }
 
 impl Overrides {
@@ -123,6 +127,20 @@ impl Overrides {
             s = s
                 .with_setting(k.trim(), v)
                 .map_err(|e| invalid(py, format!("{origin}: set {k}={v}: {e}")))?;
+        }
+        match self.execution.as_deref() {
+            None => {}
+            Some("lock-step") | Some("lockstep") => s.run.execution = Execution::LockStep,
+            Some("free") => s.run.execution = Execution::Free,
+            Some(other) => {
+                return Err(invalid(
+                    py,
+                    format!("execution = \"{other}\": allowed \"lock-step\" or \"free\""),
+                ))
+            }
+        }
+        if self.timing_replay {
+            tiltsim_report::pipeline::as_timing_replay(&mut s);
         }
         let errors = s.validate();
         if !errors.is_empty() {
@@ -323,6 +341,8 @@ fn scenario_with(
         master,
         seed,
         duration,
+        execution: None,
+        timing_replay: false,
     }
     .apply(py, s, origin)
 }
@@ -386,32 +406,16 @@ fn run<'py>(
     replay_trace: Option<PathBuf>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let started = std::time::Instant::now();
-    let mut s = scenario_with(
-        py, kind, value, origin, settings, transport, master, seed, duration,
-    )?;
-    match execution.as_deref() {
-        None => {}
-        Some("lock-step") | Some("lockstep") => {
-            s.run.execution = tiltsim_master::scenario::Execution::LockStep
-        }
-        Some("free") => s.run.execution = tiltsim_master::scenario::Execution::Free,
-        Some(other) => {
-            return Err(invalid(
-                py,
-                format!("execution = \"{other}\": allowed \"lock-step\" or \"free\""),
-            ))
-        }
+    let s = Overrides {
+        settings,
+        transport,
+        master,
+        seed,
+        duration,
+        timing_replay: replay_trace.is_some(),
+        execution,
     }
-    if replay_trace.is_some() {
-        // The replay is a lock-step run; a study's busy wait changes no value.
-        s.run.execution = tiltsim_master::scenario::Execution::LockStep;
-        s.run.controller_busy_wait_s = 0.0;
-    }
-    let errors = s.validate();
-    if !errors.is_empty() {
-        let lines: Vec<String> = errors.iter().map(|e| format!("{origin}: {e}")).collect();
-        return Err(invalid(py, lines.join("\n")));
-    }
+    .apply(py, scenario(py, kind, value, origin)?, origin)?;
     let exe = participant_exe(py, exe, &s)?;
     let (dir, scratch) = directory(py, out.as_deref(), "run")?;
     let interrupt = Arc::new(AtomicBool::new(false));

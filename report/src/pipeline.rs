@@ -13,6 +13,14 @@ use tiltsim_master::free::{FreeError, TraceError};
 use tiltsim_master::record::{Row, Rows};
 use tiltsim_master::scenario::{Execution, Scenario};
 
+/// Makes `s` the system a replay of a free run's timing runs: lock-step, and with no busy
+/// wait in the controller (a study's wall-clock load, which changes no value). Every front
+/// end that replays a timing trace applies this before validating the scenario.
+pub fn as_timing_replay(s: &mut Scenario) {
+    s.run.execution = tiltsim_master::scenario::Execution::LockStep;
+    s.run.controller_busy_wait_s = 0.0;
+}
+
 /// What to run and how.
 #[derive(Debug, Clone)]
 pub struct Job<'a> {

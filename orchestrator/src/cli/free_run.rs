@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use super::common::{interrupt_and_exe, load, TransportArg};
 use super::error::{CliError, CliResult};
 use tiltsim_master::engine::RunOptions;
-use tiltsim_master::scenario::{Execution, Transport};
+use tiltsim_master::scenario::Transport;
 use tiltsim_report::pipeline::{carry_out, Job};
 
 /// Arguments of `replay-timing`.
@@ -39,9 +39,7 @@ pub fn replay_timing(a: ReplayTimingArgs) -> CliResult {
         .clone()
         .unwrap_or_else(|| a.run_dir.join("scenario.toml"));
     let mut s = load(&file)?;
-    // The replay is a lock-step run; a study's busy wait changes no value.
-    s.run.execution = Execution::LockStep;
-    s.run.controller_busy_wait_s = 0.0;
+    tiltsim_report::pipeline::as_timing_replay(&mut s);
     s.run.transport = a
         .transport
         .map(Transport::from)
