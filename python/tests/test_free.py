@@ -32,6 +32,7 @@ def test_a_free_run_from_python_replays_bit_for_bit_and_as_the_command_line_does
     assert "not_real_time" in r.flags
     if r.flags["not_real_time"]["raised"]:
         assert not r.valid
+        assert "NOT VALID" in repr(r)
 
     replayed = tiltsim.replay_timing(free_dir, out=tmp_path / "py-replay")
     assert replayed.summary["execution"] == "replay-timing"

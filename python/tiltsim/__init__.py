@@ -259,6 +259,9 @@ class Result:
     def __repr__(self) -> str:
         p = (self.comfort.get("p_ct") or {}).get("standing_pct")
         p_text = f", P_CT standing {p:.2f} %" if isinstance(p, (int, float)) else ""
+        if p_text and self.raised_flags:
+            # As the terminal report: a number under a raised flag is not a result.
+            p_text += " NOT VALID"
         flags = ", flags: " + ", ".join(self.raised_flags) if self.raised_flags else ""
         return (
             f"<tiltsim.Result {self.summary.get('scenario')!r}: {self.status}, {len(self)} rows"
