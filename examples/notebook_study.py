@@ -57,9 +57,9 @@ def controllers(out: Path) -> dict[str, tiltsim.Result]:
     fig.savefig(out / "controllers.png", dpi=120)
     plt.close(fig)
     for name, r in runs.items():
-        p = r.comfort["p_ct"]["standing_pct"]
+        p = r.comfort["p_ct_en12299"]["standing_pct"]
         flags = ", ".join(r.raised_flags) or "none"
-        print(f"{name:8s} P_CT standing {p:6.2f} %   flags: {flags}")
+        print(f"{name:8s} P_CT standing (EN 12299) {p:6.2f} %   flags: {flags}")
     return runs
 
 
@@ -93,7 +93,7 @@ def fig21(out: Path, samples: int) -> object:
     fig.tight_layout()
     fig.savefig(out / "fig21_robustness.png", dpi=120)
     plt.close(fig)
-    spread = table["p_ct_standing_pct"].quantile([0.05, 0.5, 0.95])
+    spread = table["p_ct_en12299_standing_pct"].quantile([0.05, 0.5, 0.95])
     print(f"LQG P_CT standing over {samples} samples: p5 {spread[0.05]:.2f} %, "
           f"median {spread[0.5]:.2f} %, p95 {spread[0.95]:.2f} %")
     return table

@@ -13,6 +13,7 @@ mkdir -p "$o"
     scenarios/paper-lqg.toml scenarios/paper-mpc.toml scenarios/paper-mpc-hold.toml \
     scenarios/paper-mpc-preview.toml scenarios/paper-mpc-rho50.toml \
     --out "$o/paper" --transport in-process
+python3 scripts/rankings.py "$o/paper"
 "$t" compare scenarios/irregular-track.toml scenarios/pi-drive-irregular.toml \
     scenarios/lqg-irregular.toml scenarios/mpc-irregular.toml \
     --out "$o/irregular" --transport in-process
@@ -62,10 +63,10 @@ rows = []
 for kp in ["0.25", "0.40", "0.5708", "0.80", "1.10"]:
     c = json.load(open(os.path.join(d, f"pi-drive-{kp}", "summary.json")))["comfort"]
     s = json.load(open(os.path.join(d, f"straight-pi-drive-{kp}", "summary.json")))["comfort"]
-    rows.append((float(kp), c["p_ct"]["standing_pct"], c["lat_acc_peak_pct_g"],
+    rows.append((float(kp), c["p_ct_en12299"]["standing_pct"], c["lat_acc_peak_pct_g"],
                  s["ride"]["n_mv_lateral"], s["ride"]["tilt_error_rms_deg"],
                  s["ride"]["roll_acc_rms_rad_s2"]))
-print("| K_p (K_i = K_p/0.25 s) | P_CT standing, curve (%) | lateral acceleration peak, curve (%g) "
+print("| K_p (K_i = K_p/0.25 s) | P_CT standing (EN 12299), curve (%) | lateral acceleration peak, curve (%g) "
       "| N_MV lateral part, straight | tilt error RMS, straight (deg) "
       "| roll acceleration RMS, straight (rad/s²) |")
 print("|---|---|---|---|---|---|")
@@ -81,7 +82,7 @@ svg = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" font-f
        f'<rect width="{W}" height="{H}" fill="white"/>',
        f'<rect x="{L}" y="{T}" width="{W-L-R}" height="{H-T-B}" fill="none" stroke="black"/>',
        f'<text x="{L}" y="24" font-size="15" font-weight="bold">PI-drive: curving comfort against straight-track ride as K_p moves</text>',
-       f'<text x="{(L+W-R)/2}" y="{H-15}" text-anchor="middle">P_CT standing on the curve, whole-run peaks (%)</text>',
+       f'<text x="{(L+W-R)/2}" y="{H-15}" text-anchor="middle">P_CT standing on the curve, EN 12299 (%)</text>',
        f'<text x="18" y="{(T+H-B)/2}" text-anchor="middle" transform="rotate(-90 18 {(T+H-B)/2})">N_MV lateral part on the straight</text>',
        '<polyline fill="none" stroke="#1f77b4" stroke-width="1.5" points="' + " ".join(f"{px(x):.1f},{py(y):.1f}" for x, y in zip(xs, ys)) + '"/>']
 for r in rows:
@@ -175,14 +176,14 @@ def load(p):
     return json.load(open(p))
 def raised(flags):
     return ", ".join(k for k, v in flags.items() if isinstance(v, dict) and v.get("raised")) or "clear"
-print("| scenario | case | P_CT standing (%) | peak lateral acc. (%g) | flags | command age p50 / p99 / max (ticks) "
+print("| scenario | case | P_CT standing, EN 12299 (%) | peak lateral acc. (%g) | flags | command age p50 / p99 / max (ticks) "
       "| measurement age p50 / p99 / max | plant late steps | plant lateness max (ms) | not real-time | replay "
-      "| declared delays (command, measurement, bar angle; ticks) | lock-step with them: P_CT standing (%) |")
+      "| declared delays (command, measurement, bar angle; ticks) | lock-step with them: P_CT standing, EN 12299 (%) |")
 print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 for sc in ["paper-mpc", "pi-drive"]:
     ref = load(f"{f}/{sc}-lock-step/summary.json")
     c = ref["comfort"]
-    print(f"| {sc} | lock-step | {c['p_ct']['standing_pct']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
+    print(f"| {sc} | lock-step | {c['p_ct_en12299']['standing_pct']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
           f"| {raised(ref['flags'])} | | | | | | | | |")
     for case, label in [("quiet", "free, machine as it is"), ("hogs", "free, two CPU hogs"),
                         ("busy", "free, controller +extra compute")]:
@@ -192,10 +193,10 @@ for sc in ["paper-mpc", "pi-drive"]:
         ages = p["input_age_ticks"]
         a = lambda k: f"{ages[k]['p50']} / {ages[k]['p99']} / {ages[k]['max']}"
         pl = p["participants"]["plant"]
-        eq = load(f"{d}/equivalent/summary.json")["comfort"]["p_ct"]["standing_pct"]
+        eq = load(f"{d}/equivalent/summary.json")["comfort"]["p_ct_en12299"]["standing_pct"]
         delays = [l.split("=")[1].strip() for l in open(f"{d}/equivalent.toml") if l.startswith("delay_ticks")]
         c = s["comfort"]
-        print(f"| {sc} | {label} | {c['p_ct']['standing_pct']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
+        print(f"| {sc} | {label} | {c['p_ct_en12299']['standing_pct']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
               f"| {raised(s['flags'])} | {a('actuator_command')} | {a('measurement')} "
               f"| {pl['late_starts']} | {pl['start_lateness_us']['max'] / 1000:.1f} "
               f"| {'yes' if s['not_real_time'] else 'no'} | {open(f'{d}/replay.txt').read().strip()} | {', '.join(delays)} | {eq:.2f} |")
@@ -205,6 +206,7 @@ cp "$f/paper-mpc-hogs/plots/timing_input_age.svg" docs/figures/free-run-input-ag
 cp "$f/paper-mpc-hogs/plots/timing_lateness.svg" docs/figures/free-run-lateness.svg
 cp "$o/front/front.svg" docs/figures/pi-front.svg
 cp "$o/trade-off/plots/trade_off.svg" docs/figures/trade-off.svg
+cp "$o/paper/rankings.svg" docs/figures/rankings-roll-speed.svg
 while IFS= read -r line; do
     if [[ $line == "@include "* ]]; then
         cat "${line#@include }"

@@ -534,7 +534,12 @@ fn link_effects_and_a_stall_act_in_a_free_run_and_its_replay_repeats_them() {
     let free = summary(&out);
     let again = summary(&root.join("replay"));
     assert_eq!(free["comfort"], again["comfort"]);
-    assert!(free["comfort"]["p_ct"]["standing_pct"].as_f64().unwrap() > 0.0);
+    assert!(
+        free["comfort"]["p_ct_en12299"]["standing_pct"]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
     // Every flag of the series is the replay's; the real-time judgement is the free run's
     // own (a replay is a lock-step run, which has none).
     let mut free_flags = free["flags"].clone();

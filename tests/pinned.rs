@@ -72,7 +72,7 @@ fn outputs(
     ]);
     assert_eq!(code, 0, "{name}: {err}");
     let s = summary(&out);
-    let pct = s["comfort"]["p_ct"]["standing_pct"].as_f64().unwrap();
+    let pct = s["comfort"]["p_ct_paper"]["standing_pct"].as_f64().unwrap();
     vec![
         ("timeseries.csv".into(), sha(&out.join("timeseries.csv"))),
         ("events.csv".into(), sha(&out.join("events.csv"))),

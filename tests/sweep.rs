@@ -43,11 +43,14 @@ fn every_sample_and_the_table_check_out(whole: &Path) {
     }
     let table = std::fs::read_to_string(whole.join("table.csv")).unwrap();
     let rows = csv_table(&table);
-    let row = rows.iter().find(|r| r[0] == "p_ct_standing_pct").unwrap();
+    let row = rows
+        .iter()
+        .find(|r| r[0] == "p_ct_en12299_standing_pct")
+        .unwrap();
     assert_eq!(row[1], "5");
     assert_eq!(
         row[2].parse::<f64>().unwrap(),
-        median_of(&csv, "p_ct_standing_pct")
+        median_of(&csv, "p_ct_en12299_standing_pct")
     );
     let (p5, p95): (f64, f64) = (row[3].parse().unwrap(), row[4].parse().unwrap());
     assert!(p5 < row[2].parse::<f64>().unwrap() && row[2].parse::<f64>().unwrap() < p95);
@@ -161,13 +164,17 @@ fn a_grid_sweep_gives_each_value_the_metrics_of_a_plain_run_with_that_value() {
         "--quiet",
     ]);
     assert_eq!(code, 0, "{err}");
-    let want = summary(&dir.join("heavy"))["comfort"]["p_ct"]["standing_pct"]
+    let want = summary(&dir.join("heavy"))["comfort"]["p_ct_en12299"]["standing_pct"]
         .as_f64()
         .unwrap();
     let rows = csv_table(&table);
     let row = rows.iter().find(|r| r[0] == "22000").unwrap();
     assert_eq!(row[1], "completed");
-    assert_eq!(row[2 + 5].parse::<f64>().unwrap(), want);
+    let col = rows[0]
+        .iter()
+        .position(|h| h == "p_ct_en12299_standing_pct")
+        .unwrap();
+    assert_eq!(row[col].parse::<f64>().unwrap(), want);
     assert!(dir.join("grid/plots/sweep_comfort.png").exists());
 
     // Invalid sweeps are refused before anything runs, naming the key.

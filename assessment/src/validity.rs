@@ -354,8 +354,8 @@ impl Flagger {
             time_in_contact_s: self.contact_rows as f64 * dt,
         };
         let largest = [
-            comfort.p_ct.standing,
-            comfort.p_ct.seated,
+            comfort.p_ct_paper.standing,
+            comfort.p_ct_paper.seated,
             comfort.p_ct_en12299.standing,
             comfort.p_ct_en12299.seated,
         ]

@@ -34,7 +34,7 @@ def test_a_monte_carlo_sweep_is_the_command_lines_byte_for_byte(tmp_path: Path) 
     cli_series = read(tmp_path / "cli" / "series.csv")
     pd.testing.assert_frame_equal(series, cli_series, check_dtype=False)
     # The factors spread the masses: the samples differ.
-    assert df["p_ct_standing_pct"].nunique() == 4
+    assert df["p_ct_en12299_standing_pct"].nunique() == 4
 
 
 def test_a_grid_sweep_without_a_directory_leaves_no_file(tmp_path: Path) -> None:
@@ -43,7 +43,7 @@ def test_a_grid_sweep_without_a_directory_leaves_no_file(tmp_path: Path) -> None
     assert list(df["links.actuator_command.delay_ticks"]) == [0.0, 20.0]
     assert list(df["status"]) == ["completed", "completed"]
     # A delay on the command makes the ride worse.
-    assert df["p_ct_standing_pct"][1] > df["p_ct_standing_pct"][0]
+    assert df["p_ct_en12299_standing_pct"][1] > df["p_ct_en12299_standing_pct"][0]
     after = set(os.listdir(os.environ.get("TMPDIR", "/tmp")))
     assert not [n for n in after - before if n.startswith("tiltsim-py-")]
     # The same grid as a pair and as a dict.

@@ -7,7 +7,7 @@ while they run; Ctrl-C stops them within a second and raises :class:`Interrupted
     >>> import tiltsim
     >>> r = tiltsim.run("scenarios/paper-mpc.toml", set={"controller.mpc.output_weight": 5.0})
     >>> r.time, r.lat_acc             # NumPy arrays, one value per row (SI units)
-    >>> r.comfort["p_ct"]["standing_pct"], r.raised_flags
+    >>> r.comfort["p_ct_en12299"]["standing_pct"], r.raised_flags
     >>> df = r.frame()                # a pandas DataFrame (pandas optional)
 
 A scenario is a path to a TOML file, TOML text, or a dict of the same tables.
@@ -257,8 +257,8 @@ class Result:
         return pd.DataFrame(self._columns)
 
     def __repr__(self) -> str:
-        p = (self.comfort.get("p_ct") or {}).get("standing_pct")
-        p_text = f", P_CT standing {p:.2f} %" if isinstance(p, (int, float)) else ""
+        p = (self.comfort.get("p_ct_en12299") or {}).get("standing_pct")
+        p_text = f", P_CT standing (EN 12299) {p:.2f} %" if isinstance(p, (int, float)) else ""
         if p_text and self.raised_flags:
             # As the terminal report: a number under a raised flag is not a result.
             p_text += " NOT VALID"

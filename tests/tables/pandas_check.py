@@ -49,7 +49,7 @@ def main():
         "time_at_9ms": repr(float(ts["time"].iloc[9])),
         "lat_acc_unit": unit[("timeseries.csv", "lat_acc")],
         "time_unit": unit[("timeseries.csv", "time")],
-        "p_ct_unit": unit[("samples.csv", "p_ct_standing_pct")],
+        "p_ct_unit": unit[("samples.csv", "p_ct_en12299_standing_pct")],
         "series_columns": list(series.columns),
         "series_times": [repr(float(t)) for t in first["time"].iloc[:4]],
         "series_points": int(len(first)),

@@ -127,13 +127,13 @@ impl Assessor {
     pub fn finish(&self) -> Comfort {
         if self.n < 3 {
             return Comfort {
-                method: "whole-run-peaks",
+                method: "en12299-transition",
                 lateral_acceleration: self.c.lateral_acceleration.name(),
                 ..Default::default()
             };
         }
         let dt = self.dt;
-        let p_ct = Pct::from_peaks(
+        let p_ct_paper = Pct::from_peaks(
             self.acc_peak,
             self.jerk.value(dt),
             self.roll_peak.to_degrees(),
@@ -148,14 +148,14 @@ impl Assessor {
         let rms = |(s, n): (f64, usize)| if n == 0 { 0.0 } else { (s / n as f64).sqrt() };
         let defl = self.defl_peak;
         Comfort {
-            method: "whole-run-peaks",
+            method: "en12299-transition",
             lat_acc_rms_dev_pct_g: 100.0 / G * rms(self.acc_dev),
             lat_acc_peak_pct_g: 100.0 * self.acc_peak / G,
             roll_speed_rms_dev_rad_s: rms(self.roll_dev),
             roll_speed_peak_rad_s: self.roll_peak,
             jerk_peak_pct_g_s: 100.0 * self.jerk.value(dt) / G,
-            p_ct,
             p_ct_en12299: worst,
+            p_ct_paper,
             deflection_peak_mm: defl * 1e3,
             deflection_of_bump_stop_pct: 100.0 * defl / self.c.bump_stop_m,
             lateral_acceleration: self.c.lateral_acceleration.name(),

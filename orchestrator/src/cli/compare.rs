@@ -47,8 +47,11 @@ pub fn exec(a: CompareArgs) -> CliResult {
         let name = s.name.clone();
         let summary = cmp.run(&file, s, &base).map_err(cli)?;
         println!(
-            "{}: {:?}, P_CT standing {:.2} %, peak lateral acceleration {:.2} %g",
-            name, summary.status, summary.comfort.p_ct.standing, summary.comfort.lat_acc_peak_pct_g
+            "{}: {:?}, P_CT standing (EN 12299) {:.2} %, peak lateral acceleration {:.2} %g",
+            name,
+            summary.status,
+            summary.comfort.p_ct_en12299.standing,
+            summary.comfort.lat_acc_peak_pct_g
         );
     }
     cmp.finish().map_err(cli)?;

@@ -265,15 +265,15 @@ pub(super) fn monte_carlo_tables(
 pub(super) fn grid_tables(base: &Scenario, key: &str, rows: &[Row]) -> (String, String) {
     let mut md = format!(
         "# Sweep of `{}` over `{key}`\n\n| {key} | status | lat. acc. peak (%g) | \
-         P_CT standing (%) | P_CT seated (%) | P_CT EN 12299 standing (%) | roll speed \
-         peak (rad/s) | jerk peak (%g/s) |\n|---|---|---|---|---|---|---|---|\n",
+         P_CT EN 12299 standing (%) | P_CT EN 12299 seated (%) | P_CT standing, paper's form (%) \
+         | roll speed peak (rad/s) | jerk peak (%g/s) |\n|---|---|---|---|---|---|---|---|\n",
         base.name
     );
     let shown = [
         "lat_acc_peak_pct_g",
-        "p_ct_standing_pct",
-        "p_ct_seated_pct",
         "p_ct_en12299_standing_pct",
+        "p_ct_en12299_seated_pct",
+        "p_ct_paper_standing_pct",
         "roll_speed_peak_rad_s",
         "jerk_peak_pct_g_s",
     ];
@@ -408,12 +408,12 @@ pub(super) fn monte_carlo_plots(
     };
     let mut files =
         tiltsim_report::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)?.to_vec();
-    let mut p = column(ok, "p_ct_standing_pct");
+    let mut p = column(ok, "p_ct_en12299_standing_pct");
     p.sort_by(|a, b| a.total_cmp(b));
     let frac: Vec<f64> = (1..=p.len()).map(|i| i as f64 / p.len() as f64).collect();
     let chart = Chart {
-        title: "Distribution of P_CT (standing, whole-run peaks) over the samples",
-        x_label: "P_CT standing (%)",
+        title: "Distribution of P_CT (standing, EN 12299 per transition) over the samples",
+        x_label: "P_CT standing, EN 12299 (%)",
         y_label: "fraction of samples ≤ P_CT",
         lines: vec![line("empirical CDF", frac, "#1f77b4", false)],
         bands: Vec::new(),
@@ -475,14 +475,14 @@ pub(super) fn grid_plots(
         y_label: "P_CT (%), peak lateral acceleration (%g)",
         lines: vec![
             line(
-                "P_CT standing",
-                column(ok, "p_ct_standing_pct"),
+                "P_CT standing (EN 12299)",
+                column(ok, "p_ct_en12299_standing_pct"),
                 "#1f77b4",
                 false,
             ),
             line(
-                "P_CT seated",
-                column(ok, "p_ct_seated_pct"),
+                "P_CT seated (EN 12299)",
+                column(ok, "p_ct_en12299_seated_pct"),
                 "#2ca02c",
                 false,
             ),
