@@ -199,7 +199,7 @@ for sc in ["paper-mpc", "pi-drive"]:
         print(f"| {sc} | {label} | {c['p_ct_en12299']['standing_pct']:.2f} | {c['lat_acc_peak_pct_g']:.2f} "
               f"| {raised(s['flags'])} | {a('actuator_command')} | {a('measurement')} "
               f"| {pl['late_starts']} | {pl['start_lateness_us']['max'] / 1000:.1f} "
-              f"| {'yes' if s['not_real_time'] else 'no'} | {open(f'{d}/replay.txt').read().strip()} | {', '.join(delays)} | {eq:.2f} |")
+              f"| {'yes' if s['flags']['not_real_time']['raised'] else 'no'} | {open(f'{d}/replay.txt').read().strip()} | {', '.join(delays)} | {eq:.2f} |")
 PY
 mkdir -p docs/figures
 cp "$f/paper-mpc-hogs/plots/timing_input_age.svg" docs/figures/free-run-input-age.svg
