@@ -17,6 +17,18 @@ python3 scripts/rankings.py "$o/paper"
 "$t" compare scenarios/irregular-track.toml scenarios/pi-drive-irregular.toml \
     scenarios/lqg-irregular.toml scenarios/mpc-irregular.toml \
     --out "$o/irregular" --transport in-process
+# A tilting train's operating point: the tilting-* scenarios compared at 190 km/h, and each
+# vehicle's speed swept on the paper's curve against the passive vehicle at its design speed.
+"$t" compare scenarios/tilting-passive.toml scenarios/tilting-pi-drive.toml \
+    scenarios/tilting-lqg.toml scenarios/tilting-mpc.toml --out "$o/tilting" --transport in-process
+mkdir -p "$o/speed"
+for v in passive pi-drive lqg mpc; do
+    "$t" sweep "scenarios/tilting-$v.toml" --grid track.speed_kmh=150:210:5 \
+        --out "$o/speed/tilting-$v" -q
+done
+python3 scripts/speed_limit.py "$o/speed" "$o/paper/paper-passive/summary.json" \
+    "$o/speed/tilting-passive" "$o/speed/tilting-pi-drive" "$o/speed/tilting-lqg" \
+    "$o/speed/tilting-mpc"
 "$t" linearize scenarios/paper-pi.toml --design-pi --phase-margin 60 --gain-margin 6 --ti 0.25 \
     --out "$o/pi-design.json"
 python3 - "$o/pi-design.json" > "$o/pi-design.md" <<'PY'
@@ -207,6 +219,7 @@ cp "$f/paper-mpc-hogs/plots/timing_lateness.svg" docs/figures/free-run-lateness.
 cp "$o/front/front.svg" docs/figures/pi-front.svg
 cp "$o/trade-off/plots/trade_off.svg" docs/figures/trade-off.svg
 cp "$o/paper/rankings.svg" docs/figures/rankings-roll-speed.svg
+cp "$o/speed/speed-limit.svg" docs/figures/speed-limit.svg
 while IFS= read -r line; do
     if [[ $line == "@include "* ]]; then
         cat "${line#@include }"

@@ -400,3 +400,36 @@ fn ideal_tilt_is_the_floor_of_every_controller_on_the_paper_scenarios() {
         "the ranking comes before the table"
     );
 }
+
+/// At a tilting train's operating point (190 km/h, 268 mm of cant deficiency, ρ = 0.65) the
+/// tilt asks for more than the bar's ±3.5°: the LQG's command sits at its limit, never past
+/// it, for the time the summary reports; the body rides on its bump stops with the force of
+/// their characteristic, and the ride is still a valid result (the stops are physics).
+#[test]
+fn at_a_tilting_trains_speed_the_command_sits_at_its_limit_and_the_body_on_its_stops() {
+    let dir = run_file("tilting-lqg", &scenario("tilting-lqg.toml"));
+    let s = summary(&dir);
+    let series = Series::read(&dir.join("timeseries.csv"));
+    let u_max = 3.5f64.to_radians();
+    let cmd = series.col("delta_a_cmd");
+    assert!(cmd.iter().all(|u| u.abs() <= u_max), "a command past ±3.5°");
+    let at_limit = cmd.iter().filter(|u| u.abs() >= u_max * (1.0 - 1e-12)).count();
+    let reported = s["results"]["command_at_limit_s"].as_f64().unwrap();
+    assert!((reported - at_limit as f64 * 1e-3).abs() < 1e-9, "{reported} s");
+    assert!(reported > 2.0, "only {reported} s at the limit");
+
+    let b = &s["flags"]["bump_stop"];
+    assert_eq!(b["raised"], true, "{b}");
+    let peak = b["deflection_peak_mm"].as_f64().unwrap() * 1e-3;
+    // The characteristic of docs/model.md D49, one side: 1 MN/m and 1e10 N/m³ past 60 mm.
+    let into = peak - 0.060;
+    let force = 1.0e6 * into + 1.0e10 * into.powi(3);
+    let kn = b["force_peak_kn"].as_f64().unwrap();
+    assert!((kn - force * 1e-3).abs() < 1e-9 * kn.max(1.0), "{kn} kN, characteristic {force} N");
+    assert!(b["time_in_contact_s"].as_f64().unwrap() > 1.0);
+    assert_eq!(s["flags"]["oscillation"]["raised"], false);
+    // The unbalanced lateral force does not depend on the tilt (eq 9): the spring alone
+    // would need 0.26 MN/m × Δs = m_v·(v²/R − g·θ_o)/2, about 64 mm; the stops hold it
+    // within a few millimetres of their clearance.
+    assert!(peak > 0.060 && peak < 0.068, "{peak} m");
+}

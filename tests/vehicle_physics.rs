@@ -269,3 +269,64 @@ fn spectrum_track_has_the_erri_spectrum_it_was_drawn_from() {
         }
     }
 }
+
+/// Beyond the clearance the bump stops carry the load the spring cannot: on a steady curve
+/// taken too fast for the free play, the body's lateral balance (eq 9 with every rate zero)
+/// is 2·(k_sy·Δs + F_stop(Δs)) = m_v·(g·θ_o − v²/R), a scalar equation solved here by
+/// bisection with the stop's characteristic written out, and the simulated vehicle settles
+/// there.
+#[test]
+fn the_bump_stops_hold_the_body_where_the_lateral_balance_says() {
+    let p = VehicleParams::default();
+    let v = 200.0 / 3.6;
+    let (kappa, cant) = (1.0 / 1000.0, 6f64.to_radians());
+    // Without stops the spring alone would have to deflect past the clearance.
+    let linear = static_equilibrium(&p, v, kappa, cant);
+    let ds_linear = linear[0] - p.h1 * linear[1] - linear[2] - p.h2 * linear[3];
+    assert!(ds_linear.abs() > p.bump_stop_m + 0.01, "{ds_linear}");
+    let load = p.m_v * (G * cant - v * v * kappa) / 2.0;
+    let stop = |d: f64| {
+        let into = d.abs() - 0.060;
+        if into > 0.0 {
+            d.signum() * (1.0e6 * into + 1.0e10 * into.powi(3))
+        } else {
+            0.0
+        }
+    };
+    let balance = |d: f64| p.k_sy * d + stop(d) - load;
+    let (mut lo, mut hi) = (ds_linear.min(0.0), ds_linear.max(0.0));
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if balance(lo) * balance(mid) <= 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let want = 0.5 * (lo + hi);
+    assert!(want.abs() > p.bump_stop_m && want.abs() < ds_linear.abs());
+
+    let veh = Vehicle::new(p.clone(), v);
+    let w = vehicle_model::TrackInput {
+        curvature: kappa,
+        cant,
+        ..Default::default()
+    };
+    let mut x = vehicle_model::vehicle::State::zeros();
+    let dt = 1e-3;
+    for _ in 0..60_000 {
+        let k1 = veh.deriv(&x, 0.0, &w);
+        let k2 = veh.deriv(&(x + k1 * (dt / 2.0)), 0.0, &w);
+        let k3 = veh.deriv(&(x + k2 * (dt / 2.0)), 0.0, &w);
+        let k4 = veh.deriv(&(x + k3 * dt), 0.0, &w);
+        x += (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (dt / 6.0);
+    }
+    let ds = x[ix::Y_V] - p.h1 * x[ix::TH_V] - x[ix::Y_B] - p.h2 * x[ix::TH_B];
+    // Settled (the slowest mode, the airspring reservoir, decays in a few seconds) to well
+    // under a micrometre of the balance.
+    assert!((ds - want).abs() < 1e-6, "simulated {ds}, balance {want}");
+    assert!(
+        (p.bump_stop_force(ds) - stop(ds)).abs() < 1e-6,
+        "the model's characteristic"
+    );
+}

@@ -7,7 +7,8 @@
 //!   recorded.
 //! * `pi`: the PI regulator of Table 3 on the roll error θ_v^d − θ_v,meas, with conditional
 //!   integration (anti-windup) against the actuator's range `u_max_deg`.
-//! * `lqg`: the LQG servo of section 3.2 ([`lqg`]).
+//! * `lqg`: the LQG servo of section 3.2 ([`lqg`]), its command limited to `u_max_deg` with
+//!   the same conditional integration.
 //! * `mpc`: MPC with a built-in Kalman filter, section 3.3 ([`mpc`]), optionally with preview.
 //!
 //! [`linalg`] holds the Riccati solvers and discretisation, [`design`] the linear model.
@@ -288,7 +289,8 @@ impl Controller {
             }),
             Mode::Lqg => Law::Lqg(Box::new(
                 Lqg::new(&model(), &c.lqg, &c.kalman, c.period_s)
-                    .map_err(|e| format!("LQG design: {e}"))?,
+                    .map_err(|e| format!("LQG design: {e}"))?
+                    .with_limit(c.u_max_deg.to_radians()),
             )),
             Mode::Mpc => Law::Mpc(Box::new(
                 Mpc::new(

@@ -195,6 +195,8 @@ pub struct Lqg {
     /// Integrator x_I = ∫(r − ξ) dt (rad·s).
     x_i: f64,
     track_input: bool,
+    /// Command limit |u| (rad); unbounded unless [`Lqg::with_limit`] sets it.
+    u_max: f64,
 }
 
 /// One controller update's result.
@@ -223,7 +225,17 @@ impl Lqg {
             x_hat: DMatrix::zeros(9, 1),
             x_i: 0.0,
             track_input: k.track_input,
+            u_max: f64::INFINITY,
         })
+    }
+
+    /// The servo with its command limited to ±`u_max` (rad), the actuator's range: the
+    /// command is clamped, the integrator holds while the command is clamped and the error
+    /// would drive it further out (conditional integration, the anti-windup of the PI), and
+    /// the estimator is told the command actually sent.
+    pub fn with_limit(mut self, u_max: f64) -> Self {
+        self.u_max = u_max;
+        self
     }
 
     /// One update with measurement ξ, reference r and the track input ω at this sample.
@@ -233,8 +245,13 @@ impl Lqg {
         let k = &self.design.k_op;
         let kf = k.view((0, 0), (1, 9));
         // u = −K_op z = −K_f x̂ + K_I x_I (eq 19 with K_op = [K_f, −K_I]).
-        let u = -(kf * &x_f)[(0, 0)] - k[(0, 9)] * self.x_i;
-        self.x_i += self.d.t * (r - xi);
+        let free = -(kf * &x_f)[(0, 0)] - k[(0, 9)] * self.x_i;
+        let u = free.clamp(-self.u_max, self.u_max);
+        // A step of x_I moves u by −k_I·T·(r − ξ): held while clamped if it would push further.
+        let push = -k[(0, 9)] * (r - xi);
+        if u == free || push.signum() != free.signum() {
+            self.x_i += self.d.t * (r - xi);
+        }
         let mut next = &self.d.a * &x_f + &self.d.b * u;
         if self.track_input {
             next += &self.d.g * DMatrix::from_column_slice(6, 1, w);
@@ -269,5 +286,56 @@ impl Lqg {
         m.view_mut((18, 0), (1, 9)).copy_from(&(-c * t));
         m[(18, 18)] = 1.0;
         m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vehicle_model::{TrackParams, VehicleParams};
+
+    /// The servo in closed loop with its own discretised vehicle for `n` steps of 1 ms at
+    /// reference `r`; returns the commands sent.
+    fn drive(lqg: &mut Lqg, x: &mut DMatrix<f64>, r: f64, n: usize) -> Vec<f64> {
+        let d = lqg.d.clone();
+        (0..n)
+            .map(|_| {
+                let xi = (&d.c * &*x)[(0, 0)];
+                let u = lqg.step(xi, r, &[0.0; 6]).u;
+                *x = &d.a * &*x + &d.b * u;
+                u
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_limited_servo_holds_its_integrator_and_leaves_the_limit_at_once() {
+        let m = LinearModel::new(&VehicleParams::default(), TrackParams::default().speed());
+        let new = || Lqg::new(&m, &LqgSettings::default(), &KalmanSettings::default(), 1e-3);
+        let u_max = 3.5f64.to_radians();
+        let mut limited = new().unwrap().with_limit(u_max);
+        let mut free = new().unwrap();
+        let (mut xl, mut xf) = (DMatrix::zeros(9, 1), DMatrix::zeros(9, 1));
+        // A body roll of 10° asks far more than ±3.5° of bar can give.
+        let r = 10f64.to_radians();
+        let mut ul = drive(&mut limited, &mut xl, r, 1000);
+        let wound = limited.x_i;
+        ul.extend(drive(&mut limited, &mut xl, r, 2000));
+        let uf = drive(&mut free, &mut xf, r, 3000);
+        assert!(ul.iter().all(|u| u.abs() <= u_max), "never past the limit");
+        assert!(uf.iter().any(|u| u.abs() > 2.0 * u_max), "the demand is beyond the limit");
+        let at_limit = ul.iter().filter(|u| u.abs() == u_max).count();
+        assert!(at_limit > 2500, "{at_limit} of 3000 steps at the limit");
+        // Conditional integration: clamped all along the last 2 s with an error it cannot
+        // remove, the integrator has not moved (unheld, it would have grown by 2 s times the
+        // error of several degrees: more than 0.1 rad·s).
+        assert!(ul[1000..].iter().all(|u| u.abs() == u_max));
+        assert_eq!(limited.x_i, wound, "x_I moved while the command was clamped");
+        // Back to level: the command leaves the limit as soon as the body's state feedback
+        // turns (0.34 s); with the integrator left to wind over those 2 s it stays there for
+        // more than the whole second that follows.
+        let back = drive(&mut limited, &mut xl, 0.0, 1000);
+        let held = back.iter().take_while(|u| u.abs() == u_max).count();
+        assert!(held < 500, "held at the limit for {held} ms after the reference fell");
     }
 }

@@ -27,7 +27,7 @@ pub struct Assessment {
 pub fn assess(s: &Scenario, rows: Rows) -> std::io::Result<Assessment> {
     let mut look = QuickLooker::new(s);
     let mut comfort =
-        tiltsim_assessment::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort);
+        tiltsim_assessment::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort, s.vehicle.bump_stop_m);
     let b = &s.actuator.bldc;
     let rating = tiltsim_assessment::validity::DriveRating {
         continuous_torque_nm: b.continuous_torque_nm,
@@ -36,7 +36,7 @@ pub fn assess(s: &Scenario, rows: Rows) -> std::io::Result<Assessment> {
         gear_efficiency: b.gear_efficiency,
     };
     let mut flags =
-        tiltsim_assessment::validity::Flagger::new(s.run.dt_s, s.comfort.bump_stop_m, rating);
+        tiltsim_assessment::validity::Flagger::new(s.run.dt_s, s.vehicle.bump_stop_m, rating);
     scan(s, rows, |r, x| {
         look.push(r);
         comfort.push(x);
@@ -44,6 +44,7 @@ pub fn assess(s: &Scenario, rows: Rows) -> std::io::Result<Assessment> {
             roll_error: r.theta_v - r.theta_ref,
             reference: r.theta_ref,
             deflection: x.deflection,
+            bump_force: s.vehicle.bump_stop_force(x.deflection),
             limits: r.actuator_limits,
             phase_current_peak: r.phase_current_peak,
             torque: r.motor_torque,
@@ -66,7 +67,12 @@ pub fn assess(s: &Scenario, rows: Rows) -> std::io::Result<Assessment> {
 /// The comfort of the ideal tilt on the track of a recorded run: the body follows eq 18
 /// exactly (see [`tiltsim_assessment::comfort::Sample::ideal`]).
 pub fn ideal_tilt(s: &Scenario, dir: &Path) -> tiltsim_assessment::comfort::Comfort {
-    let mut a = tiltsim_assessment::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort);
+    let mut a = tiltsim_assessment::comfort::Assessor::new(
+        s.run.dt_s,
+        &transitions(s),
+        &s.comfort,
+        s.vehicle.bump_stop_m,
+    );
     let _ = scan(s, Rows::File(dir), |_, x| a.push(&x.ideal()));
     a.finish()
 }
@@ -364,6 +370,9 @@ pub fn write_compare_plots(
 struct QuickLooker {
     t_mid: f64,
     best: f64,
+    u_max: f64,
+    dt: f64,
+    at_limit: u64,
     q: QuickLook,
 }
 
@@ -373,6 +382,9 @@ impl QuickLooker {
         QuickLooker {
             t_mid: (tp.straight_before_m + tp.transition_m + tp.curve_m / 2.0) / tp.speed(),
             best: f64::INFINITY,
+            u_max: s.controller.u_max_deg.to_radians(),
+            dt: s.run.dt_s,
+            at_limit: 0,
             q: QuickLook::default(),
         }
     }
@@ -381,6 +393,11 @@ impl QuickLooker {
         let q = &mut self.q;
         q.lat_acc_peak = q.lat_acc_peak.max(r.lat_acc.abs());
         q.delta_a_peak = q.delta_a_peak.max(r.delta_a.abs());
+        // The controllers clamp their command to exactly ±u_max.
+        if r.delta_a_cmd.abs() >= self.u_max * (1.0 - 1e-12) {
+            self.at_limit += 1;
+            q.command_at_limit_s = self.at_limit as f64 * self.dt;
+        }
         if (r.time - self.t_mid).abs() < self.best {
             self.best = (r.time - self.t_mid).abs();
             q.lat_acc_mid_curve = r.lat_acc;

@@ -55,6 +55,12 @@ pub struct VehicleParams {
     pub h_gv: f64,
     /// Bogie c.o.g. height above rail h_gb (m).
     pub h_gb: f64,
+    /// Secondary lateral bump-stop clearance (m): the free play of Δs either way.
+    pub bump_stop_m: f64,
+    /// Bump-stop contact stiffness per side (N/m), the linear part of its force.
+    pub k_bump: f64,
+    /// Bump-stop progression per side (N/m³), the cubic part of its force.
+    pub k3_bump: f64,
 }
 
 impl Default for VehicleParams {
@@ -83,11 +89,28 @@ impl Default for VehicleParams {
             h3: -0.09,
             h_gv: 1.52,
             h_gb: 0.37,
+            bump_stop_m: 0.060,
+            k_bump: 1.0e6,
+            k3_bump: 1.0e10,
         }
     }
 }
 
 impl VehicleParams {
+    /// Force of one side's secondary lateral bump stop (N) at deflection `ds` (m), acting
+    /// like the spring: zero inside the clearance c, beyond it
+    /// `sign(Δs)·(k_bump·δ + k3_bump·δ³)` with δ = |Δs| − c. A progressive elastic stop with
+    /// free play, the usual model of a rubber bump stop (Bruni et al., Vehicle System
+    /// Dynamics 49(7), 2011, section 2); the numbers are ours (docs/model.md D49).
+    pub fn bump_stop_force(&self, ds: f64) -> f64 {
+        let d = ds.abs() - self.bump_stop_m;
+        if d <= 0.0 {
+            0.0
+        } else {
+            ds.signum() * (self.k_bump * d + self.k3_bump * d * d * d)
+        }
+    }
+
     /// Checks every field; errors are reported under `prefix`.
     pub fn validate(&self, prefix: &str) -> Checker {
         let mut c = Checker::new(prefix);
@@ -107,6 +130,7 @@ impl VehicleParams {
             ("d2", self.d2, 5.0, "m"),
             ("h_gv", self.h_gv, 5.0, "m"),
             ("h_gb", self.h_gb, 5.0, "m"),
+            ("bump_stop_m", self.bump_stop_m, 1.0, "m"),
         ] {
             c.positive(f, v, hi, unit);
         }
@@ -116,6 +140,8 @@ impl VehicleParams {
             ("c_vr", self.c_vr, 1e8, "N·m·s/rad"),
             ("c_pz", self.c_pz, 1e8, "N·s/m"),
             ("c_py", self.c_py, 1e8, "N·s/m"),
+            ("k_bump", self.k_bump, 1e9, "N/m"),
+            ("k3_bump", self.k3_bump, 1e14, "N/m³"),
         ] {
             c.range(f, v, 0.0, hi, unit);
         }

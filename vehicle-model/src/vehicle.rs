@@ -82,8 +82,15 @@ impl Vehicle {
         Vehicle { p, v }
     }
 
-    /// Time derivative of the state, eqs 9-12 and A.2 as in model-notes.
+    /// Time derivative of the state, eqs 9-12 and A.2 as in model-notes, with the secondary
+    /// lateral bump stops acting beyond their clearance (docs/model.md D49).
     pub fn deriv(&self, x: &State, delta_a: f64, w: &TrackInput) -> State {
+        self.deriv_with(x, delta_a, w, true)
+    }
+
+    /// [`Vehicle::deriv`] with (`stops`) or without the bump stops: without, the model is
+    /// the paper's, linear in x, u and ω.
+    fn deriv_with(&self, x: &State, delta_a: f64, w: &TrackInput, stops: bool) -> State {
         let p = &self.p;
         let (y_v, th_v, y_b, th_b) = (x[0], x[1], x[2], x[3]);
         let (dy_v, dth_v, dy_b, dth_b) = (x[4], x[5], x[6], x[7]);
@@ -98,7 +105,9 @@ impl Vehicle {
         let psi = th_v - th_b;
         let dpsi = dth_v - dth_b;
 
-        let f_s = p.k_sy * ds + p.c_sy * dds; // one secondary lateral spring-damper
+        // One side's secondary lateral spring-damper, and its bump stop past the clearance.
+        let stop = if stops { p.bump_stop_force(ds) } else { 0.0 };
+        let f_s = p.k_sy * ds + p.c_sy * dds + stop;
         let f_p = p.k_py * dp + p.c_py * ddp; // one primary lateral spring-damper
         let m_bar = p.k_vr * (psi - delta_a); // anti-roll bar moment on the body (active, eq 10)
         let m_air = 2.0 * p.d1 * p.d1 * (p.k_az * psi + p.k_sz * (th_v - th_r)); // airsprings, A.1
@@ -142,19 +151,21 @@ impl Vehicle {
         j
     }
 
-    /// The state-space matrices of eq 14, built from [`Vehicle::deriv`] itself (the model is
-    /// linear in x, u and ω, so unit-vector evaluations give the exact matrices): one source
-    /// of truth for simulation and controller design.
+    /// The state-space matrices of eq 14, built from [`Vehicle::deriv`] itself without the
+    /// bump stops (the model inside the clearance is linear in x, u and ω, so unit-vector
+    /// evaluations give the exact matrices): one source of truth for simulation and
+    /// controller design.
     pub fn state_space(&self) -> StateSpace {
         let zero = TrackInput::default();
-        let f0 = self.deriv(&State::zeros(), 0.0, &zero);
+        let deriv = |x: &State, u: f64, w: &TrackInput| self.deriv_with(x, u, w, false);
+        let f0 = deriv(&State::zeros(), 0.0, &zero);
         let mut a = SMatrix::<f64, NX, NX>::zeros();
         for j in 0..NX {
             let mut e = State::zeros();
             e[j] = 1.0;
-            a.set_column(j, &(self.deriv(&e, 0.0, &zero) - f0));
+            a.set_column(j, &(deriv(&e, 0.0, &zero) - f0));
         }
-        let b = self.deriv(&State::zeros(), 1.0, &zero) - f0;
+        let b = deriv(&State::zeros(), 1.0, &zero) - f0;
         let mut g = SMatrix::<f64, NX, 6>::zeros();
         for j in 0..6 {
             let mut w = TrackInput::default();
@@ -166,7 +177,7 @@ impl Vehicle {
                 4 => w.y_o = 1.0,
                 _ => w.dy_o = 1.0,
             }
-            g.set_column(j, &(self.deriv(&State::zeros(), 0.0, &w) - f0));
+            g.set_column(j, &(deriv(&State::zeros(), 0.0, &w) - f0));
         }
         let mut c = SMatrix::<f64, 1, NX>::zeros();
         c[ix::TH_V] = 1.0;

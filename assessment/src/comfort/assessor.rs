@@ -42,6 +42,7 @@ pub(super) struct TransitionWindow {
 /// computes on whole series, for runs of any length read straight from `timeseries.csv`.
 pub struct Assessor {
     c: ComfortSettings,
+    clearance: f64,
     dt: f64,
     n: usize,
     acc_peak: f64,
@@ -59,10 +60,12 @@ pub struct Assessor {
 }
 
 impl Assessor {
-    /// An assessment at step `dt` (s) with the curve `transitions` as (start, end) times.
-    pub fn new(dt: f64, transitions: &[(f64, f64)], c: &ComfortSettings) -> Self {
+    /// An assessment at step `dt` (s) with the curve `transitions` as (start, end) times, the
+    /// secondary lateral deflection judged against the bump stops' `clearance` (m).
+    pub fn new(dt: f64, transitions: &[(f64, f64)], c: &ComfortSettings, clearance: f64) -> Self {
         Assessor {
             c: c.clone(),
+            clearance,
             dt,
             n: 0,
             acc_peak: 0.0,
@@ -157,7 +160,7 @@ impl Assessor {
             p_ct_en12299: worst,
             p_ct_paper,
             deflection_peak_mm: defl * 1e3,
-            deflection_of_bump_stop_pct: 100.0 * defl / self.c.bump_stop_m,
+            deflection_of_bump_stop_pct: 100.0 * defl / self.clearance,
             lateral_acceleration: self.c.lateral_acceleration.name(),
             other_form: OtherForm {
                 lateral_acceleration: self.c.lateral_acceleration.other().name(),
@@ -207,15 +210,15 @@ impl Signals {
     }
 }
 
-/// Assesses a run held in memory (step from its time axis).
-pub fn assess(s: &Signals, c: &ComfortSettings) -> Comfort {
+/// Assesses a run held in memory (step from its time axis), bump-stop `clearance` in m.
+pub fn assess(s: &Signals, c: &ComfortSettings, clearance: f64) -> Comfort {
     let n = s.t.len();
     let dt = if n >= 2 {
         (s.t[n - 1] - s.t[0]) / (n - 1) as f64
     } else {
         1.0
     };
-    let mut a = Assessor::new(dt, &s.transitions, c);
+    let mut a = Assessor::new(dt, &s.transitions, c, clearance);
     (0..n).for_each(|k| a.push(&s.sample(k)));
     a.finish()
 }

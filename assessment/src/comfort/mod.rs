@@ -79,8 +79,6 @@ pub struct ComfortSettings {
     pub jerk_window_s: f64,
     /// Time added before and after each transition (s).
     pub margin_s: f64,
-    /// Secondary lateral bump-stop clearance (m).
-    pub bump_stop_m: f64,
     /// The passenger lateral acceleration comfort is computed from: `eq13` (the paper's,
     /// default) or `with-sway` (eq 13 plus the body's sway acceleration). The other form's
     /// P_CT and peak are reported beside it (`comfort.other_form`).
@@ -124,7 +122,6 @@ impl Default for ComfortSettings {
             filter_hz: 0.3,
             jerk_window_s: 1.0,
             margin_s: 1.6,
-            bump_stop_m: 0.060,
             lateral_acceleration: LateralAcceleration::Eq13,
         }
     }
@@ -137,7 +134,6 @@ impl ComfortSettings {
         c.positive("filter_hz", self.filter_hz, 50.0, "Hz");
         c.positive("jerk_window_s", self.jerk_window_s, 10.0, "s");
         c.range("margin_s", self.margin_s, 0.0, 30.0, "s");
-        c.positive("bump_stop_m", self.bump_stop_m, 1.0, "m");
         c
     }
 }
@@ -438,7 +434,7 @@ mod tests {
             lat_acc: x,
             transitions: vec![],
         };
-        let m = assess(&s, &c);
+        let m = assess(&s, &c, 0.060);
         assert!((m.lat_acc_rms_dev_pct_g - 100.0 * 0.1 / G).abs() < 1e-12);
         assert!((m.lat_acc_peak_pct_g - 100.0 * 0.5 / G).abs() < 1e-12);
         assert_eq!(m.jerk_peak_pct_g_s, 0.0);
@@ -464,7 +460,7 @@ mod tests {
             t: t.clone(),
             transitions: vec![(5.0, 15.0)],
         };
-        let m = assess(&s, &c);
+        let m = assess(&s, &c, 0.060);
         assert!((m.lat_acc_rms_dev_pct_g - 100.0 * a / 2f64.sqrt() / G).abs() < 1e-4);
         assert!((m.roll_speed_rms_dev_rad_s - a / 2f64.sqrt()).abs() < 1e-5);
         assert!((m.roll_speed_peak_rad_s - a).abs() < 1e-6);

@@ -330,6 +330,9 @@ pub struct QuickLook {
     /// Largest |δ_a| (rad).
     #[serde(rename = "delta_a_peak_rad")]
     pub delta_a_peak: f64,
+    /// Time the controller's command sat at its limit ±`controller.u_max_deg` (s): where
+    /// the tilt asked for more than the actuator's range (anti-windup holding the integrator).
+    pub command_at_limit_s: f64,
 }
 
 /// What `--pace` achieved, every tick counted.

@@ -122,8 +122,9 @@ v_n = 0.10
 "#;
 
 const TAIL: &str = r#"
-[comfort]
-bump_stop_m = 0.06            # secondary lateral gap: a run that reaches it is flagged
+[vehicle]
+bump_stop_m = 0.06            # secondary lateral free play; past it the bump stop pushes back
+                              # (k_bump, k3_bump) and the run is flagged
 
 # Link effects between the processes (README "Links"), for example a delayed command:
 # [links.actuator_command]

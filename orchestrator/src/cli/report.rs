@@ -103,11 +103,12 @@ pub fn print_ride(
     flags: &tiltsim_assessment::validity::Flags,
 ) {
     println!(
-        "  lateral acceleration: peak {:.3} m/s², mid-curve {:.3} m/s²; body roll mid-curve {:.3} deg; peak delta_a {:.3} deg",
+        "  lateral acceleration: peak {:.3} m/s², mid-curve {:.3} m/s²; body roll mid-curve {:.3} deg; peak delta_a {:.3} deg; command at its limit {:.3} s",
         results.lat_acc_peak,
         results.lat_acc_mid_curve,
         results.theta_v_mid_curve.to_degrees(),
-        results.delta_a_peak.to_degrees()
+        results.delta_a_peak.to_degrees(),
+        results.command_at_limit_s
     );
     let c = comfort;
     // A number the flags make meaningless is never printed as a plain result.
