@@ -29,6 +29,24 @@ done
 python3 scripts/speed_limit.py "$o/speed" "$o/paper/paper-passive/summary.json" \
     "$o/speed/tilting-passive" "$o/speed/tilting-pi-drive" "$o/speed/tilting-lqg" \
     "$o/speed/tilting-mpc"
+# Track localisation error: each controller with its position believed -20 to +20 m off.
+for c in pi-drive paper-lqg paper-mpc; do
+    "$t" sweep "scenarios/$c.toml" --grid controller.localisation.bias_m=-20:20:10 \
+        --out "$o/localisation/$c" -q
+done
+python3 - "$o/localisation" > "$o/localisation/localisation.md" <<'PY'
+import csv, os, sys
+d = sys.argv[1]
+runs = [("PI-drive", "pi-drive"), ("LQG", "paper-lqg"), ("MPC-KF", "paper-mpc")]
+rows = {name: list(csv.DictReader(open(os.path.join(d, run, "samples.csv")))) for name, run in runs}
+biases = [r["controller.localisation.bias_m"] for r in rows["LQG"]]
+print("| bias (m) | " + " | ".join(f"{n}: P_CT EN 12299 / paper's form (%)" for n, _ in runs) + " |")
+print("|---|" + "---|" * len(runs))
+for i, b in enumerate(biases):
+    cells = [f"{float(rows[n][i]['p_ct_en12299_standing_pct']):.2f} / "
+             f"{float(rows[n][i]['p_ct_paper_standing_pct']):.2f}" for n, _ in runs]
+    print(f"| {float(b):+.0f} | " + " | ".join(cells) + " |")
+PY
 "$t" linearize scenarios/paper-pi.toml --design-pi --phase-margin 60 --gain-margin 6 --ti 0.25 \
     --out "$o/pi-design.json"
 python3 - "$o/pi-design.json" > "$o/pi-design.md" <<'PY'
@@ -60,6 +78,29 @@ python3 - "$o/trade-off/table.md" > "$o/trade-off/trade-off.md" <<'PY'
 import sys
 text = open(sys.argv[1]).read()
 print(text[text.index("## Curving comfort against straight-track ride"):].split("\n", 2)[2].strip())
+PY
+# Passengers where they are: the curve's P_CT and the straight's ride at the centre of gravity
+# and at each default position of [comfort] positions.
+python3 - "$o/trade-off" > "$o/trade-off/positions.md" <<'PY'
+import json, os, sys
+d = sys.argv[1]
+runs = [("passive", "paper-passive", "straight-passive"), ("PI-drive", "pi-drive", "straight-pi-drive"),
+        ("LQG", "paper-lqg", "straight-lqg"), ("MPC-KF", "paper-mpc", "straight-mpc")]
+load = lambda r: json.load(open(os.path.join(d, r, "summary.json")))["comfort"]
+print("| controller | where | P_CT standing / seated on the curve, EN 12299 (%) "
+      "| N_MV lateral part 6·a_YP95^Wd, straight | 6·a_ZP95^Wb from roll, straight "
+      "| N_MV with the roll's vertical part, straight |")
+print("|---|---|---|---|---|---|")
+for name, curve, straight in runs:
+    c, s = load(curve), load(straight)
+    points = [("centre of gravity (1.52 m, centre line)", c["p_ct_en12299"], s["ride"])]
+    for pc in c["positions"]:
+        ps = next(p for p in s["positions"] if p["name"] == pc["name"])
+        points.append((f"{pc['name']} ({pc['height_m']:.2f} m, {pc['offset_m']:+.1f} m)",
+                       pc["p_ct_en12299"], ps["ride"]))
+    for where, p, r in points:
+        print(f"| {name} | {where} | {p['standing_pct']:.2f} / {p['seated_pct']:.2f} "
+              f"| {6 * r['a_y_p95_wd_m_s2']:.3f} | {6 * r['a_z_p95_wb_m_s2']:.3f} | {r['n_mv_roll']:.3f} |")
 PY
 for kp in 0.25 0.40 0.5708 0.80 1.10; do
     ki=$(python3 -c "print($kp / 0.25)")

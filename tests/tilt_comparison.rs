@@ -413,9 +413,15 @@ fn at_a_tilting_trains_speed_the_command_sits_at_its_limit_and_the_body_on_its_s
     let u_max = 3.5f64.to_radians();
     let cmd = series.col("delta_a_cmd");
     assert!(cmd.iter().all(|u| u.abs() <= u_max), "a command past ±3.5°");
-    let at_limit = cmd.iter().filter(|u| u.abs() >= u_max * (1.0 - 1e-12)).count();
+    let at_limit = cmd
+        .iter()
+        .filter(|u| u.abs() >= u_max * (1.0 - 1e-12))
+        .count();
     let reported = s["results"]["command_at_limit_s"].as_f64().unwrap();
-    assert!((reported - at_limit as f64 * 1e-3).abs() < 1e-9, "{reported} s");
+    assert!(
+        (reported - at_limit as f64 * 1e-3).abs() < 1e-9,
+        "{reported} s"
+    );
     assert!(reported > 2.0, "only {reported} s at the limit");
 
     let b = &s["flags"]["bump_stop"];
@@ -425,11 +431,51 @@ fn at_a_tilting_trains_speed_the_command_sits_at_its_limit_and_the_body_on_its_s
     let into = peak - 0.060;
     let force = 1.0e6 * into + 1.0e10 * into.powi(3);
     let kn = b["force_peak_kn"].as_f64().unwrap();
-    assert!((kn - force * 1e-3).abs() < 1e-9 * kn.max(1.0), "{kn} kN, characteristic {force} N");
+    assert!(
+        (kn - force * 1e-3).abs() < 1e-9 * kn.max(1.0),
+        "{kn} kN, characteristic {force} N"
+    );
     assert!(b["time_in_contact_s"].as_f64().unwrap() > 1.0);
     assert_eq!(s["flags"]["oscillation"]["raised"], false);
     // The unbalanced lateral force does not depend on the tilt (eq 9): the spring alone
     // would need 0.26 MN/m × Δs = m_v·(v²/R − g·θ_o)/2, about 64 mm; the stops hold it
     // within a few millimetres of their clearance.
     assert!(peak > 0.060 && peak < 0.068, "{peak} m");
+}
+
+/// A controller that believes the vehicle 45 m further on than it is (one second at 162 km/h)
+/// reads its track database a second ahead: its tilt reference is the unbiased run's one
+/// second later, row for row, on a track whose geometry does not move.
+#[test]
+fn a_localisation_bias_shifts_the_tilt_reference_by_its_travel_time() {
+    let out = temp_dir("localisation-bias").join("out");
+    let (code, _, err) = run(&[
+        "run",
+        scenario("pi-drive.toml").to_str().unwrap(),
+        "--transport",
+        "in-process",
+        "--set",
+        "controller.localisation.bias_m=45",
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let biased = Series::read(&out.join("timeseries.csv")).col("theta_ref");
+    let plain = Series::read(
+        &run_file("localisation-plain", &scenario("pi-drive.toml")).join("timeseries.csv"),
+    )
+    .col("theta_ref");
+    // Row k is at t = k ms and the controller's update at row k reads position v·t (+ 45 m).
+    let shift = 1000;
+    let mut moved = 0;
+    for k in 1..plain.len() - shift {
+        let (a, b) = (biased[k], plain[k + shift]);
+        assert!(
+            (a - b).abs() < 1e-12,
+            "row {k}: {a} against {b} a second later"
+        );
+        moved += usize::from(a != plain[k]);
+    }
+    assert!(moved > 4000, "the reference moved in {moved} rows only");
 }

@@ -72,6 +72,7 @@ fn pass(
         track: track.clone(),
         vehicle: VehicleParams::default(),
         input_shape: InputShape::Hold,
+        seed: 0,
     })
     .unwrap();
     let d = model.discretise(PERIOD);

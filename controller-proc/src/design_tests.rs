@@ -41,6 +41,7 @@ fn paper_drive(
         track: track.clone(),
         vehicle: VehicleParams::default(),
         input_shape: InputShape::Hold,
+        seed: 0,
     })
     .unwrap();
     let d = m.discretise(period);

@@ -15,6 +15,7 @@
 
 pub mod design;
 pub mod linalg;
+pub mod localisation;
 pub mod lqg;
 pub mod mpc;
 pub mod pi_loop;
@@ -26,6 +27,7 @@ use serde::{Deserialize, Serialize};
 use vehicle_model::{Track, TrackParams, Vehicle, VehicleParams, G};
 
 pub use design::LinearModel;
+pub use localisation::{LocalisationSettings, Localiser};
 pub use lqg::{KalmanSettings, Lqg, LqgSettings};
 pub use mpc::{InputShape, Mpc, MpcSettings, QpRows};
 
@@ -90,6 +92,8 @@ pub struct ControllerSettings {
     pub mpc: MpcSettings,
     /// Kalman filter design values (LQG and MPC).
     pub kalman: KalmanSettings,
+    /// The error of the position the track database is read at (none by default).
+    pub localisation: LocalisationSettings,
 }
 
 /// How the tilt command θ_v^d is obtained from the desired acceleration ÿ^d = (1 − ρ)·ÿ_passive.
@@ -160,6 +164,7 @@ impl Default for ControllerSettings {
             lqg: LqgSettings::default(),
             mpc: MpcSettings::default(),
             kalman: KalmanSettings::default(),
+            localisation: LocalisationSettings::default(),
         }
     }
 }
@@ -176,6 +181,7 @@ impl ControllerSettings {
         self.lqg.validate(&mut c);
         self.mpc.validate(&mut c);
         self.kalman.validate(&mut c);
+        self.localisation.validate(&mut c);
         c
     }
 }
@@ -193,6 +199,9 @@ pub struct ControllerInit {
     /// How the actuator applies each new command (`actuator.command_shaping`); the MPC's
     /// prediction model assumes the same.
     pub input_shape: InputShape,
+    /// The run's seed (`run.seed`): the localisation noise is drawn from it.
+    #[serde(default)]
+    pub seed: u64,
 }
 
 /// Tilt command of eq 18: θ_v^d = v²/(gR) − ÿ^d/g − θ_o with ÿ^d = (1 − ρ)·ÿ_passive.
@@ -269,6 +278,7 @@ pub struct Controller {
     law: Law,
     /// Passive quasi-static roll per unit curvature (rad·m) and per unit cant (rad/rad).
     roll_gains: (f64, f64),
+    localiser: Localiser,
 }
 
 impl Controller {
@@ -311,6 +321,7 @@ impl Controller {
             v,
             law,
             roll_gains,
+            localiser: Localiser::new(&c.localisation, init.seed),
         })
     }
 
@@ -338,13 +349,15 @@ impl Controller {
     }
 
     fn compute(&mut self, input: &ToController) -> FromController {
-        let theta_ref = self.reference_at(input.s);
+        // The database is read where the controller believes the vehicle is.
+        let s = self.localiser.position(input.t, input.s);
+        let theta_ref = self.reference_at(s);
         let mut out = FromController {
             theta_ref,
             theta_v_hat: input.theta_v_meas,
             ..Default::default()
         };
-        let w = self.track_input_at(input.s);
+        let w = self.track_input_at(s);
         match &mut self.law {
             Law::Passive => {}
             Law::Pi(pi) => {
@@ -356,7 +369,7 @@ impl Controller {
                 out.theta_v_hat = u.theta_v_hat;
             }
             Law::Mpc(_) => {
-                let (r, w) = self.horizon(input.s, theta_ref);
+                let (r, w) = self.horizon(s, theta_ref);
                 let Law::Mpc(mpc) = &mut self.law else {
                     unreachable!()
                 };

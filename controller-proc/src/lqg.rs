@@ -311,7 +311,14 @@ mod tests {
     #[test]
     fn a_limited_servo_holds_its_integrator_and_leaves_the_limit_at_once() {
         let m = LinearModel::new(&VehicleParams::default(), TrackParams::default().speed());
-        let new = || Lqg::new(&m, &LqgSettings::default(), &KalmanSettings::default(), 1e-3);
+        let new = || {
+            Lqg::new(
+                &m,
+                &LqgSettings::default(),
+                &KalmanSettings::default(),
+                1e-3,
+            )
+        };
         let u_max = 3.5f64.to_radians();
         let mut limited = new().unwrap().with_limit(u_max);
         let mut free = new().unwrap();
@@ -323,19 +330,28 @@ mod tests {
         ul.extend(drive(&mut limited, &mut xl, r, 2000));
         let uf = drive(&mut free, &mut xf, r, 3000);
         assert!(ul.iter().all(|u| u.abs() <= u_max), "never past the limit");
-        assert!(uf.iter().any(|u| u.abs() > 2.0 * u_max), "the demand is beyond the limit");
+        assert!(
+            uf.iter().any(|u| u.abs() > 2.0 * u_max),
+            "the demand is beyond the limit"
+        );
         let at_limit = ul.iter().filter(|u| u.abs() == u_max).count();
         assert!(at_limit > 2500, "{at_limit} of 3000 steps at the limit");
         // Conditional integration: clamped all along the last 2 s with an error it cannot
         // remove, the integrator has not moved (unheld, it would have grown by 2 s times the
         // error of several degrees: more than 0.1 rad·s).
         assert!(ul[1000..].iter().all(|u| u.abs() == u_max));
-        assert_eq!(limited.x_i, wound, "x_I moved while the command was clamped");
+        assert_eq!(
+            limited.x_i, wound,
+            "x_I moved while the command was clamped"
+        );
         // Back to level: the command leaves the limit as soon as the body's state feedback
         // turns (0.34 s); with the integrator left to wind over those 2 s it stays there for
         // more than the whole second that follows.
         let back = drive(&mut limited, &mut xl, 0.0, 1000);
         let held = back.iter().take_while(|u| u.abs() == u_max).count();
-        assert!(held < 500, "held at the limit for {held} ms after the reference fell");
+        assert!(
+            held < 500,
+            "held at the limit for {held} ms after the reference fell"
+        );
     }
 }

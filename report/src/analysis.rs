@@ -26,8 +26,12 @@ pub struct Assessment {
 /// series is assessed this way: lock-step, free-running or a replay of one.
 pub fn assess(s: &Scenario, rows: Rows) -> std::io::Result<Assessment> {
     let mut look = QuickLooker::new(s);
-    let mut comfort =
-        tiltsim_assessment::comfort::Assessor::new(s.run.dt_s, &transitions(s), &s.comfort, s.vehicle.bump_stop_m);
+    let mut comfort = tiltsim_assessment::comfort::Assessor::new(
+        s.run.dt_s,
+        &transitions(s),
+        &s.comfort,
+        body(s),
+    );
     let b = &s.actuator.bldc;
     let rating = tiltsim_assessment::validity::DriveRating {
         continuous_torque_nm: b.continuous_torque_nm,
@@ -64,6 +68,14 @@ pub fn assess(s: &Scenario, rows: Rows) -> std::io::Result<Assessment> {
     })
 }
 
+/// The body a run's comfort is assessed on.
+fn body(s: &Scenario) -> tiltsim_assessment::comfort::Body {
+    tiltsim_assessment::comfort::Body {
+        bump_stop_m: s.vehicle.bump_stop_m,
+        cog_height_m: s.vehicle.h_gv,
+    }
+}
+
 /// The comfort of the ideal tilt on the track of a recorded run: the body follows eq 18
 /// exactly (see [`tiltsim_assessment::comfort::Sample::ideal`]).
 pub fn ideal_tilt(s: &Scenario, dir: &Path) -> tiltsim_assessment::comfort::Comfort {
@@ -71,7 +83,7 @@ pub fn ideal_tilt(s: &Scenario, dir: &Path) -> tiltsim_assessment::comfort::Comf
         s.run.dt_s,
         &transitions(s),
         &s.comfort,
-        s.vehicle.bump_stop_m,
+        body(s),
     );
     let _ = scan(s, Rows::File(dir), |_, x| a.push(&x.ideal()));
     a.finish()
@@ -181,6 +193,7 @@ pub fn scan(
             deflection: ds,
             lat_acc_other,
             tilt_error: r.theta_v - x.reference,
+            vertical: 0.0,
         }
     };
     // rows k−1 and k, waiting for k+1.

@@ -208,6 +208,7 @@ pub fn tables(entries: &[Entry]) -> (String, String) {
     ranking(&mut md, entries);
     header(&mut md, &ideal, entries);
     metric_rows(&mut md, &mut csv, &ideal, entries);
+    position_rows(&mut md, &mut csv, &ideal, entries);
     ideal_differences(&mut md, &mut csv, &ideal, &of, entries);
     flag_rows(&mut md, &mut csv, ideal.len(), entries);
     run_table(&mut md, entries);
@@ -336,6 +337,99 @@ fn metric_rows(
     }
 }
 
+/// The comfort where passengers are (`[comfort] positions` of the first run): P_CT at each
+/// point and N_MV with the vertical part the roll gives there.
+fn position_rows(
+    md: &mut String,
+    csv: &mut CsvTable,
+    ideal: &[(String, &Comfort)],
+    entries: &[Entry],
+) {
+    type Get = fn(&tiltsim_assessment::comfort::PositionComfort) -> f64;
+    let rows: [(&str, Get, bool, bool); 3] = [
+        (
+            "P_CT standing, EN 12299",
+            |p| p.p_ct_en12299.standing,
+            true,
+            true,
+        ),
+        (
+            "P_CT seated, EN 12299",
+            |p| p.p_ct_en12299.seated,
+            true,
+            true,
+        ),
+        (
+            "N_MV with the vertical part from roll, 6·√(a_YP95^Wd² + a_ZP95^Wb²)",
+            |p| p.ride.n_mv_roll,
+            false,
+            false,
+        ),
+    ];
+    let Some(first) = entries.first() else {
+        return;
+    };
+    for pos in &first.summary.comfort.positions {
+        for (what, get, is_p_ct, for_ideal) in rows {
+            let label = format!(
+                "{what} at {} ({:.2} m above rail, {:+.2} m off centre){}",
+                pos.name,
+                pos.height_m,
+                pos.offset_m,
+                if is_p_ct { " (%)" } else { "" }
+            );
+            let _ = write!(md, "| {label} |");
+            for (k, c) in ideal {
+                match c.positions.iter().find(|p| p.name == pos.name) {
+                    Some(p) if for_ideal => {
+                        let v = get(p);
+                        let _ = write!(md, " {} |", fmt(v));
+                        let col = format!("ideal tilt ({k})");
+                        csv.cell([&label, &col, "ideal-tilt", &v.to_string(), "", "", ""]);
+                    }
+                    _ => {
+                        let _ = write!(md, " — |");
+                    }
+                }
+            }
+            for e in entries {
+                let Some(p) = e
+                    .summary
+                    .comfort
+                    .positions
+                    .iter()
+                    .find(|p| p.name == pos.name)
+                else {
+                    let _ = write!(md, " — |");
+                    continue;
+                };
+                let v = get(p);
+                let mut tags = cell_flags(e, metric("p_ct_en12299_standing_pct"), 0.0);
+                if is_p_ct && v > 100.0 {
+                    tags.push("P_CT > 100 %".into());
+                }
+                let tags = tags.join("; ");
+                let text = if tags.is_empty() {
+                    fmt(v)
+                } else {
+                    format!("⚠ {} ({tags})", fmt(v))
+                };
+                let _ = write!(md, " {text} |");
+                csv.cell([
+                    &label,
+                    &e.label,
+                    &e.scenario.name,
+                    &v.to_string(),
+                    "",
+                    "",
+                    &tags,
+                ]);
+            }
+            md.push('\n');
+        }
+    }
+}
+
 fn ideal_differences(
     md: &mut String,
     csv: &mut CsvTable,
@@ -405,16 +499,19 @@ fn flag_rows(md: &mut String, csv: &mut CsvTable, ideal_columns: usize, entries:
                 )
             },
         ),
-        ("Bump-stop contact (peak deflection, time, peak force a side)", |f| {
-            let b = &f.bump_stop;
-            (
-                b.raised,
-                format!(
-                    "{:.1} mm, {:.3} s, {:.1} kN",
-                    b.deflection_peak_mm, b.time_in_contact_s, b.force_peak_kn
-                ),
-            )
-        }),
+        (
+            "Bump-stop contact (peak deflection, time, peak force a side)",
+            |f| {
+                let b = &f.bump_stop;
+                (
+                    b.raised,
+                    format!(
+                        "{:.1} mm, {:.3} s, {:.1} kN",
+                        b.deflection_peak_mm, b.time_in_contact_s, b.force_peak_kn
+                    ),
+                )
+            },
+        ),
         ("Time at a drive limit (s)", |f| {
             let d = &f.drive_limit;
             let t = (d.time_at_any_limit_s, d.torque_s, d.speed_s);

@@ -3,7 +3,10 @@
 
 use super::filters::{LowPass, SlopePeak};
 use super::ride::RideAssessor;
-use super::{Comfort, ComfortSettings, LateralAcceleration, OtherForm, Pct, Signals, G};
+use super::{
+    Comfort, ComfortSettings, LateralAcceleration, OtherForm, Pct, Position, PositionComfort,
+    Signals, G,
+};
 
 /// The comfort signals at one instant (the fields of [`Signals`]).
 #[derive(Debug, Clone, Copy, Default)]
@@ -25,6 +28,19 @@ pub struct Sample {
     pub lat_acc_other: f64,
     /// Tilt error θ_v − θ_v^d (rad).
     pub tilt_error: f64,
+    /// Vertical acceleration at the passenger from the body's roll (m/s²); 0 on the centre
+    /// line (see [`super::Position`]).
+    pub vertical: f64,
+}
+
+/// The body the signals are of: what the assessment needs beyond its settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Body {
+    /// Secondary lateral bump-stop clearance (m).
+    pub bump_stop_m: f64,
+    /// Height of the carbody's centre of gravity above the rail, h_gv (m): where the signals
+    /// are taken.
+    pub cog_height_m: f64,
 }
 
 /// One curve transition's EN 12299 evaluation as the samples pass: the filtered peaks inside
@@ -43,6 +59,9 @@ pub(super) struct TransitionWindow {
 pub struct Assessor {
     c: ComfortSettings,
     clearance: f64,
+    cog_height: f64,
+    last_roll: Option<f64>,
+    positions: Vec<(Position, Assessor)>,
     dt: f64,
     n: usize,
     acc_peak: f64,
@@ -60,12 +79,23 @@ pub struct Assessor {
 }
 
 impl Assessor {
-    /// An assessment at step `dt` (s) with the curve `transitions` as (start, end) times, the
-    /// secondary lateral deflection judged against the bump stops' `clearance` (m).
-    pub fn new(dt: f64, transitions: &[(f64, f64)], c: &ComfortSettings, clearance: f64) -> Self {
+    /// An assessment at step `dt` (s) with the curve `transitions` as (start, end) times, of
+    /// `body`: at its centre of gravity and at each of `c.positions`.
+    pub fn new(dt: f64, transitions: &[(f64, f64)], c: &ComfortSettings, body: Body) -> Self {
+        let at_point = ComfortSettings {
+            positions: Vec::new(),
+            ..c.clone()
+        };
         Assessor {
-            c: c.clone(),
-            clearance,
+            positions: c
+                .positions
+                .iter()
+                .map(|p| (p.clone(), Assessor::new(dt, transitions, &at_point, body)))
+                .collect(),
+            c: at_point.clone(),
+            clearance: body.bump_stop_m,
+            cog_height: body.cog_height_m,
+            last_roll: None,
             dt,
             n: 0,
             acc_peak: 0.0,
@@ -95,6 +125,14 @@ impl Assessor {
 
     /// Takes the next sample.
     pub fn push(&mut self, x: &Sample) {
+        if !self.positions.is_empty() {
+            // φ̈ by the backward difference of φ̇ (continuous across the ramp corners).
+            let roll_acc = self.last_roll.map_or(0.0, |p| (x.roll_speed - p) / self.dt);
+            self.last_roll = Some(x.roll_speed);
+            for (p, a) in &mut self.positions {
+                a.push(&p.moved(x, roll_acc, self.cog_height));
+            }
+        }
         self.n += 1;
         self.acc_peak = self.acc_peak.max(x.lat_acc.abs());
         self.roll_peak = self.roll_peak.max(x.roll_speed.abs());
@@ -132,6 +170,7 @@ impl Assessor {
             return Comfort {
                 method: "en12299-transition",
                 lateral_acceleration: self.c.lateral_acceleration.name(),
+                positions: self.position_comfort(),
                 ..Default::default()
             };
         }
@@ -172,7 +211,26 @@ impl Assessor {
                 ),
             },
             ride: self.ride.finish(),
+            positions: self.position_comfort(),
         }
+    }
+
+    fn position_comfort(&self) -> Vec<PositionComfort> {
+        self.positions
+            .iter()
+            .map(|(p, a)| {
+                let c = a.finish();
+                PositionComfort {
+                    name: p.name.clone(),
+                    height_m: p.height_m,
+                    offset_m: p.offset_m,
+                    p_ct_en12299: c.p_ct_en12299,
+                    p_ct_paper: c.p_ct_paper,
+                    lat_acc_peak_pct_g: c.lat_acc_peak_pct_g,
+                    ride: c.ride,
+                }
+            })
+            .collect()
     }
 }
 
@@ -190,6 +248,7 @@ impl Sample {
             deflection: 0.0,
             lat_acc_other: self.lat_acc_ref,
             tilt_error: 0.0,
+            vertical: 0.0,
         }
     }
 }
@@ -206,19 +265,20 @@ impl Signals {
             deflection: self.deflection[k],
             lat_acc_other: self.lat_acc[k],
             tilt_error: 0.0,
+            vertical: 0.0,
         }
     }
 }
 
-/// Assesses a run held in memory (step from its time axis), bump-stop `clearance` in m.
-pub fn assess(s: &Signals, c: &ComfortSettings, clearance: f64) -> Comfort {
+/// Assesses a run of `body` held in memory (step from its time axis).
+pub fn assess(s: &Signals, c: &ComfortSettings, body: Body) -> Comfort {
     let n = s.t.len();
     let dt = if n >= 2 {
         (s.t[n - 1] - s.t[0]) / (n - 1) as f64
     } else {
         1.0
     };
-    let mut a = Assessor::new(dt, &s.transitions, c, clearance);
+    let mut a = Assessor::new(dt, &s.transitions, c, body);
     (0..n).for_each(|k| a.push(&s.sample(k)));
     a.finish()
 }

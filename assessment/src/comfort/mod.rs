@@ -23,10 +23,12 @@ use cosim::settings::Checker;
 
 mod assessor;
 mod filters;
+mod position;
 mod ride;
 
 pub use assessor::*;
 pub use filters::*;
+pub use position::*;
 pub use ride::*;
 
 /// Gravity for %g (m/s²).
@@ -83,6 +85,9 @@ pub struct ComfortSettings {
     /// default) or `with-sway` (eq 13 plus the body's sway acceleration). The other form's
     /// P_CT and peak are reported beside it (`comfort.other_form`).
     pub lateral_acceleration: LateralAcceleration,
+    /// Where passengers are: the comfort at each of these points of the body is reported
+    /// beside the centre of gravity's (`comfort.positions`).
+    pub positions: Vec<Position>,
 }
 
 /// Which passenger lateral acceleration comfort uses (`[comfort] lateral_acceleration`).
@@ -123,6 +128,7 @@ impl Default for ComfortSettings {
             jerk_window_s: 1.0,
             margin_s: 1.6,
             lateral_acceleration: LateralAcceleration::Eq13,
+            positions: Position::defaults(),
         }
     }
 }
@@ -134,6 +140,7 @@ impl ComfortSettings {
         c.positive("filter_hz", self.filter_hz, 50.0, "Hz");
         c.positive("jerk_window_s", self.jerk_window_s, 10.0, "s");
         c.range("margin_s", self.margin_s, 0.0, 30.0, "s");
+        Position::validate_all(&self.positions, &mut c);
         c
     }
 }
@@ -219,6 +226,8 @@ pub struct Comfort {
     pub other_form: OtherForm,
     /// Straight-track ride (EN 12299 mean comfort, lateral part; roll measures).
     pub ride: Ride,
+    /// The comfort where passengers are (`[comfort] positions`).
+    pub positions: Vec<PositionComfort>,
 }
 
 /// Comfort with the passenger lateral acceleration not chosen in `[comfort]`.
@@ -376,6 +385,11 @@ pub fn values(c: &Comfort) -> [f64; 15] {
 mod tests {
     use super::*;
 
+    const TEST_BODY: Body = Body {
+        bump_stop_m: 0.060,
+        cog_height_m: 1.52,
+    };
+
     #[test]
     fn every_metric_key_is_distinct_and_found() {
         for (i, m) in METRICS.iter().enumerate() {
@@ -434,7 +448,7 @@ mod tests {
             lat_acc: x,
             transitions: vec![],
         };
-        let m = assess(&s, &c, 0.060);
+        let m = assess(&s, &c, TEST_BODY);
         assert!((m.lat_acc_rms_dev_pct_g - 100.0 * 0.1 / G).abs() < 1e-12);
         assert!((m.lat_acc_peak_pct_g - 100.0 * 0.5 / G).abs() < 1e-12);
         assert_eq!(m.jerk_peak_pct_g_s, 0.0);
@@ -460,7 +474,7 @@ mod tests {
             t: t.clone(),
             transitions: vec![(5.0, 15.0)],
         };
-        let m = assess(&s, &c, 0.060);
+        let m = assess(&s, &c, TEST_BODY);
         assert!((m.lat_acc_rms_dev_pct_g - 100.0 * a / 2f64.sqrt() / G).abs() < 1e-4);
         assert!((m.roll_speed_rms_dev_rad_s - a / 2f64.sqrt()).abs() < 1e-5);
         assert!((m.roll_speed_peak_rad_s - a).abs() < 1e-6);

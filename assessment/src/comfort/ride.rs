@@ -213,12 +213,21 @@ pub struct Ride {
     pub roll_acc_rms_rad_s2: f64,
     /// RMS of the absolute carbody roll speed φ̇ (rad/s).
     pub roll_speed_rms_rad_s: f64,
+    /// a_ZP95^Wb of the vertical acceleration the body's roll gives at the point (m/s²):
+    /// 0 on the centre line (the model has no vertical suspension motion).
+    pub a_z_p95_wb_m_s2: f64,
+    /// 6·√(a_YP95^Wd² + a_ZP95^Wb²): EN 12299's mean comfort N_MV with its vertical part from
+    /// roll alone and no longitudinal part, named for what it holds.
+    pub n_mv_roll: f64,
 }
 
 /// The ride assessment, one sample at a time.
 pub(super) struct RideAssessor {
     dt: f64,
     wd: WeightingFilter,
+    wb: WeightingFilter,
+    z_window_sum: f64,
+    z_window_rms: Vec<f64>,
     per_window: usize,
     in_window: usize,
     window_sum: f64,
@@ -235,6 +244,9 @@ impl RideAssessor {
         RideAssessor {
             dt,
             wd: WeightingFilter::new(&WD, dt),
+            wb: WeightingFilter::new(&WB, dt),
+            z_window_sum: 0.0,
+            z_window_rms: Vec::new(),
             per_window: ((RIDE_WINDOW_S / dt).round() as usize).max(1),
             in_window: 0,
             window_sum: 0.0,
@@ -249,6 +261,8 @@ impl RideAssessor {
 
     pub(super) fn push(&mut self, x: &Sample, carbody_lat_acc: f64) {
         let a = self.wd.step(carbody_lat_acc);
+        let z = self.wb.step(x.vertical);
+        self.z_window_sum += z * z;
         self.window_sum += a * a;
         self.total.0 += a * a;
         self.total.1 += 1;
@@ -256,8 +270,11 @@ impl RideAssessor {
         if self.in_window == self.per_window {
             self.window_rms
                 .push((self.window_sum / self.per_window as f64).sqrt());
+            self.z_window_rms
+                .push((self.z_window_sum / self.per_window as f64).sqrt());
             self.in_window = 0;
             self.window_sum = 0.0;
+            self.z_window_sum = 0.0;
         }
         self.tilt.0 += x.tilt_error * x.tilt_error;
         self.tilt.1 += 1;
@@ -274,7 +291,10 @@ impl RideAssessor {
     pub(super) fn finish(&self) -> Ride {
         let rms = |(s, n): (f64, usize)| if n == 0 { 0.0 } else { (s / n as f64).sqrt() };
         let p95 = percentile(&self.window_rms, 0.95);
+        let z95 = percentile(&self.z_window_rms, 0.95);
         Ride {
+            a_z_p95_wb_m_s2: z95,
+            n_mv_roll: 6.0 * (p95 * p95 + z95 * z95).sqrt(),
             n_mv_lateral: 6.0 * p95,
             a_y_p95_wd_m_s2: p95,
             a_y_rms_wd_m_s2: rms(self.total),

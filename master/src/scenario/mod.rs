@@ -271,6 +271,7 @@ impl Scenario {
                 actuator_proc::CommandShaping::Hold => controller_proc::InputShape::Hold,
                 actuator_proc::CommandShaping::Ramp => controller_proc::InputShape::Ramp,
             },
+            seed: self.run.seed,
         }
     }
 
