@@ -410,12 +410,12 @@ impl Flags {
         .collect()
     }
 
-    /// The flags that make comfort numbers meaningless (the ride is not the controller's
-    /// intended one): an oscillating loop. Bump-stop contact is not one: the stops are a
-    /// force of the model (docs/model.md D49), so a ride on them is physics, and the flag
-    /// says how long and how hard.
+    /// The flags that make comfort numbers meaningless: an oscillating loop (the ride is not
+    /// the controller's intended one) or a P_CT outside the formula's 0-100 % range.
+    /// Bump-stop contact is not one: the stops are a force of the model (docs/model.md D49),
+    /// so a ride on them is physics, and the flag says how long and how hard.
     pub fn ride_invalid(&self) -> bool {
-        self.oscillation.raised
+        self.oscillation.raised || self.p_ct_range.raised
     }
 
     /// A free run that fell behind real time: its comfort numbers do not answer the

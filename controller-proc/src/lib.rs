@@ -300,7 +300,11 @@ impl Controller {
             Mode::Lqg => Law::Lqg(Box::new(
                 Lqg::new(&model(), &c.lqg, &c.kalman, c.period_s)
                     .map_err(|e| format!("LQG design: {e}"))?
-                    .with_limit(c.u_max_deg.to_radians()),
+                    .with_limit(if c.lqg.limit_command {
+                        c.u_max_deg.to_radians()
+                    } else {
+                        f64::INFINITY
+                    }),
             )),
             Mode::Mpc => Law::Mpc(Box::new(
                 Mpc::new(

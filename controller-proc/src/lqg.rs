@@ -26,6 +26,9 @@ pub struct LqgSettings {
     pub q_diag: Vec<f64>,
     /// R_w (eq 24).
     pub r_w: f64,
+    /// Limit the command to the actuator's range `controller.u_max_deg`, with conditional
+    /// integration (default); `false` is the paper's LQI, which has no saturation (D14).
+    pub limit_command: bool,
 }
 
 impl Default for LqgSettings {
@@ -36,6 +39,7 @@ impl Default for LqgSettings {
         LqgSettings {
             q_diag: q,
             r_w: 1.0,
+            limit_command: true,
         }
     }
 }

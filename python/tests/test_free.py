@@ -33,6 +33,8 @@ def test_a_free_run_from_python_replays_bit_for_bit_and_as_the_command_line_does
     if r.flags["not_real_time"]["raised"]:
         assert not r.valid
         assert "NOT VALID" in repr(r)
+    else:
+        assert r.valid and "NOT VALID" not in repr(r), r.raised_flags
 
     replayed = tiltsim.replay_timing(free_dir, out=tmp_path / "py-replay")
     assert replayed.summary["execution"] == "replay-timing"

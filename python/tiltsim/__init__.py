@@ -222,14 +222,17 @@ class Result:
 
     @property
     def raised_flags(self) -> list[str]:
-        """The names of the validity flags this run raised: a result with any is not valid
-        as a comfort figure."""
+        """The names of the flags this run raised. Some make its comfort not valid (see
+        :attr:`valid`); the others (bump stop, drive limit, chopper, thermal) are physics of
+        the run worth knowing."""
         return [k for k, v in self.flags.items() if isinstance(v, dict) and v.get("raised")]
 
     @property
     def valid(self) -> bool:
-        """Completed with no validity flag raised."""
-        return self.status == "completed" and not self.raised_flags
+        """Completed, and its comfort describes a working tilt system answering the run's
+        question (``summary["comfort_valid"]``: no oscillation, P_CT within the formula's
+        range, real time kept), as the terminal report judges it."""
+        return self.status == "completed" and bool(self.summary.get("comfort_valid"))
 
     def __getitem__(self, name: str) -> np.ndarray:
         try:
@@ -259,7 +262,7 @@ class Result:
     def __repr__(self) -> str:
         p = (self.comfort.get("p_ct_en12299") or {}).get("standing_pct")
         p_text = f", P_CT standing (EN 12299) {p:.2f} %" if isinstance(p, (int, float)) else ""
-        if p_text and self.raised_flags:
+        if p_text and not self.valid:
             # As the terminal report: a number under a raised flag is not a result.
             p_text += " NOT VALID"
         flags = ", flags: " + ", ".join(self.raised_flags) if self.raised_flags else ""

@@ -170,7 +170,8 @@ pub fn scan(
         // (comfort::LateralAcceleration).
         let ds = r.y_v - h1 * r.theta_v - r.y_b - h2 * r.theta_b;
         let dds = r.dy_v - h1 * r.dtheta_v - r.dy_b - h2 * r.dtheta_b;
-        let f_s = p.k_sy * ds + p.c_sy * dds;
+        // The secondary spring-damper and, past the free play, the bump stop (D49).
+        let f_s = p.k_sy * ds + p.c_sy * dds + p.bump_stop_force(ds);
         let sway = -2.0 * f_s / p.m_v - v * v * r.curvature + vehicle_model::G * r.cant;
         let (eq13, with_sway) = (r.lat_acc, r.lat_acc + sway);
         let (lat_acc, lat_acc_other) = match form {
@@ -406,8 +407,9 @@ impl QuickLooker {
         let q = &mut self.q;
         q.lat_acc_peak = q.lat_acc_peak.max(r.lat_acc.abs());
         q.delta_a_peak = q.delta_a_peak.max(r.delta_a.abs());
-        // The controllers clamp their command to exactly ±u_max.
-        if r.delta_a_cmd.abs() >= self.u_max * (1.0 - 1e-12) {
+        // At the limit within 1e-6 rad: the controllers clamp to ±u_max, the MPC's QP to
+        // within its feasibility tolerance (about 1e-8 rad).
+        if r.delta_a_cmd.abs() >= self.u_max - 1e-6 {
             self.at_limit += 1;
             q.command_at_limit_s = self.at_limit as f64 * self.dt;
         }

@@ -243,6 +243,8 @@ fn finish(job: &Job, ran: Ran, mut warnings: Vec<String>) -> Done {
             ));
         }
     }
+    summary.comfort_valid =
+        summary.analysis_skipped.is_none() && !summary.flags.comfort_not_valid();
     if files {
         // The summary takes the disk's space before the figures do.
         for (name, value) in [

@@ -2,11 +2,14 @@
 //! of gravity, from the rigid body's kinematics, and the comfort there.
 //!
 //! The body rolls by φ (absolute, positive leaning into the curve) about the track's
-//! longitudinal axis. A point at height `h` above the rail and lateral offset `y` from the
-//! centre line (positive towards the outside of the curve) sits at r = (y, h − h_gv) from the
-//! body's centre of gravity in the body's axes, and its acceleration is the centre's plus
-//! α × r + ω × (ω × r):
-//! * lateral (outwards): ÿ_P = ÿ_G − (h − h_gv)·φ̈ − y·φ̇²,
+//! longitudinal axis. The lateral signals are along the model's lateral axis, positive towards
+//! the inside of the curve (y_v of eq 9; eq 13's ÿ is the inward specific force the
+//! passenger is given): a point z above the centre of gravity moves inwards by z·θ_v when the
+//! body rolls, as the secondary suspension h1 below it moves by −h1·θ_v in Δs. A point at
+//! height `h` above the rail and `y` from the centre line (positive towards the outside of the
+//! curve, where a window seat of the curve's outer side is) has the centre's acceleration
+//! plus α × r + ω × (ω × r):
+//! * lateral (inwards): ÿ_P = ÿ_G + (h − h_gv)·φ̈ + y·φ̇²,
 //! * vertical (upwards): z̈_P = y·φ̈ − (h − h_gv)·φ̇².
 //!
 //! The model has no vertical suspension motion: z̈_P is the part of the vertical acceleration
@@ -76,7 +79,7 @@ impl Position {
     pub fn moved(&self, x: &Sample, roll_acc: f64, cog_height: f64) -> Sample {
         let z = self.height_m - cog_height;
         let (w2, y) = (x.roll_speed * x.roll_speed, self.offset_m);
-        let lateral = -z * roll_acc - y * w2;
+        let lateral = z * roll_acc + y * w2;
         Sample {
             lat_acc: x.lat_acc + lateral,
             lat_acc_other: x.lat_acc_other + lateral,
@@ -121,10 +124,11 @@ mod tests {
             offset_m: 1.0,
         };
         let (y, z) = (p.offset_m, p.height_m - 1.52);
-        // Body axes to world: leaning into the curve moves the top inwards, the outer side up.
+        // Body axes to world, lateral positive inwards: leaning into the curve (φ > 0) moves
+        // the top inwards and the outer side (inward coordinate −y) up.
         let world = |t: f64| {
-            let f = phi(t);
-            (y * f.cos() - z * f.sin(), y * f.sin() + z * f.cos())
+            let (f, yi) = (phi(t), -y);
+            (yi * f.cos() + z * f.sin(), -yi * f.sin() + z * f.cos())
         };
         let h = 1e-4;
         for k in 0..50 {
@@ -133,7 +137,8 @@ mod tests {
             let ay = (a.0 - 2.0 * b.0 + c.0) / (h * h);
             let az = (a.1 - 2.0 * b.1 + c.1) / (h * h);
             let f = phi(t);
-            let (body_y, body_z) = (ay * f.cos() + az * f.sin(), -ay * f.sin() + az * f.cos());
+            // World acceleration into the body's axes (the inverse of the rotation above).
+            let (body_y, body_z) = (ay * f.cos() - az * f.sin(), ay * f.sin() + az * f.cos());
             let rate = amp * w * (w * t).cos();
             let acc = -amp * w * w * (w * t).sin();
             let centre = Sample {

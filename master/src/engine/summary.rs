@@ -118,8 +118,13 @@ pub struct Summary {
     pub controller_solver: Option<SolverReport>,
     /// Ride comfort (Table 4 rows), from the recorded series.
     pub comfort: tiltsim_assessment::comfort::Comfort,
-    /// Whether the numbers are valid: oscillation, bump stop, drive limits, chopper, P_CT range.
+    /// The validity checks: oscillation, bump stop, drive limits, chopper, thermal, P_CT range
+    /// and, for a free run, real time.
     pub flags: tiltsim_assessment::validity::Flags,
+    /// Whether `comfort` describes a working tilt system answering the run's question: no
+    /// oscillation, P_CT within the formula's range, kept real time, analysis done. The other
+    /// flags (bump stop, drive, chopper, thermal) are physics of a valid run, said apart.
+    pub comfort_valid: bool,
     /// Why `results`, `comfort` and `flags` were not computed (an interrupted run ends at once;
     /// `tiltsim plot DIR` draws its figures later). Absent when they were.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -193,6 +198,7 @@ impl Summary {
             controller_solver: None,
             comfort: Default::default(),
             flags: Default::default(),
+            comfort_valid: false,
             analysis_skipped: None,
             ipc_prefix: String::new(),
             leftover_ipc_files: Vec::new(),
