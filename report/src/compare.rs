@@ -404,11 +404,13 @@ fn position_rows(
                     continue;
                 };
                 let v = get(p);
-                let mut tags = cell_flags(e, metric("p_ct_en12299_standing_pct"), 0.0);
-                if is_p_ct && v > 100.0 {
-                    tags.push("P_CT > 100 %".into());
-                }
-                let tags = tags.join("; ");
+                // The run's flags, and the P_CT range for a P_CT row, as the metric rows tag.
+                let like = if is_p_ct {
+                    "p_ct_en12299_standing_pct"
+                } else {
+                    "n_mv_lateral"
+                };
+                let tags = cell_flags(e, metric(like), v).join("; ");
                 let text = if tags.is_empty() {
                     fmt(v)
                 } else {
