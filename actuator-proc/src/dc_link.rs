@@ -16,7 +16,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use cosim::settings::Checker;
+use tiltsim_protocol::settings::Checker;
 
 /// DC-link parameters (scenario `[actuator.dc_link]`); reasons for the defaults in
 /// docs/model.md D28.

@@ -14,10 +14,10 @@ pub mod bldc;
 pub mod dc_link;
 pub mod shaping;
 
-use cosim::msg::{FromActuator, ToActuator};
-use cosim::settings::Checker;
-use cosim::{Participant, Role};
 use serde::{Deserialize, Serialize};
+use tiltsim_protocol::msg::{FromActuator, ToActuator};
+use tiltsim_protocol::settings::Checker;
+use tiltsim_protocol::{Participant, Role};
 
 pub use bldc::{Bldc, BldcParams, Electrics, EventStats, SwitchedIntegration};
 pub use dc_link::{DcLink, DcLinkParams};
@@ -175,6 +175,7 @@ impl Participant for Actuator {
 }
 
 /// Participant process entry: `--params JSON --prefix P --wait W`.
+#[cfg(feature = "process")]
 pub fn serve(args: &[String]) -> Result<(), cosim::ipc::ServeError> {
     cosim::ipc::participant_main(args, |s: ActuatorInit| Ok(Actuator::new(&s)))
 }

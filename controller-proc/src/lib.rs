@@ -20,10 +20,10 @@ pub mod lqg;
 pub mod mpc;
 pub mod pi_loop;
 
-use cosim::msg::{FromController, ToController};
-use cosim::settings::Checker;
-use cosim::{Participant, Role};
 use serde::{Deserialize, Serialize};
+use tiltsim_protocol::msg::{FromController, ToController};
+use tiltsim_protocol::settings::Checker;
+use tiltsim_protocol::{Participant, Role};
 use vehicle_model::{Track, TrackParams, Vehicle, VehicleParams, G};
 
 pub use design::LinearModel;
@@ -431,6 +431,7 @@ impl Participant for Controller {
 }
 
 /// Participant process entry: `--params JSON --prefix P --wait W`.
+#[cfg(feature = "process")]
 pub fn serve(args: &[String]) -> Result<(), cosim::ipc::ServeError> {
     cosim::ipc::participant_main(args, |s: ControllerInit| Controller::new(&s))
 }

@@ -5,11 +5,11 @@
 //! ±10 m is about ±0.2 s on the paper's 2.4 s transition at 162 km/h: enough to move the
 //! corner peaks that decide P_CT.
 
-use cosim::settings::Checker;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
+use tiltsim_protocol::settings::Checker;
 
 /// The localisation error (`[controller.localisation]`); all zero by default (the controller
 /// knows the true position, as in the paper).

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::design::{DiscreteModel, LinearModel};
 use crate::linalg::{care, care_residual, DesignError};
-use cosim::settings::Checker;
+use tiltsim_protocol::settings::Checker;
 
 /// LQI weights (scenario `[controller.lqg]`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

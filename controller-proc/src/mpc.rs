@@ -45,7 +45,7 @@ use serde::{Deserialize, Serialize};
 use crate::design::LinearModel;
 use crate::linalg::{dare, van_loan, DesignError};
 use crate::lqg::{process_noise, KalmanSettings};
-use cosim::settings::Checker;
+use tiltsim_protocol::settings::Checker;
 
 /// Clarabel's duality-gap and feasibility tolerances (its default is 1e-8; module notes).
 const QP_TOLERANCE: f64 = 1e-10;

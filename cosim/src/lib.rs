@@ -1,13 +1,14 @@
-//! `cosim`: the lock-step co-simulation kernel of tiltsim.
+//! `cosim`: the transports of tiltsim's co-simulation, beside the protocol they carry.
 //!
-//! * [`msg`]: the samples exchanged each tick, `#[repr(C)]` and zero-copy, each carrying the
-//!   step index it belongs to.
-//! * [`participant`]: the [`Participant`](participant::Participant) trait a model implements: a
-//!   plain struct with an explicit `step`, no IPC inside.
+//! The samples, their header and the [`Participant`] trait are in `tiltsim-protocol`
+//! (re-exported here as [`msg`], [`participant`], [`settings`] and [`time`]); this crate moves
+//! them:
+//!
 //! * [`endpoint`]: the orchestrator's view of a participant, one interface for both transports:
 //!   [`InProcess`](endpoint::InProcess) and [`ipc::IpcEndpoint`].
 //! * [`ipc`]: iceoryx2 transport (orchestrator side and participant side).
 //! * [`wait`]: the wait strategy used while a port has no sample yet.
+//! * [`realtime`]: `SCHED_FIFO` and locked memory for paced runs.
 //! * [`stats`]: percentiles for timing reports.
 //!
 //! The kernel never reads a clock to decide what to compute: simulated time is the step index
@@ -15,13 +16,11 @@
 
 pub mod endpoint;
 pub mod ipc;
-pub mod msg;
-pub mod participant;
 pub mod realtime;
-pub mod settings;
 pub mod stats;
-pub mod time;
 pub mod wait;
+
+pub use tiltsim_protocol::{msg, participant, settings, time};
 
 pub use endpoint::{Endpoint, InProcess, LinkError, ProcessFault};
 pub use msg::{Header, Kind, Message};

@@ -16,6 +16,7 @@ pub use vehicle_model::{
 };
 
 /// Participant process entry: `--params JSON --prefix P --wait W`.
+#[cfg(feature = "process")]
 pub fn serve(args: &[String]) -> Result<(), cosim::ipc::ServeError> {
     cosim::ipc::participant_main(args, |s: PlantSettings| Ok(Plant::new(&s)))
 }

@@ -1,8 +1,8 @@
 //! Sensor settings and what the plant process receives. Defaults are the paper's values
 //! (section 2.3, eq 15). The vehicle and track parameters live in `vehicle-model`.
 
-use cosim::settings::Checker;
 use serde::{Deserialize, Serialize};
+use tiltsim_protocol::settings::Checker;
 use vehicle_model::{TrackParams, VehicleParams};
 
 /// Body roll sensor (paper eq 15).

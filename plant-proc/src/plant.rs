@@ -10,12 +10,12 @@
 //! (zero-order hold) over the step. The cant-rate jumps at the ramp corners are applied as
 //! exact velocity jumps at their instants, splitting the step there.
 
-use cosim::msg::{FromPlant, ToPlant};
-use cosim::time::tick_time;
-use cosim::{Participant, Role};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
+use tiltsim_protocol::msg::{FromPlant, ToPlant};
+use tiltsim_protocol::time::tick_time;
+use tiltsim_protocol::{Participant, Role};
 
 use crate::params::PlantSettings;
 use vehicle_model::vehicle::{ix, State, TrackInput, Vehicle};

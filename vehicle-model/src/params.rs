@@ -2,8 +2,8 @@
 //! with the corrections of `model-notes.md`; every number can be overridden from a scenario
 //! file. All values SI and radians unless the name says otherwise (`_deg`, `_kmh`).
 
-use cosim::settings::Checker;
 use serde::{Deserialize, Serialize};
+use tiltsim_protocol::settings::Checker;
 
 /// Vehicle parameters (paper Appendix A.2). A one-bogie half-vehicle (model-notes 5).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use cosim::settings::Checker;
+use tiltsim_protocol::settings::Checker;
 
 /// Motor, drive and bar parameters (scenario `[actuator.bldc]`), Tables 1-2 and eq 1.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -19,7 +19,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use cosim::settings::Checker;
+use tiltsim_protocol::settings::Checker;
 
 mod assessor;
 mod filters;

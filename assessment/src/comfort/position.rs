@@ -15,8 +15,8 @@
 //! The model has no vertical suspension motion: z̈_P is the part of the vertical acceleration
 //! the body's roll gives, and the ride index built from it says so (`n_mv_roll`).
 
-use cosim::settings::Checker;
 use serde::{Deserialize, Serialize};
+use tiltsim_protocol::settings::Checker;
 
 use super::assessor::Sample;
 use super::{Pct, Ride};

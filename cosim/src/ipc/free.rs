@@ -7,8 +7,8 @@
 //! has arrived and keeps the newest (or the one it read last, if none came), steps the model
 //! with it as step `j·ticks`, and publishes the output at once. The reply's header carries the
 //! read instant (`recv_ns`), the compute time including any study busy wait (`compute_ns`),
-//! the publish instant (`sent_ns`) and, in `attempt`, the relay number of the input read (the starting request's is 0, every
-//! later request carries its own in `step`).
+//! the publish instant (`sent_ns`) and, in `relay`, the relay number of the input read (the
+//! starting request's is 0, every later request carries its own).
 //! A `Stop` request, or an orchestrator that has gone, ends it; a request flagged as a
 //! scheduled crash aborts the process.
 
@@ -68,12 +68,12 @@ pub(crate) fn serve_free<P: Participant>(
     first: P::Input,
     parent: libc::pid_t,
 ) -> Result<(), IpcError> {
-    let h = *first.header();
+    let c = first.header().clock;
     let clock = Clock {
-        start_ns: h.recv_ns,
-        period_ns: h.compute_ns.max(1),
-        ticks: h.step.max(1),
-        busy_ns: u64::from(h.field) * 1000,
+        start_ns: c.start_ns,
+        period_ns: c.period_ns.max(1),
+        ticks: u64::from(c.period_ticks).max(1),
+        busy_ns: u64::from(c.busy_us) * 1000,
     };
     let mut input = first;
     let mut relay = 0u64;
@@ -96,7 +96,7 @@ pub(crate) fn serve_free<P: Participant>(
                         std::process::abort();
                     }
                     input = got;
-                    relay = got.header().step;
+                    relay = got.header().relay;
                 }
                 _ => {}
             }
@@ -115,6 +115,7 @@ pub(crate) fn serve_free<P: Participant>(
             rh.kind = Kind::Step as u32;
             rh.flags = 0;
             rh.field = 0;
+            rh.clock = Default::default();
         }
         let mut reply = served.answer(&req);
         if let Some(why) = served.model.failure() {
@@ -124,7 +125,7 @@ pub(crate) fn serve_free<P: Participant>(
         if clock.busy_ns > 0 {
             busy_until(rh.recv_ns + clock.busy_ns);
         }
-        rh.attempt = u32::try_from(relay).unwrap_or(u32::MAX);
+        rh.relay = relay;
         rh.compute_ns = now_ns().saturating_sub(rh.recv_ns);
         reply.stamp();
         super::publish(publisher, reply).map_err(IpcError::Iceoryx)?;

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use cosim::endpoint::check_reply;
 use cosim::msg::{now_ns, FromActuator, FromController, FromPlant, Header, Kind, Message};
-use cosim::msg::{ToActuator, ToController, ToPlant, FLAG_FREE_START};
+use cosim::msg::{FreeClock, ToActuator, ToController, ToPlant, FLAG_FREE_START};
 use cosim::{Endpoint, LinkError, ProcessFault, Role};
 
 use super::compose::Store;
@@ -46,10 +46,7 @@ impl Relay {
         mut req: I,
         from: [Option<i64>; 3],
     ) -> Result<(), LinkError> {
-        // The starting request (relay 0) carries the period in ticks in its step instead.
-        if req.header().flags & FLAG_FREE_START == 0 {
-            req.header_mut().step = self.next;
-        }
+        req.header_mut().relay = self.next;
         self.sent.push_back((self.next, from));
         self.next += 1;
         ep.send(&req)
@@ -745,10 +742,12 @@ impl<'a> Hub<'a> {
         inject(&self.faults, 0, &mut self.ps, &mut self.deliveries.flags);
         let start = |mut h: Header, role: Role| {
             h.flags = FLAG_FREE_START;
-            h.step = ticks[role];
-            h.recv_ns = start_ns;
-            h.compute_ns = ticks[role] * dt_ns;
-            h.field = if role == Role::Controller { busy_us } else { 0 };
+            h.clock = FreeClock {
+                start_ns,
+                period_ns: ticks[role] * dt_ns,
+                period_ticks: u32::try_from(ticks[role]).unwrap_or(u32::MAX),
+                busy_us: if role == Role::Controller { busy_us } else { 0 },
+            };
             h
         };
         let link = |e: LinkError| e.to_string();
@@ -780,14 +779,12 @@ impl<'a> Hub<'a> {
         let step = self.done[role] * self.ticks[role];
         o.check(step).map_err(|e| e.to_string())?;
         let h = *o.header();
-        let from = self.relays[role]
-            .take(u64::from(h.attempt))
-            .ok_or_else(|| {
-                format!(
-                    "participant {role}: step {step} read relay {} that was never sent",
-                    h.attempt
-                )
-            })?;
+        let from = self.relays[role].take(h.relay).ok_or_else(|| {
+            format!(
+                "participant {role}: step {step} read relay {} that was never sent",
+                h.relay
+            )
+        })?;
         self.done[role] += 1;
         let rel = |t: u64| t.saturating_sub(self.start_ns);
         let t = StepTrace {

@@ -10,10 +10,19 @@
 //! over `[t_k, t_{k+1})`; the reply for step `k` carries the participant's outputs at
 //! `t_{k+1}`. The reply to [`Kind::Init`] carries the outputs at `t_0`.
 
-use iceoryx2::prelude::ZeroCopySend;
+use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
-/// Version of the sample layouts below. Bumped whenever a field changes.
-pub const PROTOCOL_VERSION: u32 = 5;
+/// Version of the sample layouts below. Bumped whenever a field changes; the layout tests
+/// (`layout_tests.rs`) pin every size and offset against it, so a layout change without a new
+/// version fails them.
+pub const PROTOCOL_VERSION: u32 = 6;
+
+/// [`PROTOCOL_VERSION`] as a literal, for the type names ports are matched by.
+macro_rules! protocol_version {
+    () => {
+        "6"
+    };
+}
 
 /// What a sample asks for or answers.
 #[repr(u32)]
@@ -51,12 +60,28 @@ pub const FLAG_REJECTED: u32 = 4;
 /// Reply flag: the request carried a non-finite value; the last good input was used.
 pub const FLAG_HELD: u32 = 8;
 /// Request flag: start free running (docs/architecture.md, "Execution modes"). The request
-/// carries the first input (relay number 0); its `recv_ns` is the common start instant
-/// (CLOCK_MONOTONIC ns), `compute_ns` the participant's period (ns), `step` its period in
-/// ticks and `field` a busy wait added to each step (µs, for studies). Every later request of
-/// a free run carries its relay number in `step`; a reply's `attempt` is the relay number of
-/// the input its step read.
+/// carries the first input (relay number 0) and, in [`Header::clock`], the participant's own
+/// clock: the common start instant, its period and a busy wait added to each step. Every
+/// request of a free run carries its relay number in [`Header::relay`]; a reply's `relay` is
+/// the relay number of the input its step read.
 pub const FLAG_FREE_START: u32 = 16;
+
+/// A free-running participant's clock, sent once in the request that starts a free run
+/// ([`FLAG_FREE_START`]); all zero otherwise.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FreeClock {
+    /// The common start instant of every participant (CLOCK_MONOTONIC ns, [`now_ns`]): step 0
+    /// is due then, step `j` at `start_ns + j · period_ns`.
+    pub start_ns: u64,
+    /// The participant's period (ns).
+    pub period_ns: u64,
+    /// The participant's period in ticks of the base period (its step `j` is tick
+    /// `j · period_ticks`).
+    pub period_ticks: u32,
+    /// A busy wait added to each step (µs), for studies of a slow computation; 0 normally.
+    pub busy_us: u32,
+}
 
 /// Monotonic clock (CLOCK_MONOTONIC, ns): one clock for every process of the machine, so
 /// timestamps taken in different processes can be subtracted.
@@ -92,7 +117,7 @@ pub fn clock_ns(timed: bool) -> u64 {
 
 /// Common prefix of every sample.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Header {
     /// Global step index (tick of the base period) this sample belongs to.
     pub step: u64,
@@ -108,16 +133,28 @@ pub struct Header {
     pub field: u32,
     /// Which sending of this step's request this is: 0 the first, 1 and more a repeat sent
     /// because the exchange went silent (docs/architecture.md, "Lost samples"). A reply
-    /// carries the attempt of the request it answers. Also keeps the timestamps 8-byte aligned.
+    /// carries the attempt of the request it answers. Lock-step only (0 in free running).
     pub attempt: u32,
     /// Monotonic time the sender published the sample (ns, [`now_ns`]).
     pub sent_ns: u64,
     /// Replies: monotonic time the participant took the request (ns).
     pub recv_ns: u64,
     /// Replies: wall-clock nanoseconds spent inside the model's step (measurement only, never
-    /// written to `timeseries.csv`).
+    /// written to `timeseries.csv`). In free running it includes a study's busy wait.
     pub compute_ns: u64,
+    /// Free running: a request's relay number (0 for the starting request, then one more for
+    /// each input relayed to this participant); a reply's is the relay number of the input its
+    /// step read. 0 in lock-step.
+    pub relay: u64,
+    /// Free running: the participant's clock, in the starting request only.
+    pub clock: FreeClock,
 }
+
+// SAFETY: `#[repr(C)]` integers and a `#[repr(C)]` struct of integers: plain data with no
+// padding (the layout tests check the offsets), no pointer, no drop.
+unsafe impl ZeroCopySend for FreeClock {}
+// SAFETY: as for `FreeClock`.
+unsafe impl ZeroCopySend for Header {}
 
 impl Header {
     /// A header for step `step` of kind `kind` at the current protocol version.
@@ -163,11 +200,19 @@ macro_rules! message {
     }) => {
         $(#[$m])*
         #[repr(C)]
-        #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+        #[derive(Debug, Clone, Copy, Default, PartialEq)]
         pub struct $name {
             /// Step index, kind and version.
             pub header: Header,
             $($(#[doc = $doc])* pub $f: $t,)*
+        }
+        // SAFETY: `#[repr(C)]` plain data (a `Header` and `f64`, `u32` and `[f64; N]` fields):
+        // no pointer, no reference, no drop; its layout is pinned by the layout tests. The
+        // type name carries the protocol version, so ports of two versions do not connect.
+        unsafe impl ZeroCopySend for $name {
+            unsafe fn type_name() -> &'static str {
+                concat!("tiltsim/", $label, "/v", protocol_version!())
+            }
         }
         impl Message for $name {
             const NAME: &'static str = $label;

@@ -1,0 +1,26 @@
+//! `tiltsim-protocol`: what the orchestrator and the participants say to each other, apart
+//! from how it travels.
+//!
+//! * [`msg`]: the samples exchanged each tick, `#[repr(C)]` plain data, each starting with a
+//!   [`Header`] that carries the step index, the kind, the protocol version and the timing of
+//!   the exchange. Their layout is pinned by tests against [`PROTOCOL_VERSION`].
+//! * [`participant`]: the [`Participant`] trait a model implements (a plain struct with an
+//!   explicit `step`, no transport inside), its [`Role`], and [`Served`](participant::Served),
+//!   the request checking every transport shares.
+//! * [`time`]: simulated time on the tick grid, computed one way everywhere.
+//! * [`settings`]: the field checker every crate's settings use, so that a rejected setting
+//!   names its field, its value and what is allowed.
+//!
+//! Transports live beside this crate (`cosim`: in-process and iceoryx2); model and
+//! assessment crates depend on this crate only.
+
+pub mod msg;
+pub mod participant;
+pub mod settings;
+pub mod time;
+
+#[cfg(test)]
+mod layout_tests;
+
+pub use msg::{FreeClock, Header, Kind, Message, PROTOCOL_VERSION};
+pub use participant::{Participant, Role};
