@@ -6,7 +6,7 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 venv="${1:-$here/../target/fmi-venv}"
 if [ -x "$venv/bin/python" ] && [ "$venv/.requirements" -nt "$here/fmi-requirements.txt" ] \
-    && "$venv/bin/python" -c "import fmpy, libcosimpy, pythonfmu, mcap, rerun, pandas, pytest" 2>/dev/null \
+    && "$venv/bin/python" -c "import fmpy, libcosimpy, pythonfmu, mcap, rerun, pandas, polars, pytest" 2>/dev/null \
     && "$venv/bin/maturin" --version >/dev/null 2>&1; then
     exit 0
 fi

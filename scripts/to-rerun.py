@@ -7,7 +7,7 @@ run's events (DIR/events.csv) as text logs at their ticks.
     python scripts/to-rerun.py DIR [--out FILE.rrd]     # default DIR/run.rrd
     rerun DIR/run.rrd
 
-Needs the `rerun-sdk` and `numpy` packages (scripts/checks-requirements.txt pins the versions
+Needs the `rerun-sdk` and `numpy` packages (scripts/fmi-requirements.txt pins the versions
 the tests use). Rerun reads MCAP files too, but keeps JSON messages such as run.mcap's as
 opaque bytes; this route gives it plottable scalars.
 """

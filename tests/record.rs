@@ -88,6 +88,51 @@ fn links_are_the_timeseries(m: &Messages, dir: &Path) {
     );
 }
 
+/// The plant's and the actuator's outputs in the recording are the rows of `timeseries.csv`:
+/// message `step` k holds the values of row k (line k + 1), at log time t_k, beginning with
+/// the outputs at t = 0.
+fn outputs_are_the_timeseries_rows(m: &Messages, dir: &Path) {
+    let csv = std::fs::read_to_string(dir.join("timeseries.csv")).unwrap();
+    let rows = csv_table(&csv);
+    for (topic, field) in [("/plant/out", "theta_v"), ("/actuator/out", "delta_a")] {
+        let col = rows[0].iter().position(|c| c == field).unwrap();
+        assert_eq!(
+            m[topic].len(),
+            rows.len() - 1,
+            "{topic}: one message per row"
+        );
+        for (k, (_, log, data)) in m[topic].iter().enumerate() {
+            let v: serde_json::Value = serde_json::from_str(data).unwrap();
+            assert_eq!(v["step"].as_u64(), Some(k as u64), "{topic}: {data}");
+            assert_eq!(*log, k as u64 * 1_000_000, "{topic}: {data}");
+            let want: f64 = rows[k + 1][col].parse().unwrap();
+            assert_eq!(v[field].as_f64(), Some(want), "{topic} step {k}");
+        }
+    }
+}
+
+/// The events are `foxglove.Log` messages at their ticks, with the columns of `events.csv`.
+fn events_are_log_messages(m: &Messages, dir: &Path) {
+    let csv = std::fs::read_to_string(dir.join("events.csv")).unwrap();
+    let rows = csv_table(&csv);
+    assert_eq!(m["/events"].len(), rows.len() - 1);
+    for ((_, log, data), row) in m["/events"].iter().zip(&rows[1..]) {
+        let v: serde_json::Value = serde_json::from_str(data).unwrap();
+        let step: u64 = row[1].parse().unwrap();
+        assert_eq!(v["step"].as_u64(), Some(step), "{data}");
+        let ns = v["timestamp"]["sec"].as_u64().unwrap() * 1_000_000_000
+            + v["timestamp"]["nsec"].as_u64().unwrap();
+        assert_eq!((ns, *log), (step * 1_000_000, step * 1_000_000), "{data}");
+        assert_eq!(v["name"], row[2].as_str(), "{data}");
+        assert_eq!(v["kind"], row[3].as_str(), "{data}");
+        assert!(
+            v["message"].as_str().unwrap().starts_with(&row[3]),
+            "{data}"
+        );
+        assert!((1..=5).contains(&v["level"].as_u64().unwrap()), "{data}");
+    }
+}
+
 /// Participant `role` replayed alone on `transport` against what it received in run `dir`
 /// (recording `m`): every output identical, the replayed outputs the recorded messages byte
 /// for byte.
@@ -123,11 +168,13 @@ fn a_recorded_fault_run_replays_byte_for_byte_and_a_changed_gain_is_found() {
     record("fault-measurement-nan.toml", &dir, "ipc");
     let m = messages(&dir.join("run.mcap"));
     // Every tick of every participant (the PI runs every tick), every link, the summary.
-    for topic in ["/plant/in", "/plant/out", "/actuator/in", "/controller/out"] {
+    for topic in ["/plant/in", "/actuator/in", "/controller/out"] {
         assert_eq!(m[topic].len(), 16_800, "{topic}");
     }
     assert_eq!(m["/summary"].len(), 1);
     links_are_the_timeseries(&m, &dir);
+    outputs_are_the_timeseries_rows(&m, &dir);
+    events_are_log_messages(&m, &dir);
     // Each participant alone, against what it received: identical outputs, in this process
     // and as its own process over iceoryx2.
     for (role, transport) in [
@@ -260,11 +307,23 @@ fn recordings_read_by_an_outside_reader_are_in_order_compressed_and_typed_for_pl
             r["plant_time"], 0,
             "{name}: /plant/out log time is not its t"
         );
-        assert_eq!(r["counts"]["/plant/out"], 16_800, "{name}");
+        // Every tick's output and the outputs at t = 0.
+        assert_eq!(r["counts"]["/plant/out"], 16_801, "{name}");
         assert!(r["counts"]["/events"].as_u64().unwrap() >= 2, "{name}");
         // Lichtblick reads a field typed "number" as a float and plots it; it refuses a
         // union such as ["number","null"]. Every field but the tick is a number.
+        // The events are Foxglove log messages, which its log panel lists.
+        assert_eq!(r["schema_names"]["/events"], "foxglove.Log", "{name}");
+        for field in ["timestamp", "level", "message", "name"] {
+            assert!(
+                r["schemas"]["/events"][field].is_string(),
+                "{name}: /events.{field}"
+            );
+        }
         for (topic, fields) in r["schemas"].as_object().unwrap() {
+            if topic == "/events" {
+                continue;
+            }
             for (field, ty) in fields.as_object().unwrap() {
                 let want = if field == "step" { "integer" } else { "number" };
                 assert_eq!(ty, want, "{name}: {topic}.{field}");

@@ -3,10 +3,10 @@
 
 use std::path::Path;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Every kind of event `events.csv` can hold.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum EventKind {
     /// A link's fixed delay (at t = 0; value: ticks).
@@ -170,7 +170,7 @@ mod tests {
         assert_eq!(
             text,
             "time,step,source,event,value,detail\n\
-             0.003,3,actuator_command,jitter-on,2,\"uniform, 2 ticks\"\n\
+             0.003,3,actuator_command,jitter-on,2.0,\"uniform, 2 ticks\"\n\
              0.005,5,controller,run-failed,,no reply\n"
         );
         let mut rd = csv::Reader::from_path(&p).unwrap();

@@ -132,6 +132,8 @@ fn events(dir: &Path) -> Result<Vec<EventMessage>, ExportError> {
         }
         let f = |i: usize| rec.get(i).unwrap_or("").to_string();
         let bad = |what: &str| err(&path, format!("line {line}: {what}"));
+        let kind: crate::events::EventKind = serde_json::from_value(f(3).into())
+            .map_err(|_| bad(&format!("`{}` is not an event kind tiltsim writes", f(3))))?;
         out.push(EventMessage {
             t: f(0)
                 .parse()
@@ -149,6 +151,7 @@ fn events(dir: &Path) -> Result<Vec<EventMessage>, ExportError> {
                     .map_err(|_| bad("a value that is not a number"))?
             },
             detail: f(5),
+            level: crate::engine::mcap::level(kind),
         });
     }
     Ok(out)
@@ -192,6 +195,7 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
     let path = dir.join("run.mcap");
     let mut rec = McapRecorder::create(&path, s.run.dt_s).map_err(|e| err(&path, e))?;
     rec.queue_events(events);
+    rec.at_start(&held.0, &held.1).map_err(|e| err(&path, e))?;
     let period = s.controller_period_ticks();
     let gauss_seidel = s.run.master == Master::GaussSeidel;
     let mut failed: Option<std::io::Error> = None;

@@ -170,6 +170,16 @@ pub fn replay(
     Ok(report)
 }
 
+/// How the recording numbers a participant's outputs: by the row of `timeseries.csv` at the
+/// time they hold at.
+#[derive(Clone, Copy)]
+struct Outbox {
+    /// The outputs hold at the end of the step (`k + 1` for step `k`), and the outputs at t_0
+    /// are recorded as step 0 (the plant and the actuator); otherwise they hold at its start.
+    ends_step: bool,
+    fields: &'static [&'static str],
+}
+
 /// Drives one participant through the recorded inputs over `ep` (its Init exchange first, as
 /// the engine does); stops where the recording says it was lost, or where it rejected an
 /// input (the recorded run ended there too).
@@ -180,14 +190,20 @@ fn drive<I: Message, O: Message>(
     hold: bool,
     input: fn(&[f64]) -> I,
     output: fn(&O) -> Vec<f64>,
-    fields: &[&str],
+    outbox: Outbox,
 ) -> Result<Vec<Recorded>, ReplayError> {
     let link = |e: cosim::LinkError| ReplayError::Model(format!("replayed participant: {e}"));
+    let fields = outbox.fields;
     let mut init = I::default();
     *init.header_mut() = Header::new(0, Kind::Init);
     ep.send(&init).map_err(link)?;
-    ep.receive(0, Kind::Init).map_err(link)?;
+    let first = ep.receive(0, Kind::Init).map_err(link)?;
     let mut out = Vec::new();
+    if outbox.ends_step {
+        let values = output(&first);
+        let text = rec::message(0, fields, &values);
+        out.push((0, values, text));
+    }
     for (k, v, _) in inbox
         .iter()
         .take_while(|(k, _, _)| lost.is_none_or(|l| *k < l))
@@ -204,8 +220,9 @@ fn drive<I: Message, O: Message>(
             break;
         }
         let values = output(&reply);
-        let text = rec::message(*k, fields, &values);
-        out.push((*k, values, text));
+        let at = if outbox.ends_step { *k + 1 } else { *k };
+        let text = rec::message(at, fields, &values);
+        out.push((at, values, text));
     }
     Ok(out)
 }
@@ -332,7 +349,10 @@ impl Stage<'_> {
             self.hold,
             input,
             output,
-            self.fields,
+            Outbox {
+                ends_step: self.role != Role::Controller,
+                fields: self.fields,
+            },
         );
         ep.shutdown();
         r
@@ -388,7 +408,9 @@ fn compare(
     let by_step: BTreeMap<u64, &Recorded> = recorded.iter().map(|r| (r.0, r)).collect();
     let mut report = Report {
         participant: role,
-        steps: replayed.len() as u64,
+        // The outputs at t_0 of a plant or an actuator are not a step.
+        steps: (replayed.len() - usize::from(role != Role::Controller && !replayed.is_empty()))
+            as u64,
         lost_at_step: lost,
         identical: true,
         differing_steps: 0,

@@ -5,6 +5,7 @@ tools use) and prints what the recording promises, as JSON:
   file that `mcap doctor --strict-message-order` accepts);
 * `compression`: the compression of every chunk (from the summary's chunk indexes);
 * `schemas`: per topic, the JSON types its schema gives each field;
+* `schema_names`: per topic, its schema's name (`foxglove.Log` for the events);
 * `plant_time`: /plant/out messages whose log time is not their own `t` (ns);
 * `counts`: messages per topic.
 
@@ -24,6 +25,7 @@ def main() -> None:
     counts = {}
     plant_time = 0
     schemas = {}
+    schema_names = {}
     with open(path, "rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()
@@ -31,6 +33,7 @@ def main() -> None:
         for channel in summary.channels.values():
             schema = summary.schemas[channel.schema_id]
             doc = json.loads(schema.data)
+            schema_names[channel.topic] = schema.name
             schemas[channel.topic] = {
                 name: field.get("type") for name, field in doc.get("properties", {}).items()
             }
@@ -51,6 +54,7 @@ def main() -> None:
                 "order": order,
                 "compression": compression,
                 "schemas": schemas,
+                "schema_names": schema_names,
                 "plant_time": plant_time,
                 "counts": counts,
             }

@@ -4,13 +4,17 @@
 //! * `/<role>/in`, `/<role>/out`: what each participant received (after link effects) and
 //!   what it answered, for every step it ran (the controller every `period_s`);
 //! * `/links/<name>`: each link's value as sent and as received, every tick;
-//! * `/events`: the run's events; `/summary`: the summary's deterministic part (written
-//!   after the analysis); `/perf`: its wall-clock part.
+//! * `/events`: the run's events as `foxglove.Log` messages (time, level, message, name: the
+//!   log panels of Foxglove and Lichtblick list them) with the columns of `events.csv` beside
+//!   them; `/summary`: the summary's deterministic part (written after the analysis); `/perf`:
+//!   its wall-clock part.
 //!
 //! Log time is the simulated time a message's values hold at, in ns: t_k = k·dt for what a
 //! participant received at tick k, the controller's answer and the links, t_(k+1) for the
 //! plant's and the actuator's outputs (the state at the end of the step); an event at its tick,
-//! the summary at the end. Log times never decrease through the file, and the chunks are
+//! the summary at the end. A message's `step` is the row of `timeseries.csv` at its log time
+//! (k for t_k, k + 1 for the outputs at t_(k+1)), and `/plant/out` and `/actuator/out` begin
+//! with the outputs at t_0 (step 0), as the table's first row does. Log times never decrease through the file, and the chunks are
 //! zstd-compressed. Publish time is the wall clock of the two-clock trace (`CLOCK_MONOTONIC`
 //! ns: request sent for `in`, reply received for `out`; the log time on the wall-clock-free
 //! channels). Every channel declares a JSON schema whose fields are numbers; a non-finite
@@ -257,13 +261,9 @@ impl McapRecorder {
             // (0.07 against 0.15 s for 26 MB of JSON) at a like size.
             .compression_level(1);
         let mut out = opts.create(file).map_err(|e| named(path, e))?;
-        let mut add = |topic: &str, fields: &[&str], extra: Option<&str>| {
-            let text = match extra {
-                Some(s) => s.to_string(),
-                None => schema(topic, fields),
-            };
+        let mut add = |schema_name: &str, topic: &str, text: &str| {
             let sid = out
-                .add_schema(topic, "jsonschema", text.as_bytes())
+                .add_schema(schema_name, "jsonschema", text.as_bytes())
                 .map_err(|e| named(path, e))?;
             out.add_channel(sid, topic, "json", &BTreeMap::new())
                 .map_err(|e| named(path, e))
@@ -271,14 +271,14 @@ impl McapRecorder {
         let mut channels = Vec::new();
         for (topic, fields) in CHANNELS {
             channels.push(Channel {
-                id: add(topic, fields, None)?,
+                id: add(topic, topic, &schema(topic, fields))?,
                 seq: 0,
             });
         }
         if timing {
             for topic in TIMING_CHANNELS {
                 channels.push(Channel {
-                    id: add(topic, TIMING_FIELDS, None)?,
+                    id: add(topic, topic, &schema(topic, TIMING_FIELDS))?,
                     seq: 0,
                 });
             }
@@ -288,9 +288,9 @@ impl McapRecorder {
                 r#"{{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"{title}","type":"object"}}"#
             )
         };
-        let events = add("/events", &[], Some(&object("/events")))?;
-        let summary = add("/summary", &[], Some(&object("/summary")))?;
-        let perf = add("/perf", &[], Some(&object("/perf")))?;
+        let events = add("foxglove.Log", "/events", EVENT_SCHEMA)?;
+        let summary = add("/summary", "/summary", &object("/summary"))?;
+        let perf = add("/perf", "/perf", &object("/perf"))?;
         Ok(McapRecorder {
             out,
             path: path.to_path_buf(),
@@ -329,7 +329,7 @@ impl McapRecorder {
             let e = self.queued.pop_front().unwrap_or_else(|| unreachable!());
             let log = ((e.t * 1e9).round().max(0.0) as u64).max(self.last_log);
             self.written += 1;
-            self.put_on(self.events, self.written, log, &e.json())?;
+            self.put_on(self.events, self.written, log, &e.json(self.dt_ns))?;
         }
         Ok(())
     }
@@ -392,6 +392,29 @@ impl McapRecorder {
     }
 }
 
+/// The schema of `/events`: Foxglove's `foxglove.Log` (timestamp, level, message, name, file,
+/// line) and the columns of `events.csv` (step, time, source, kind, value, detail).
+const EVENT_SCHEMA: &str = concat!(
+    r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"foxglove.Log","#,
+    r#""description":"A run event as a log message, with the columns of events.csv","#,
+    r#""type":"object","properties":{"#,
+    r#""timestamp":{"type":"object","title":"time","description":"Simulated time of the event","#,
+    r#""properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}},"#,
+    r#""level":{"type":"integer","title":"foxglove.LogLevel","description":"1 debug, 2 info, 3 warning, 4 error, 5 fatal","#,
+    r#""oneOf":[{"title":"UNKNOWN","const":0},{"title":"DEBUG","const":1},{"title":"INFO","const":2},"#,
+    r#"{"title":"WARNING","const":3},{"title":"ERROR","const":4},{"title":"FATAL","const":5}]},"#,
+    r#""message":{"type":"string","description":"What happened, in words"},"#,
+    r#""name":{"type":"string","description":"The link or participant it happened to"},"#,
+    r#""file":{"type":"string","description":"Empty: events come from the run, not from a source line"},"#,
+    r#""line":{"type":"integer","minimum":0,"description":"0"},"#,
+    r#""step":{"type":"integer","minimum":0,"description":"Tick (the row of timeseries.csv)"},"#,
+    r#""time":{"type":"number","description":"Simulated time (s)"},"#,
+    r#""source":{"type":"string"},"kind":{"type":"string","description":"The event column of events.csv"},"#,
+    r#""value":{"type":"number","description":"The number that goes with it, if any"},"#,
+    r#""detail":{"type":"string"}},"#,
+    r#""required":["timestamp","level","message","name","file","line","step","time","source","kind","detail"]}"#
+);
+
 /// One event as recorded.
 pub(crate) struct EventMessage {
     pub step: u64,
@@ -400,6 +423,23 @@ pub(crate) struct EventMessage {
     pub kind: String,
     pub value: f64,
     pub detail: String,
+    /// Its `foxglove.LogLevel`.
+    pub level: u8,
+}
+
+/// The `foxglove.LogLevel` of an event kind: the per-sample link effects are debug detail,
+/// the set-up and the windows information, faults and what the run did about them warnings,
+/// a participant lost or a drive's protection tripping an error, a run that stopped fatal.
+pub(crate) fn level(kind: crate::events::EventKind) -> u8 {
+    use crate::events::EventKind as K;
+    match kind {
+        K::Drop | K::Jitter => 1,
+        K::Delay | K::JitterOn | K::DropOn | K::Bias | K::Noise | K::ChopperOn => 2,
+        K::DropWindow | K::FreezeWindow | K::NanWindow | K::ValueWindow => 2,
+        K::FaultInjected | K::Degraded | K::BadInputHeld => 3,
+        K::ParticipantLost | K::OvercurrentTrip | K::OvervoltageTrip => 4,
+        K::RunFailed => 5,
+    }
 }
 
 impl From<&crate::events::Event> for EventMessage {
@@ -414,22 +454,38 @@ impl From<&crate::events::Event> for EventMessage {
                 .unwrap_or_default(),
             value: e.value,
             detail: e.detail.clone(),
+            level: level(e.kind),
         }
     }
 }
 
 impl EventMessage {
-    /// The event as JSON; an event without a value (NaN) has no `value` field.
-    fn json(&self) -> String {
-        let value = if self.value.is_finite() {
-            format!(",\"value\":{}", crate::record::fmt_f64(self.value))
+    /// The event as a `foxglove.Log` message with the columns of `events.csv`; an event
+    /// without a value (NaN) has no `value` field.
+    fn json(&self, dt_ns: u64) -> String {
+        let (value, words) = if self.value.is_finite() {
+            let v = crate::record::fmt_f64(self.value);
+            (format!(",\"value\":{v}"), format!(" ({v})"))
         } else {
-            String::new()
+            (String::new(), String::new())
         };
+        let detail = if self.detail.is_empty() {
+            String::new()
+        } else {
+            format!(": {}", self.detail)
+        };
+        let ns = self.step * dt_ns;
+        let message = format!("{}{words}{detail}", self.kind);
         format!(
-            "{{\"time\":{},\"step\":{},\"source\":{},\"kind\":{}{value},\"detail\":{}}}",
-            crate::record::fmt_f64(self.t),
+            "{{\"timestamp\":{{\"sec\":{},\"nsec\":{}}},\"level\":{},\"message\":{},\"name\":{},\"file\":\"\",\"line\":0,\
+             \"step\":{},\"time\":{},\"source\":{},\"kind\":{}{value},\"detail\":{}}}",
+            ns / 1_000_000_000,
+            ns % 1_000_000_000,
+            self.level,
+            serde_json::Value::from(message),
+            serde_json::Value::from(self.source.as_str()),
             self.step,
+            crate::record::fmt_f64(self.t),
             serde_json::Value::from(self.source.as_str()),
             serde_json::Value::from(self.kind.as_str()),
             serde_json::Value::from(self.detail.as_str()),
@@ -508,6 +564,16 @@ pub(crate) struct TickData<'a> {
 }
 
 impl McapRecorder {
+    /// Writes the plant's and the actuator's outputs at t_0 (step 0, log time 0), before any
+    /// tick: the values of the table's first row.
+    pub(crate) fn at_start(&mut self, p: &FromPlant, a: &FromActuator) -> std::io::Result<()> {
+        let (i, j) = (inbox(Role::Actuator) + 1, inbox(Role::Plant) + 1);
+        let m = message(0, CHANNELS[i].1, &actuator_out(a));
+        self.put(i, 0, 0, &m)?;
+        let m = message(0, CHANNELS[j].1, &plant_out(p));
+        self.put(j, 0, 0, &m)
+    }
+
     /// Writes one tick's messages: what the participants received, the controller's answer
     /// and the links at t_k, the queued events of tick k, then the actuator's and the plant's
     /// outputs at t_(k+1).
@@ -544,9 +610,9 @@ impl McapRecorder {
             self.put(l, log, log, &m)?;
         }
         self.write_events(Some(k))?;
-        let m = message(k, ch(i + 1), &actuator_out(d.a));
+        let m = message(k + 1, ch(i + 1), &actuator_out(d.a));
         self.put(i + 1, next, a_got, &m)?;
-        let m = message(k, ch(j + 1), &plant_out(d.p));
+        let m = message(k + 1, ch(j + 1), &plant_out(d.p));
         self.put(j + 1, next, p_got, &m)
     }
 }

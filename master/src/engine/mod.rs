@@ -39,6 +39,7 @@ use crate::events::EventLog;
 use crate::record::{Recorder, Row};
 use crate::roles::RoleMap;
 use crate::scenario::{Scenario, Transport};
+use launch::Held;
 pub use observer::LatencyHistogram;
 use observer::{
     ComputeStats, DriveEvents, Latency, Observer, Pacing, RowRecorder, RowSink, TickRecord,
@@ -89,6 +90,14 @@ impl Observers {
                 .pace
                 .map(|f| Pacing::new(f, s.run.dt_s, opts.realtime.is_some())),
         }
+    }
+
+    /// Tells the recorders the outputs at the start time (before the first tick).
+    fn at_start(&mut self, held: &Held) -> std::io::Result<()> {
+        if let Some(m) = &mut self.mcap {
+            m.at_start(&held.p, &held.a)?;
+        }
+        self.recorder.at_start(held)
     }
 
     fn before_tick(&mut self, k: u64) {
@@ -143,7 +152,7 @@ fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Res
     }
     // The Init exchanges stay in `team.exchanges`: the observers see them with tick 0's.
     team.initialise()?;
-    obs.recorder.at_start(&team.held).map_err(Stop::Write)?;
+    obs.at_start(&team.held).map_err(Stop::Write)?;
     let algorithm = algorithm::of(s.run.master);
     let c_period = s.controller_period_ticks();
     for k in 0..s.steps() {
@@ -198,7 +207,7 @@ fn lockstep_pipelined(
 ) -> Result<(), Stop> {
     let s = team.scenario();
     team.initialise()?;
-    obs.recorder.at_start(&team.held).map_err(Stop::Write)?;
+    obs.at_start(&team.held).map_err(Stop::Write)?;
     let c_period = s.controller_period_ticks();
     let steps = s.steps();
     let due = |k: u64| k.is_multiple_of(c_period);

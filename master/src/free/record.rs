@@ -115,6 +115,9 @@ pub fn record(
     let period = store.period;
     let steps = Steps::new(trace, store);
     let wall = |ns: u64| start_ns + ns;
+    if let (Some(p), Some(a)) = (store.plant(-1), store.actuator(-1)) {
+        rec.at_start(p, a)?;
+    }
     for k in 0..rows {
         let log = k * dt_ns;
         // What each consumer stepping at k read, and the links' samples it read.
@@ -165,11 +168,11 @@ pub fn record(
         let next = log + dt_ns;
         if let (Some(t), Some(o)) = (steps.at(Role::Actuator, k), store.actuator(k as i64)) {
             let a = inbox(Role::Actuator) + 1;
-            rec.put_values(a, k, next, wall(t.publish_ns), &actuator_out(o))?;
+            rec.put_values(a, k + 1, next, wall(t.publish_ns), &actuator_out(o))?;
         }
         if let (Some(t), Some(o)) = (steps.at(Role::Plant, k), store.plant(k as i64)) {
             let p = inbox(Role::Plant) + 1;
-            rec.put_values(p, k, next, wall(t.publish_ns), &plant_out(o))?;
+            rec.put_values(p, k + 1, next, wall(t.publish_ns), &plant_out(o))?;
         }
     }
     Ok(FreeRecording {

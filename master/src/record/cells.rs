@@ -35,9 +35,11 @@ pub fn fmt_f64(x: f64) -> String {
 /// exponent form, and with an exponent (`1.5e-7`, `2e22`) below 1e-4 and from 1e16 in
 /// magnitude, where the positional form would grow with the exponent (a decayed transient of
 /// 1e-300 would take 300 characters). Every value is at most 24 characters, so a row's width
-/// stays within a constant of its start over any run length.
+/// stays within a constant of its start over any run length. A whole number keeps its `.0`
+/// (`0.0`, `-3.0`), so that a reader that guesses column types from the first rows (polars,
+/// DuckDB) reads a float column as floats even where it starts at zero.
 ///
-/// The bytes are those of `std`'s `{x}` and `{x:e}` (test
+/// The bytes are those of `std`'s `{x}` (with `.0` for a whole number) and `{x:e}` (test
 /// `every_float_is_written_as_std_writes_it`); the shortest digits come from `ryu`, which makes
 /// writing a row 1.6-1.8 times faster (`cargo bench -p orchestrator --bench record`).
 pub fn put_f64(x: f64, out: &mut String) {
@@ -54,10 +56,10 @@ pub fn put_f64(x: f64, out: &mut String) {
         std_put_f64(x, out);
         return;
     }
-    // `ryu` writes 1e-5 ≤ |x| < 1e16 positionally (integers with `.0`) and the rest as
+    // `ryu` writes 1e-5 ≤ |x| < 1e16 positionally (whole numbers with `.0`) and the rest as
     // `d.ddde±x`, which is `std`'s `{:e}`; from 1e-5 to 1e-4 the exponent form is ours.
     if a >= 1e-4 {
-        out.push_str(text.strip_suffix(".0").unwrap_or(text));
+        out.push_str(text);
         return;
     }
     if a < 1e-5 {
@@ -87,11 +89,15 @@ pub fn put_f64(x: f64, out: &mut String) {
 pub(super) fn std_put_f64(x: f64, out: &mut String) {
     use std::fmt::Write as _;
     let a = x.abs();
-    let _ = if a != 0.0 && a.is_finite() && !(1e-4..1e16).contains(&a) {
-        write!(out, "{x:e}")
-    } else {
-        write!(out, "{x}")
-    };
+    if a != 0.0 && a.is_finite() && !(1e-4..1e16).contains(&a) {
+        let _ = write!(out, "{x:e}");
+        return;
+    }
+    let start = out.len();
+    let _ = write!(out, "{x}");
+    if a.is_finite() && !out[start..].contains('.') {
+        out.push_str(".0");
+    }
 }
 
 /// The one number of decimal places `k` at which `|x|` could lie exactly halfway between two

@@ -466,6 +466,28 @@ mod tests {
         }
     }
 
+    #[test]
+    fn whole_floats_keep_their_point_so_readers_infer_floats() {
+        let cases = [
+            (0.0, "0.0"),
+            (-0.0, "-0.0"),
+            (1.0, "1.0"),
+            (-3.0, "-3.0"),
+            (1200.0, "1200.0"),
+            (9999999999999998.0, "9999999999999998.0"),
+            (1e16, "1e16"),
+            (0.25, "0.25"),
+            (1.5e-7, "1.5e-7"),
+            (f64::NAN, "NaN"),
+            (f64::INFINITY, "inf"),
+        ];
+        for (v, want) in cases {
+            assert_eq!(fmt_f64(v), want);
+            let back: f64 = want.parse().unwrap();
+            assert!(back.to_bits() == v.to_bits() || v.is_nan(), "{want}");
+        }
+    }
+
     impl Row {
         /// Every float's bits (NaN compares equal to itself).
         fn x_bits(&self) -> Vec<u64> {
