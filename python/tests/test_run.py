@@ -61,9 +61,33 @@ def test_run_arrays_equal_the_command_lines_timeseries_value_for_value(tmp_path:
     assert r.comfort == cli_summary["comfort"]
     assert r.flags == cli_summary["flags"]
     assert r.raised_flags == [k for k, v in cli_summary["flags"].items() if v["raised"]]
-    # The frame holds the same values.
+    # The frame holds the same values, indexed by time, with the units beside it.
     f = r.frame()
-    pd.testing.assert_frame_equal(f, cli, check_dtype=False)
+    pd.testing.assert_frame_equal(f, cli.set_index("time"), check_dtype=False)
+    assert f.index.name == "time" and f.index[9] == 0.009
+    assert f.attrs["units"]["lat_acc"] == r.units["lat_acc"] != ""
+    # A notebook shows the run as a table naming its scenario and its EN 12299 comfort.
+    html = r._repr_html_()
+    assert "paper-mpc" in html and "EN 12299" in html and "<table>" in html
+    p = r.comfort["p_ct_en12299"]["standing_pct"]
+    assert f"{p:.2f} %" in html
+
+
+def test_polars_reads_the_table_with_its_default_type_inference(tmp_path: Path) -> None:
+    import polars as pl
+
+    tiltsim_cli("run", "scenarios/paper-passive.toml", "--transport", "in-process",
+                "--out", str(tmp_path / "run"), "--quiet")
+    r = tiltsim.run("scenarios/paper-passive.toml", transport="in-process")
+    # Defaults: types guessed from the first 100 rows, where many float columns are whole
+    # numbers (zero before the curve); each must still come out as floats, value for value.
+    table = pl.read_csv(tmp_path / "run" / "timeseries.csv")
+    assert table.columns == list(r.signals)
+    for name in r.signals:
+        want = r[name]
+        if want.dtype.kind == "f":
+            assert table.schema[name] == pl.Float64, name
+        np.testing.assert_array_equal(table[name].to_numpy(), want, err_msg=name, strict=False)
 
 
 def test_arrays_are_read_only_views_of_the_runs_rows_not_copies() -> None:

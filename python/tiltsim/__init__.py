@@ -253,11 +253,39 @@ class Result:
         return len(self.time)
 
     def frame(self) -> Any:
-        """The signals as a pandas DataFrame (one column per signal; pandas copies them).
-        Raises ImportError when pandas is not installed."""
+        """The signals as a pandas DataFrame indexed by simulated time (index ``time``, s),
+        one column per other signal; pandas copies them. ``frame().attrs["units"]`` gives
+        each column's unit. Raises ImportError when pandas is not installed."""
         import pandas as pd
 
-        return pd.DataFrame(self._columns)
+        columns = {k: v for k, v in self._columns.items() if k != "time"}
+        f = pd.DataFrame(columns, index=pd.Index(self.time, name="time"))
+        f.attrs["units"] = {k: u for k, u in self.units.items() if k in columns}
+        return f
+
+    def _repr_html_(self) -> str:
+        """A notebook's view: the run, its status, its comfort (EN 12299 first) and its flags."""
+        from html import escape
+
+        def pct(method: str, where: str) -> str:
+            v = (self.comfort.get(method) or {}).get(where)
+            return f"{v:.2f} %" if isinstance(v, (int, float)) else "n/a"
+
+        verdict = "valid" if self.valid else "<b>NOT VALID</b>"
+        rows = [
+            ("status", escape(self.status)),
+            ("rows", f"{len(self)} ({self.time[-1]:.3f} s)" if len(self) else "0"),
+            ("P<sub>CT</sub> standing (EN 12299)", pct("p_ct_en12299", "standing_pct")),
+            ("P<sub>CT</sub> seated (EN 12299)", pct("p_ct_en12299", "seated_pct")),
+            ("P<sub>CT</sub> standing (the paper's form)", pct("p_ct_paper", "standing_pct")),
+            ("comfort", verdict),
+            ("flags raised", escape(", ".join(self.raised_flags)) or "none"),
+        ]
+        if self.out_dir is not None:
+            rows.append(("files", escape(str(self.out_dir))))
+        body = "".join(f"<tr><th style='text-align:left'>{k}</th><td>{v}</td></tr>" for k, v in rows)
+        title = escape(str(self.summary.get("scenario")))
+        return f"<table><caption>tiltsim run <code>{title}</code></caption>{body}</table>"
 
     def __repr__(self) -> str:
         p = (self.comfort.get("p_ct_en12299") or {}).get("standing_pct")
