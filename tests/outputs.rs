@@ -250,6 +250,58 @@ fn a_lock_left_by_a_dead_run_is_taken_over() {
 }
 
 #[test]
+fn a_run_that_replaces_an_earlier_one_says_so_and_names_what_ran() {
+    let dir = temp_dir("outputs-replaced");
+    let d = dir.join("D");
+    let sc = scenario("paper-pi.toml");
+    let loud = |extra: &[&str]| {
+        let mut a = vec![
+            "run",
+            s(&sc),
+            "--transport",
+            "in-process",
+            "--duration",
+            "0.5",
+        ];
+        a.extend(["--out", s(&d)]);
+        a.extend(extra);
+        run(&a)
+    };
+    let (code, out, err) = loud(&[]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.starts_with("paper-pi (PI, switched BLDC drive): completed, 500 steps"),
+        "{out}"
+    );
+    assert!(
+        !out.contains("replaced"),
+        "a first run replaced nothing: {out}"
+    );
+    // The same default directory with another controller: the first line says which, and
+    // a line says the earlier run's files are gone.
+    let (code, out, err) = loud(&[
+        "--set",
+        "controller.mode=lqg",
+        "--set",
+        "actuator.model=ideal",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.starts_with("paper-pi (LQG servo, ideal bar): completed,"),
+        "{out}"
+    );
+    assert!(
+        out.lines()
+            .any(|l| l == format!("  replaced the earlier run in {}", d.display())),
+        "{out}"
+    );
+    // Quiet: not a word.
+    let (code, out, err) = loud(&["-q"]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!((out.as_str(), err.as_str()), ("", ""));
+}
+
+#[test]
 fn an_earlier_runs_recording_trace_and_replays_are_not_left_beside_a_new_run() {
     let dir = temp_dir("outputs-stale");
     let d = dir.join("D");
@@ -353,4 +405,45 @@ fn a_compare_gives_same_named_scenarios_distinct_directories_and_columns() {
     let (code, _, err) = quick_run(s(&a), &c, &[]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("compare"), "{err}");
+}
+
+/// The observer of `examples/peak_observer.rs`, written outside the crates as a user writes
+/// one: what it reports in its part of the summary is what the run's own table holds (the
+/// largest |lat_acc| of every row, at that row's time, one tick per row after the first).
+#[test]
+fn an_observer_written_outside_the_crates_sees_every_row_of_the_table() {
+    // Examples are built beside the test binaries (target/<profile>/examples).
+    let exe = std::env::current_exe()
+        .unwrap()
+        .parent()
+        .and_then(Path::parent)
+        .unwrap()
+        .join("examples")
+        .join("peak_observer");
+    assert!(exe.exists(), "{} not built", exe.display());
+    let out = temp_dir("peak-observer").join("run");
+    let p = std::process::Command::new(&exe)
+        .args([s(&scenario("paper-passive.toml")), s(&out)])
+        .output()
+        .unwrap();
+    assert!(p.status.success(), "{}", String::from_utf8_lossy(&p.stderr));
+    let part: serde_json::Value = serde_json::from_slice(&p.stdout).unwrap();
+    let table = std::fs::read_to_string(out.join("timeseries.csv")).unwrap();
+    let rows = tiltsim_suite::csv_table(&table);
+    let col = |name: &str| rows[0].iter().position(|c| c == name).unwrap();
+    let (lat, time) = (col("lat_acc"), col("time"));
+    let peak = rows[1..]
+        .iter()
+        .max_by(|a, b| {
+            let v = |r: &Vec<String>| r[lat].parse::<f64>().unwrap().abs();
+            v(a).total_cmp(&v(b))
+        })
+        .unwrap();
+    assert_eq!(
+        part["peak_lat_acc_m_s2"].as_f64().unwrap(),
+        peak[lat].parse::<f64>().unwrap().abs()
+    );
+    assert_eq!(part["at_s"].as_f64().unwrap(), peak[time].parse::<f64>().unwrap());
+    assert_eq!(part["ticks"].as_u64().unwrap() as usize, rows.len() - 2);
+    assert_eq!(part["status"], "completed");
 }

@@ -7,9 +7,13 @@
 //!   effects in `crate::links`);
 //! * [`algorithm`]: the master algorithms, Gauss-Seidel and Jacobi;
 //! * [`observer`]: the recorder, timing, compute, latency, trace, pacing and drive events;
+//! * [`observe`]: the [`Observer`](observe::Observer) trait a caller implements and adds to a
+//!   [`Run`], with its lifecycle (start, each tick, finish with its part of the summary);
+//! * [`cpu_plan`]: where the participants' processes run; [`mcap`]: `run.mcap`;
 //! * [`summary`]: the schema of `summary.json`.
 //!
-//! [`run`] reads as: launch, loop, shut down, report. Analysis of the recorded series (quick
+//! A [`Run`] is built by the caller (`Run::new(..).add_observer(..).simulate()`); [`run`] and
+//! [`run_recorded`] are its short forms. It reads as: launch, loop, shut down, report. Analysis of the recorded series (quick
 //! look, comfort, flags, figures) is the caller's step (`tiltsim_report::analysis`).
 
 pub(crate) mod algorithm;
@@ -17,6 +21,7 @@ pub mod cpu_plan;
 pub(crate) mod launch;
 pub(crate) mod manipulator;
 pub mod mcap;
+pub mod observe;
 pub(crate) mod observer;
 mod options;
 pub mod summary;
@@ -60,6 +65,10 @@ struct Observers {
     ticks_done: Option<std::sync::Arc<std::sync::atomic::AtomicU64>>,
     mcap: Option<mcap::McapRecorder>,
     cpu_plan: Option<cpu_plan::CpuPlanner>,
+    /// The caller's observers, in the order added.
+    user: Vec<Box<dyn observe::Observer>>,
+    /// Base tick (s), for the times the caller's observers see.
+    dt: f64,
 }
 
 impl Observers {
@@ -89,11 +98,25 @@ impl Observers {
             pacing: opts
                 .pace
                 .map(|f| Pacing::new(f, s.run.dt_s, opts.realtime.is_some())),
+            user: Vec::new(),
+            dt: s.run.dt_s,
         }
     }
 
-    /// Tells the recorders the outputs at the start time (before the first tick).
-    fn at_start(&mut self, held: &Held) -> std::io::Result<()> {
+    /// Tells the caller's observers and the recorders the outputs at the start time (before
+    /// the first tick).
+    fn at_start(&mut self, s: &Scenario, held: &Held) -> std::io::Result<()> {
+        let start = observe::Start {
+            scenario: &s.name,
+            dt_s: s.run.dt_s,
+            steps: s.steps(),
+            plant: &held.p,
+            actuator: &held.a,
+            controller: &held.c,
+        };
+        for o in &mut self.user {
+            o.start(&start)?;
+        }
         if let Some(m) = &mut self.mcap {
             m.at_start(&held.p, &held.a)?;
         }
@@ -126,6 +149,22 @@ impl Observers {
         if let Some(n) = &self.ticks_done {
             n.store(t.k + 1, std::sync::atomic::Ordering::Relaxed);
         }
+        if !self.user.is_empty() {
+            let tick = observe::Tick {
+                k: t.k,
+                time: cosim::time::tick_time(t.k + 1, self.dt),
+                plant: &t.held.p,
+                actuator: &t.held.a,
+                controller: &t.held.c,
+                controller_stepped: t.controller_due,
+                to_controller: t.controller_due.then_some(t.to_controller),
+                sent: observe::LinkValues::from_ordered(t.tx),
+                received: observe::LinkValues::from_ordered(t.rx),
+            };
+            for o in &mut self.user {
+                o.tick(&tick)?;
+            }
+        }
         if let Some(m) = &mut self.mcap {
             m.after_tick(t, ev)?;
         }
@@ -152,7 +191,7 @@ fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Res
     }
     // The Init exchanges stay in `team.exchanges`: the observers see them with tick 0's.
     team.initialise()?;
-    obs.at_start(&team.held).map_err(Stop::Write)?;
+    obs.at_start(s, &team.held).map_err(Stop::Write)?;
     let algorithm = algorithm::of(s.run.master);
     let c_period = s.controller_period_ticks();
     for k in 0..s.steps() {
@@ -207,7 +246,7 @@ fn lockstep_pipelined(
 ) -> Result<(), Stop> {
     let s = team.scenario();
     team.initialise()?;
-    obs.at_start(&team.held).map_err(Stop::Write)?;
+    obs.at_start(s, &team.held).map_err(Stop::Write)?;
     let c_period = s.controller_period_ticks();
     let steps = s.steps();
     let due = |k: u64| k.is_multiple_of(c_period);
@@ -441,6 +480,66 @@ pub struct Ran {
 /// [`run`], leaving `run.mcap` (with `--record`) open for the caller to finish with the
 /// analysed summary, and handing back the rows kept in memory.
 pub fn run_recorded(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Ran, RunError> {
+    Run::new(s, scenario_file, opts).simulate()
+}
+
+/// A lock-step run as the caller builds it: the scenario, the options, and the caller's
+/// observers in the order they are told about each tick.
+///
+/// ```no_run
+/// # use tiltsim_master::engine::{observe, Run, RunOptions};
+/// # fn f(s: &tiltsim_master::scenario::Scenario, mine: Box<dyn observe::Observer>) {
+/// let opts = RunOptions::new("out/mine".into(), "tiltsim".into());
+/// let ran = Run::new(s, "mine.toml", &opts).add_observer(mine).simulate();
+/// # }
+/// ```
+pub struct Run<'a> {
+    s: &'a Scenario,
+    scenario_file: &'a str,
+    opts: &'a RunOptions,
+    observers: Vec<Box<dyn observe::Observer>>,
+}
+
+impl<'a> Run<'a> {
+    /// A run of `s` (read from `scenario_file`, as the summary names it) with `opts`.
+    pub fn new(s: &'a Scenario, scenario_file: &'a str, opts: &'a RunOptions) -> Self {
+        Run {
+            s,
+            scenario_file,
+            opts,
+            observers: Vec::new(),
+        }
+    }
+
+    /// Adds an observer after those added before.
+    pub fn add_observer(mut self, o: Box<dyn observe::Observer>) -> Self {
+        self.observers.push(o);
+        self
+    }
+
+    /// Runs the lock-step to its end (or to the failure or interrupt that ends it early), as
+    /// [`run_recorded`] describes, with the observers' parts in the summary.
+    pub fn simulate(self) -> Result<Ran, RunError> {
+        let names: Vec<&str> = self.observers.iter().map(|o| o.name()).collect();
+        if let Some(dup) = names
+            .iter()
+            .enumerate()
+            .find_map(|(i, n)| names[..i].contains(n).then_some(*n))
+        {
+            return Err(RunError::Observer(format!(
+                "two observers are named `{dup}`; each needs its own name (its key in summary.json)"
+            )));
+        }
+        simulate(self.s, self.scenario_file, self.opts, self.observers)
+    }
+}
+
+fn simulate(
+    s: &Scenario,
+    scenario_file: &str,
+    opts: &RunOptions,
+    observers: Vec<Box<dyn observe::Observer>>,
+) -> Result<Ran, RunError> {
     let outputs = create_outputs(s, opts)?;
     let prefix = match s.run.transport {
         Transport::Ipc => opts
@@ -464,6 +563,7 @@ pub fn run_recorded(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Res
     let mut team = Team::new(s, ps);
     team.timed = opts.timing;
     let mut obs = Observers::new(s, opts, outputs);
+    obs.user = observers;
     obs.cpu_plan = cpu_plan::CpuPlanner::new(s, &cpus);
     let loop_started = Instant::now();
     let mut outcome = lockstep(&mut team, &mut obs, &opts.interrupt);
@@ -500,7 +600,13 @@ pub fn run_recorded(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Res
         }
     }
     let mcap = obs.mcap.take();
+    let mut user = std::mem::take(&mut obs.user);
     let mut summary = report(s, scenario_file, opts, &prefix, obs, ended, rows);
+    for o in &mut user {
+        if let Some(part) = o.finish(&summary) {
+            summary.observers.insert(o.name().to_string(), part);
+        }
+    }
     if let Some(e) = write_errors.first() {
         if summary.error.is_none() {
             summary.status = Status::Failed;

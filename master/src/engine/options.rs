@@ -86,6 +86,18 @@ pub enum Status {
     Interrupted,
 }
 
+/// As `summary.json` spells it: `completed`, `failed`, `degraded`, `interrupted`.
+impl std::fmt::Display for Status {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Status::Completed => "completed",
+            Status::Failed => "failed",
+            Status::Degraded => "degraded",
+            Status::Interrupted => "interrupted",
+        })
+    }
+}
+
 /// Why a run could not start or its outputs could not be written.
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
@@ -110,6 +122,9 @@ pub enum RunError {
         /// The participant that was starting.
         role: cosim::Role,
     },
+    /// The caller's observers cannot run together.
+    #[error("observers: {0}")]
+    Observer(String),
     /// An FMU participant could not be loaded or initialised.
     #[error("{role}: {message}")]
     Fmu {

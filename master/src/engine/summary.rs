@@ -138,6 +138,10 @@ pub struct Summary {
     /// when none wrote anything.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub participant_logs: Vec<String>,
+    /// What the caller's observers ([`super::observe::Observer`]) reported when the run
+    /// finished, by observer name. Absent when there were none.
+    #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub observers: std::collections::BTreeMap<String, serde_json::Value>,
     /// A free run's wall-clock timing: real time kept or not, lateness, input ages (absent
     /// for lock-step runs and replays).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -203,6 +207,7 @@ impl Summary {
             ipc_prefix: String::new(),
             leftover_ipc_files: Vec::new(),
             participant_logs: Vec::new(),
+            observers: std::collections::BTreeMap::new(),
             free_run: None,
             timing_trace: None,
             trace_partial: None,
