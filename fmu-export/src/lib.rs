@@ -7,6 +7,8 @@
 //! in whole base ticks ([`grid`]): a `fmi3DoStep` of any whole multiple of the tick (or, when
 //! exported with `--steps period`, of the participant's period) steps the participant on the
 //! ticks of its period within it, as the lock-step master does, and its outputs hold between.
+//! [`fmi2`] is the FMI 2.0 interface of the same instances; `values` reads and writes the
+//! variables' values through the layout.
 //! Model exchange and scheduled
 //! execution are not offered: their functions exist (the standard asks every FMU to export
 //! them) and return `fmi3Error`.

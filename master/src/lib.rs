@@ -14,7 +14,9 @@
 //! Modules: [`scenario`] (the file and its validation), [`links`] (link effects),
 //! [`faults`] (process faults), [`events`] (`events.csv`), [`degraded`] (stand-ins for a
 //! lost participant), [`roles`] (a value per role), [`engine`] (launch, lock-step, team,
-//! manipulators, algorithms, observers, summary), [`record`] (`timeseries.csv`),
+//! manipulators, algorithms, observers, summary), [`record`] (`timeseries.csv`), [`columns`]
+//! (`columns.csv`: each column's unit and description), [`free`] (free running and its exact
+//! replay),
 //! [`export_mcap`] (`run.mcap` from a finished run), [`budget`] (a run's outputs against the
 //! disk's free space, checked before it starts), [`replay`] (one participant against its
 //! recorded inputs), [`outdir`] (one run per output directory), [`export_fmu`] (a scenario's

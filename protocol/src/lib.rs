@@ -11,6 +11,8 @@
 //! * [`settings`]: the field checker every crate's settings use, so that a rejected setting
 //!   names its field, its value and what is allowed.
 //!
+//! `layout_tests` pins the wire layout (sizes and offsets) against the protocol version.
+//!
 //! Transports live beside this crate (`cosim`: in-process and iceoryx2); model and
 //! assessment crates depend on this crate only.
 
