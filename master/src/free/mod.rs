@@ -5,6 +5,9 @@
 //!   start instant and reads, at each step, the newest input that has arrived; the
 //!   orchestrator is the hub that composes each consumer's input from the newest producer
 //!   outputs, relays it without waiting, and records the timing trace (`timing.csv`).
+//! * `relay`: the hub's relays to each consumer and the samples on their way over the
+//!   links.
+//! * [`timing`]: the wall-clock statistics a free run gathers and the report it ends in.
 //! * [`replay`]: a lock-step run, in-process or over IPC, that feeds each consumer step
 //!   exactly the producer outputs the trace says it read, in the order of the read instants.
 //! * [`compose`]: the inputs and the rows of `timeseries.csv`, shared by both, so that the
@@ -13,8 +16,10 @@
 
 pub mod compose;
 pub mod record;
+mod relay;
 pub mod replay;
 pub mod run;
+pub mod timing;
 pub mod trace;
 
 use std::path::Path;

@@ -15,8 +15,9 @@ use cosim::{Endpoint, LinkError, Role};
 use super::compose::Store;
 use super::trace::{self, col, StepTrace, TraceError};
 use super::{init_all, FilesGuard, FreeError, RowStream};
-use crate::engine::launch;
+use crate::engine::launch::{self, Participants};
 use crate::engine::RunOptions;
+use crate::roles::RoleMap;
 use crate::scenario::{Scenario, Transport};
 
 /// What a replay did.
@@ -78,12 +79,10 @@ fn ask<I: Message, O: Message>(
 /// `opts.out_dir`.
 pub fn replay(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Replayed, FreeError> {
     let period = s.controller_period_ticks();
-    let steps = s.steps();
-    let trace = trace::read(trace_path, s.run.dt_s, steps, period)?;
+    let trace = trace::read(trace_path, s.run.dt_s, s.steps(), period)?;
     let mut order = trace.steps;
     order.sort_by_key(|t| (t.read_ns, col(t.role)));
     check_causal(trace_path, &order, period)?;
-    let floors = floors(&order);
     let dir = &opts.out_dir;
     std::fs::create_dir_all(dir).map_err(|e| FreeError::io(dir, e))?;
     let resolved = dir.join("scenario.toml");
@@ -101,82 +100,15 @@ pub fn replay(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Repl
     let mut rows = RowStream::create(s, opts).map_err(FreeError::Run)?;
     let mut ps = launch::start(s, opts, &prefix).map_err(FreeError::Run)?;
     let mut store = Store::new(period, s.run.dt_s, &s.links, s.run.seed);
-    let write = |e: std::io::Error| format!("cannot write timeseries.csv: {e}");
-    let outcome = (|| -> Result<(), String> {
-        init_all(&mut ps, &mut store).map_err(|e| e.to_string())?;
-        rows.start(&store).map_err(write)?;
-        for (i, t) in order.iter().enumerate() {
-            if opts.interrupt.load(std::sync::atomic::Ordering::Relaxed) {
-                return Ok(());
-            }
-            store.note_read(t);
-            // The inputs exist: `check_causal` has seen each produced before it is read.
-            let missing = || LinkError::Malformed {
-                role: t.role,
-                step: t.step,
-                what: "an input the trace names was not computed".into(),
-            };
-            let step = |e: LinkError| e.to_string();
-            match t.role {
-                Role::Plant => {
-                    let req = store.input_plant(t).ok_or_else(missing).map_err(step)?;
-                    let o = ask(&mut ps.plant, req, t.step).map_err(step)?;
-                    store.put_plant(t.step, o);
-                    rows.advance(&store, steps).map_err(write)?;
-                }
-                Role::Actuator => {
-                    let req = store.input_actuator(t).ok_or_else(missing).map_err(step)?;
-                    let o = ask(&mut ps.actuator, req, t.step).map_err(step)?;
-                    store.put_actuator(t.step, o);
-                }
-                Role::Controller => {
-                    let req = store
-                        .input_controller(t)
-                        .ok_or_else(missing)
-                        .map_err(step)?;
-                    let o = ask(&mut ps.controller, req, t.step).map_err(step)?;
-                    store.put_controller(t.step, o);
-                }
-            }
-            if i % FORGET_EVERY == FORGET_EVERY - 1 {
-                let mut floor = rows.floor();
-                for p in 0..3 {
-                    floor[p] = floor[p].min(floors[i + 1][p]);
-                }
-                store.forget_before(floor);
-            }
-        }
-        Ok(())
-    })();
+    let outcome = replay_steps(s, opts, &order, &mut ps, &mut store, &mut rows);
     let pids = ps.pids();
-    let exits = ps.shut_down(crate::roles::RoleMap::default());
-    if let Some(hub) = ps.hub.take() {
-        hub.cleanup_dead();
-        drop(ps);
-        drop(hub);
-        cosim::ipc::remove_run_files(&prefix);
-    }
-    drop(guard);
-    if !cpus.is_empty() {
-        cosim::ipc::set_cpus(&cpus);
-    }
+    let exits = shut_down(ps, &prefix, guard, &cpus);
     let participant_logs = if s.run.transport == Transport::Ipc {
         crate::engine::finish_logs(dir)
     } else {
         Vec::new()
     };
-    let (ticks, kept, row_error) = rows.finish();
-    let events_csv = dir.join("events.csv");
-    let mut error = outcome.err();
-    if let Err(e) = super::run_events(s, &store, ticks).write(&events_csv) {
-        error.get_or_insert(format!("cannot write {}: {e}", events_csv.display()));
-    }
-    if let Err(e) = crate::columns::write_run(dir) {
-        error.get_or_insert(format!("cannot write columns.csv: {e}"));
-    }
-    if let Some(e) = row_error {
-        error.get_or_insert(format!("cannot write timeseries.csv: {e}"));
-    }
+    let (ticks, kept, error) = finish_files(s, dir, &store, rows, outcome.err());
     Ok(Replayed {
         steps_completed: ticks,
         exchanges: order.len() as u64,
@@ -188,6 +120,128 @@ pub fn replay(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Repl
         ipc_prefix: prefix,
         participant_logs,
     })
+}
+
+/// Takes the outputs at t₀, then each step of `order` in turn, writing the rows as they
+/// complete; stops early, without an error, when the run is interrupted.
+fn replay_steps(
+    s: &Scenario,
+    opts: &RunOptions,
+    order: &[StepTrace],
+    ps: &mut Participants,
+    store: &mut Store,
+    rows: &mut RowStream,
+) -> Result<(), String> {
+    let steps = s.steps();
+    let floors = floors(order);
+    init_all(ps, store).map_err(|e| e.to_string())?;
+    rows.start(store).map_err(write_rows)?;
+    for (i, t) in order.iter().enumerate() {
+        if opts.interrupt.load(std::sync::atomic::Ordering::Relaxed) {
+            return Ok(());
+        }
+        replay_step(t, ps, store, rows, steps)?;
+        if i % FORGET_EVERY == FORGET_EVERY - 1 {
+            let mut floor = rows.floor();
+            for p in 0..3 {
+                floor[p] = floor[p].min(floors[i + 1][p]);
+            }
+            store.forget_before(floor);
+        }
+    }
+    Ok(())
+}
+
+/// The error of a write to `timeseries.csv` that failed.
+fn write_rows(e: std::io::Error) -> String {
+    format!("cannot write timeseries.csv: {e}")
+}
+
+/// One step of the trace: the participant is given the input composed from the producer
+/// outputs `t` names, and its output goes to the store (with the rows it completes, up to
+/// tick `steps`).
+fn replay_step(
+    t: &StepTrace,
+    ps: &mut Participants,
+    store: &mut Store,
+    rows: &mut RowStream,
+    steps: u64,
+) -> Result<(), String> {
+    store.note_read(t);
+    // The inputs exist: `check_causal` has seen each produced before it is read.
+    let missing = || LinkError::Malformed {
+        role: t.role,
+        step: t.step,
+        what: "an input the trace names was not computed".into(),
+    };
+    let step = |e: LinkError| e.to_string();
+    match t.role {
+        Role::Plant => {
+            let req = store.input_plant(t).ok_or_else(missing).map_err(step)?;
+            let o = ask(&mut ps.plant, req, t.step).map_err(step)?;
+            store.put_plant(t.step, o);
+            rows.advance(store, steps).map_err(write_rows)?;
+        }
+        Role::Actuator => {
+            let req = store.input_actuator(t).ok_or_else(missing).map_err(step)?;
+            let o = ask(&mut ps.actuator, req, t.step).map_err(step)?;
+            store.put_actuator(t.step, o);
+        }
+        Role::Controller => {
+            let req = store
+                .input_controller(t)
+                .ok_or_else(missing)
+                .map_err(step)?;
+            let o = ask(&mut ps.controller, req, t.step).map_err(step)?;
+            store.put_controller(t.step, o);
+        }
+    }
+    Ok(())
+}
+
+/// Stops the participants and removes the run's files (`guard`'s too); returns their exits.
+fn shut_down(
+    mut ps: Participants,
+    prefix: &str,
+    guard: FilesGuard,
+    cpus: &[usize],
+) -> RoleMap<cosim::endpoint::ExitReport> {
+    let exits = ps.shut_down(RoleMap::default());
+    if let Some(hub) = ps.hub.take() {
+        hub.cleanup_dead();
+        drop(ps);
+        drop(hub);
+        cosim::ipc::remove_run_files(prefix);
+    }
+    drop(guard);
+    if !cpus.is_empty() {
+        cosim::ipc::set_cpus(cpus);
+    }
+    exits
+}
+
+/// Finishes `timeseries.csv` and writes `events.csv` and `columns.csv`; returns the ticks
+/// whose rows are complete, the rows when kept in memory, and the replay's error (`error`,
+/// or else the first file that could not be written).
+fn finish_files(
+    s: &Scenario,
+    dir: &Path,
+    store: &Store,
+    rows: RowStream,
+    mut error: Option<String>,
+) -> (u64, Option<Vec<crate::record::Row>>, Option<String>) {
+    let (ticks, kept, row_error) = rows.finish();
+    let events_csv = dir.join("events.csv");
+    if let Err(e) = super::run_events(s, store, ticks).write(&events_csv) {
+        error.get_or_insert(format!("cannot write {}: {e}", events_csv.display()));
+    }
+    if let Err(e) = crate::columns::write_run(dir) {
+        error.get_or_insert(format!("cannot write columns.csv: {e}"));
+    }
+    if let Some(e) = row_error {
+        error.get_or_insert(format!("cannot write timeseries.csv: {e}"));
+    }
+    (ticks, kept, error)
 }
 
 /// Every input a step names was produced by a step read earlier (a trace edited by hand, or

@@ -1,17 +1,19 @@
 //! The orchestrator of a free run: the hub that relays the newest outputs without waiting,
 //! and records every step's timing.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use cosim::endpoint::check_reply;
 use cosim::msg::{now_ns, FromActuator, FromController, FromPlant, Header, Kind, Message};
 use cosim::msg::{FreeClock, ToActuator, ToController, ToPlant, FLAG_FREE_START};
-use cosim::{Endpoint, LinkError, ProcessFault, Role};
+use cosim::{LinkError, ProcessFault, Role};
 
 use super::compose::Store;
-use super::trace::{age, col, inputs_of, StepTrace, TraceHead, TraceWriter, TIMING_CSV};
+use super::relay::{Deliveries, Relay};
+use super::timing::Stats;
+use super::trace::{StepTrace, TraceHead, TraceWriter, TIMING_CSV};
 use super::{init_all, FilesGuard, FreeError, RowStream};
 use crate::engine::launch::{self, Participants};
 use crate::engine::manipulator::FaultSchedule;
@@ -21,9 +23,8 @@ use crate::links::LinkId;
 use crate::roles::RoleMap;
 use crate::scenario::Scenario;
 
-/// A free run is judged not real-time when one of its plant steps started later than this
-/// many base ticks after it was due.
-pub const NOT_REAL_TIME_TICKS: u64 = 10;
+pub use super::timing::NOT_REAL_TIME_TICKS;
+pub use super::timing::{AgeDistribution, FreeReport, FreeTiming, RoleFreeTiming};
 
 /// Time from sending the start requests to the common start instant: the participants are
 /// connected and waiting, so this only has to cover the delivery of three samples.
@@ -31,162 +32,6 @@ const START_MARGIN: Duration = Duration::from_millis(50);
 
 /// Pause of the hub between two polls that found nothing.
 const HUB_NAP: Duration = Duration::from_micros(20);
-
-/// Relays one consumer's inputs and remembers which producer steps each carried.
-#[derive(Default)]
-struct Relay {
-    next: u64,
-    sent: VecDeque<(u64, [Option<i64>; 3])>,
-}
-
-impl Relay {
-    fn send<I: Message, O: Message>(
-        &mut self,
-        ep: &mut Box<dyn Endpoint<I, O>>,
-        mut req: I,
-        from: [Option<i64>; 3],
-    ) -> Result<(), LinkError> {
-        req.header_mut().relay = self.next;
-        self.sent.push_back((self.next, from));
-        self.next += 1;
-        ep.send(&req)
-    }
-
-    /// The producer steps of the oldest relay the consumer may still read.
-    fn oldest(&self) -> Option<[Option<i64>; 3]> {
-        self.sent.front().map(|(_, f)| *f)
-    }
-
-    /// The producer steps of relay `n`; older relays are forgotten (a consumer reads newer
-    /// relays only).
-    fn take(&mut self, n: u64) -> Option<[Option<i64>; 3]> {
-        while self.sent.front().is_some_and(|(m, _)| *m < n) {
-            self.sent.pop_front();
-        }
-        self.sent.front().filter(|(m, _)| *m == n).map(|(_, f)| *f)
-    }
-}
-
-/// Per-role timing statistics of a free run (wall clock), in constant memory.
-#[derive(Default)]
-struct RoleTiming {
-    lateness_us: cosim::stats::Timings,
-    late_start: u64,
-    late_finish: u64,
-}
-
-/// One role's wall-clock timing in a free run.
-#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
-pub struct RoleFreeTiming {
-    /// Steps recorded.
-    pub steps: u64,
-    /// How long after it was due each step read its input (µs).
-    pub start_lateness_us: cosim::stats::Percentiles,
-    /// Steps that started after the next one was due.
-    pub late_starts: u64,
-    /// Steps published after the next one was due.
-    pub late_finishes: u64,
-}
-
-/// The distribution of one link's input ages over its consumer's steps (ticks; see
-/// [`super::trace::age`]).
-#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
-pub struct AgeDistribution {
-    /// Youngest.
-    pub min: i64,
-    /// Median.
-    pub p50: i64,
-    /// 99th percentile.
-    pub p99: i64,
-    /// Oldest.
-    pub max: i64,
-    /// `[age, steps]` pairs in increasing age.
-    pub counts: Vec<[i64; 2]>,
-}
-
-impl AgeDistribution {
-    fn of(h: &BTreeMap<i64, u64>) -> Self {
-        let n: u64 = h.values().sum();
-        let at = |q: f64| {
-            let want = ((n.saturating_sub(1)) as f64 * q).round() as u64;
-            let mut seen = 0;
-            for (a, c) in h {
-                seen += c;
-                if seen > want {
-                    return *a;
-                }
-            }
-            0
-        };
-        AgeDistribution {
-            min: h.keys().next().copied().unwrap_or(0),
-            p50: at(0.5),
-            p99: at(0.99),
-            max: h.keys().next_back().copied().unwrap_or(0),
-            counts: h.iter().map(|(a, c)| [*a, *c as i64]).collect(),
-        }
-    }
-}
-
-/// The wall-clock side of a free run: whether it kept real time, each role's lateness and each
-/// link's input ages (all of it differs from one free run to the next; the replay of the trace
-/// is what repeats).
-#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
-pub struct FreeTiming {
-    /// A plant step started more than [`NOT_REAL_TIME_TICKS`] ticks after it was due: the run
-    /// did not keep real time, and its ride is not the answer to a real-time question.
-    pub not_real_time: bool,
-    /// That margin (s).
-    pub not_real_time_margin_s: f64,
-    /// The plant's largest start lateness (s).
-    pub plant_max_lateness_s: f64,
-    /// Per participant.
-    pub participants: BTreeMap<String, RoleFreeTiming>,
-    /// Per link, by its `[links]` name.
-    pub input_age_ticks: BTreeMap<String, AgeDistribution>,
-    /// The CPU each participant was pinned to (empty when not pinned).
-    pub cpus: BTreeMap<String, usize>,
-}
-
-/// What a free run reports beyond its files.
-pub struct FreeReport {
-    /// How the run ended.
-    pub status: Status,
-    /// Why it failed or stopped, naming the participant.
-    pub error: Option<String>,
-    /// Rows in `timeseries.csv` after the one at the start time.
-    pub steps_completed: u64,
-    /// Wall time from the start instant to the end of the relays (s).
-    pub wall_time_s: f64,
-    /// The timing the run had.
-    pub timing: FreeTiming,
-    /// Each participant's process id and exit.
-    pub exits: RoleMap<cosim::endpoint::ExitReport>,
-    /// Each participant's process id.
-    pub pids: RoleMap<u32>,
-    /// The run's iceoryx2 prefix.
-    pub ipc_prefix: String,
-    /// Shared-memory files left behind (empty unless something is wrong).
-    pub leftover_ipc_files: Vec<String>,
-    /// The rows, when kept in memory (`RunOptions::keep_rows`).
-    pub rows: Option<Vec<crate::record::Row>>,
-    /// `run.mcap` (`--record`), to be closed with the summary.
-    pub recording: Option<super::record::FreeRecording>,
-    /// Files that could not be written (each named), besides the run's own outcome.
-    pub write_errors: Vec<String>,
-    /// Participant logs that are not empty (`logs/<role>.log`).
-    pub participant_logs: Vec<String>,
-}
-
-/// The link a consumer reads from a producer, by its `[links]` name.
-fn link_name(consumer: Role, producer: Role) -> &'static str {
-    match (consumer, producer) {
-        (Role::Actuator, Role::Controller) => "actuator_command",
-        (Role::Plant, _) => "bar_angle",
-        (Role::Controller, _) => "measurement",
-        _ => "bar_twist",
-    }
-}
 
 /// Runs `s` free over IPC: streams `timing.csv` and `timeseries.csv` to `opts.out_dir` as the
 /// steps come in, then writes `events.csv`, `columns.csv` and `scenario.toml`.
@@ -285,73 +130,6 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
     })
 }
 
-/// The timing statistics a free run gathers as its steps come in.
-#[derive(Default)]
-struct Stats {
-    roles: RoleMap<RoleTiming>,
-    ages: BTreeMap<&'static str, BTreeMap<i64, u64>>,
-    dt_ns: u64,
-    period: u64,
-}
-
-impl Stats {
-    fn note(&mut self, t: &StepTrace) {
-        let ticks = if t.role == Role::Controller {
-            self.period
-        } else {
-            1
-        };
-        let rt = &mut self.roles[t.role];
-        rt.lateness_us
-            .record(t.read_ns.saturating_sub(t.due_ns) as f64 * 1e-3);
-        rt.late_start += u64::from(t.late_start(ticks * self.dt_ns));
-        rt.late_finish += u64::from(t.late_finish(ticks * self.dt_ns));
-        for &p in inputs_of(t.role) {
-            if let Some(f) = t.from[col(p)] {
-                *self
-                    .ages
-                    .entry(link_name(t.role, p))
-                    .or_default()
-                    .entry(age(p, t.step, f))
-                    .or_default() += 1;
-            }
-        }
-    }
-
-    fn report(&self, dt_s: f64) -> FreeTiming {
-        let participants: BTreeMap<String, RoleFreeTiming> = Role::ALL
-            .iter()
-            .map(|&r| {
-                let t = &self.roles[r];
-                let p = t.lateness_us.percentiles();
-                (
-                    r.name().to_string(),
-                    RoleFreeTiming {
-                        steps: t.lateness_us.len() as u64,
-                        start_lateness_us: p,
-                        late_starts: t.late_start,
-                        late_finishes: t.late_finish,
-                    },
-                )
-            })
-            .collect();
-        let plant_max_s = self.roles[Role::Plant].lateness_us.percentiles().max * 1e-6;
-        let margin_s = NOT_REAL_TIME_TICKS as f64 * dt_s;
-        FreeTiming {
-            not_real_time: plant_max_s > margin_s,
-            not_real_time_margin_s: margin_s,
-            plant_max_lateness_s: plant_max_s,
-            participants,
-            input_age_ticks: self
-                .ages
-                .iter()
-                .map(|(l, h)| (l.to_string(), AgeDistribution::of(h)))
-                .collect(),
-            cpus: BTreeMap::new(),
-        }
-    }
-}
-
 /// The CPU of each participant in a free run, when pinned: the controller keeps the
 /// participants' CPU to itself, as a controller computer of its own, and the plant and the
 /// actuator (a few µs each per millisecond, woken by their timers) move to the orchestrator's,
@@ -396,172 +174,6 @@ fn shut_down(
         cosim::ipc::set_cpus(cpus);
     }
     exits
-}
-
-/// A sample on its way over a link, delivered to its consumer at `due_ns`.
-#[derive(Clone, Copy)]
-struct InFlight {
-    due_ns: u64,
-    link: LinkId,
-    step: i64,
-}
-
-/// What the hub has delivered over the links and what is still on its way.
-struct Deliveries {
-    /// Per link ([`LinkId`] order), the newest producer step delivered (−1: the output at t₀).
-    newest: [i64; 4],
-    in_flight: Vec<InFlight>,
-    /// Flags for the next request of each role (a scheduled crash).
-    flags: RoleMap<u32>,
-    /// Which consumers have published a step (and so read their starting request).
-    started: RoleMap<bool>,
-    /// Consumers with a newer input held back until they have started.
-    held: RoleMap<bool>,
-}
-
-impl Deliveries {
-    /// Sends a sample of producer step `step` over `link` with the delay the link gave it
-    /// (`None`: lost): relayed at once, or later by [`Deliveries::release`].
-    #[allow(clippy::too_many_arguments)]
-    fn send(
-        &mut self,
-        link: LinkId,
-        step: i64,
-        delay: Option<u64>,
-        now: u64,
-        dt_ns: u64,
-        ps: &mut Participants,
-        store: &Store,
-        relays: &mut RoleMap<Relay>,
-    ) -> Result<(), String> {
-        match delay {
-            None => Ok(()),
-            Some(0) => self.deliver(link, step, ps, store, relays),
-            Some(d) => {
-                self.in_flight.push(InFlight {
-                    due_ns: now + d * dt_ns,
-                    link,
-                    step,
-                });
-                Ok(())
-            }
-        }
-    }
-
-    /// Delivers every sample whose delay has passed, in the order they became due.
-    fn release(
-        &mut self,
-        now: u64,
-        ps: &mut Participants,
-        store: &Store,
-        relays: &mut RoleMap<Relay>,
-    ) -> Result<(), String> {
-        if self.in_flight.iter().all(|f| f.due_ns > now) {
-            return Ok(());
-        }
-        let mut due: Vec<InFlight> = Vec::new();
-        self.in_flight.retain(|f| {
-            if f.due_ns <= now {
-                due.push(*f);
-                false
-            } else {
-                true
-            }
-        });
-        due.sort_by_key(|f| (f.due_ns, f.link as usize, f.step));
-        for f in due {
-            self.deliver(f.link, f.step, ps, store, relays)?;
-        }
-        Ok(())
-    }
-
-    /// The consumer of `link` holds the newest sample (by producer step) that has arrived: a
-    /// newer one is relayed with the other input of that consumer as it stands.
-    fn deliver(
-        &mut self,
-        link: LinkId,
-        step: i64,
-        ps: &mut Participants,
-        store: &Store,
-        relays: &mut RoleMap<Relay>,
-    ) -> Result<(), String> {
-        if step <= self.newest[link as usize] {
-            return Ok(());
-        }
-        self.newest[link as usize] = step;
-        let consumer = match link {
-            LinkId::Measurement => Role::Controller,
-            LinkId::BarAngle => Role::Plant,
-            LinkId::ActuatorCommand | LinkId::BarTwist => Role::Actuator,
-        };
-        if self.started[consumer] {
-            self.relay(consumer, ps, store, relays)
-        } else {
-            // Not yet started: a relay now could overwrite its starting request, unread (a
-            // participant stopped before its first step). It gets the newest at its first output.
-            self.held[consumer] = true;
-            Ok(())
-        }
-    }
-
-    /// `role` has published its first step, so it has read its starting request: the input
-    /// held back since then is relayed.
-    fn started(
-        &mut self,
-        role: Role,
-        ps: &mut Participants,
-        store: &Store,
-        relays: &mut RoleMap<Relay>,
-    ) -> Result<(), String> {
-        self.started[role] = true;
-        if std::mem::take(&mut self.held[role]) {
-            self.relay(role, ps, store, relays)?;
-        }
-        Ok(())
-    }
-
-    /// Relays to `consumer` its input composed from the newest samples delivered to it.
-    fn relay(
-        &mut self,
-        consumer: Role,
-        ps: &mut Participants,
-        store: &Store,
-        relays: &mut RoleMap<Relay>,
-    ) -> Result<(), String> {
-        let n = self.newest;
-        let lost = || format!("{consumer}: a delivered sample is not in the store");
-        let link_err = |e: LinkError| e.to_string();
-        let flags = std::mem::take(&mut self.flags[consumer]);
-        match consumer {
-            Role::Controller => {
-                let q = n[LinkId::Measurement as usize];
-                let mut req = store.controller_input(q).ok_or_else(lost)?;
-                req.header.flags |= flags;
-                relays[consumer]
-                    .send(&mut ps.controller, req, [Some(q), None, None])
-                    .map_err(link_err)
-            }
-            Role::Plant => {
-                let q = n[LinkId::BarAngle as usize];
-                let mut req = store.plant_input(q).ok_or_else(lost)?;
-                req.header.flags |= flags;
-                relays[consumer]
-                    .send(&mut ps.plant, req, [None, Some(q), None])
-                    .map_err(link_err)
-            }
-            Role::Actuator => {
-                let (qc, qp) = (
-                    n[LinkId::ActuatorCommand as usize],
-                    n[LinkId::BarTwist as usize],
-                );
-                let mut req = store.actuator_input(qc, qp).ok_or_else(lost)?;
-                req.header.flags |= flags;
-                relays[consumer]
-                    .send(&mut ps.actuator, req, [Some(qp), None, Some(qc)])
-                    .map_err(link_err)
-            }
-        }
-    }
 }
 
 /// The orchestrator's side of a free run: the participants, what they have sent, what was
@@ -642,19 +254,9 @@ impl<'a> Hub<'a> {
             rows,
             writer: None,
             relays: RoleMap::default(),
-            deliveries: Deliveries {
-                newest: [-1; 4],
-                in_flight: Vec::new(),
-                flags: RoleMap::default(),
-                started: RoleMap::default(),
-                held: RoleMap::default(),
-            },
+            deliveries: Deliveries::new(),
             faults: FaultSchedule::new(&s.faults, s.run.dt_s),
-            stats: Stats {
-                dt_ns,
-                period,
-                ..Stats::default()
-            },
+            stats: Stats::new(dt_ns, period),
             kept: opts.record.then(Vec::new),
             done: RoleMap::default(),
             totals: RoleMap::new([steps, steps, steps.div_ceil(period)]),

@@ -216,12 +216,8 @@ pub fn read(
     controller_period_ticks: u64,
 ) -> Result<Trace, TraceError> {
     let file = path.display().to_string();
-    let err = |field: String, what: String| TraceError {
-        file: file.clone(),
-        field,
-        what,
-    };
-    let text = std::fs::read_to_string(path).map_err(|e| err("file".into(), e.to_string()))?;
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| trace_error(&file, "file".into(), e.to_string()))?;
     // A last line without its newline was cut short by a kill: it is not part of the trace.
     let whole = match text.rfind('\n') {
         Some(i) if i + 1 < text.len() => &text[..=i],
@@ -230,16 +226,56 @@ pub fn read(
     let cut_short = whole.len() < text.len();
     let mut lines = whole.lines();
     let head_line = lines.next().unwrap_or_default();
-    let head = parse_head(head_line).ok_or_else(|| {
+    let head = read_head(&file, head_line, dt_s, steps, controller_period_ticks)?;
+    if lines.next() != Some(COLUMNS) {
+        return Err(trace_error(
+            &file,
+            "line 2".into(),
+            format!("expected the columns `{COLUMNS}`"),
+        ));
+    }
+    let mut body = Body::new(&file, steps, controller_period_ticks);
+    let mut out = Vec::new();
+    for (i, line) in lines.enumerate() {
+        out.push(body.step(i + 3, line)?);
+    }
+    let partial = body.partial(cut_short)?;
+    Ok(Trace {
+        head,
+        steps: out,
+        partial,
+    })
+}
+
+/// The error of a trace `file`: `field` and what is wrong with it.
+fn trace_error(file: &str, field: String, what: String) -> TraceError {
+    TraceError {
+        file: file.to_string(),
+        field,
+        what,
+    }
+}
+
+/// Reads the head line of trace `file` and checks it against the scenario's `dt_s`, `steps`
+/// and `controller_period_ticks`.
+fn read_head(
+    file: &str,
+    line: &str,
+    dt_s: f64,
+    steps: u64,
+    controller_period_ticks: u64,
+) -> Result<TraceHead, TraceError> {
+    let err = |field: &str, what: String| trace_error(file, field.into(), what);
+    let head = parse_head(line).ok_or_else(|| {
         err(
-            "line 1".into(),
+            "line 1",
             "expected `# tiltsim timing trace: dt_s=.. steps=.. controller_period_ticks=.. start_ns=..`"
                 .into(),
         )
     })?;
     if head.dt_s != dt_s {
         return Err(err(
-            "dt_s".into(),
+            "dt_s",
             format!(
                 "{} in the trace; the scenario has run.dt_s = {dt_s}",
                 head.dt_s
@@ -248,7 +284,7 @@ pub fn read(
     }
     if head.steps != steps {
         return Err(err(
-            "steps".into(),
+            "steps",
             format!(
                 "{} in the trace; the scenario has {steps} steps (run.duration_s / run.dt_s)",
                 head.steps
@@ -257,133 +293,157 @@ pub fn read(
     }
     if head.controller_period_ticks != controller_period_ticks {
         return Err(err(
-            "controller_period_ticks".into(),
+            "controller_period_ticks",
             format!(
                 "{} in the trace; the scenario's controller.period_s is {controller_period_ticks} ticks",
                 head.controller_period_ticks
             ),
         ));
     }
-    if lines.next() != Some(COLUMNS) {
-        return Err(err(
-            "line 2".into(),
-            format!("expected the columns `{COLUMNS}`"),
-        ));
+    Ok(head)
+}
+
+/// The step lines of a trace as they are read: the steps each role has in the scenario and
+/// those seen so far.
+struct Body<'a> {
+    file: &'a str,
+    controller_period_ticks: u64,
+    /// Steps per role in the scenario, by [`col`].
+    counts: [u64; 3],
+    /// Per role, by [`col`], which of its steps have been read.
+    seen: [Vec<bool>; 3],
+}
+
+impl<'a> Body<'a> {
+    fn new(file: &'a str, steps: u64, controller_period_ticks: u64) -> Self {
+        let counts = [steps, steps, steps.div_ceil(controller_period_ticks)];
+        Body {
+            file,
+            controller_period_ticks,
+            counts,
+            seen: [
+                vec![false; counts[0] as usize],
+                vec![false; counts[1] as usize],
+                vec![false; counts[2] as usize],
+            ],
+        }
     }
-    let mut out = Vec::new();
-    let counts = [steps, steps, steps.div_ceil(controller_period_ticks)];
-    let mut seen = [
-        vec![false; counts[0] as usize],
-        vec![false; counts[1] as usize],
-        vec![false; counts[2] as usize],
-    ];
-    for (i, line) in lines.enumerate() {
-        let n = i + 3;
+
+    fn err(&self, field: String, what: String) -> TraceError {
+        trace_error(self.file, field, what)
+    }
+
+    /// Ticks per step of `role`.
+    fn ticks(&self, role: Role) -> u64 {
+        if role == Role::Controller {
+            self.controller_period_ticks
+        } else {
+            1
+        }
+    }
+
+    /// Reads line `n`, one consumer step, and notes the step as seen.
+    fn step(&mut self, n: usize, line: &str) -> Result<StepTrace, TraceError> {
         let cells: Vec<&str> = line.split(',').collect();
         if cells.len() != 14 {
-            return Err(err(format!("line {n}"), "expected 14 columns".into()));
+            return Err(self.err(format!("line {n}"), "expected 14 columns".into()));
         }
         let role = Role::parse(cells[0]).ok_or_else(|| {
-            err(
+            self.err(
                 format!("line {n}: role"),
                 "plant, actuator or controller".into(),
             )
         })?;
+        let file = self.file;
         let int = |c: usize, name: &str| -> Result<u64, TraceError> {
-            cells[c]
-                .parse::<u64>()
-                .map_err(|_| err(format!("line {n}: {name}"), "a whole number".into()))
+            cells[c].parse::<u64>().map_err(|_| {
+                trace_error(file, format!("line {n}: {name}"), "a whole number".into())
+            })
         };
         let step = int(1, "step")?;
-        let ticks = if role == Role::Controller {
-            controller_period_ticks
-        } else {
-            1
-        };
+        let ticks = self.ticks(role);
         let idx = step / ticks;
-        if !step.is_multiple_of(ticks) || idx >= counts[col(role)] {
-            return Err(err(
+        if !step.is_multiple_of(ticks) || idx >= self.counts[col(role)] {
+            return Err(self.err(
                 format!("line {n}: step"),
                 format!("{step} is not a step of the {role} in this scenario"),
             ));
         }
-        if std::mem::replace(&mut seen[col(role)][idx as usize], true) {
-            return Err(err(
+        if std::mem::replace(&mut self.seen[col(role)][idx as usize], true) {
+            return Err(self.err(
                 format!("line {n}: step"),
                 format!("{role} step {step} appears twice"),
             ));
         }
+        Ok(StepTrace {
+            role,
+            step,
+            from: self.from(n, &cells, role)?,
+            due_ns: int(8, "due_ns")?,
+            read_ns: int(9, "read_ns")?,
+            compute_end_ns: int(10, "compute_end_ns")?,
+            publish_ns: int(11, "publish_ns")?,
+        })
+    }
+
+    /// The producer steps line `n` (its `cells`) says a step of `role` read.
+    fn from(&self, n: usize, cells: &[&str], role: Role) -> Result<[Option<i64>; 3], TraceError> {
         let mut from = [None; 3];
         for &p in inputs_of(role) {
             let c = 2 + col(p);
             let name = format!("from_{}", p.name());
             let v: i64 = cells[c]
                 .parse()
-                .map_err(|_| err(format!("line {n}: {name}"), "a step number or -1".into()))?;
-            let pticks = if p == Role::Controller {
-                controller_period_ticks
-            } else {
-                1
-            };
+                .map_err(|_| self.err(format!("line {n}: {name}"), "a step number or -1".into()))?;
+            let pticks = self.ticks(p);
             let ok = v == -1
                 || (v >= 0
                     && (v as u64).is_multiple_of(pticks)
-                    && (v as u64) / pticks < counts[col(p)]);
+                    && (v as u64) / pticks < self.counts[col(p)]);
             if !ok {
-                return Err(err(
+                return Err(self.err(
                     format!("line {n}: {name}"),
                     format!("{v} is not a step of the {p} in this scenario"),
                 ));
             }
             from[col(p)] = Some(v);
         }
-        out.push(StepTrace {
-            role,
-            step,
-            from,
-            due_ns: int(8, "due_ns")?,
-            read_ns: int(9, "read_ns")?,
-            compute_end_ns: int(10, "compute_end_ns")?,
-            publish_ns: int(11, "publish_ns")?,
-        });
+        Ok(from)
     }
-    let mut lacking = Vec::new();
-    for r in Role::ALL {
-        let ticks = if r == Role::Controller {
-            controller_period_ticks
-        } else {
-            1
-        };
-        let present = seen[col(r)].iter().filter(|s| **s).count();
-        if let Some(missing) = seen[col(r)][..present].iter().position(|s| !s) {
-            return Err(err(
-                "step".into(),
-                format!(
-                    "{r} step {} is missing, though later steps of the {r} are there",
-                    missing as u64 * ticks
-                ),
-            ));
+
+    /// Once every line is read: each role's steps must be its first ones without a gap;
+    /// returns what a partial trace lacks (also when a last line `cut_short` was dropped).
+    fn partial(&self, cut_short: bool) -> Result<Option<String>, TraceError> {
+        let mut lacking = Vec::new();
+        for r in Role::ALL {
+            let ticks = self.ticks(r);
+            let seen = &self.seen[col(r)];
+            let present = seen.iter().filter(|s| **s).count();
+            if let Some(missing) = seen[..present].iter().position(|s| !s) {
+                return Err(self.err(
+                    "step".into(),
+                    format!(
+                        "{r} step {} is missing, though later steps of the {r} are there",
+                        missing as u64 * ticks
+                    ),
+                ));
+            }
+            if present < seen.len() {
+                lacking.push(format!("{r} {} of {} steps", present, seen.len()));
+            }
         }
-        if present < seen[col(r)].len() {
-            lacking.push(format!("{r} {} of {} steps", present, seen[col(r)].len()));
-        }
+        Ok((!lacking.is_empty() || cut_short).then(|| {
+            let mut what = if lacking.is_empty() {
+                "every step".to_string()
+            } else {
+                lacking.join(", ")
+            };
+            if cut_short {
+                what.push_str("; a last line cut short was dropped");
+            }
+            format!("the trace holds {what} (the free run ended early or was killed)")
+        }))
     }
-    let partial = (!lacking.is_empty() || cut_short).then(|| {
-        let mut what = if lacking.is_empty() {
-            "every step".to_string()
-        } else {
-            lacking.join(", ")
-        };
-        if cut_short {
-            what.push_str("; a last line cut short was dropped");
-        }
-        format!("the trace holds {what} (the free run ended early or was killed)")
-    });
-    Ok(Trace {
-        head,
-        steps: out,
-        partial,
-    })
 }
 
 fn parse_head(line: &str) -> Option<TraceHead> {

@@ -1,0 +1,211 @@
+//! The wall-clock timing of a free run: the statistics the hub gathers as the steps come in
+//! and the report they end in, with what else a free run reports beyond its files.
+
+use std::collections::BTreeMap;
+
+use cosim::Role;
+
+use super::trace::{age, col, inputs_of, StepTrace};
+use crate::engine::Status;
+use crate::roles::RoleMap;
+
+/// A free run is judged not real-time when one of its plant steps started later than this
+/// many base ticks after it was due.
+pub const NOT_REAL_TIME_TICKS: u64 = 10;
+
+/// Per-role timing statistics of a free run (wall clock), in constant memory.
+#[derive(Default)]
+struct RoleTiming {
+    lateness_us: cosim::stats::Timings,
+    late_start: u64,
+    late_finish: u64,
+}
+
+/// One role's wall-clock timing in a free run.
+#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
+pub struct RoleFreeTiming {
+    /// Steps recorded.
+    pub steps: u64,
+    /// How long after it was due each step read its input (µs).
+    pub start_lateness_us: cosim::stats::Percentiles,
+    /// Steps that started after the next one was due.
+    pub late_starts: u64,
+    /// Steps published after the next one was due.
+    pub late_finishes: u64,
+}
+
+/// The distribution of one link's input ages over its consumer's steps (ticks; see
+/// [`super::trace::age`]).
+#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
+pub struct AgeDistribution {
+    /// Youngest.
+    pub min: i64,
+    /// Median.
+    pub p50: i64,
+    /// 99th percentile.
+    pub p99: i64,
+    /// Oldest.
+    pub max: i64,
+    /// `[age, steps]` pairs in increasing age.
+    pub counts: Vec<[i64; 2]>,
+}
+
+impl AgeDistribution {
+    fn of(h: &BTreeMap<i64, u64>) -> Self {
+        let n: u64 = h.values().sum();
+        let at = |q: f64| {
+            let want = ((n.saturating_sub(1)) as f64 * q).round() as u64;
+            let mut seen = 0;
+            for (a, c) in h {
+                seen += c;
+                if seen > want {
+                    return *a;
+                }
+            }
+            0
+        };
+        AgeDistribution {
+            min: h.keys().next().copied().unwrap_or(0),
+            p50: at(0.5),
+            p99: at(0.99),
+            max: h.keys().next_back().copied().unwrap_or(0),
+            counts: h.iter().map(|(a, c)| [*a, *c as i64]).collect(),
+        }
+    }
+}
+
+/// The wall-clock side of a free run: whether it kept real time, each role's lateness and each
+/// link's input ages (all of it differs from one free run to the next; the replay of the trace
+/// is what repeats).
+#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
+pub struct FreeTiming {
+    /// A plant step started more than [`NOT_REAL_TIME_TICKS`] ticks after it was due: the run
+    /// did not keep real time, and its ride is not the answer to a real-time question.
+    pub not_real_time: bool,
+    /// That margin (s).
+    pub not_real_time_margin_s: f64,
+    /// The plant's largest start lateness (s).
+    pub plant_max_lateness_s: f64,
+    /// Per participant.
+    pub participants: BTreeMap<String, RoleFreeTiming>,
+    /// Per link, by its `[links]` name.
+    pub input_age_ticks: BTreeMap<String, AgeDistribution>,
+    /// The CPU each participant was pinned to (empty when not pinned).
+    pub cpus: BTreeMap<String, usize>,
+}
+
+/// What a free run reports beyond its files.
+pub struct FreeReport {
+    /// How the run ended.
+    pub status: Status,
+    /// Why it failed or stopped, naming the participant.
+    pub error: Option<String>,
+    /// Rows in `timeseries.csv` after the one at the start time.
+    pub steps_completed: u64,
+    /// Wall time from the start instant to the end of the relays (s).
+    pub wall_time_s: f64,
+    /// The timing the run had.
+    pub timing: FreeTiming,
+    /// Each participant's process id and exit.
+    pub exits: RoleMap<cosim::endpoint::ExitReport>,
+    /// Each participant's process id.
+    pub pids: RoleMap<u32>,
+    /// The run's iceoryx2 prefix.
+    pub ipc_prefix: String,
+    /// Shared-memory files left behind (empty unless something is wrong).
+    pub leftover_ipc_files: Vec<String>,
+    /// The rows, when kept in memory (`RunOptions::keep_rows`).
+    pub rows: Option<Vec<crate::record::Row>>,
+    /// `run.mcap` (`--record`), to be closed with the summary.
+    pub recording: Option<super::record::FreeRecording>,
+    /// Files that could not be written (each named), besides the run's own outcome.
+    pub write_errors: Vec<String>,
+    /// Participant logs that are not empty (`logs/<role>.log`).
+    pub participant_logs: Vec<String>,
+}
+
+/// The link a consumer reads from a producer, by its `[links]` name.
+fn link_name(consumer: Role, producer: Role) -> &'static str {
+    match (consumer, producer) {
+        (Role::Actuator, Role::Controller) => "actuator_command",
+        (Role::Plant, _) => "bar_angle",
+        (Role::Controller, _) => "measurement",
+        _ => "bar_twist",
+    }
+}
+
+/// The timing statistics a free run gathers as its steps come in.
+#[derive(Default)]
+pub(super) struct Stats {
+    roles: RoleMap<RoleTiming>,
+    ages: BTreeMap<&'static str, BTreeMap<i64, u64>>,
+    dt_ns: u64,
+    period: u64,
+}
+
+impl Stats {
+    /// No step yet, at base tick `dt_ns` and a controller period of `period` ticks.
+    pub(super) fn new(dt_ns: u64, period: u64) -> Self {
+        Stats {
+            dt_ns,
+            period,
+            ..Stats::default()
+        }
+    }
+
+    pub(super) fn note(&mut self, t: &StepTrace) {
+        let ticks = if t.role == Role::Controller {
+            self.period
+        } else {
+            1
+        };
+        let rt = &mut self.roles[t.role];
+        rt.lateness_us
+            .record(t.read_ns.saturating_sub(t.due_ns) as f64 * 1e-3);
+        rt.late_start += u64::from(t.late_start(ticks * self.dt_ns));
+        rt.late_finish += u64::from(t.late_finish(ticks * self.dt_ns));
+        for &p in inputs_of(t.role) {
+            if let Some(f) = t.from[col(p)] {
+                *self
+                    .ages
+                    .entry(link_name(t.role, p))
+                    .or_default()
+                    .entry(age(p, t.step, f))
+                    .or_default() += 1;
+            }
+        }
+    }
+
+    pub(super) fn report(&self, dt_s: f64) -> FreeTiming {
+        let participants: BTreeMap<String, RoleFreeTiming> = Role::ALL
+            .iter()
+            .map(|&r| {
+                let t = &self.roles[r];
+                let p = t.lateness_us.percentiles();
+                (
+                    r.name().to_string(),
+                    RoleFreeTiming {
+                        steps: t.lateness_us.len() as u64,
+                        start_lateness_us: p,
+                        late_starts: t.late_start,
+                        late_finishes: t.late_finish,
+                    },
+                )
+            })
+            .collect();
+        let plant_max_s = self.roles[Role::Plant].lateness_us.percentiles().max * 1e-6;
+        let margin_s = NOT_REAL_TIME_TICKS as f64 * dt_s;
+        FreeTiming {
+            not_real_time: plant_max_s > margin_s,
+            not_real_time_margin_s: margin_s,
+            plant_max_lateness_s: plant_max_s,
+            participants,
+            input_age_ticks: self
+                .ages
+                .iter()
+                .map(|(l, h)| (l.to_string(), AgeDistribution::of(h)))
+                .collect(),
+            cpus: BTreeMap::new(),
+        }
+    }
+}
