@@ -16,6 +16,11 @@
 //! peaks at the ramp corners, which the standard's 0.3 Hz filter removes.
 //!
 //! The carbody roll speed is the absolute one, φ̇ = θ̇_v + θ̇_o (θ_v is relative to the track).
+//!
+//! Parts: `sample` (the signals at one instant), `assessor` (P_CT and the peaks, one sample at
+//! a time), `ride` (the ride indices beside P_CT), `position` (the signals where a passenger
+//! sits), `filters` (the low-pass and slope filters they share); this file holds the settings,
+//! the results and [`assess`] on whole signals.
 
 use serde::{Deserialize, Serialize};
 
@@ -25,11 +30,13 @@ mod assessor;
 mod filters;
 mod position;
 mod ride;
+mod sample;
 
 pub use assessor::*;
 pub use filters::*;
 pub use position::*;
 pub use ride::*;
+pub use sample::Sample;
 
 /// Gravity for %g (m/s²).
 pub const G: f64 = 9.81;

@@ -18,7 +18,7 @@
 use serde::{Deserialize, Serialize};
 use tiltsim_protocol::settings::Checker;
 
-use super::assessor::Sample;
+use super::sample::Sample;
 use super::{Pct, Ride};
 
 /// A point of the carbody where passengers are (`[[comfort.positions]]`).

@@ -3,8 +3,8 @@
 
 use serde::Serialize;
 
-use super::assessor::Sample;
 use super::filters::Biquad;
+use super::sample::Sample;
 
 /// A frequency weighting of ISO 2631-1 as ISO 8041 (Table 3.1 of its parameters) and EN 12299
 /// use it: band-limiting high-pass (f1, Q1) and low-pass (f2, Q2), acceleration-velocity
