@@ -107,7 +107,7 @@ impl EventLog {
     ) {
         self.events.push(Event {
             step: k,
-            time: crate::record::tick_time(k, self.dt),
+            time: cosim::time::tick_time(k, self.dt),
             source: source.to_string(),
             kind,
             value,
@@ -124,14 +124,14 @@ impl EventLog {
             let value = if e.value.is_nan() {
                 String::new()
             } else {
-                crate::record::fmt_f64(e.value)
+                crate::float_text::fmt_f64(e.value)
             };
             let kind = serde_json::to_value(e.kind)
                 .ok()
                 .and_then(|v| v.as_str().map(str::to_string))
                 .unwrap_or_default();
             w.write_record([
-                crate::record::fmt_f64(e.time),
+                crate::float_text::fmt_f64(e.time),
                 e.step.to_string(),
                 e.source.clone(),
                 kind,

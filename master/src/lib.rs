@@ -15,7 +15,8 @@
 //! [`faults`] (process faults), [`events`] (`events.csv`), [`degraded`] (stand-ins for a
 //! lost participant), [`roles`] (a value per role), [`engine`] (launch, lock-step, team,
 //! manipulators, algorithms, observers, summary), [`record`] (`timeseries.csv`), [`columns`]
-//! (`columns.csv`: each column's unit and description), [`free`] (free running and its exact
+//! (`columns.csv`: each column's unit and description), [`float_text`] (floats as every
+//! table writes them), [`free`] (free running and its exact
 //! replay),
 //! [`export_mcap`] (`run.mcap` from a finished run), [`budget`] (a run's outputs against the
 //! disk's free space, checked before it starts), [`replay`] (one participant against its
@@ -35,6 +36,7 @@ pub mod export_mcap;
 pub mod export_ssp;
 pub mod faults;
 pub mod files;
+pub mod float_text;
 pub mod free;
 pub mod links;
 pub mod outdir;

@@ -15,8 +15,8 @@ mod cells;
 mod reader;
 mod writer;
 
+pub use crate::float_text::{fmt_f64, put_f64};
 use cells::Cell;
-pub use cells::{fmt_f64, put_f64};
 pub use reader::{each_row, read_rows, rows_to_plot, whole_lines, Rows};
 pub use writer::Recorder;
 
@@ -226,7 +226,8 @@ impl Row {
 mod tests {
     use super::*;
     #[allow(unused_imports)]
-    use super::{cells::*, reader::*, writer::*};
+    use super::{reader::*, writer::*};
+    use crate::float_text::{halfway_places, places, std_put_f64};
 
     #[test]
     fn rows_round_trip_exactly_and_a_partial_last_line_is_dropped() {
