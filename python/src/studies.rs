@@ -1,0 +1,311 @@
+//! The studies of the extension module: sweeps, comparisons, the linear design and the
+//! command line's grids.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::Arc;
+
+use numpy::PyArray1;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use tiltsim_master::engine::RunOptions;
+use tiltsim_master::scenario::Scenario;
+use tiltsim_studies::sweep::{Exec, Plan, Row, SweepError, Swept};
+
+use crate::{directory, error, invalid, participant_exe, scenario_with, supervise};
+
+/// Runs a sweep; returns its samples' columns (as `samples.csv` has them), the tidy lateral
+/// acceleration series (`series.csv`), whether it was interrupted and its directory.
+#[pyfunction]
+#[pyo3(signature = (kind, value, origin, settings, samples=None, spread=0.22, seed=1,
+                    grid=None, jobs=None, transport=None, out=None, exe=None, progress=None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn sweep<'py>(
+    py: Python<'py>,
+    kind: &str,
+    value: &str,
+    origin: &str,
+    settings: Vec<(String, String)>,
+    samples: Option<usize>,
+    spread: f64,
+    seed: u64,
+    grid: Option<(String, Vec<f64>)>,
+    jobs: Option<usize>,
+    transport: Option<String>,
+    out: Option<PathBuf>,
+    exe: Option<String>,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    // In-process by default, as `tiltsim sweep`.
+    let transport = transport.or(Some("in-process".into()));
+    let s = scenario_with(
+        py, kind, value, origin, settings, transport, None, None, None,
+    )?;
+    let plan = sweep_plan(py, grid, samples, spread, seed)?;
+    tiltsim_studies::sweep::check_plan(&s, &plan)
+        .map_err(|e| invalid(py, format!("{origin}: {e}")))?;
+    let exe = participant_exe(py, exe, &s)?;
+    let (dir, _scratch) = directory(py, out.as_deref(), "sweep")?;
+    let lock = tiltsim_master::outdir::claim(&dir, tiltsim_master::outdir::Kind::Sweep, "sweep")
+        .map_err(|e| invalid(py, e.to_string()))?;
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let done = Arc::new(AtomicUsize::new(0));
+    let jobs = sweep_jobs(py, jobs)?;
+    let ex = Exec {
+        out: dir.clone(),
+        jobs,
+        keep_runs: false,
+        exe,
+        interrupt: interrupt.clone(),
+        progress: false,
+        samples_done: Some(done.clone()),
+    };
+    let total = plan.len() as u64;
+    let write = out.is_some();
+    let count = move || done.load(Ordering::Relaxed) as u64;
+    let (swept, raised) = supervise(py, &interrupt, (&count, total), progress.as_ref(), {
+        let plan = plan.clone();
+        move || run_sweep(&s, &plan, &ex, write)
+    });
+    drop(lock);
+    let swept = swept.map_err(|e| error(py, "ParticipantError", e.to_string()))?;
+    if let Some(e) = raised {
+        if !e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py) {
+            return Err(e);
+        }
+    }
+    let result = PyDict::new(py);
+    result.set_item("samples", samples_frame(py, &plan, &swept.rows)?)?;
+    result.set_item("series", series_frame(py, &swept.rows)?)?;
+    result.set_item("interrupted", swept.interrupted)?;
+    result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
+    Ok(result)
+}
+
+/// The plan a sweep call asks for: a grid, or `samples` Monte Carlo samples.
+fn sweep_plan(
+    py: Python<'_>,
+    grid: Option<(String, Vec<f64>)>,
+    samples: Option<usize>,
+    spread: f64,
+    seed: u64,
+) -> PyResult<Plan> {
+    match (grid, samples) {
+        (Some((key, values)), None) => {
+            if key.trim().is_empty() || values.is_empty() {
+                return Err(invalid(py, "grid: need a key and at least one value"));
+            }
+            Ok(Plan::Grid { key, values })
+        }
+        (None, Some(n)) if (1..=100_000).contains(&n) => {
+            if !(0.0..1.0).contains(&spread) {
+                return Err(invalid(
+                    py,
+                    format!("spread = {spread}: allowed 0 to 1 (1 excluded)"),
+                ));
+            }
+            Ok(Plan::MonteCarlo {
+                samples: n,
+                spread,
+                seed,
+            })
+        }
+        (None, Some(n)) => Err(invalid(py, format!("samples = {n}: allowed 1 to 100000"))),
+        _ => Err(invalid(
+            py,
+            "give samples=N (Monte Carlo) or grid=(KEY, VALUES), one of them",
+        )),
+    }
+}
+
+/// The parallel runs of a sweep: `jobs`, or one per CPU available.
+fn sweep_jobs(py: Python<'_>, jobs: Option<usize>) -> PyResult<usize> {
+    let jobs = jobs.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    if !(1..=256).contains(&jobs) {
+        return Err(invalid(py, format!("jobs = {jobs}: allowed 1 to 256")));
+    }
+    Ok(jobs)
+}
+
+/// Runs the sweep of `s` by `plan`; writes its files to `ex.out` when `write`.
+fn run_sweep(s: &Scenario, plan: &Plan, ex: &Exec, write: bool) -> Result<Swept, SweepError> {
+    let swept = tiltsim_studies::sweep::run(s, plan, None, ex)?;
+    if write {
+        let build = tiltsim_studies::sweep::identity::build();
+        tiltsim_studies::sweep::write_outputs(
+            &ex.out,
+            s,
+            plan,
+            None,
+            &swept.rows,
+            swept.interrupted,
+            build,
+        )
+        .map_err(|e| SweepError::Files(format!("{}: {e}", ex.out.display())))?;
+    }
+    Ok(swept)
+}
+
+/// The samples' columns, as `samples.csv` has them: sample, parameters, status, metrics
+/// and flags.
+fn samples_frame<'py>(py: Python<'py>, plan: &Plan, rows: &[Row]) -> PyResult<Bound<'py, PyDict>> {
+    let cols = plan.columns();
+    let frame = PyDict::new(py);
+    frame.set_item(
+        tiltsim_studies::sweep::SAMPLE_COLUMN,
+        PyArray1::from_iter(py, rows.iter().map(|r| r.sample as i64)),
+    )?;
+    for (k, c) in cols.iter().enumerate() {
+        let v = rows
+            .iter()
+            .map(|r| r.params.get(k).copied().unwrap_or(f64::NAN));
+        frame.set_item(c, PyArray1::from_iter(py, v))?;
+    }
+    let status: Vec<String> = rows.iter().map(|r| r.status.to_string()).collect();
+    frame.set_item("status", PyList::new(py, status)?)?;
+    for (m, metric) in tiltsim_assessment::comfort::METRICS.iter().enumerate() {
+        let v = rows
+            .iter()
+            .map(|r| r.metrics.get(m).copied().unwrap_or(f64::NAN));
+        frame.set_item(metric.key, PyArray1::from_iter(py, v))?;
+    }
+    let flags: Vec<String> = rows.iter().map(|r| r.flags.join("; ")).collect();
+    frame.set_item(
+        tiltsim_studies::sweep::FLAGS_COLUMN,
+        PyList::new(py, flags)?,
+    )?;
+    Ok(frame)
+}
+
+/// The tidy lateral acceleration series of the samples, as `series.csv` has it.
+fn series_frame<'py>(py: Python<'py>, rows: &[Row]) -> PyResult<Bound<'py, PyDict>> {
+    let series = PyDict::new(py);
+    let ids = rows
+        .iter()
+        .flat_map(|r| std::iter::repeat_n(r.sample as i64, r.series.len()));
+    let times = rows
+        .iter()
+        .flat_map(|r| (0..r.series.len()).map(tiltsim_studies::sweep::series_time));
+    let values = rows.iter().flat_map(|r| r.series.iter().copied());
+    let [c_id, c_time, c_value] = tiltsim_studies::sweep::SERIES_COLUMNS;
+    series.set_item(c_id, PyArray1::from_iter(py, ids))?;
+    series.set_item(c_time, PyArray1::from_iter(py, times))?;
+    series.set_item(c_value, PyArray1::from_iter(py, values))?;
+    Ok(series)
+}
+
+/// Compares scenarios as `tiltsim compare` does; returns `table.csv`'s text, each run's
+/// summary (JSON text) and the directory (the runs stay there only when `out` is given).
+#[pyfunction]
+#[pyo3(signature = (scenarios, transport=None, out=None, exe=None, progress=None))]
+pub(crate) fn compare<'py>(
+    py: Python<'py>,
+    scenarios: Vec<(String, String, String)>,
+    transport: Option<String>,
+    out: Option<PathBuf>,
+    exe: Option<String>,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    if scenarios.is_empty() {
+        return Err(invalid(py, "compare: give at least one scenario"));
+    }
+    let mut loaded = Vec::new();
+    for (kind, value, origin) in &scenarios {
+        let s = scenario_with(
+            py,
+            kind,
+            value,
+            origin,
+            Vec::new(),
+            transport.clone(),
+            None,
+            None,
+            None,
+        )?;
+        let exe = participant_exe(py, exe.clone(), &s)?;
+        loaded.push((PathBuf::from(origin), s, exe));
+    }
+    let (dir, _scratch) = directory(py, out.as_deref(), "compare")?;
+    let mut pairs: Vec<(PathBuf, Scenario)> = loaded
+        .iter()
+        .map(|(f, s, _)| (f.clone(), s.clone()))
+        .collect();
+    let notes = tiltsim_report::comparison::distinct(&mut pairs, &dir);
+    let exe = loaded[0].2.clone();
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let done = Arc::new(AtomicU64::new(0));
+    let total = pairs.len() as u64;
+    let (compared, raised) = supervise(
+        py,
+        &interrupt,
+        (&|| done.load(Ordering::Relaxed), total),
+        progress.as_ref(),
+        {
+            let interrupt = interrupt.clone();
+            let done = done.clone();
+            move || {
+                use tiltsim_report::comparison::Comparison;
+                let mut cmp = Comparison::start(&dir, &pairs)?;
+                let mut base = RunOptions::new(dir.clone(), exe);
+                base.interrupt = interrupt;
+                base.plots = true;
+                let mut summaries = Vec::new();
+                for (file, s) in pairs {
+                    let sm = cmp.run(&file, s, &base)?;
+                    summaries.push(serde_json::to_string(sm).unwrap_or_default());
+                    done.fetch_add(1, Ordering::Relaxed);
+                }
+                let (_, csv) = cmp.finish()?;
+                Ok::<_, tiltsim_report::comparison::CompareError>((csv, summaries))
+            }
+        },
+    );
+    let (csv, summaries) = compared.map_err(|e| {
+        use tiltsim_report::comparison::CompareError as E;
+        match e {
+            E::Invalid(m) => invalid(py, m),
+            E::Failed(m) => error(py, "ParticipantError", m),
+            E::Interrupted(m) => error(py, "Interrupted", m),
+        }
+    })?;
+    if let Some(e) = raised {
+        return Err(e);
+    }
+    let result = PyDict::new(py);
+    result.set_item("table_csv", csv)?;
+    result.set_item("summaries", summaries)?;
+    result.set_item("notes", notes)?;
+    result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
+    Ok(result)
+}
+
+/// The design model and the controller's gains (`tiltsim linearize`), as JSON text.
+#[pyfunction]
+#[pyo3(signature = (kind, value, origin, settings))]
+pub(crate) fn linearize(
+    py: Python<'_>,
+    kind: &str,
+    value: &str,
+    origin: &str,
+    settings: Vec<(String, String)>,
+) -> PyResult<String> {
+    let s = scenario_with(py, kind, value, origin, settings, None, None, None, None)?;
+    let report = tiltsim_report::linearize::report(&s, None)
+        .map_err(|e| invalid(py, format!("{origin}: controller design: {e}")))?;
+    Ok(serde_json::to_string(&report).unwrap_or_default())
+}
+
+/// A grid as the command line's `--grid KEY=START:STOP:STEP` or `KEY=V1,V2,...` gives it:
+/// `(key, values)`.
+#[pyfunction]
+pub(crate) fn parse_grid(py: Python<'_>, spec: &str) -> PyResult<(String, Vec<f64>)> {
+    match tiltsim_studies::sweep::parse_grid(spec).map_err(|e| invalid(py, e.to_string()))? {
+        Plan::Grid { key, values } => Ok((key, values)),
+        Plan::MonteCarlo { .. } => Err(invalid(py, format!("grid `{spec}`"))),
+    }
+}
