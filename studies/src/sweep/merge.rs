@@ -84,30 +84,8 @@ pub fn read_outputs(dir: &Path) -> Result<Outputs, SweepError> {
 
 pub(super) fn outputs(dir: &Path) -> Result<Outputs, String> {
     let meta_path = dir.join("sweep.json");
-    let text =
-        std::fs::read_to_string(&meta_path).map_err(|e| format!("{}: {e}", meta_path.display()))?;
-    let meta: SweepFile = serde_json::from_str(&text).map_err(|e| {
-        format!(
-            "{}: {e} (not the sweep.json of a sweep of this version of tiltsim: run the sweep again)",
-            meta_path.display()
-        )
-    })?;
-    let verified = |name: &str| -> Result<Vec<u8>, String> {
-        let p = dir.join(name);
-        let bytes = std::fs::read(&p).map_err(|e| format!("{}: {e}", p.display()))?;
-        let want = meta
-            .sha256
-            .get(name)
-            .ok_or_else(|| format!("{}: no checksum of {name}", meta_path.display()))?;
-        if identity::sha256(&bytes) != *want {
-            return Err(format!(
-                "{}: changed since the sweep wrote it (its SHA-256 is not the one {} records)",
-                p.display(),
-                meta_path.display()
-            ));
-        }
-        Ok(bytes)
-    };
+    let meta = read_meta(&meta_path)?;
+    let verified = |name: &str| read_verified(dir, &meta_path, &meta, name);
     let scenario_path = dir.join("scenario.toml");
     let scenario = String::from_utf8(verified("scenario.toml")?)
         .map_err(|e| format!("{}: {e}", scenario_path.display()))?;
@@ -125,25 +103,87 @@ pub(super) fn outputs(dir: &Path) -> Result<Outputs, String> {
         .map(|(at, f)| sample_row(at, f, ncol).map(|r| (at.clone(), r)))
         .collect::<Result<Vec<_>, _>>()?;
     let series_path = dir.join("series.csv");
-    let series_bytes = verified("series.csv")?;
+    let (seen, blocks) = read_series(&series_path, &verified("series.csv")?)?;
+    let mut orphans = Vec::new();
+    for (j, series) in blocks {
+        match rows.iter_mut().find(|(_, r)| r.sample == j) {
+            Some(row) => row.1.series = series,
+            None => orphans.push(format!(
+                "{}: sample {j} is not in samples.csv",
+                series_path.display()
+            )),
+        }
+    }
+    Ok(Outputs {
+        dir: dir.to_path_buf(),
+        meta,
+        base,
+        rows,
+        series: seen,
+        orphans,
+    })
+}
+
+/// `sweep.json` at `meta_path`.
+fn read_meta(meta_path: &Path) -> Result<SweepFile, String> {
+    let text =
+        std::fs::read_to_string(meta_path).map_err(|e| format!("{}: {e}", meta_path.display()))?;
+    serde_json::from_str(&text).map_err(|e| {
+        format!(
+            "{}: {e} (not the sweep.json of a sweep of this version of tiltsim: run the sweep again)",
+            meta_path.display()
+        )
+    })
+}
+
+/// The bytes of file `name` in `dir`, checked against the checksum `meta` (read from
+/// `meta_path`) holds for it.
+fn read_verified(
+    dir: &Path,
+    meta_path: &Path,
+    meta: &SweepFile,
+    name: &str,
+) -> Result<Vec<u8>, String> {
+    let p = dir.join(name);
+    let bytes = std::fs::read(&p).map_err(|e| format!("{}: {e}", p.display()))?;
+    let want = meta
+        .sha256
+        .get(name)
+        .ok_or_else(|| format!("{}: no checksum of {name}", meta_path.display()))?;
+    if identity::sha256(&bytes) != *want {
+        return Err(format!(
+            "{}: changed since the sweep wrote it (its SHA-256 is not the one {} records)",
+            p.display(),
+            meta_path.display()
+        ));
+    }
+    Ok(bytes)
+}
+
+/// `series.csv` (its `bytes`, read from `path`): the samples it has lines for, and each
+/// sample's series in the order of the file.
+#[allow(clippy::type_complexity)]
+fn read_series(
+    path: &Path,
+    bytes: &[u8],
+) -> Result<(std::collections::BTreeSet<usize>, Vec<(usize, Vec<f64>)>), String> {
     let head = csv::ReaderBuilder::new()
-        .from_reader(&series_bytes[..])
+        .from_reader(bytes)
         .headers()
         .map(|h| h.iter().map(str::to_string).collect::<Vec<_>>())
-        .map_err(|e| format!("{}: {e}", series_path.display()))?;
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     if head != SERIES_COLUMNS {
         return Err(format!(
             "{} line 1: the columns are not {}",
-            series_path.display(),
+            path.display(),
             SERIES_COLUMNS.join(",")
         ));
     }
     // One block of lines per sample, its times 0, SERIES_DT, ... in order.
     let mut seen = std::collections::BTreeSet::new();
-    let mut orphans = Vec::new();
     let mut current: Option<(usize, Vec<f64>)> = None;
     let mut blocks = Vec::new();
-    for (at, f) in records(&series_path, &series_bytes)? {
+    for (at, f) in records(path, bytes)? {
         if f.len() != SERIES_COLUMNS.len() {
             return Err(format!("{at}: {} fields, expected 3", f.len()));
         }
@@ -170,23 +210,7 @@ pub(super) fn outputs(dir: &Path) -> Result<Outputs, String> {
         series.push(v[1]);
     }
     blocks.extend(current);
-    for (j, series) in blocks {
-        match rows.iter_mut().find(|(_, r)| r.sample == j) {
-            Some(row) => row.1.series = series,
-            None => orphans.push(format!(
-                "{}: sample {j} is not in samples.csv",
-                series_path.display()
-            )),
-        }
-    }
-    Ok(Outputs {
-        dir: dir.to_path_buf(),
-        meta,
-        base,
-        rows,
-        series: seen,
-        orphans,
-    })
+    Ok((seen, blocks))
 }
 
 /// Redraws the figures of the sweep (or shard) in `dir` from its verified outputs; returns the
