@@ -153,9 +153,10 @@ fn fmi3_parameters(layout: &Layout, x: &mut String) {
     for (i, p) in layout.params.iter().enumerate() {
         let vr = layout.param_vr(i);
         let head = format!(
-            r#"    <{t} name="{n}" valueReference="{vr}" causality="parameter" variability="fixed""#,
+            r#"    <{t} name="{n}" valueReference="{vr}" causality="parameter" variability="fixed"{d}"#,
             t = p.value.fmi3_type(),
             n = esc(&p.name),
+            d = description_attr(p.description),
         );
         let _ = match &p.value {
             ParamValue::F64(v) => {
@@ -289,9 +290,10 @@ fn fmi2_parameters(layout: &Layout, x: &mut String) -> Result<(), String> {
         };
         let _ = writeln!(
             x,
-            r#"    <ScalarVariable name="{}" valueReference="{}" causality="parameter" variability="fixed" initial="exact">{ty}</ScalarVariable>"#,
+            r#"    <ScalarVariable name="{}" valueReference="{}" causality="parameter" variability="fixed" initial="exact"{}>{ty}</ScalarVariable>"#,
             esc(&p.name),
             layout.param_vr(i),
+            description_attr(p.description),
         );
     }
     Ok(())
@@ -303,6 +305,15 @@ fn unit_attr(u: &str) -> String {
         String::new()
     } else {
         format!(r#" unit="{}""#, esc(u))
+    }
+}
+
+/// The `description` attribute of description `d` (none where it is empty).
+fn description_attr(d: &str) -> String {
+    if d.is_empty() {
+        String::new()
+    } else {
+        format!(r#" description="{}""#, esc(d))
     }
 }
 

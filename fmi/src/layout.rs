@@ -8,6 +8,7 @@ use cosim::msg::{ToActuator, ToController, ToPlant};
 use cosim::Role;
 use serde_json::Value;
 
+use crate::params_doc::param_description;
 use crate::units::param_unit;
 
 /// The request and reply sample types of a role.
@@ -111,6 +112,8 @@ pub struct Param {
     pub value: ParamValue,
     /// Unit (`""` where none; only reals have one).
     pub unit: &'static str,
+    /// What it is ([`param_description`]; `""` for a name the table does not know).
+    pub description: &'static str,
 }
 
 /// What a value reference points at.
@@ -292,6 +295,7 @@ fn flatten(
         path: path.clone(),
         value,
         unit,
+        description: param_description(name).unwrap_or(""),
     });
     Ok(())
 }

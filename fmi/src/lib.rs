@@ -8,12 +8,14 @@
 //! * [`import`]: any co-simulation FMU as a participant.
 //! * [`ssd`]: SSP 1.0 system structures of FMUs (`SystemStructure.ssd`).
 //! * [`units`]: units of the variables.
+//! * [`params_doc`]: what every parameter is (its unit and description).
 
 pub mod archive;
 pub mod binding;
 pub mod description;
 pub mod import;
 pub mod layout;
+pub mod params_doc;
 pub mod ssd;
 pub mod units;
 

@@ -291,9 +291,9 @@ mod tests {
     }
 
     #[test]
-    fn every_value_of_every_shipped_scenario_is_a_parameter_with_its_unit() {
+    fn every_value_of_every_shipped_scenario_is_a_parameter_with_its_unit_and_description() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios");
-        let mut seen = 0;
+        let mut seen = Vec::new();
         for e in std::fs::read_dir(&dir).unwrap().flatten() {
             let p = e.path();
             if p.extension().is_none_or(|x| x != "toml") {
@@ -316,22 +316,30 @@ mod tests {
             ] {
                 let l = Layout::new(role, &v).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
                 assert!(l.params.len() > 20, "{role}");
-                // Every real has a unit or is declared unitless on purpose.
+                // Every value has a unit or is declared unitless on purpose (counts,
+                // switches, choices, weights of mixed states), and a description.
                 for q in &l.params {
-                    if let tiltsim_fmi::layout::ParamValue::F64(_) = q.value {
-                        assert!(
-                            tiltsim_fmi::units::param_unit(&q.name).is_some(),
-                            "{}",
-                            q.name
-                        );
-                    }
+                    let at = format!("{}: {role} `{}`", p.display(), q.name);
+                    assert!(tiltsim_fmi::units::param_unit(&q.name).is_some(), "{at}");
+                    let d = tiltsim_fmi::params_doc::param_description(&q.name);
+                    assert!(d.is_some_and(|d| !d.trim().is_empty()), "{at}");
+                    assert_eq!(q.description, d.unwrap_or_default(), "{at}");
                 }
                 // Setting every parameter to its own value gives the settings back.
                 let values: Vec<_> = l.params.iter().map(|q| q.value.clone()).collect();
                 assert_eq!(l.settings_with(&v, &values), v);
             }
-            seen += 1;
+            seen.push(p.file_name().unwrap().to_string_lossy().into_owned());
         }
-        assert!(seen > 10);
+        assert!(seen.len() > 10);
+        for name in [
+            "paper-lqg.toml",
+            "paper-mpc.toml",
+            "pi-drive.toml",
+            "paper-passive.toml",
+            "tilting-mpc.toml",
+        ] {
+            assert!(seen.iter().any(|s| s == name), "{name} was not checked");
+        }
     }
 }
