@@ -71,8 +71,13 @@ def main():
     compared = mismatches = 0
     first = None
     largest = {f: 0.0 for f in fields}
+    # The plant's and the actuator's recorded outputs begin with those at t = 0 (FMPy's row 0)
+    # and the n-th step's outputs hold at its end (row n + 1); the controller's answer of its
+    # n-th step is recorded at the step's start and reaches FMPy's output at the next
+    # communication point (row n + 1).
+    first_row = 1 if role == "controller" else 0
     for n, m in enumerate(outs):
-        row = result[n + 1]
+        row = result[n + first_row]
         for f in fields:
             want = m[f]
             got = float(row[fmu_name(f)])
