@@ -36,6 +36,33 @@ pub enum ActuatorModel {
     Ideal,
 }
 
+impl ActuatorModel {
+    /// The model as a scenario file spells it (`actuator.model = "bldc"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ActuatorModel::Bldc => "bldc",
+            ActuatorModel::BldcAveraged => "bldc-averaged",
+            ActuatorModel::Ideal => "ideal",
+        }
+    }
+
+    /// What the actuator is, in words: "switched BLDC drive", "ideal bar".
+    pub fn label(self) -> &'static str {
+        match self {
+            ActuatorModel::Bldc => "switched BLDC drive",
+            ActuatorModel::BldcAveraged => "averaged BLDC drive",
+            ActuatorModel::Ideal => "ideal bar",
+        }
+    }
+}
+
+/// The scenario file's spelling.
+impl std::fmt::Display for ActuatorModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Actuator settings (scenario section `[actuator]`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields, default)]

@@ -17,6 +17,16 @@ pub enum CommandShaping {
     Ramp,
 }
 
+/// The scenario file's spelling (`actuator.command_shaping = "ramp"`).
+impl std::fmt::Display for CommandShaping {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            CommandShaping::Hold => "hold",
+            CommandShaping::Ramp => "ramp",
+        })
+    }
+}
+
 /// The shaped set-point. Time is counted in integer electrical steps so that the end of the
 /// ramp is exact.
 #[derive(Debug, Clone)]

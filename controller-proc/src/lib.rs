@@ -69,6 +69,35 @@ pub enum Mode {
     Mpc,
 }
 
+impl Mode {
+    /// The mode as a scenario file spells it (`controller.mode = "lqg"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Passive => "passive",
+            Mode::Pi => "pi",
+            Mode::Lqg => "lqg",
+            Mode::Mpc => "mpc",
+        }
+    }
+
+    /// What the controller is, in words: "LQG servo", "MPC with Kalman filter".
+    pub fn label(self) -> &'static str {
+        match self {
+            Mode::Passive => "no tilt control",
+            Mode::Pi => "PI",
+            Mode::Lqg => "LQG servo",
+            Mode::Mpc => "MPC with Kalman filter",
+        }
+    }
+}
+
+/// The scenario file's spelling.
+impl std::fmt::Display for Mode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Controller settings (scenario section `[controller]`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]

@@ -112,7 +112,7 @@ fn unsupported(s: &Scenario) -> Option<(String, String, String)> {
     if let Some(f) = s.faults.schedule.first() {
         return Some((
             "faults.schedule".into(),
-            format!("{:?} of the {} at {} s", f.action, f.participant, f.at_s),
+            format!("{} of the {} at {} s", f.action, f.participant, f.at_s),
             "none: process faults are tiltsim's own, an SSP system has none".into(),
         ));
     }
@@ -269,5 +269,18 @@ mod tests {
         let mut s = base.clone();
         s.links.measurement.noise_std = 0.01;
         assert_eq!(unsupported(&s).unwrap().0, "links.measurement.noise_std");
+        // A fault is named as the scenario file writes its action.
+        let mut s = base.clone();
+        s.faults.schedule.push(crate::faults::ScheduledFault {
+            participant: Role::Controller,
+            action: crate::faults::FaultAction::Kill,
+            at_s: 8.0,
+            stall_s: 0.0,
+        });
+        let (field, value, _) = unsupported(&s).unwrap();
+        assert_eq!(
+            (field.as_str(), value.as_str()),
+            ("faults.schedule", "kill of the controller at 8 s")
+        );
     }
 }

@@ -52,6 +52,17 @@ pub enum FaultAction {
     Crash,
 }
 
+/// The scenario file's spelling (`action = "kill"`).
+impl std::fmt::Display for FaultAction {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            FaultAction::Kill => "kill",
+            FaultAction::Stall => "stall",
+            FaultAction::Crash => "crash",
+        })
+    }
+}
+
 /// One scheduled fault (`[[faults.schedule]]`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

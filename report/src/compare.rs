@@ -564,7 +564,7 @@ fn run_table(md: &mut String, entries: &[Entry]) {
         let d = &s.flags.drive_limit;
         let _ = writeln!(
             md,
-            "| {} | {:?} | {} | {:.2} | {:?} | {:?} | {:.0} | {:.1} | {:.1} / {:.1} | {:.2} | {:.3} | {:.1} |",
+            "| {} | {} | {} | {:.2} | {} | {} | {:.0} | {:.1} | {:.1} / {:.1} | {:.2} | {:.3} | {:.1} |",
             e.scenario.name,
             s.status,
             s.steps_completed,

@@ -78,7 +78,7 @@ impl FaultSchedule {
             f.participant.name(),
             EventKind::FaultInjected,
             value,
-            format!("{:?}", f.action).to_lowercase(),
+            f.action.to_string(),
         );
     }
 
