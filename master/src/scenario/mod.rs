@@ -552,6 +552,73 @@ mod tests {
     }
 
     #[test]
+    fn choices_print_as_a_scenario_file_spells_them() {
+        use actuator_proc::{ActuatorModel, CommandShaping};
+        use controller_proc::Mode;
+        fn same<T: Serialize + std::fmt::Display>(all: &[T]) {
+            for v in all {
+                assert_eq!(serde_json::to_string(v).unwrap(), format!("\"{v}\""));
+            }
+        }
+        same(&[Mode::Passive, Mode::Pi, Mode::Lqg, Mode::Mpc]);
+        same(&[
+            ActuatorModel::Bldc,
+            ActuatorModel::BldcAveraged,
+            ActuatorModel::Ideal,
+        ]);
+        same(&[CommandShaping::Hold, CommandShaping::Ramp]);
+        use crate::faults::FaultAction;
+        same(&[FaultAction::Kill, FaultAction::Stall, FaultAction::Crash]);
+        use crate::engine::Status;
+        same(&[
+            Status::Completed,
+            Status::Failed,
+            Status::Degraded,
+            Status::Interrupted,
+        ]);
+    }
+
+    #[test]
+    fn a_duration_the_file_does_not_hold_is_never_named() {
+        // Out-of-range track fields are named alone, not the duration they would give.
+        let e = parse("[track]\nstraight_before_m = -9000.0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("track.straight_before_m"), "{e}");
+        assert!(!e.contains("duration_s"), "{e}");
+        // A fault against such a track is not measured against a negative end.
+        let e = parse("[track]\nspeed_kmh = -162.0\n[[faults.schedule]]\nparticipant = \"plant\"\naction = \"kill\"\nat_s = 1.0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("track.speed_kmh") && !e.contains("faults"),
+            "{e}"
+        );
+        // A valid track too short for one step is named as the track, with what to change.
+        let e = parse("[run]\ndt_s = 0.01\n[track]\nstraight_before_m = 0.0\ntransition_m = 0.1\ncurve_m = 0.0\nstraight_after_m = 0.0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("field `track` = 0.2 m at 162 km/h")
+                && e.contains("run.duration_s")
+                && !e.contains("field `run.duration_s`"),
+            "{e}"
+        );
+        // A fault after the end of a run that lasts the track says where the end comes from.
+        let e =
+            parse("[[faults.schedule]]\nparticipant = \"plant\"\naction = \"kill\"\nat_s = 20.0\n")
+                .unwrap_err()
+                .to_string();
+        assert!(
+            e.contains("16.8 s (the track's length at its speed)"),
+            "{e}"
+        );
+        // An explicit duration keeps its own message, once.
+        let e = parse("[run]\nduration_s = -5.0\n").unwrap_err().to_string();
+        assert_eq!(e.matches("run.duration_s").count(), 1, "{e}");
+    }
+
+    #[test]
     fn misleading_type_errors_name_the_field_and_what_to_write() {
         // A link written as an array of tables.
         let e = parse("[[links.measurement]]\ndelay_ticks = 3\n")

@@ -29,24 +29,57 @@ impl Scenario {
 
     /// What can never take effect: a run shorter than one step, faults scheduled after the
     /// end of the run, a stall length on a fault that is not a stall, two faults of the same
-    /// participant at the same tick.
+    /// participant at the same tick. Each error names a field the file holds: a run without
+    /// `run.duration_s` lasts the track's length at its speed, and a track too short for one
+    /// step is named as the track; a duration from fields that are out of range themselves
+    /// is not checked again (their own errors say what to change).
     pub(super) fn validate_timeline(&self) -> Checker {
         let mut c = Checker::new("");
         let (dt, end) = (self.run.dt_s, self.duration());
-        c.require(
-            dt.is_nan() || dt <= 0.0 || self.steps() >= 1,
-            "run.duration_s",
-            end,
-            &format!("at least one step of run.dt_s = {dt} s"),
-        );
+        // Shown to the microsecond, as a person would write it.
+        let shown = (end * 1e6).round() / 1e6;
+        let dt_ok = dt.is_finite() && dt > 0.0;
+        let end_ok = match self.run.duration_s {
+            Some(d) => d.is_finite() && d > 0.0,
+            None => self.track.validate("track").errors.is_empty(),
+        };
+        if dt_ok && end_ok {
+            let one_step = self.steps() >= 1;
+            match self.run.duration_s {
+                Some(d) => c.require(
+                    one_step,
+                    "run.duration_s",
+                    d,
+                    &format!("at least one step of run.dt_s = {dt} s"),
+                ),
+                None => c.require(
+                    one_step,
+                    "track",
+                    format!(
+                        "{} m at {} km/h, {shown} s",
+                        self.track.length(),
+                        self.track.speed_kmh
+                    ),
+                    &format!(
+                        "a track that lasts at least one step of run.dt_s = {dt} s (its length \
+                         is straight_before_m + 2 transition_m + curve_m + straight_after_m), \
+                         or a run.duration_s"
+                    ),
+                ),
+            }
+        }
+        let end_of_run = match self.run.duration_s {
+            Some(_) => format!("run.duration_s = {end} s"),
+            None => format!("{shown} s (the track's length at its speed)"),
+        };
         let mut seen = Vec::new();
         for (i, f) in self.faults.schedule.iter().enumerate() {
             let field = format!("faults.schedule[{i}]");
             c.require(
-                f.at_s < end,
+                !end_ok || f.at_s < end,
                 &format!("{field}.at_s"),
                 f.at_s,
-                &format!("a time before the end of the run, {end} s"),
+                &format!("a time before the end of the run, {end_of_run}"),
             );
             c.require(
                 f.action == crate::faults::FaultAction::Stall || f.stall_s == 0.0,
@@ -136,7 +169,7 @@ impl Scenario {
                 c.require(
                     false,
                     section,
-                    format!("{:?} design failed: {e}", self.controller.mode),
+                    format!("{}: design failed: {e}", self.controller.mode.label()),
                     "settings for which the controller design exists",
                 );
                 all.merge(c);
