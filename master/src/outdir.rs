@@ -233,6 +233,7 @@ pub struct Lock {
     dir: PathBuf,
     path: PathBuf,
     file: std::fs::File,
+    replaced: usize,
 }
 
 fn same_file(file: &std::fs::File, path: &Path) -> bool {
@@ -357,6 +358,7 @@ impl Lock {
                 dir: dir.to_path_buf(),
                 path,
                 file,
+                replaced: 0,
             });
         }
         Err(OutDirError::Io {
@@ -368,6 +370,12 @@ impl Lock {
     /// The held directory.
     pub fn dir(&self) -> &Path {
         &self.dir
+    }
+
+    /// How many files of an earlier run [`claim_run`] removed from the directory: a run
+    /// that replaces another's results says so.
+    pub fn replaced(&self) -> usize {
+        self.replaced
     }
 }
 
@@ -526,13 +534,15 @@ pub fn claim(dir: &Path, kind: Kind, command: &str) -> Result<Lock, OutDirError>
     Ok(lock)
 }
 
-/// Takes `dir` for a run and removes the files of an earlier run there.
+/// Takes `dir` for a run and removes the files of an earlier run there ([`Lock::replaced`]
+/// counts them).
 pub fn claim_run(dir: &Path, command: &str) -> Result<Lock, OutDirError> {
-    let lock = claim(dir, Kind::Run, command)?;
+    let mut lock = claim(dir, Kind::Run, command)?;
     let n = clear_run(dir)?;
     if n > 0 {
         tracing::info!("{}: {n} files of an earlier run removed", dir.display());
     }
+    lock.replaced = n;
     Ok(lock)
 }
 
@@ -598,6 +608,10 @@ mod tests {
             std::fs::write(d.join(f), "x").unwrap();
         }
         assert_eq!(clear_run(&d).unwrap(), 9);
+        // Claimed again, the directory holds no earlier run; with a run's file, it does.
+        assert_eq!(claim_run(&d, "run").unwrap().replaced(), 0);
+        std::fs::write(d.join("summary.json"), "{}").unwrap();
+        assert_eq!(claim_run(&d, "run").unwrap().replaced(), 1);
         assert!(d.join("notes.txt").exists() && d.join("plots/mine.svg").exists());
         assert!(!d.join("run.mcap").exists() && !d.join("replay-plant").exists());
         assert!(!d.join("timing.csv").exists());

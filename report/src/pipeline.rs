@@ -71,6 +71,9 @@ pub struct Done {
     /// What the user should know that did not stop the run (a large share of the disk, a
     /// figure not drawn, a file not written).
     pub warnings: Vec<String>,
+    /// The run replaced the files of an earlier run in its directory (removed when it took
+    /// the directory).
+    pub replaced_earlier_run: bool,
 }
 
 /// Why a run could not be carried out (a run that started and then failed is a [`Done`]
@@ -120,7 +123,7 @@ pub fn carry_out(job: &Job) -> Result<Done, JobError> {
             }
         }
     }
-    let _lock = if files && job.claim {
+    let lock = if files && job.claim {
         Some(
             tiltsim_master::outdir::claim_run(&opts.out_dir, "run")
                 .map_err(|e| JobError::Invalid(e.to_string()))?,
@@ -133,7 +136,9 @@ pub fn carry_out(job: &Job) -> Result<Done, JobError> {
         RunMode::Free => free(job)?,
         RunMode::ReplayTiming => replay(job)?,
     };
-    Ok(finish(job, ran, warnings))
+    let mut done = finish(job, ran, warnings);
+    done.replaced_earlier_run = lock.as_ref().is_some_and(|l| l.replaced() > 0);
+    Ok(done)
 }
 
 /// What an engine hands to the analysis.
@@ -296,5 +301,6 @@ fn finish(job: &Job, ran: Ran, mut warnings: Vec<String>) -> Done {
         summary,
         rows,
         warnings,
+        replaced_earlier_run: false,
     }
 }
