@@ -16,8 +16,20 @@ fn compare_writes_table_4_with_the_papers_values_and_our_differences() {
     ]);
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("wrote"));
+    // Each run's line names what ran, in words.
+    assert!(
+        out.contains("paper-lqg (LQG servo, switched BLDC drive): completed,")
+            && out.contains("paper-passive (no tilt control, ideal bar): completed,"),
+        "{out}"
+    );
     let md = std::fs::read_to_string(dir.join("table.md")).unwrap();
     let csv = std::fs::read_to_string(dir.join("table.csv")).unwrap();
+    // The run table spells status, actuator and command shaping as the files do.
+    assert!(
+        md.lines()
+            .any(|l| l.starts_with("| paper-lqg | completed |") && l.contains("| bldc | hold |")),
+        "{md}"
+    );
     // Paper's LQG peak lateral acceleration, 9.796 %g, shown next to ours.
     assert!(md.contains("[9.796]"), "{md}");
     assert!(md.contains(

@@ -658,7 +658,6 @@ fn an_fmu_description_lacking_what_tiltsim_relies_on_is_named_in_a_warning() {
             "in-process",
             "--duration",
             "0.2",
-            "-q",
         ])
     };
     let (code, _, err) = runs("bare", "bare.fmu");
@@ -707,7 +706,7 @@ fn an_fmu_description_lacking_what_tiltsim_relies_on_is_named_in_a_warning() {
         ),
     )
     .expect("write");
-    let (code, _, err) = run(&["run", s(&sc), "--out", s(&dir.join("fast")), "-q"]);
+    let (code, _, err) = run(&["run", s(&sc), "--out", s(&dir.join("fast"))]);
     assert!(
         err.contains("participants.controller.fmu")
             && err.contains("stepSize=\"0.05\"")

@@ -13,9 +13,14 @@ fn s(p: &Path) -> &str {
 #[test]
 fn every_new_template_validates_and_runs_and_an_existing_file_is_kept() {
     let dir = temp_dir("new-templates");
-    for c in ["passive", "pi", "lqg", "mpc"] {
+    for (c, label) in [
+        ("passive", "no tilt control"),
+        ("pi", "PI"),
+        ("lqg", "LQG servo"),
+        ("mpc", "MPC with Kalman filter"),
+    ] {
         let file = dir.join(format!("t-{c}.toml"));
-        let (code, _, err) = run(&[
+        let (code, out, err) = run(&[
             "new",
             &format!("t-{c}"),
             "--controller",
@@ -24,10 +29,12 @@ fn every_new_template_validates_and_runs_and_an_existing_file_is_kept() {
             s(&file),
         ]);
         assert_eq!(code, 0, "{c}: {err}");
+        assert!(out.contains(&format!("t-{c}.toml ({label});")), "{out}");
         let (code, out, err) = run(&["validate", s(&file)]);
         assert_eq!(code, 0, "{c}: {err}");
+        // Spelled as the file writes it.
         assert!(
-            out.to_lowercase().contains(&format!("controller {c}")),
+            out.contains(&format!("controller {c}, actuator ")),
             "{c}: {out}"
         );
         let out_dir = dir.join(format!("run-{c}"));
@@ -61,6 +68,33 @@ fn every_new_template_validates_and_runs_and_an_existing_file_is_kept() {
     let (code, _, err) = run(&["new", "a/b", "--out", s(&dir.join("x.toml"))]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("name"), "{err}");
+}
+
+#[test]
+fn an_edited_template_is_refused_naming_the_fields_written_never_a_derived_one() {
+    let dir = temp_dir("edited-template");
+    let file = dir.join("short.toml");
+    let (code, _, err) = run(&["new", "short", "--out", s(&file)]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let edit = |from: &str, to: &str| {
+        assert!(text.contains(from), "the template has no `{from}`");
+        std::fs::write(&file, text.replace(from, to)).unwrap();
+        let (code, _, err) = run(&["validate", s(&file)]);
+        assert_eq!(code, 2, "{err}");
+        err
+    };
+    // The track's own field is named with what it allows; the run's duration, which the file
+    // leaves to the track, is not.
+    let err = edit("straight_before_m = 135.0", "straight_before_m = -9000.0");
+    assert!(
+        err.contains("field `track.straight_before_m` = -9000: allowed a number in [0, 100000] m"),
+        "{err}"
+    );
+    assert!(!err.contains("duration"), "{err}");
+    let err = edit("speed_kmh = 162.0", "speed_kmh = -162.0");
+    assert!(err.contains("field `track.speed_kmh` = -162"), "{err}");
+    assert!(!err.contains("duration"), "{err}");
 }
 
 #[test]
@@ -229,7 +263,10 @@ fn a_run_from_a_terminal_draws_a_progress_bar_and_a_piped_or_quiet_one_does_not(
     let shown = on_terminal(cmd("bar", false));
     assert!(shown.contains("% of 1.0 s simulated"), "no bar: {shown}");
     // The bar is cleared when the run ends; the run's report follows.
-    assert!(shown.contains("Completed"), "{shown}");
+    assert!(
+        shown.contains("paper-lqg (LQG servo, switched BLDC drive): completed,"),
+        "{shown}"
+    );
     let quiet = on_terminal(cmd("quiet", true));
     assert!(!quiet.contains("% of"), "a quiet run drew a bar: {quiet}");
     let sc_s = s(&sc).to_string();

@@ -274,7 +274,7 @@ fn a_run_that_replaces_an_earlier_one_says_so_and_names_what_ran() {
         "{out}"
     );
     assert!(
-        !out.contains("replaced"),
+        !out.contains("replaced the earlier run"),
         "a first run replaced nothing: {out}"
     );
     // The same default directory with another controller: the first line says which, and
@@ -443,7 +443,10 @@ fn an_observer_written_outside_the_crates_sees_every_row_of_the_table() {
         part["peak_lat_acc_m_s2"].as_f64().unwrap(),
         peak[lat].parse::<f64>().unwrap().abs()
     );
-    assert_eq!(part["at_s"].as_f64().unwrap(), peak[time].parse::<f64>().unwrap());
+    assert_eq!(
+        part["at_s"].as_f64().unwrap(),
+        peak[time].parse::<f64>().unwrap()
+    );
     assert_eq!(part["ticks"].as_u64().unwrap() as usize, rows.len() - 2);
     assert_eq!(part["status"], "completed");
 }

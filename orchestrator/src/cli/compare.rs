@@ -44,11 +44,10 @@ pub fn exec(a: CompareArgs) -> CliResult {
     let mut base = RunOptions::new(a.out.clone(), exe);
     base.interrupt = interrupt;
     for (file, s) in loaded {
-        let name = s.name.clone();
+        let head = format!("{} ({})", s.name, super::report::who(&s));
         let summary = cmp.run(&file, s, &base).map_err(cli)?;
         println!(
-            "{}: {:?}, P_CT standing (EN 12299) {:.2} %, peak lateral acceleration {:.2} %g",
-            name,
+            "{head}: {}, P_CT standing (EN 12299) {:.2} %, peak lateral acceleration {:.2} %g",
             summary.status,
             summary.comfort.p_ct_en12299.standing,
             summary.comfort.lat_acc_peak_pct_g

@@ -24,12 +24,19 @@ pub struct ReplayTimingArgs {
     /// Output directory [default: RUN_DIR/replay-timing].
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Print nothing but errors.
+    /// Print nothing but errors: no warnings, no report.
     #[arg(short, long)]
     quiet: bool,
     /// Draw no figures.
     #[arg(long)]
     no_plots: bool,
+}
+
+impl ReplayTimingArgs {
+    /// `--quiet`: nothing but errors (the log too).
+    pub fn quiet(&self) -> bool {
+        self.quiet
+    }
 }
 
 /// Runs `replay-timing`.
@@ -64,11 +71,5 @@ pub fn replay_timing(a: ReplayTimingArgs) -> CliResult {
     let mut job = Job::new(&s, file.display().to_string(), opts);
     job.replay_trace = Some(trace);
     let done = carry_out(&job).map_err(CliError::of_job)?;
-    for w in &done.warnings {
-        eprintln!("warning: {w}");
-    }
-    if !a.quiet {
-        super::report::print(&done.summary, &out);
-    }
-    super::run::outcome(&done.summary, &out)
+    super::run::report(&done, &s, &out, a.quiet)
 }

@@ -17,6 +17,7 @@ mod export_ssp;
 mod free_run;
 mod inspect;
 mod linearize;
+mod log;
 mod new;
 mod participant;
 mod plot;
@@ -105,20 +106,25 @@ enum Command {
     FmuParticipant(participant::ParticipantArgs),
 }
 
-fn init_logging(verbose: u8) {
-    let level = match verbose {
-        0 => "warn",
-        1 => "info",
-        _ => "debug",
-    };
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| level.into()),
-        )
-        .with_writer(std::io::stderr)
-        // Colours only where a person reads them.
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .try_init();
+impl Command {
+    /// How much the command logs: `-q` of `run` and `replay-timing` keeps errors only; a
+    /// participant process, whose standard error is its log file, times every line.
+    fn verbosity(&self, verbose: u8) -> log::Verbosity {
+        let quiet = match self {
+            Command::Run(a) => a.quiet(),
+            Command::ReplayTiming(a) => a.quiet(),
+            _ => false,
+        };
+        let detailed = matches!(
+            self,
+            Command::Participant(_) | Command::FmuParticipant(_) | Command::BenchEcho(_)
+        );
+        log::Verbosity {
+            verbose,
+            quiet,
+            detailed,
+        }
+    }
 }
 
 /// Runs the program with the process's arguments; returns the exit code.
@@ -139,7 +145,7 @@ where
             return if e.use_stderr() { EXIT_INVALID } else { 0 };
         }
     };
-    init_logging(cli.verbose);
+    log::init(cli.command.verbosity(cli.verbose));
     if matches!(
         cli.command,
         Command::Validate(_) | Command::New(_) | Command::Inspect(_) | Command::Completions(_)

@@ -17,6 +17,18 @@ pub enum Controller {
     Mpc,
 }
 
+impl Controller {
+    /// The scenario's `controller.mode`.
+    fn mode(self) -> controller_proc::Mode {
+        match self {
+            Controller::Passive => controller_proc::Mode::Passive,
+            Controller::Pi => controller_proc::Mode::Pi,
+            Controller::Lqg => controller_proc::Mode::Lqg,
+            Controller::Mpc => controller_proc::Mode::Mpc,
+        }
+    }
+}
+
 /// Arguments.
 #[derive(clap::Args, Debug)]
 pub struct NewArgs {
@@ -184,9 +196,9 @@ pub fn exec(a: NewArgs) -> CliResult {
     std::io::Write::write_all(&mut f, text.as_bytes())
         .map_err(|e| CliError::Failed(format!("{}: {e}", path.display())))?;
     println!(
-        "wrote {} ({:?} controller); run it with `tiltsim run {}`",
+        "wrote {} ({}); run it with `tiltsim run {}`",
         path.display(),
-        a.controller,
+        a.controller.mode().label(),
         path.display()
     );
     Ok(())

@@ -3,16 +3,37 @@
 use std::path::Path;
 
 use tiltsim_master::engine::{RunMode, Summary};
+use tiltsim_master::scenario::Scenario;
 
-/// Prints what a run did and found: its own line (lock-step, free or replayed), the ride, the
-/// participants' logs and, for lock-step runs, the timing.
-pub fn print(s: &Summary, out: &Path) {
+/// What ran, as a user would say it: the controller and the actuator (and the vehicle when an
+/// FMU plays it), e.g. "LQG servo, switched BLDC drive" or "controller FMU pi.fmu, ideal bar".
+pub fn who(s: &Scenario) -> String {
+    let fmu = |role: cosim::Role, what: &str| {
+        s.participants.get(role).map(|f| {
+            let file = f.fmu.file_name().unwrap_or(f.fmu.as_os_str());
+            format!("{what} FMU {}", file.to_string_lossy())
+        })
+    };
+    let mut parts = vec![
+        fmu(cosim::Role::Controller, "controller")
+            .unwrap_or_else(|| s.controller.mode.label().to_string()),
+        fmu(cosim::Role::Actuator, "actuator")
+            .unwrap_or_else(|| s.actuator.model.label().to_string()),
+    ];
+    parts.extend(fmu(cosim::Role::Plant, "vehicle"));
+    parts.join(", ")
+}
+
+/// Prints what a run of `sc` did and found: its own line (lock-step, free or replayed) naming
+/// what ran, the ride, the participants' logs, for lock-step runs the timing, and the files,
+/// saying so when they replaced an earlier run's (`replaced`).
+pub fn print(s: &Summary, sc: &Scenario, out: &Path, replaced: bool) {
+    let head = format!("{} ({})", s.scenario, who(sc));
     match s.execution {
-        RunMode::LockStep => print_lock_step(s),
-        RunMode::Free => print_free(s),
+        RunMode::LockStep => print_lock_step(s, &head),
+        RunMode::Free => print_free(s, &head),
         RunMode::ReplayTiming => println!(
-            "{}: {:?}, {} of {} steps replayed from {} ({} exchanges){}",
-            s.scenario,
+            "{head}: {}, {} of {} steps replayed from {} ({} exchanges){}",
             s.status,
             s.steps_completed,
             s.steps_planned,
@@ -43,6 +64,9 @@ pub fn print(s: &Summary, out: &Path) {
     if s.execution == RunMode::LockStep {
         print_timing(s);
     }
+    if replaced {
+        println!("  replaced the earlier run in {}", out.display());
+    }
     println!(
         "  wrote {}/timeseries.csv, columns.csv, summary.json, perf.json, events.csv, scenario.toml{}{}",
         out.display(),
@@ -51,15 +75,10 @@ pub fn print(s: &Summary, out: &Path) {
     );
 }
 
-fn print_lock_step(s: &Summary) {
+fn print_lock_step(s: &Summary, head: &str) {
     println!(
-        "{}: {:?}, {} steps ({:.3} s simulated) in {:.3} s wall ({:.1}x real time)",
-        s.scenario,
-        s.status,
-        s.steps_completed,
-        s.simulated_time_s,
-        s.wall_time_s,
-        s.realtime_factor
+        "{head}: {}, {} steps ({:.3} s simulated) in {:.3} s wall ({:.1}x real time)",
+        s.status, s.steps_completed, s.simulated_time_s, s.wall_time_s, s.realtime_factor
     );
     println!(
         "  transport {}, master {}, wait {}; pids: {}",
@@ -78,12 +97,11 @@ fn print_lock_step(s: &Summary) {
     );
 }
 
-fn print_free(s: &Summary) {
+fn print_free(s: &Summary, head: &str) {
     let Some(f) = &s.free_run else { return };
     let plant = f.participants.get("plant").cloned().unwrap_or_default();
     println!(
-        "{}: free run, {:?}, {} of {} steps in {:.2} s; plant start lateness p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs, {} late steps{}",
-        s.scenario,
+        "{head}: free run, {}, {} of {} steps in {:.2} s; plant start lateness p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs, {} late steps{}",
         s.status,
         s.steps_completed,
         s.steps_planned,

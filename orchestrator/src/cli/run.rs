@@ -72,9 +72,16 @@ pub struct RunArgs {
     /// DIR/timing.csv, which `tiltsim replay-timing DIR` replays exactly in lock-step.
     #[arg(long)]
     free_run: bool,
-    /// Print nothing but errors.
+    /// Print nothing but errors: no progress bar, no warnings, no report.
     #[arg(short, long)]
     quiet: bool,
+}
+
+impl RunArgs {
+    /// `--quiet`: nothing but errors (the log too).
+    pub fn quiet(&self) -> bool {
+        self.quiet
+    }
 }
 
 /// `--progress`.
@@ -201,24 +208,36 @@ pub fn exec(a: RunArgs) -> CliResult {
     };
     let job = Job::new(&s, a.scenario.display().to_string(), opts);
     let done = carry_out(&job).map_err(CliError::of_job)?;
-    for w in &done.warnings {
-        eprintln!("warning: {w}");
-    }
-    if !a.quiet {
-        super::report::print(&done.summary, &out);
-    }
-    outcome(&done.summary, &out)
+    report(&done, &s, &out, a.quiet)
 }
 
-/// The exit of a finished run, by its status.
-pub(super) fn outcome(summary: &Summary, out: &std::path::Path) -> CliResult {
+/// Prints a finished run's warnings and report (neither when `quiet`) and gives its exit.
+pub(super) fn report(
+    done: &tiltsim_report::pipeline::Done,
+    s: &Scenario,
+    out: &std::path::Path,
+    quiet: bool,
+) -> CliResult {
+    if !quiet {
+        for w in &done.warnings {
+            eprintln!("warning: {w}");
+        }
+        super::report::print(&done.summary, s, out, done.replaced_earlier_run);
+    }
+    outcome(&done.summary, out, quiet)
+}
+
+/// The exit of a finished run, by its status; a degraded run warns unless `quiet`.
+fn outcome(summary: &Summary, out: &std::path::Path, quiet: bool) -> CliResult {
     match summary.status {
         Status::Completed => Ok(()),
         Status::Degraded => {
-            eprintln!(
-                "warning: a participant was lost and the run continued in degraded mode; see {}",
-                out.join("events.csv").display()
-            );
+            if !quiet {
+                eprintln!(
+                    "warning: a participant was lost and the run continued in degraded mode; see {}",
+                    out.join("events.csv").display()
+                );
+            }
             Ok(())
         }
         Status::Failed => Err(CliError::Failed(format!(

@@ -16,7 +16,7 @@ pub struct ValidateArgs {
 pub fn exec(a: ValidateArgs) -> CliResult {
     let s = load(&a.scenario)?;
     println!(
-        "{}: valid ({} s at {} km/h, {} steps of {} ms, controller {:?}, actuator {:?})",
+        "{}: valid ({} s at {} km/h, {} steps of {} ms, controller {}, actuator {})",
         a.scenario.display(),
         s.duration(),
         s.track.speed_kmh,
