@@ -160,7 +160,11 @@ fn mpc_runs_are_byte_identical_over_both_transports() {
 
 #[test]
 fn linearize_exports_the_design_model_and_gains() {
-    let (code, out, err) = run(&["linearize", scenario("paper-lqg.toml").to_str().unwrap()]);
+    let (code, out, err) = run(&[
+        "linearize",
+        scenario("paper-lqg.toml").to_str().unwrap(),
+        "--json",
+    ]);
     assert_eq!(code, 0, "{err}");
     let j: serde_json::Value = serde_json::from_str(&out).unwrap();
     assert_eq!(j["continuous"]["A"].as_array().unwrap().len(), 9);

@@ -258,6 +258,7 @@ fn linearize_reports_the_pi_margins_and_designs_the_shipped_pi_drive_gains() {
         "6",
         "--ti",
         "0.25",
+        "--json",
     ]);
     assert_eq!(code, 0, "{err}");
     let j: serde_json::Value = serde_json::from_str(&out).unwrap();
@@ -281,7 +282,11 @@ fn linearize_reports_the_pi_margins_and_designs_the_shipped_pi_drive_gains() {
         );
     }
     // And the shipped gains keep the margins on pi-drive itself.
-    let (code, out, _) = run(&["linearize", scenario("pi-drive.toml").to_str().unwrap()]);
+    let (code, out, _) = run(&[
+        "linearize",
+        scenario("pi-drive.toml").to_str().unwrap(),
+        "--json",
+    ]);
     assert_eq!(code, 0);
     let j: serde_json::Value = serde_json::from_str(&out).unwrap();
     let m = &j["pi_loop"]["margins"];
@@ -297,6 +302,66 @@ fn linearize_reports_the_pi_margins_and_designs_the_shipped_pi_drive_gains() {
     ]);
     assert_eq!(code, 2);
     assert!(err.contains("--phase-margin"), "{err}");
+}
+
+#[test]
+fn linearize_prints_the_designed_gains_first_and_its_json_on_request() {
+    let sc = scenario("paper-pi.toml");
+    let sc = sc.to_str().unwrap();
+    let (code, out, err) = run(&["linearize", sc, "--design-pi"]);
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<&str> = out.lines().collect();
+    assert!(lines.len() < 15, "a summary, not the matrices:\n{out}");
+    assert!(
+        lines[0].starts_with("PI designed for paper-pi behind the switched BLDC drive")
+            && lines[0].contains("60° and a gain margin of 6 dB"),
+        "{out}"
+    );
+    // The gains as a scenario file writes them, ready to paste.
+    assert_eq!(lines[1], "  [controller.pi]", "{out}");
+    let gain = |line: &str, key: &str| -> f64 {
+        let v = line
+            .strip_prefix(&format!("  {key} = "))
+            .unwrap_or_else(|| panic!("{out}"));
+        v.parse().unwrap()
+    };
+    let (kp, ki) = (gain(lines[2], "kp"), gain(lines[3], "ki"));
+    // The scenario's own (the paper's) gains: said to be unstable behind the drive.
+    assert!(out.contains("PI kp = 38.24, ki = 27.36"), "{out}");
+    assert!(out.contains("the loop is unstable"), "{out}");
+    // --out writes the whole report and --json prints it; the summary's gains are its own.
+    let file = temp_dir("linearize-out").join("pi.json");
+    let (code, out, err) = run(&[
+        "linearize",
+        sc,
+        "--design-pi",
+        "--out",
+        file.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.starts_with("PI designed for paper-pi") && out.contains("wrote"),
+        "{out}"
+    );
+    let (code, json, err) = run(&["linearize", sc, "--design-pi", "--json"]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), json);
+    let j: serde_json::Value = serde_json::from_str(&json).unwrap();
+    for (shown, key) in [(kp, "kp"), (ki, "ki")] {
+        let exact = j["pi_design"][key].as_f64().unwrap();
+        assert!(
+            (shown / exact - 1.0).abs() < 1e-4,
+            "{key} {shown} vs {exact}"
+        );
+    }
+    // Without a design, the scenario's controller comes first.
+    let (code, out, _) = run(&["linearize", scenario("paper-lqg.toml").to_str().unwrap()]);
+    assert_eq!(code, 0);
+    assert!(
+        out.starts_with("paper-lqg (LQG servo, switched BLDC drive) at 162 km/h")
+            && out.contains("K_op = ["),
+        "{out}"
+    );
 }
 
 #[test]

@@ -68,8 +68,9 @@ enum Command {
     /// Measure this machine: the iceoryx2 round-trip floor, the per-tick coordination
     /// overhead of every master algorithm and wait strategy, and in-process vs IPC wall time.
     Bench(bench::BenchArgs),
-    /// Print the linear design model (matrices, eigenvalues, damping, frequencies) and the
-    /// scenario controller's gains as JSON.
+    /// Summarise the linear design model (modes: frequencies, damping) and the scenario
+    /// controller's gains and loop; with --design-pi, design a PI for the drive and print its
+    /// gains first. --json prints the whole report (matrices, eigenvalues, gains) as JSON.
     Linearize(linearize::LinearizeArgs),
     /// Remove the shared-memory files of runs whose orchestrator was killed (never a live
     /// run's; every IPC run does this when it starts).
