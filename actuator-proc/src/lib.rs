@@ -9,6 +9,9 @@
 //!   `bldc.dt_averaged_s` (20 µs), for long studies.
 //! * `ideal`: the bar angle follows the command exactly, δ_a = δ_a,cmd (the paper's section
 //!   2.3 assumption "assumed to be ideal").
+//!
+//! Modules: [`bldc`] (the drive), [`dc_link`] (rectifier, DC-link capacitor and braking
+//! chopper), [`shaping`] (command shaping between slow controller updates).
 
 pub mod bldc;
 pub mod dc_link;

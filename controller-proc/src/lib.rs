@@ -11,7 +11,9 @@
 //!   the same conditional integration.
 //! * `mpc`: MPC with a built-in Kalman filter, section 3.3 ([`mpc`]), optionally with preview.
 //!
-//! [`linalg`] holds the Riccati solvers and discretisation, [`design`] the linear model.
+//! [`linalg`] holds the Riccati solvers and discretisation, [`design`] the linear model,
+//! [`pi_loop`] the PI loop's margins and its design for a phase margin, [`localisation`] the
+//! position the controller reads its track database at (with a localisation's error).
 
 pub mod design;
 pub mod linalg;

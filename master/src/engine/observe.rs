@@ -172,7 +172,8 @@ mod tests {
         let mut s = Scenario::load(&root.join("scenarios/paper-passive.toml")).unwrap();
         s.run.transport = Transport::InProcess;
         s.run.duration_s = Some(0.5);
-        let dir = std::env::temp_dir().join(format!("tiltsim-observe-{name}-{}", std::process::id()));
+        let dir =
+            std::env::temp_dir().join(format!("tiltsim-observe-{name}-{}", std::process::id()));
         let mut opts = RunOptions::new(dir, "tiltsim".into());
         opts.keep_rows = true;
         (s, opts)
