@@ -28,6 +28,9 @@ mod sweep;
 mod sweep_merge;
 mod validate;
 
+#[cfg(test)]
+mod definition_tests;
+
 use clap::{CommandFactory, Parser, Subcommand};
 
 pub use error::{CliError, CliResult, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_INVALID};
