@@ -1,5 +1,5 @@
-//! Output directories: one run per directory, and a directory holds one run (README, "Output
-//! directories").
+//! Output directories: one run per directory, and a directory holds one run (docs/outputs.md,
+//! "Output directories").
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;

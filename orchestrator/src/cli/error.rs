@@ -26,7 +26,7 @@ pub enum CliError {
 }
 
 impl CliError {
-    /// The process exit code (README, "Exit codes").
+    /// The process exit code (docs/outputs.md, "Exit codes").
     pub fn exit_code(&self) -> i32 {
         match self {
             CliError::Invalid(_) => EXIT_INVALID,

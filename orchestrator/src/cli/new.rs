@@ -43,7 +43,7 @@ pub struct NewArgs {
 }
 
 const HEAD: &str = r#"# A tiltsim scenario. Every key is optional: what is left out takes the paper's value
-# (README "Scenario files", docs/model.md). `tiltsim run` writes the resolved scenario, every
+# (docs/scenarios.md, docs/model.md). `tiltsim run` writes the resolved scenario, every
 # default filled in, to out/<name>/scenario.toml; `tiltsim validate FILE` checks a file;
 # `tiltsim run FILE --set KEY=VALUE` changes one value for one run.
 name = "{name}"
@@ -55,7 +55,7 @@ dt_s = 0.001                  # base tick (s): the plant and the actuator exchan
 seed = 1                      # sensor noise, track irregularity, link effects
 master = "gauss-seidel"       # or "jacobi": every participant from the previous tick's outputs
 transport = "ipc"             # "in-process": the same participants in one process
-execution = "lock-step"       # "free": every process on its own clock (README "Free running")
+execution = "lock-step"       # "free": every process on its own clock (docs/free-running.md)
 
 [track]                       # the paper's curve (section 2.3)
 speed_kmh = 162.0
@@ -138,11 +138,11 @@ const TAIL: &str = r#"
 bump_stop_m = 0.06            # secondary lateral free play; past it the bump stop pushes back
                               # (k_bump, k3_bump) and the run is flagged
 
-# Link effects between the processes (README "Links"), for example a delayed command:
+# Link effects between the processes (docs/scenarios.md, "Links"), for example a delayed command:
 # [links.actuator_command]
 # delay_ticks = 20
 
-# Process faults (README "Faults"), for example a stalled controller:
+# Process faults (docs/scenarios.md, "Faults"), for example a stalled controller:
 # [[faults.schedule]]
 # participant = "controller"
 # action = "stall"
