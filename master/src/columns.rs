@@ -61,7 +61,7 @@ pub fn events() -> Vec<Column> {
         ("", "The link or participant"),
         (
             "",
-            "What happened (a name of the event kinds in the README)",
+            "What happened (a name of the event kinds in docs/outputs.md)",
         ),
         (
             "",

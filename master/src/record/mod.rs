@@ -76,7 +76,7 @@ macro_rules! row {
 row!(
     /// One row of `timeseries.csv`: every participant's latest output at `time = step·dt`;
     /// row 0 holds the outputs at the start time, row `k + 1` those after tick `k`. SI units
-    /// and radians (`columns.csv` beside the file gives each unit; README "Output").
+    /// and radians (`columns.csv` beside the file gives each unit; docs/outputs.md).
     pub struct Row {
         /// Simulated time (s).
         time: f64 => "s",

@@ -161,7 +161,7 @@ pub(super) fn columns_csv(plan: &Plan) -> String {
                 s,
                 &c,
                 "",
-                "The swept scenario value, in the unit of its key (README, scenario keys)",
+                "The swept scenario value, in the unit of its key (docs/scenarios.md, Keys)",
             ),
         });
     }
