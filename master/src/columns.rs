@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use crate::events::EVENT_COLUMNS;
-use crate::record::{COLUMNS, DESCRIPTIONS, UNITS};
+use crate::table::{COLUMNS, DESCRIPTIONS, UNITS};
 
 /// One column of one table.
 #[derive(Debug, Clone, PartialEq)]

@@ -18,7 +18,7 @@ use crate::engine::mcap::{EventMessage, McapRecorder, TickData};
 use crate::engine::summary::deterministic;
 use crate::engine::Inits;
 use crate::links::LinkId;
-use crate::record::Row;
+use crate::table::Row;
 use crate::scenario::{Master, Scenario};
 
 /// Why a run could not be exported.
@@ -92,7 +92,7 @@ fn trace(dir: &Path) -> Result<WallTimes, ExportError> {
     if !path.exists() {
         return Ok(out);
     }
-    let mut rd = crate::record::whole_lines(&path).map_err(|e| err(&path, e))?;
+    let mut rd = crate::table::whole_lines(&path).map_err(|e| err(&path, e))?;
     for (i, rec) in rd.records().enumerate() {
         let rec = rec.map_err(|e| err(&path, e))?;
         let num = |i: usize| rec.get(i).and_then(|v| v.parse::<u64>().ok());
@@ -116,7 +116,7 @@ fn trace(dir: &Path) -> Result<WallTimes, ExportError> {
 /// The events of `events.csv`; a damaged row is an error naming the file and its line.
 fn events(dir: &Path) -> Result<Vec<EventMessage>, ExportError> {
     let path = dir.join("events.csv");
-    let mut rd = crate::record::whole_lines(&path).map_err(|e| err(&path, e))?;
+    let mut rd = crate::table::whole_lines(&path).map_err(|e| err(&path, e))?;
     let mut out = Vec::new();
     for (i, rec) in rd.records().enumerate() {
         let rec = rec.map_err(|e| err(&path, e))?;
@@ -199,7 +199,7 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
     let period = s.controller_period_ticks();
     let gauss_seidel = s.run.master == Master::GaussSeidel;
     let mut failed: Option<std::io::Error> = None;
-    let rows = crate::record::each_row(dir, |r| {
+    let rows = crate::table::each_row(dir, |r| {
         // Row 0 holds the outputs at the start time, which no tick wrote; row k + 1 is tick k.
         let Some(k) = r.step.checked_sub(1) else {
             return true;

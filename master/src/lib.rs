@@ -9,17 +9,17 @@
 //! * [`engine::run`] (or [`engine::run_recorded`], which also hands back the open `run.mcap`
 //!   recording and, with `--trace`, the binned request latency) with [`RunOptions`];
 //! * the [`Summary`] it returns (the schema of `summary.json`), and the recorded series read
-//!   back as typed rows: [`record::each_row`], [`record::Rows`].
+//!   back as typed rows: [`table::each_row`], [`table::Rows`].
 //!
 //! Modules: [`scenario`] (the file and its validation), [`links`] (link effects),
 //! [`faults`] (process faults), [`events`] (`events.csv`), [`degraded`] (stand-ins for a
 //! lost participant), [`roles`] (a value per role), [`engine`] (launch, lock-step, team,
-//! manipulators, algorithms, observers, summary), [`record`] (`timeseries.csv`), [`columns`]
+//! manipulators, algorithms, observers, summary), [`table`] (`timeseries.csv`: the rows, written and read back), [`columns`]
 //! (`columns.csv`: each column's unit and description), [`float_text`] (floats as every
 //! table writes them), [`free`] (free running and its exact
 //! replay),
 //! [`export_mcap`] (`run.mcap` from a finished run), [`budget`] (a run's outputs against the
-//! disk's free space, checked before it starts), [`replay`] (one participant against its
+//! disk's free space, checked before it starts), [`participant_replay`] (one participant against its
 //! recorded inputs), [`outdir`] (one run per output directory), [`export_fmu`] (a scenario's
 //! participant as an FMU), [`export_ssp`] (a scenario as an SSP system of FMUs), [`files`] and
 //! [`signals`] (atomic writes, interrupting signals).
@@ -40,8 +40,8 @@ pub mod float_text;
 pub mod free;
 pub mod links;
 pub mod outdir;
-pub mod record;
-pub mod replay;
+pub mod table;
+pub mod participant_replay;
 pub mod roles;
 pub mod scenario;
 pub mod signals;

@@ -19,7 +19,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use tiltsim_master::engine::{RunError, RunOptions};
-use tiltsim_master::record::{Row, COLUMNS, OFFSETS, TYPES};
+use tiltsim_master::table::{Row, COLUMNS, OFFSETS, TYPES};
 use tiltsim_master::scenario::{Execution, Master, Scenario, Transport};
 
 mod studies;
@@ -447,7 +447,7 @@ fn run<'py>(
                     return Ok(done);
                 }
                 // What the run wrote is what the arrays hold.
-                let rows = tiltsim_master::record::read_rows(&job.opts.out_dir).map_err(|e| {
+                let rows = tiltsim_master::table::read_rows(&job.opts.out_dir).map_err(|e| {
                     tiltsim_report::pipeline::JobError::Failed(format!(
                         "{}: {e}",
                         job.opts.out_dir.display()

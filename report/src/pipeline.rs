@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 use tiltsim_master::budget::{self, Verdict};
 use tiltsim_master::engine::{RunError, RunMode, RunOptions, Status, Summary};
 use tiltsim_master::free::{FreeError, TraceError};
-use tiltsim_master::record::{Row, Rows};
 use tiltsim_master::scenario::{Execution, Scenario};
+use tiltsim_master::table::{Row, Rows};
 
 /// Makes `s` the system a replay of a free run's timing runs: lock-step, and with no busy
 /// wait in the controller (a study's wall-clock load, which changes no value). Every front
@@ -151,7 +151,7 @@ struct Ran {
 /// `run.mcap`, open until the summary closes it.
 enum Recording {
     LockStep(tiltsim_master::engine::Recording),
-    Free(tiltsim_master::free::record::FreeRecording),
+    Free(tiltsim_master::free::recording::FreeRecording),
 }
 
 fn lock_step(job: &Job, warnings: &mut Vec<String>) -> Result<Ran, JobError> {
@@ -190,7 +190,7 @@ fn free(job: &Job) -> Result<Ran, JobError> {
 fn replay(job: &Job) -> Result<Ran, JobError> {
     let s = job.scenario;
     let trace = job.replay_trace.as_deref().unwrap_or(Path::new(""));
-    let mut r = tiltsim_master::free::replay(s, trace, &job.opts)?;
+    let mut r = tiltsim_master::free::replay_timing(s, trace, &job.opts)?;
     let summary = tiltsim_master::free::summary_of_replay(s, &job.scenario_file, trace, &r);
     Ok(Ran {
         summary,

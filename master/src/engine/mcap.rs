@@ -29,7 +29,7 @@ use std::path::{Path, PathBuf};
 use cosim::msg::{FromActuator, FromController, FromPlant, ToActuator, ToController, ToPlant};
 use cosim::Role;
 
-use super::observer::{Observer, TickRecord};
+use super::observer::{Observer, FinishedTick};
 use crate::events::EventLog;
 use crate::links::LinkId;
 
@@ -209,7 +209,7 @@ pub fn message(step: u64, fields: &[&str], values: &[f64]) -> String {
         s.push_str(",\"");
         s.push_str(f);
         s.push_str("\":");
-        crate::record::put_f64(*v, &mut s);
+        crate::table::put_f64(*v, &mut s);
     }
     s.push('}');
     s
@@ -464,7 +464,7 @@ impl EventMessage {
     /// without a value (NaN) has no `value` field.
     fn json(&self, dt_ns: u64) -> String {
         let (value, words) = if self.value.is_finite() {
-            let v = crate::record::fmt_f64(self.value);
+            let v = crate::table::fmt_f64(self.value);
             (format!(",\"value\":{v}"), format!(" ({v})"))
         } else {
             (String::new(), String::new())
@@ -485,7 +485,7 @@ impl EventMessage {
             serde_json::Value::from(message),
             serde_json::Value::from(self.source.as_str()),
             self.step,
-            crate::record::fmt_f64(self.t),
+            crate::table::fmt_f64(self.t),
             serde_json::Value::from(self.source.as_str()),
             serde_json::Value::from(self.kind.as_str()),
             serde_json::Value::from(self.detail.as_str()),
@@ -618,7 +618,7 @@ impl McapRecorder {
 }
 
 impl Observer for McapRecorder {
-    fn after_tick(&mut self, t: &TickRecord, ev: &mut EventLog) -> std::io::Result<()> {
+    fn after_tick(&mut self, t: &FinishedTick, ev: &mut EventLog) -> std::io::Result<()> {
         self.take_events(ev);
         let k = t.k;
         // Wall-clock times of this tick's step exchanges (the Init ones have step 0 too).

@@ -41,13 +41,13 @@ pub use summary::{
 };
 
 use crate::events::EventLog;
-use crate::record::{Recorder, Row};
+use crate::table::{Recorder, Row};
 use crate::roles::RoleMap;
 use crate::scenario::{Scenario, Transport};
 use launch::Held;
 pub use observer::LatencyHistogram;
 use observer::{
-    ComputeStats, DriveEvents, Latency, Observer, Pacing, RowRecorder, RowSink, TickRecord,
+    ComputeStats, DriveEvents, Latency, Observer, Pacing, RowRecorder, RowSink, FinishedTick,
 };
 use observer::{TickTiming, Trace};
 use team::Team;
@@ -132,7 +132,7 @@ impl Observers {
     /// Tells every observer about tick `t.k`, in this order: the timing first, so that a tick's
     /// wall time ends with its exchanges (as the coordination overhead is defined), the
     /// recorder last. Static calls: no allocation per tick.
-    fn after_tick(&mut self, t: &TickRecord, ev: &mut EventLog) -> std::io::Result<()> {
+    fn after_tick(&mut self, t: &FinishedTick, ev: &mut EventLog) -> std::io::Result<()> {
         self.timing.after_tick(t, ev)?;
         if let Some(p) = &mut self.pacing {
             p.after_tick(t, ev)?;
@@ -209,7 +209,7 @@ fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Res
             h.a.header.compute_ns,
             if due { h.c.header.compute_ns } else { 0 },
         ]);
-        let record = TickRecord {
+        let record = FinishedTick {
             k,
             held: &h,
             rx: &io.rx,
@@ -285,7 +285,7 @@ fn lockstep_pipelined(
             h.a.header.compute_ns,
             if due(k) { h.c.header.compute_ns } else { 0 },
         ]);
-        let record = TickRecord {
+        let record = FinishedTick {
             k,
             held: &h,
             rx: &io.rx,

@@ -14,11 +14,11 @@ use super::launch::Held;
 use super::summary::{LinkLatency, PacingReport, SolverReport};
 use super::team::Exchange;
 use crate::events::{EventKind, EventLog};
-use crate::record::{Recorder, Row};
+use crate::table::{Recorder, Row};
 use crate::roles::RoleMap;
 
 /// One finished tick, as the observers see it.
-pub(crate) struct TickRecord<'a> {
+pub(crate) struct FinishedTick<'a> {
     /// Tick.
     pub k: u64,
     /// Every participant's latest output.
@@ -46,7 +46,7 @@ pub(crate) trait Observer {
     /// Before tick `k` starts (pacing waits here).
     fn before_tick(&mut self, _k: u64) {}
     /// After tick `t.k`; may log events. An error stops the run.
-    fn after_tick(&mut self, t: &TickRecord, events: &mut EventLog) -> std::io::Result<()>;
+    fn after_tick(&mut self, t: &FinishedTick, events: &mut EventLog) -> std::io::Result<()>;
 }
 
 /// Streams every tick's [`Row`] to `timeseries.csv`, or keeps it in memory
@@ -114,7 +114,7 @@ impl RowRecorder {
 }
 
 impl Observer for RowRecorder {
-    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
+    fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
         let h = t.held;
         self.put(Row::after_tick(t.k, self.dt, &h.p, &h.a, &h.c, t.rx))
     }
@@ -131,7 +131,7 @@ pub(crate) struct TickTiming {
 }
 
 impl Observer for TickTiming {
-    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
+    fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
         let tick_us = t.started.elapsed().as_secs_f64() * 1e6;
         self.ticks.record(tick_us);
         self.overhead.record((tick_us - t.critical_us).max(0.0));
@@ -149,7 +149,7 @@ pub(crate) struct ComputeStats {
 }
 
 impl Observer for ComputeStats {
-    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
+    fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
         for role in [Role::Plant, Role::Actuator] {
             self.per_role[role].record(t.compute_ns[role] as f64 * 1e-3);
         }
@@ -206,7 +206,7 @@ fn us(a: u64, b: u64) -> f64 {
 }
 
 impl Observer for Latency {
-    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
+    fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
         for x in t.exchanges {
             let c = &mut self.clocks[x.role];
             c.request.record(us(x.sent_ns, x.reply.recv_ns));
@@ -319,13 +319,13 @@ impl Trace {
 }
 
 impl Observer for Trace {
-    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
+    fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
         let rel = |t: u64| t.saturating_sub(self.origin_ns);
         for x in t.exchanges {
             let h = &x.reply;
             let r = self.out.serialize((
                 x.step,
-                crate::record::fmt_f64(x.step as f64 * self.dt),
+                crate::table::fmt_f64(x.step as f64 * self.dt),
                 x.role.name(),
                 rel(x.sent_ns),
                 rel(h.recv_ns),
@@ -444,7 +444,7 @@ impl Observer for Pacing {
         }
         wait_until(self.deadline(k));
     }
-    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
+    fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
         let now = Instant::now();
         // A deadline beyond the clock's reach is never missed.
         let deadline = self.deadline(t.k + 1).unwrap_or(now);
@@ -528,7 +528,7 @@ impl Drop for Progress {
 }
 
 impl Observer for Progress {
-    fn after_tick(&mut self, t: &TickRecord, _: &mut EventLog) -> std::io::Result<()> {
+    fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
         let done = t.k + 1;
         // The percent reached with this tick (each percent once, 100 at the last tick).
         let percent = done * 100 / self.steps.max(1);
@@ -541,7 +541,7 @@ impl Observer for Progress {
             eprintln!(
                 "{{\"progress\":{percent},\"step\":{done},\"steps\":{},\"t_s\":{},\"wall_s\":{:.3}}}",
                 self.steps,
-                crate::record::fmt_f64(done as f64 * self.dt),
+                crate::table::fmt_f64(done as f64 * self.dt),
                 self.started.elapsed().as_secs_f64()
             );
         }
@@ -557,7 +557,7 @@ pub(crate) struct DriveEvents {
 }
 
 impl Observer for DriveEvents {
-    fn after_tick(&mut self, t: &TickRecord, ev: &mut EventLog) -> std::io::Result<()> {
+    fn after_tick(&mut self, t: &FinishedTick, ev: &mut EventLog) -> std::io::Result<()> {
         let a = &t.held.a;
         let rising = a.limits & !self.previous;
         self.previous = a.limits;

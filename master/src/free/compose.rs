@@ -19,7 +19,7 @@ use cosim::Role;
 use super::trace::{col, StepTrace};
 use crate::events::EventLog;
 use crate::links::{LinkId, LinkSet, Links};
-use crate::record::Row;
+use crate::table::Row;
 
 /// A sequence indexed from 0 of which only a window is kept: entries are set as they come
 /// (any index at or past the window's start) and forgotten from the front once nothing can

@@ -8,16 +8,16 @@
 //! * `relay`: the hub's relays to each consumer and the samples on their way over the
 //!   links.
 //! * [`timing`]: the wall-clock statistics a free run gathers and the report it ends in.
-//! * [`replay`]: a lock-step run, in-process or over IPC, that feeds each consumer step
+//! * [`timing_replay`]: a lock-step run, in-process or over IPC, that feeds each consumer step
 //!   exactly the producer outputs the trace says it read, in the order of the read instants.
 //! * [`compose`]: the inputs and the rows of `timeseries.csv`, shared by both, so that the
 //!   replay's rows are the free run's byte for byte.
 //! * [`trace`]: `timing.csv`, written and read back with its checks.
 
 pub mod compose;
-pub mod record;
+pub mod recording;
 mod relay;
-pub mod replay;
+pub mod timing_replay;
 pub mod run;
 pub mod timing;
 pub mod trace;
@@ -32,10 +32,10 @@ use cosim::LinkError;
 use crate::engine::launch::Participants;
 use crate::engine::observer::{RowRecorder, RowSink};
 use crate::engine::{RunError, RunMode, Status, Summary};
-use crate::record::{Recorder, Row};
+use crate::table::{Recorder, Row};
 use crate::scenario::{Execution, Scenario, Transport};
 
-pub use replay::{replay, Replayed};
+pub use timing_replay::{replay_timing, Replayed};
 pub use run::{run, FreeReport, FreeTiming};
 pub use trace::TraceError;
 

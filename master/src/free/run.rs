@@ -89,7 +89,7 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
         Some(kept) => {
             let path = dir.join("run.mcap");
             let r =
-                super::record::record(&path, s.run.dt_s, &store, &kept, ticks, start_ns, &events)
+                super::recording::record(&path, s.run.dt_s, &store, &kept, ticks, start_ns, &events)
                     .map_err(|e| FreeError::io(&path, e))?;
             Some(r)
         }

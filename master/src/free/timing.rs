@@ -115,9 +115,9 @@ pub struct FreeReport {
     /// Shared-memory files left behind (empty unless something is wrong).
     pub leftover_ipc_files: Vec<String>,
     /// The rows, when kept in memory (`RunOptions::keep_rows`).
-    pub rows: Option<Vec<crate::record::Row>>,
+    pub rows: Option<Vec<crate::table::Row>>,
     /// `run.mcap` (`--record`), to be closed with the summary.
-    pub recording: Option<super::record::FreeRecording>,
+    pub recording: Option<super::recording::FreeRecording>,
     /// Files that could not be written (each named), besides the run's own outcome.
     pub write_errors: Vec<String>,
     /// Participant logs that are not empty (`logs/<role>.log`).

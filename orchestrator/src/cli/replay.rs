@@ -52,15 +52,15 @@ pub fn exec(a: ReplayArgs) -> CliResult {
         .unwrap_or_else(|| a.run_dir.join(format!("replay-{}", role.name())));
     let at = match a.transport.map(tiltsim_master::scenario::Transport::from) {
         Some(tiltsim_master::scenario::Transport::Ipc) => {
-            tiltsim_master::replay::Where::Process(std::env::current_exe().map_err(|e| {
+            tiltsim_master::participant_replay::Where::Process(std::env::current_exe().map_err(|e| {
                 CliError::Failed(format!("cannot find the tiltsim executable: {e}"))
             })?)
         }
-        _ => tiltsim_master::replay::Where::InProcess,
+        _ => tiltsim_master::participant_replay::Where::InProcess,
     };
     let r =
-        tiltsim_master::replay::replay(&a.run_dir, role, &s, &at, &out).map_err(|e| match e {
-            tiltsim_master::replay::ReplayError::Recording { .. } => {
+        tiltsim_master::participant_replay::replay(&a.run_dir, role, &s, &at, &out).map_err(|e| match e {
+            tiltsim_master::participant_replay::ReplayError::Recording { .. } => {
                 CliError::Invalid(e.to_string())
             }
             _ => CliError::Failed(e.to_string()),

@@ -195,7 +195,7 @@ pub(super) fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row 
         Ok(done) if job.opts.keep_rows => (Ok(done.summary), done.rows),
         Ok(done) => (
             Ok(done.summary),
-            tiltsim_master::record::read_rows(&dir).unwrap_or_default(),
+            tiltsim_master::table::read_rows(&dir).unwrap_or_default(),
         ),
         Err(e) => (Err(e), Vec::new()),
     };

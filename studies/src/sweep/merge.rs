@@ -204,7 +204,7 @@ fn read_series(
             return Err(format!(
                 "{at}: sample {j} at time {} where {} follows",
                 v[0],
-                tiltsim_master::record::fmt_f64(want)
+                tiltsim_master::table::fmt_f64(want)
             ));
         }
         series.push(v[1]);

@@ -126,7 +126,7 @@ pub const SERIES_COLUMNS: [&str; 3] = [SAMPLE_COLUMN, "time", "lat_acc"];
 /// The time of point `i` of a sample's series (s): `i`·[`SERIES_DT`], the double nearest to
 /// it.
 pub fn series_time(i: usize) -> f64 {
-    tiltsim_master::record::tick_time(i as u64, SERIES_DT)
+    tiltsim_master::table::tick_time(i as u64, SERIES_DT)
 }
 
 /// `series.csv`, tidy (one line per sample and time): each sample's lateral acceleration at
@@ -140,8 +140,8 @@ pub(super) fn series_csv(rows: &[Row]) -> String {
                 text,
                 "{},{},{}",
                 r.sample,
-                tiltsim_master::record::fmt_f64(series_time(i)),
-                tiltsim_master::record::fmt_f64(*v)
+                tiltsim_master::table::fmt_f64(series_time(i)),
+                tiltsim_master::table::fmt_f64(*v)
             );
         }
     }

@@ -30,7 +30,7 @@ pub struct Replayed {
     /// What a partial trace lacks (`None`: the whole run was replayed).
     pub partial: Option<String>,
     /// The rows, when kept in memory (`RunOptions::keep_rows`).
-    pub rows: Option<Vec<crate::record::Row>>,
+    pub rows: Option<Vec<crate::table::Row>>,
     /// Each participant's exit.
     pub exits: crate::roles::RoleMap<cosim::endpoint::ExitReport>,
     /// Each participant's process id.
@@ -77,7 +77,7 @@ fn ask<I: Message, O: Message>(
 /// Replays the trace at `trace_path` with scenario `s` (its own or another system's) on
 /// `s.run.transport`; writes `timeseries.csv`, `events.csv` and `scenario.toml` to
 /// `opts.out_dir`.
-pub fn replay(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Replayed, FreeError> {
+pub fn replay_timing(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Replayed, FreeError> {
     let period = s.controller_period_ticks();
     let trace = trace::read(trace_path, s.run.dt_s, s.steps(), period)?;
     let mut order = trace.steps;
@@ -229,7 +229,7 @@ fn finish_files(
     store: &Store,
     rows: RowStream,
     mut error: Option<String>,
-) -> (u64, Option<Vec<crate::record::Row>>, Option<String>) {
+) -> (u64, Option<Vec<crate::table::Row>>, Option<String>) {
     let (ticks, kept, row_error) = rows.finish();
     let events_csv = dir.join("events.csv");
     if let Err(e) = super::run_events(s, store, ticks).write(&events_csv) {
