@@ -102,11 +102,11 @@ fn link_effects_change_the_recorded_signals_exactly_as_declared_on_both_transpor
     let events = std::fs::read_to_string(ipc.join("events.csv")).unwrap();
     assert!(events.starts_with("time,step,source,event,value,detail\n"));
     assert!(
-        events.contains("0,0,actuator_command,delay,20,"),
+        events.contains("0.0,0,actuator_command,delay,20.0,"),
         "{events}"
     );
     assert!(
-        events.contains("4,4000,bar_angle,freeze-window,,begins"),
+        events.contains("4.0,4000,bar_angle,freeze-window,,begins"),
         "{events}"
     );
     assert!(
@@ -156,7 +156,7 @@ fn a_nan_on_a_link_is_caught_by_its_receiver_and_ends_or_degrades_the_run() {
         100,
         "one per 1 ms controller step in the 0.1 s window"
     );
-    assert!(held[0].starts_with("5,5000,controller,bad-input-held,,non-finite `theta_v_meas`"));
+    assert!(held[0].starts_with("5.0,5000,controller,bad-input-held,,non-finite `theta_v_meas`"));
     let s = Series::read(&dir.join("hold/timeseries.csv"));
     assert!(s.col("rx_measurement")[5050].is_nan());
     assert!(s.col("delta_a_cmd").iter().all(|v| v.is_finite()));
@@ -200,14 +200,14 @@ fn a_killed_actuator_in_degraded_mode_returns_the_bar_to_neutral_in_the_declared
     assert_eq!(da[9500], 0.0);
     let events = std::fs::read_to_string(dir.join("ipc/events.csv")).unwrap();
     assert!(
-        events.contains("8,8000,actuator,fault-injected,,kill"),
+        events.contains("8.0,8000,actuator,fault-injected,,kill"),
         "{events}"
     );
     assert!(
-        events.contains("8,8000,actuator,participant-lost,,exited"),
+        events.contains("8.0,8000,actuator,participant-lost,,exited"),
         "{events}"
     );
-    assert!(events.contains("8,8000,actuator,degraded,,bar ramps to neutral over 1.5 s"));
+    assert!(events.contains("8.0,8000,actuator,degraded,,bar ramps to neutral over 1.5 s"));
     // The same fault in-process gives the same rows and events, byte for byte.
     let (code, err) = go(
         &sc,
