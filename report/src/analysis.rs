@@ -89,9 +89,9 @@ pub fn ideal_tilt(s: &Scenario, dir: &Path) -> tiltsim_assessment::comfort::Comf
     a.finish()
 }
 
-/// The histogram of every participant's request latency, `plots/latency_histogram.{svg,png}`
-/// (binned by the engine, [`LatencyHistogram`]).
-pub fn latency_histogram(dir: &Path, h: &LatencyHistogram) -> std::io::Result<()> {
+/// The histogram of every participant's request latency in the run of scenario `name`,
+/// `plots/latency_histogram.{svg,png}` (binned by the engine, [`LatencyHistogram`]).
+pub fn latency_histogram(dir: &Path, name: &str, h: &LatencyHistogram) -> std::io::Result<()> {
     let lines = h
         .counts
         .iter()
@@ -100,16 +100,16 @@ pub fn latency_histogram(dir: &Path, h: &LatencyHistogram) -> std::io::Result<()
             label: role.name(),
             y: counts.clone(),
             colour: crate::plot::PALETTE[k],
-            dashed: false,
+            ..Default::default()
         })
         .collect();
+    let title = format!("{name}: request latency, orchestrator sent → participant received");
     let chart = crate::plot::Chart {
-        title: "Request latency: orchestrator sent → participant received",
+        title: &title,
         x_label: "latency (µs)",
-        y_label: "exchanges per bin",
+        y_label: "exchanges per bin (count)",
         lines,
-        bands: Vec::new(),
-        note: "",
+        ..Default::default()
     };
     let plots = dir.join("plots");
     std::fs::create_dir_all(&plots)?;
@@ -248,6 +248,7 @@ pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<P
         scenario: &s.name,
         controller: &controller,
         tilts: s.controller.mode != controller_proc::Mode::Passive,
+        cite: &|q| crate::plot::cite::run_figure(s, q),
     };
     crate::plot::write_run_plots(dir, &rows, &bands(s), s.controller.u_max_deg, &who)
 }
@@ -277,6 +278,7 @@ pub fn write_compare_plots(
     runs: &[(String, Scenario, PathBuf)],
     out: &std::path::Path,
 ) -> std::io::Result<Vec<PathBuf>> {
+    use crate::plot::cite::{caption, compare_figure, Quantity};
     use crate::plot::{Chart, Line, PALETTE};
     use tiltsim_master::table::Row;
     let mut data = Vec::new();
@@ -294,72 +296,53 @@ pub fn write_compare_plots(
     let plots = out.join("plots");
     std::fs::create_dir_all(&plots)?;
     let bands = runs.first().map(|r| bands(&r.1)).unwrap_or_default();
+    let names: Vec<&str> = runs.iter().map(|(label, _, _)| label.as_str()).collect();
+    let compared = compare_name(&names);
     let mut files = Vec::new();
-    /// (file name, title, y label, column, scale).
+    /// (file name, what it shows, y label, quantity, column, scale).
     type Figure = (
         &'static str,
         &'static str,
         &'static str,
+        Quantity,
         fn(&Row) -> f64,
         f64,
     );
-    // The paper's figures of the same quantity: Figs 14-17 on its deterministic track,
-    // Figs 19 (lateral acceleration) and 20 (roll) with the track irregularity.
-    // A measured-spectrum track (ERRI B176) is in none of them.
-    use vehicle_model::params::IrregularityModel;
-    let irregularity = |s: &Scenario| {
-        let i = &s.track.irregularity;
-        match i.model {
-            IrregularityModel::Spectrum => 2,
-            IrregularityModel::Knots if i.amplitude_deg > 0.0 => 1,
-            IrregularityModel::Knots => 0,
-        }
-    };
-    let track = runs
-        .iter()
-        .map(|(_, s, _)| irregularity(s))
-        .max()
-        .unwrap_or(0);
-    let cite = |deterministic: &'static str, irregular_fig: &'static str| match track {
-        0 => deterministic,
-        1 => irregular_fig,
-        _ => irregular_fig.split(" (Fig").next().unwrap_or(irregular_fig),
-    };
     let figures: [Figure; 3] = [
         (
             "compare_lateral_acceleration",
-            cite(
-                "Passenger lateral acceleration of each run (Figs 14-15)",
-                "Passenger lateral acceleration of each run, irregular track (Fig. 19)",
-            ),
+            "passenger lateral acceleration (eq 13)",
             "lateral acceleration (m/s²)",
+            Quantity::LateralAcceleration,
             |r| r.lat_acc,
             1.0,
         ),
         (
             "compare_body_roll",
-            cite(
-                "Carbody roll of each run (Fig. 16)",
-                "Carbody roll of each run, irregular track (Fig. 20)",
-            ),
-            "roll θ_v (deg)",
+            "carbody roll relative to the track",
+            "roll θ_{v} (deg)",
+            Quantity::Roll,
             |r| r.theta_v,
             1f64.to_degrees(),
         ),
         (
             "compare_control",
-            cite(
-                "Achieved anti-roll-bar angle of each run (Fig. 17)",
-                "Achieved anti-roll-bar angle of each run, irregular track",
-            ),
-            "bar angle δ_a (deg)",
+            "achieved anti-roll-bar angle",
+            "bar angle δ_{a} (deg)",
+            Quantity::BarAngle,
             |r| r.delta_a,
             1f64.to_degrees(),
         ),
     ];
-    for (name, title, y_label, column, scale) in figures {
+    for (name, what, y_label, quantity, column, scale) in figures {
+        let title = format!("{compared}: {what}");
+        let cited: Vec<(&str, Option<&'static str>)> = runs
+            .iter()
+            .map(|(label, s, _)| (label.as_str(), compare_figure(s, quantity)))
+            .collect();
+        let caption = caption(&cited);
         let chart = Chart {
-            title,
+            title: &title,
             x_label: "time (s)",
             y_label,
             lines: data
@@ -369,15 +352,38 @@ pub fn write_compare_plots(
                     label,
                     y: rows[..n].iter().map(|r| column(r) * scale).collect(),
                     colour: PALETTE[k % PALETTE.len()],
-                    dashed: false,
+                    ..Default::default()
                 })
                 .collect(),
             bands: bands.clone(),
             note: crate::plot::SECTION_NOTE,
+            caption: &caption,
         };
         files.extend(crate::plot::write_chart(&plots, name, &chart, &t)?);
     }
     Ok(files)
+}
+
+/// What a compare's titles call it: "Compare of a, b, c", or of its first names and how many
+/// more when they would not fit a title.
+pub fn compare_name(names: &[&str]) -> String {
+    const FITS: usize = 48;
+    let all = names.join(", ");
+    if all.chars().count() <= FITS {
+        return format!("Compare of {all}");
+    }
+    let mut shown = String::new();
+    for (k, name) in names.iter().enumerate() {
+        let more = names.len() - k;
+        if k > 0 && shown.chars().count() + name.chars().count() + 2 > FITS - 12 {
+            return format!("Compare of {shown} and {more} more");
+        }
+        if k > 0 {
+            shown.push_str(", ");
+        }
+        shown.push_str(name);
+    }
+    format!("Compare of {shown}")
 }
 
 /// The headline numbers, row by row.

@@ -783,38 +783,7 @@ pub fn trade_off_points(entries: &[Entry]) -> Vec<TradeOffPoint> {
         .collect()
 }
 
-/// `out/plots/trade_off.{svg,png}`: each controller's P_CT on the curve against its lateral
-/// mean comfort on the straight (nothing when no curve run has a straight twin).
-pub fn write_trade_off_plot(
-    points: &[TradeOffPoint],
-    out: &std::path::Path,
-) -> std::io::Result<Vec<std::path::PathBuf>> {
-    if points.is_empty() {
-        return Ok(Vec::new());
-    }
-    let series: Vec<crate::plot::Series> = points
-        .iter()
-        .enumerate()
-        .map(|(k, t)| crate::plot::Series {
-            label: &t.controller,
-            colour: crate::plot::PALETTE[k % crate::plot::PALETTE.len()],
-            points: vec![(t.p_ct_en12299_standing_pct, t.n_mv_lateral)],
-            labels: vec![t.controller.clone()],
-            joined: false,
-        })
-        .collect();
-    let plots = out.join("plots");
-    std::fs::create_dir_all(&plots)?;
-    Ok(crate::plot::write_scatter(
-        &plots,
-        "trade_off",
-        "Curving comfort against straight-track ride, per controller",
-        "P_CT standing on the curve, EN 12299 per transition (%)",
-        "N_MV lateral part on the straight (6·a_YP95^Wd)",
-        &series,
-    )?
-    .to_vec())
-}
+pub use crate::plot::write_trade_off_plot;
 
 #[cfg(test)]
 mod names_tests {

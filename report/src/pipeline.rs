@@ -160,7 +160,7 @@ fn lock_step(job: &Job, warnings: &mut Vec<String>) -> Result<Ran, JobError> {
     let mut summary = ran.summary;
     // With `--trace`: a figure that cannot be written fails the run, as the trace would.
     if let Some(h) = ran.latency_histogram {
-        if let Err(e) = crate::analysis::latency_histogram(&opts.out_dir, &h) {
+        if let Err(e) = crate::analysis::latency_histogram(&opts.out_dir, &job.scenario.name, &h) {
             if summary.error.is_none() {
                 summary.status = Status::Failed;
                 summary.error = Some(format!("cannot write {e}"));

@@ -8,6 +8,8 @@
 
 use std::path::{Path, PathBuf};
 
+pub mod cite;
+pub mod markup;
 mod png;
 mod run;
 mod scatter;
@@ -16,11 +18,12 @@ mod timing;
 
 pub use png::{rasterise, write_png};
 pub use run::{write_run_plots, RunTitle, SECTION_NOTE};
-pub use scatter::{write_scatter, Series};
+pub use scatter::{write_scatter, write_trade_off_plot, Series};
 pub use svg::to_svg;
 pub use timing::write_timing_plots;
 
-/// One line of a chart.
+/// One line of a chart. Labels may hold subscripts and superscripts ([`markup`]).
+#[derive(Default)]
 pub struct Line<'a> {
     /// Legend label.
     pub label: &'a str,
@@ -30,11 +33,17 @@ pub struct Line<'a> {
     pub colour: &'a str,
     /// Dashed (limits, references).
     pub dashed: bool,
+    /// A marker at each sample (few samples: the points of a grid).
+    pub markers: bool,
+    /// Drawn as steps: each value held until the next sample's abscissa, where the line
+    /// jumps vertically (an empirical distribution function).
+    pub steps: bool,
 }
 
-/// One chart.
+/// One chart. Its text may hold subscripts and superscripts ([`markup`]).
+#[derive(Default)]
 pub struct Chart<'a> {
-    /// Title.
+    /// Title: what is shown, and the run, compare or sweep it belongs to.
     pub title: &'a str,
     /// X axis label with unit.
     pub x_label: &'a str,
@@ -44,8 +53,10 @@ pub struct Chart<'a> {
     pub lines: Vec<Line<'a>>,
     /// Shaded x ranges (start, end, darker).
     pub bands: Vec<(f64, f64, bool)>,
-    /// Note written inside the plot area, bottom left (what the bands mean).
+    /// Note written under the legend (what the bands mean); empty: none.
     pub note: &'a str,
+    /// Caption under the note (the paper's figure of the same quantity); empty: none.
+    pub caption: &'a str,
 }
 
 /// An RGB colour.
@@ -109,7 +120,22 @@ pub enum Prim {
         vertical: bool,
         bold: bool,
         colour: Rgb,
+        /// What the text is, as the SVG's `class` ([`class`]); empty for other text.
+        class: &'static str,
     },
+}
+
+/// The `class` of a chart's text elements in its SVG, for style sheets and for tools that
+/// read the figure.
+pub mod class {
+    /// The title.
+    pub const TITLE: &str = "title";
+    /// The x axis label.
+    pub const X_LABEL: &str = "x-label";
+    /// The y axis label.
+    pub const Y_LABEL: &str = "y-label";
+    /// A note or caption under the legend.
+    pub const NOTE: &str = "note";
 }
 
 /// A laid-out chart.
@@ -156,6 +182,7 @@ fn text(x: f64, y: f64, s: impl Into<String>, anchor: Anchor) -> Prim {
         vertical: false,
         bold: false,
         colour: BLACK,
+        class: "",
     }
 }
 
@@ -175,25 +202,17 @@ pub fn layout(chart: &Chart, x: &[f64]) -> Scene {
     f.y_axis(&mut p);
     labels(&mut p, chart);
     f.lines(&mut p, chart, x);
-    let legend_h = legend(
+    let legend_h = footer(
         &mut p,
-        chart.lines.iter().map(|l| (l.label, l.colour, l.dashed)),
+        chart
+            .lines
+            .iter()
+            .map(|l| (l.label, l.colour, l.dashed, l.markers)),
+        &[chart.note, chart.caption],
     );
     // The white background covers the legend too.
     if let Some(Prim::Rect { h, .. }) = p.first_mut() {
         *h = H + legend_h;
-    }
-    if !chart.note.is_empty() {
-        p.push(Prim::Text {
-            x: L + 6.0,
-            y: H - B - 6.0,
-            text: chart.note.into(),
-            size: 12.0,
-            anchor: Anchor::Start,
-            vertical: false,
-            bold: false,
-            colour: Rgb(0x55, 0x55, 0x66),
-        });
     }
     Scene {
         w: W,
@@ -208,42 +227,96 @@ const LEGEND_GAP: f64 = 22.0;
 /// Height of a legend row (px).
 const LEGEND_ROW: f64 = 18.0;
 
+/// Colour of the notes and captions under a chart.
+const NOTE_GREY: Rgb = Rgb(0x55, 0x55, 0x66);
+/// Side of a data marker (px).
+const MARKER: f64 = 7.0;
+
 /// An estimate of the width of `s` at the 12 px font (DejaVu Sans averages about 0.6 em).
 fn text_width(s: &str) -> f64 {
-    s.chars().count() as f64 * 7.2
+    markup::width_in_chars(s) * 7.2
 }
 
-/// Draws the legend under the chart, clear of the data: entries (label, colour, dashed) left
-/// to right, wrapped into rows across the canvas. Returns the height it adds to the scene.
-pub(crate) fn legend<'a>(
+/// A square marker of side [`MARKER`] centred on (x, y).
+fn marker(x: f64, y: f64, colour: Rgb) -> Prim {
+    Prim::Rect {
+        x: x - MARKER / 2.0,
+        y: y - MARKER / 2.0,
+        w: MARKER,
+        h: MARKER,
+        fill: Some(colour),
+        stroke: None,
+    }
+}
+
+/// Draws the footer under the chart, clear of the data: the legend's entries (label, colour,
+/// dashed, marker) left to right, wrapped into rows across the canvas, then each non-empty
+/// line of `notes` in grey, wrapped at words. Returns the height it adds to the scene.
+pub(crate) fn footer<'a>(
     p: &mut Vec<Prim>,
-    entries: impl Iterator<Item = (&'a str, &'a str, bool)>,
+    entries: impl Iterator<Item = (&'a str, &'a str, bool, bool)>,
+    notes: &[&str],
 ) -> f64 {
     let mut x = L;
-    let mut row = 0.0;
-    let mut any = false;
-    for (label, colour, dashed) in entries {
-        any = true;
+    let mut rows = 0.0;
+    for (label, colour, dashed, with_marker) in entries {
         let w = LEGEND_LINE + 5.0 + text_width(label);
-        if x > L && x + w > W - R {
+        if rows == 0.0 {
+            rows = 1.0;
+        } else if x > L && x + w > W - R {
             x = L;
-            row += 1.0;
+            rows += 1.0;
         }
-        let y = H + 2.0 + LEGEND_ROW * row;
+        let y = H + 2.0 + LEGEND_ROW * (rows - 1.0);
+        let colour = Rgb::hex(colour);
         p.push(Prim::Path {
             pts: vec![(x, y), (x + LEGEND_LINE, y)],
-            colour: Rgb::hex(colour),
+            colour,
             width: 2.0,
             dash: dashed.then_some((6.0, 4.0)),
         });
+        if with_marker {
+            p.push(marker(x + LEGEND_LINE / 2.0, y, colour));
+        }
         p.push(text(x + LEGEND_LINE + 5.0, y + 4.0, label, Anchor::Start));
         x += w + LEGEND_GAP;
     }
-    if any {
-        LEGEND_ROW * (row + 1.0) + 6.0
+    for line in notes.iter().flat_map(|n| wrap(n, W - R - L)) {
+        let y = H + 2.0 + LEGEND_ROW * rows;
+        p.push(Prim::Text {
+            x: L,
+            y: y + 4.0,
+            text: line,
+            size: 12.0,
+            anchor: Anchor::Start,
+            vertical: false,
+            bold: false,
+            colour: NOTE_GREY,
+            class: class::NOTE,
+        });
+        rows += 1.0;
+    }
+    if rows > 0.0 {
+        LEGEND_ROW * rows + 6.0
     } else {
         0.0
     }
+}
+
+/// `s` broken at spaces into lines no wider than `width` (a longer word is a line of its
+/// own); none for an empty `s`.
+fn wrap(s: &str, width: f64) -> Vec<String> {
+    let mut lines: Vec<String> = Vec::new();
+    for word in s.split(' ').filter(|w| !w.is_empty()) {
+        match lines.last_mut() {
+            Some(l) if text_width(l) + text_width(word) + 7.2 <= width => {
+                l.push(' ');
+                l.push_str(word);
+            }
+            _ => lines.push(word.to_string()),
+        }
+    }
+    lines
 }
 
 /// The data ranges of a chart and their mapping to the drawing area.
@@ -255,12 +328,21 @@ struct Frame {
 }
 
 impl Frame {
-    /// The x range of `x` and the y range of every line, padded by 5 %.
+    /// The range of the finite `x` (widened by 3 % each side when a line has markers) and the
+    /// y range of every line, padded by 5 %.
     fn new(chart: &Chart, x: &[f64]) -> Self {
-        let (x0, x1) = (
-            x.first().copied().unwrap_or(0.0),
-            x.last().copied().unwrap_or(1.0),
-        );
+        let finite = x.iter().copied().filter(|v| v.is_finite());
+        let (mut x0, mut x1) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+        if x0 > x1 {
+            (x0, x1) = (0.0, 1.0);
+        }
+        if chart.lines.iter().any(|l| l.markers) {
+            // Markers at the ends stand clear of the frame.
+            let pad = 0.03 * (x1 - x0).max(1e-9);
+            (x0, x1) = (x0 - pad, x1 + pad);
+        }
         let mut lo = f64::INFINITY;
         let mut hi = f64::NEG_INFINITY;
         for l in &chart.lines {
@@ -362,7 +444,8 @@ impl Frame {
         });
     }
 
-    /// The data, decimated to at most about 2 points per pixel.
+    /// The data, decimated to at most about 2 points per pixel; steps and markers where a
+    /// line asks for them.
     fn lines(&self, p: &mut Vec<Prim>, chart: &Chart, x: &[f64]) {
         let step = (x.len() / 1600).max(1);
         for l in &chart.lines {
@@ -374,28 +457,46 @@ impl Frame {
                 width: 1.3,
                 dash,
             };
-            let mut pts = Vec::new();
+            let mut pts: Vec<(f64, f64)> = Vec::new();
+            let mut marks = Vec::new();
             for i in (0..x.len().min(l.y.len())).step_by(step) {
                 if l.y[i].is_finite() {
-                    pts.push((self.xs(x[i]), self.ys(l.y[i])));
+                    let (px, py) = (self.xs(x[i]), self.ys(l.y[i]));
+                    // A step: the value before holds up to this abscissa, then jumps.
+                    if let Some(&(x0, held)) = pts.last().filter(|_| l.steps) {
+                        if x0 != px && held != py {
+                            pts.push((px, held));
+                        }
+                    }
+                    pts.push((px, py));
+                    marks.push((px, py));
                 } else if pts.len() > 1 {
                     // A gap in the data breaks the line.
                     p.push(path(std::mem::take(&mut pts)));
                 }
             }
             p.push(path(pts));
+            if l.markers {
+                p.extend(marks.into_iter().map(|(x, y)| marker(x, y, colour)));
+            }
         }
     }
 }
 
+/// The title's font size: 15 px, smaller for a title that would not fit across the plot
+/// (DejaVu Sans Bold averages about 0.66 em a character), but not below 10 px.
+fn title_size(title: &str) -> f64 {
+    let width = markup::width_in_chars(title) * 0.66;
+    (15.0f64).min((W - L - R) / width.max(1.0)).max(10.0)
+}
+
 /// Axis labels and the title.
 fn labels(p: &mut Vec<Prim>, chart: &Chart) {
-    p.push(text(
-        (L + W - R) / 2.0,
-        H - 15.0,
-        chart.x_label,
-        Anchor::Middle,
-    ));
+    let mut x_label = text((L + W - R) / 2.0, H - 15.0, chart.x_label, Anchor::Middle);
+    if let Prim::Text { class: c, .. } = &mut x_label {
+        *c = class::X_LABEL;
+    }
+    p.push(x_label);
     p.push(Prim::Text {
         x: 18.0,
         y: (T + H - B) / 2.0,
@@ -405,16 +506,18 @@ fn labels(p: &mut Vec<Prim>, chart: &Chart) {
         vertical: true,
         bold: false,
         colour: BLACK,
+        class: class::Y_LABEL,
     });
     p.push(Prim::Text {
         x: L,
         y: 24.0,
         text: chart.title.into(),
-        size: 15.0,
+        size: title_size(chart.title),
         anchor: Anchor::Start,
         vertical: false,
         bold: true,
         colour: BLACK,
+        class: class::TITLE,
     });
 }
 
@@ -461,54 +564,12 @@ pub fn write_panels(
 }
 
 /// `p` moved down by `dy`.
-fn shifted(p: Prim, dy: f64) -> Prim {
-    match p {
-        Prim::Rect {
-            x,
-            y,
-            w,
-            h,
-            fill,
-            stroke,
-        } => Prim::Rect {
-            x,
-            y: y + dy,
-            w,
-            h,
-            fill,
-            stroke,
-        },
-        Prim::Path {
-            pts,
-            colour,
-            width,
-            dash,
-        } => Prim::Path {
-            pts: pts.into_iter().map(|(x, y)| (x, y + dy)).collect(),
-            colour,
-            width,
-            dash,
-        },
-        Prim::Text {
-            x,
-            y,
-            text,
-            size,
-            anchor,
-            vertical,
-            bold,
-            colour,
-        } => Prim::Text {
-            x,
-            y: y + dy,
-            text,
-            size,
-            anchor,
-            vertical,
-            bold,
-            colour,
-        },
+fn shifted(mut p: Prim, dy: f64) -> Prim {
+    match &mut p {
+        Prim::Rect { y, .. } | Prim::Text { y, .. } => *y += dy,
+        Prim::Path { pts, .. } => pts.iter_mut().for_each(|(_, y)| *y += dy),
     }
+    p
 }
 
 /// Colours given to runs, lines or sweep samples in turn.
@@ -517,63 +578,4 @@ pub const PALETTE: [&str; 8] = [
 ];
 
 #[cfg(test)]
-mod tests {
-    use super::png::PNG_SCALE;
-    use super::*;
-
-    fn demo() -> (Chart<'static>, Vec<f64>) {
-        let t: Vec<f64> = (0..100).map(|i| i as f64 * 0.1).collect();
-        let chart = Chart {
-            title: "t",
-            x_label: "time (s)",
-            y_label: "y (m)",
-            lines: vec![Line {
-                label: "sin",
-                y: t.iter().map(|x| x.sin()).collect(),
-                colour: "#ff0000",
-                dashed: false,
-            }],
-            bands: vec![(2.0, 4.0, false), (4.0, 6.0, true)],
-            note: "n",
-        };
-        (chart, t)
-    }
-
-    #[test]
-    fn a_chart_is_well_formed_svg_with_its_labels() {
-        let (chart, t) = demo();
-        let s = to_svg(&layout(&chart, &t));
-        assert!(s.starts_with("<svg") && s.trim_end().ends_with("</svg>"));
-        assert_eq!(s.matches("<svg").count(), 1);
-        assert!(s.contains("time (s)") && s.contains("y (m)") && s.contains(">sin<"));
-        // Every opened text element is closed.
-        assert_eq!(s.matches("<text").count(), s.matches("</text>").count());
-        assert_eq!(nice_step(10.0), 2.0);
-        assert_eq!(nice_step(0.3), 0.05);
-    }
-
-    #[test]
-    fn the_raster_draws_the_line_bands_and_text_where_the_scene_puts_them() {
-        let (chart, t) = demo();
-        let (w, h, px) = rasterise(&layout(&chart, &t)).unwrap();
-        // The canvas and, under it, one row of legend.
-        assert_eq!((w, h), (1800, (2.0 * (H + LEGEND_ROW + 6.0)) as u32));
-        let at = |x: f64, y: f64| {
-            let s = PNG_SCALE as f64;
-            let i = ((y * s) as usize * w as usize + (x * s) as usize) * 3;
-            Rgb(px[i], px[i + 1], px[i + 2])
-        };
-        // The sine at t = π/2 (its maximum) is at the top of the padded range.
-        let xs = |v: f64| L + v / 9.9 * (W - L - R);
-        let top = T + 0.05 / 1.1 * (H - T - B);
-        let hit =
-            (-3..=3).any(|d| at(xs(std::f64::consts::FRAC_PI_2), top + d as f64) == Rgb(255, 0, 0));
-        assert!(hit, "the red line passes through its maximum");
-        // The steady-curve band is shaded, the light band too, outside neither.
-        assert_eq!(at(xs(5.0), 200.0), Rgb(0xdd, 0xe6, 0xf2));
-        assert_eq!(at(xs(3.0), 250.0), Rgb(0xee, 0xf2, 0xf7));
-        // The title is drawn in black at its place.
-        let title = (0..40).any(|dx| at(L + dx as f64, 20.0) == BLACK);
-        assert!(title);
-    }
-}
+mod tests;

@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::cite::Quantity;
 use super::{write_chart, write_panels, Chart, Line};
 
 /// What the shaded bands of a run's charts mean.
@@ -15,36 +16,52 @@ type RowLine = (
     bool,
 );
 
-/// The run's charts: file name, title, y label and lines (angles in degrees).
-fn run_charts(u_max: f64) -> Vec<(&'static str, &'static str, &'static str, Vec<RowLine>)> {
+/// One chart of a run: file name, title, y label, the quantity it shows and its lines.
+type RunChart = (
+    &'static str,
+    &'static str,
+    &'static str,
+    Quantity,
+    Vec<RowLine>,
+);
+
+/// The run's charts (angles in degrees).
+fn run_charts(u_max: f64) -> Vec<RunChart> {
     let d = 1f64.to_degrees();
     vec![
         (
             "lateral_acceleration",
-            "Passenger lateral acceleration (eq 13; Figs 8b, 14-15)",
+            "passenger lateral acceleration (eq 13)",
             "lateral acceleration (m/s²)",
-            vec![("ÿ", Box::new(|r| r.lat_acc), "#1f77b4", false)],
+            Quantity::LateralAcceleration,
+            vec![(
+                "lateral acceleration ÿ",
+                Box::new(|r| r.lat_acc),
+                "#1f77b4",
+                false,
+            )],
         ),
         (
             "body_roll",
-            "Carbody roll relative to the track (Figs 8a, 12-13, 16)",
+            "carbody roll relative to the track",
             "roll (deg)",
+            Quantity::Roll,
             vec![
                 (
-                    "θ_v measured",
+                    "θ_{v} measured",
                     Box::new(move |r| r.theta_v_meas * d),
                     "#bbbbbb",
                     false,
                 ),
-                ("θ_v", Box::new(move |r| r.theta_v * d), "#1f77b4", false),
+                ("θ_{v}", Box::new(move |r| r.theta_v * d), "#1f77b4", false),
                 (
-                    "θ̂_v estimate",
+                    "θ̂_{v} estimate",
                     Box::new(move |r| r.theta_v_hat * d),
                     "#2ca02c",
                     false,
                 ),
                 (
-                    "θ_v^d reference (eq 18)",
+                    "θ_{v}^{d} reference (eq 18)",
                     Box::new(move |r| r.theta_ref * d),
                     "#d62728",
                     true,
@@ -53,37 +70,45 @@ fn run_charts(u_max: f64) -> Vec<(&'static str, &'static str, &'static str, Vec<
         ),
         (
             "control",
-            "Anti-roll bar: command and achieved angle with limits (Fig. 17)",
-            "bar angle δ_a (deg)",
+            "anti-roll bar, command and achieved angle with limits",
+            "bar angle δ_{a} (deg)",
+            Quantity::BarAngle,
             vec![
                 (
-                    "δ_a command",
+                    "δ_{a,cmd} command",
                     Box::new(move |r| r.delta_a_cmd * d),
                     "#ff7f0e",
                     false,
                 ),
                 (
-                    "δ_a achieved",
+                    "δ_{a} achieved",
                     Box::new(move |r| r.delta_a * d),
                     "#1f77b4",
                     false,
                 ),
-                ("+u_max", Box::new(move |_| u_max), "#d62728", true),
-                ("−u_max", Box::new(move |_| -u_max), "#d62728", true),
+                ("+u_{max}", Box::new(move |_| u_max), "#d62728", true),
+                ("−u_{max}", Box::new(move |_| -u_max), "#d62728", true),
             ],
         ),
         (
             "motor",
-            "BLDC motor: electromagnetic torque (Fig. 18, upper panel)",
+            "BLDC motor, electromagnetic torque",
             "torque (N·m)",
-            vec![("torque T_e", Box::new(|r| r.motor_torque), "#9467bd", false)],
+            Quantity::MotorTorque,
+            vec![(
+                "torque T_{e}",
+                Box::new(|r| r.motor_torque),
+                "#9467bd",
+                false,
+            )],
         ),
         (
             "motor",
-            "BLDC motor: current (Fig. 18, lower panel)",
+            "BLDC motor, current",
             "current (A)",
+            Quantity::MotorCurrent,
             vec![(
-                "current T_e/k_t",
+                "current T_{e}/k_{t}",
                 Box::new(|r| r.motor_current),
                 "#8c564b",
                 false,
@@ -92,8 +117,8 @@ fn run_charts(u_max: f64) -> Vec<(&'static str, &'static str, &'static str, Vec<
     ]
 }
 
-/// One panel of a figure: its title, y label and lines.
-type Panel = (String, &'static str, Vec<RowLine>);
+/// One panel of a figure: its title, y label, caption and lines.
+type Panel = (String, &'static str, String, Vec<RowLine>);
 
 /// What a run's figures are titled with: its scenario and its controller.
 pub struct RunTitle<'a> {
@@ -104,6 +129,8 @@ pub struct RunTitle<'a> {
     /// Whether the run commands the bar (false for the passive vehicle: its bar and motor
     /// figures would be empty and are not drawn).
     pub tilts: bool,
+    /// The paper's figure of the same quantity for this run, if any ([`super::cite`]).
+    pub cite: &'a dyn Fn(Quantity) -> Option<&'static str>,
 }
 
 /// The figures of the bar and its drive.
@@ -124,11 +151,13 @@ pub fn write_run_plots(
         .map_err(|e| std::io::Error::new(e.kind(), format!("{}: {e}", out.display())))?;
     let mut files = Vec::new();
     let mut figures: Vec<(&str, Vec<Panel>)> = Vec::new();
-    for (name, title, y_label, lines) in run_charts(u_max) {
+    for (name, title, y_label, quantity, lines) in run_charts(u_max) {
         let title = format!("{} ({}): {title}", who.scenario, who.controller);
+        let caption = super::cite::caption(&[(who.scenario, (who.cite)(quantity))]);
+        let panel = (title, y_label, caption, lines);
         match figures.last_mut() {
-            Some((n, panels)) if *n == name => panels.push((title, y_label, lines)),
-            _ => figures.push((name, vec![(title, y_label, lines)])),
+            Some((n, panels)) if *n == name => panels.push(panel),
+            _ => figures.push((name, vec![panel])),
         }
     }
     for (name, panels) in figures {
@@ -142,7 +171,7 @@ pub fn write_run_plots(
         }
         let charts: Vec<Chart> = panels
             .iter()
-            .map(|(title, y_label, lines)| Chart {
+            .map(|(title, y_label, caption, lines)| Chart {
                 title,
                 x_label: "time (s)",
                 y_label,
@@ -153,10 +182,12 @@ pub fn write_run_plots(
                         y: rows.iter().map(f).collect(),
                         colour,
                         dashed: *dashed,
+                        ..Default::default()
                     })
                     .collect(),
                 bands: sections.to_vec(),
                 note: SECTION_NOTE,
+                caption,
             })
             .collect();
         if charts.len() == 1 {

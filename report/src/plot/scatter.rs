@@ -2,7 +2,9 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{labels, legend, text, to_svg, write_png, Anchor, Chart, Frame, Line, Prim, Rgb};
+use super::{
+    footer, labels, marker, text, to_svg, write_png, Anchor, Chart, Frame, Line, Prim, Rgb,
+};
 use super::{Scene, H, W};
 
 /// One series of a scatter chart: points (x, y), drawn as squares, joined in order when
@@ -38,10 +40,9 @@ pub fn write_scatter(
             label: "",
             y: ys,
             colour: "#000000",
-            dashed: false,
+            ..Default::default()
         }],
-        bands: Vec::new(),
-        note: "",
+        ..Default::default()
     };
     let f = Frame::new(&range, &xr);
     let mut p = vec![Prim::Rect {
@@ -58,7 +59,11 @@ pub fn write_scatter(
     for se in series {
         draw_series(&mut p, &f, se);
     }
-    let legend_h = legend(&mut p, series.iter().map(|s| (s.label, s.colour, false)));
+    let legend_h = footer(
+        &mut p,
+        series.iter().map(|s| (s.label, s.colour, false, true)),
+        &[],
+    );
     // The white background covers the legend too.
     if let Some(Prim::Rect { h, .. }) = p.first_mut() {
         *h = H + legend_h;
@@ -112,16 +117,47 @@ fn draw_series(p: &mut Vec<Prim>, f: &Frame, se: &Series) {
         });
     }
     for (i, &(x, y)) in xy.iter().enumerate() {
-        p.push(Prim::Rect {
-            x: x - 3.5,
-            y: y - 3.5,
-            w: 7.0,
-            h: 7.0,
-            fill: Some(colour),
-            stroke: None,
-        });
+        p.push(marker(x, y, colour));
         if let Some(t) = se.labels.get(i).filter(|t| !t.is_empty()) {
             p.push(text(x + 6.0, y - 6.0, t.clone(), Anchor::Start));
         }
     }
+}
+
+/// `out/plots/trade_off.{svg,png}`: each controller's P_CT on the curve against its lateral
+/// mean comfort on the straight (nothing when no curve run has a straight twin).
+pub fn write_trade_off_plot(
+    points: &[crate::compare::TradeOffPoint],
+    out: &std::path::Path,
+) -> std::io::Result<Vec<std::path::PathBuf>> {
+    if points.is_empty() {
+        return Ok(Vec::new());
+    }
+    let series: Vec<Series> = points
+        .iter()
+        .enumerate()
+        .map(|(k, t)| Series {
+            label: &t.controller,
+            colour: super::PALETTE[k % super::PALETTE.len()],
+            points: vec![(t.p_ct_en12299_standing_pct, t.n_mv_lateral)],
+            labels: vec![t.controller.clone()],
+            joined: false,
+        })
+        .collect();
+    let plots = out.join("plots");
+    std::fs::create_dir_all(&plots)?;
+    let names: Vec<&str> = points.iter().map(|t| t.controller.as_str()).collect();
+    let title = format!(
+        "{}: curving comfort against straight-track ride",
+        crate::analysis::compare_name(&names)
+    );
+    Ok(write_scatter(
+        &plots,
+        "trade_off",
+        &title,
+        "P_{CT} standing on the curve, EN 12299 per transition (%)",
+        "N_{MV} lateral part on the straight, 6·a_{YP95}^{Wd} (dimensionless)",
+        &series,
+    )?
+    .to_vec())
 }

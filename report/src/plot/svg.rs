@@ -2,12 +2,36 @@
 
 use std::fmt::Write as _;
 
+use super::markup::{spans, Shift, SCRIPT_SCALE};
 use super::{Anchor, Prim, Rgb, Scene};
 
 fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
+}
+
+/// The content of a text element: `text` escaped, its subscripts and superscripts as
+/// `tspan`s lowered or raised at a smaller size (see [`super::markup`]).
+fn rich(text: &str, size: f64) -> String {
+    let mut s = String::new();
+    for (shift, t) in spans(text) {
+        let shift = match shift {
+            Shift::Base => {
+                s.push_str(&escape(&t));
+                continue;
+            }
+            Shift::Sub => "sub",
+            Shift::Super => "super",
+        };
+        let _ = write!(
+            s,
+            r#"<tspan baseline-shift="{shift}" font-size="{}">{}</tspan>"#,
+            size * SCRIPT_SCALE,
+            escape(&t)
+        );
+    }
+    s
 }
 
 /// Writes the scene as SVG.
@@ -67,6 +91,7 @@ pub fn to_svg(sc: &Scene) -> String {
                 vertical,
                 bold,
                 colour,
+                class,
             } => {
                 let anchor = match anchor {
                     Anchor::Start => "start",
@@ -79,11 +104,16 @@ pub fn to_svg(sc: &Scene) -> String {
                     format!(r#"x="{x:.1}" y="{y:.1}""#)
                 };
                 let weight = if *bold { r#" font-weight="bold""# } else { "" };
+                let class = if class.is_empty() {
+                    String::new()
+                } else {
+                    format!(r#" class="{class}""#)
+                };
                 let _ = writeln!(
                     s,
-                    r#"<text {place} font-size="{size}" text-anchor="{anchor}" fill="{}"{weight}>{}</text>"#,
+                    r#"<text {place} font-size="{size}" text-anchor="{anchor}" fill="{}"{weight}{class}>{}</text>"#,
                     colour.css(),
-                    escape(text)
+                    rich(text, *size)
                 );
             }
         }

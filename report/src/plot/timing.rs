@@ -33,6 +33,33 @@ fn per_tick(
     y
 }
 
+/// Per tick, how many ticks after the controller's step its new command was first read by
+/// the actuator, held over the controller's `period`. The held command's age grows by a tick
+/// every tick by design: what timing changes is when each new command takes effect, the
+/// first actuator step that read it, less its own step (lock-step Gauss-Seidel: 0).
+fn command_effect(steps: u64, trace: &[StepTrace], period: u64) -> Vec<f64> {
+    let mut effect = vec![f64::NAN; steps as usize];
+    for s in trace.iter().filter(|s| s.role == Role::Actuator) {
+        if let Some(c) = s.from[col(Role::Controller)].filter(|&c| c >= 0) {
+            let lag = s.step as f64 - c as f64;
+            if let Some(v) = effect.get_mut(c as usize) {
+                if v.is_nan() || lag < *v {
+                    *v = lag;
+                }
+            }
+        }
+    }
+    let mut held = f64::NAN;
+    for (k, v) in effect.iter_mut().enumerate() {
+        if (k as u64).is_multiple_of(period.max(1)) {
+            held = *v;
+        } else {
+            *v = held;
+        }
+    }
+    effect
+}
+
 /// Writes `dir/plots/timing_input_age.{svg,png}` and `timing_lateness.{svg,png}` from a free
 /// run's trace of `steps` ticks of `dt_s` with a controller of `period` ticks; `title` names
 /// the run. Every line is 0 where lock-step Gauss-Seidel would have read the same output.
@@ -54,28 +81,7 @@ pub fn write_timing_plots(
             s.from[col(producer)].map_or(f64::NAN, |f| age(producer, s.step, f) as f64)
         })
     };
-    // The held command's age grows by a tick every tick by design: what timing changes is
-    // when each new command takes effect, the first actuator step that read it, less its own
-    // step (lock-step Gauss-Seidel: 0), held over the controller's period.
-    let mut effect = vec![f64::NAN; steps as usize];
-    for s in trace.iter().filter(|s| s.role == Role::Actuator) {
-        if let Some(c) = s.from[col(Role::Controller)].filter(|&c| c >= 0) {
-            let lag = s.step as f64 - c as f64;
-            if let Some(v) = effect.get_mut(c as usize) {
-                if v.is_nan() || lag < *v {
-                    *v = lag;
-                }
-            }
-        }
-    }
-    let mut held = f64::NAN;
-    for (k, v) in effect.iter_mut().enumerate() {
-        if (k as u64).is_multiple_of(period.max(1)) {
-            held = *v;
-        } else {
-            *v = held;
-        }
-    }
+    let effect = command_effect(steps, trace, period);
     let age_title = format!("{title}: age of the inputs each step read (free run)");
     let age_chart = Chart {
         title: &age_title,
@@ -83,32 +89,32 @@ pub fn write_timing_plots(
         y_label: "input age (ticks)",
         lines: vec![
             Line {
-                label: "actuator ← controller (new δ_a,cmd)",
+                label: "actuator ← controller (new δ_{a,cmd})",
                 y: effect,
                 colour: "#ff7f0e",
-                dashed: false,
+                ..Default::default()
             },
             Line {
-                label: "controller ← plant (θ_v measured)",
+                label: "controller ← plant (θ_{v} measured)",
                 y: input_age(Role::Controller, Role::Plant),
                 colour: "#2ca02c",
-                dashed: false,
+                ..Default::default()
             },
             Line {
                 label: "actuator ← plant (ψ)",
                 y: input_age(Role::Actuator, Role::Plant),
                 colour: "#9467bd",
-                dashed: false,
+                ..Default::default()
             },
             Line {
-                label: "plant ← actuator (δ_a)",
+                label: "plant ← actuator (δ_{a})",
                 y: input_age(Role::Plant, Role::Actuator),
                 colour: "#1f77b4",
-                dashed: false,
+                ..Default::default()
             },
         ],
-        bands: Vec::new(),
-        note: "0: as lock-step Gauss-Seidel reads; −1: a newer output; δ_a,cmd: ticks until a new one is first read",
+        note: "0: as lock-step Gauss-Seidel reads; −1: a newer output; δ_{a,cmd}: ticks until a new one is first read",
+        ..Default::default()
     };
     let lateness = |role: Role| {
         per_tick(steps, trace, role, |s| {
@@ -125,23 +131,23 @@ pub fn write_timing_plots(
                 label: "plant",
                 y: lateness(Role::Plant),
                 colour: "#1f77b4",
-                dashed: false,
+                ..Default::default()
             },
             Line {
                 label: "actuator",
                 y: lateness(Role::Actuator),
                 colour: "#9467bd",
-                dashed: false,
+                ..Default::default()
             },
             Line {
                 label: "controller",
                 y: lateness(Role::Controller),
                 colour: "#2ca02c",
-                dashed: false,
+                ..Default::default()
             },
         ],
-        bands: Vec::new(),
-        note: "wall clock after the instant the step was due",
+        note: "lateness: wall-clock time from the instant a step was due to its start",
+        ..Default::default()
     };
     let mut files = Vec::new();
     files.extend(write_chart(&out, "timing_input_age", &age_chart, &t)?);

@@ -367,6 +367,7 @@ pub(super) fn line<'a>(
         y,
         colour,
         dashed,
+        ..Default::default()
     }
 }
 
@@ -377,10 +378,29 @@ pub(super) fn column(ok: &[&Row], key: &str) -> Vec<f64> {
         .collect()
 }
 
+/// The empirical distribution function of `values` for a step line: the sorted values with
+/// a point 5 % of their range beyond each end (so that the first and last jumps show), and
+/// the share of values at or below each (%), 0 before the smallest and 100 after the largest.
+pub(super) fn ecdf(values: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let mut x: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    x.sort_by(|a, b| a.total_cmp(b));
+    let (Some(&lo), Some(&hi)) = (x.first(), x.last()) else {
+        return (Vec::new(), Vec::new());
+    };
+    let n = x.len();
+    let pad = if hi > lo { 0.05 * (hi - lo) } else { 0.05 * lo.abs().max(1.0) };
+    x.insert(0, lo - pad);
+    x.push(hi + pad);
+    let mut share: Vec<f64> = (0..=n).map(|i| 100.0 * i as f64 / n as f64).collect();
+    share.push(100.0);
+    (x, share)
+}
+
 /// The lateral-acceleration envelope (5th, 50th, 95th percentile at each time) and the
-/// empirical distribution of P_CT.
+/// empirical distribution of P_CT, titled with the base scenario and the spread.
 pub(super) fn monte_carlo_plots(
     dir: &Path,
+    (base, spread): (&Scenario, f64),
     ok: &[&Row],
     t: &[f64],
     bands: Vec<(f64, f64, bool)>,
@@ -394,8 +414,17 @@ pub(super) fn monte_carlo_plots(
         }
     }
     let [p5, p50, p95] = env;
+    let sweep = format!(
+        "Sweep of {} (±{} %, {} samples)",
+        base.name,
+        (spread * 100.0 * 1e6).round() / 1e6,
+        ok.len()
+    );
+    let title = format!("{sweep}: passenger lateral acceleration across the perturbed vehicles");
+    let fig = tiltsim_report::plot::cite::robustness_figure(base, spread);
+    let caption = tiltsim_report::plot::cite::caption(&[(&base.name, fig)]);
     let chart = Chart {
-        title: "Lateral acceleration across the perturbed vehicles (Fig. 21)",
+        title: &title,
         x_label: "time (s)",
         y_label: "lateral acceleration (m/s²)",
         lines: vec![
@@ -405,19 +434,21 @@ pub(super) fn monte_carlo_plots(
         ],
         bands,
         note: tiltsim_report::plot::SECTION_NOTE,
+        caption: &caption,
     };
     let mut files =
         tiltsim_report::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)?.to_vec();
-    let mut p = column(ok, "p_ct_en12299_standing_pct");
-    p.sort_by(|a, b| a.total_cmp(b));
-    let frac: Vec<f64> = (1..=p.len()).map(|i| i as f64 / p.len() as f64).collect();
+    let (p, share) = ecdf(&column(ok, "p_ct_en12299_standing_pct"));
+    let title = format!("{sweep}: distribution of P_{{CT}} standing over the samples");
     let chart = Chart {
-        title: "Distribution of P_CT (standing, EN 12299 per transition) over the samples",
-        x_label: "P_CT standing, EN 12299 (%)",
-        y_label: "fraction of samples ≤ P_CT",
-        lines: vec![line("empirical CDF", frac, "#1f77b4", false)],
-        bands: Vec::new(),
-        note: "",
+        title: &title,
+        x_label: "P_{CT} standing, EN 12299 per transition (%)",
+        y_label: "samples at or below this P_{CT} (%)",
+        lines: vec![Line {
+            steps: true,
+            ..line("empirical CDF", share, "#1f77b4", false)
+        }],
+        ..Default::default()
     };
     files.extend(tiltsim_report::plot::write_chart(
         dir,
@@ -428,10 +459,46 @@ pub(super) fn monte_carlo_plots(
     Ok(files)
 }
 
-/// The lateral acceleration for each swept value, and comfort against the value.
+/// A swept key as an axis label with its unit: the unit of the participant parameter it sets,
+/// else the one its name ends with.
+pub(super) fn key_label(key: &str) -> String {
+    let unit = match tiltsim_fmi::units::param_unit(key) {
+        Some("1") => "dimensionless".to_string(),
+        Some("") => "weight".to_string(),
+        Some(u) => u
+            .replace("m2", "m²")
+            .replace("m3", "m³")
+            .replace("s2", "s²")
+            .replace('.', "·"),
+        None => {
+            const SUFFIXES: [(&str, &str); 12] = [
+                ("_ticks", "ticks"),
+                ("_probability", "dimensionless"),
+                ("_kmh", "km/h"),
+                ("_deg", "deg"),
+                ("_rad", "rad"),
+                ("_pct", "%"),
+                ("_hz", "Hz"),
+                ("_mm", "mm"),
+                ("_ms", "ms"),
+                ("_us", "µs"),
+                ("_s", "s"),
+                ("_m", "m"),
+            ];
+            let found = SUFFIXES.iter().find(|(s, _)| key.ends_with(s));
+            found
+                .map_or("as in the scenario file", |(_, u)| u)
+                .to_string()
+        }
+    };
+    format!("{key} ({unit})")
+}
+
+/// The lateral acceleration for each swept value, and comfort against the value: P_CT and
+/// the peak lateral acceleration in panels of their own, a marker at each swept value.
 pub(super) fn grid_plots(
     dir: &Path,
-    key: &str,
+    (base, key): (&Scenario, &str),
     ok: &[&Row],
     t: &[f64],
     bands: Vec<(f64, f64, bool)>,
@@ -441,7 +508,8 @@ pub(super) fn grid_plots(
         .iter()
         .map(|r| format!("{}", r.params.first().copied().unwrap_or(f64::NAN)))
         .collect();
-    let lat_title = format!("Lateral acceleration for each value of {key}");
+    let sweep = format!("Sweep of {} over {key}", base.name);
+    let lat_title = format!("{sweep}: passenger lateral acceleration for each value");
     let chart = Chart {
         title: &lat_title,
         x_label: "time (s)",
@@ -461,6 +529,7 @@ pub(super) fn grid_plots(
             .collect(),
         bands,
         note: tiltsim_report::plot::SECTION_NOTE,
+        ..Default::default()
     };
     let mut files =
         tiltsim_report::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)?.to_vec();
@@ -468,38 +537,36 @@ pub(super) fn grid_plots(
         .iter()
         .map(|r| r.params.first().copied().unwrap_or(f64::NAN))
         .collect();
-    let title = format!("Comfort against {key}");
-    let chart = Chart {
-        title: &title,
-        x_label: key,
-        y_label: "P_CT (%), peak lateral acceleration (%g)",
-        lines: vec![
-            line(
-                "P_CT standing (EN 12299)",
-                column(ok, "p_ct_en12299_standing_pct"),
-                "#1f77b4",
-                false,
-            ),
-            line(
-                "P_CT seated (EN 12299)",
-                column(ok, "p_ct_en12299_seated_pct"),
-                "#2ca02c",
-                false,
-            ),
-            line(
-                "lat. acc. peak (%g)",
-                column(ok, "lat_acc_peak_pct_g"),
-                "#d62728",
-                true,
-            ),
-        ],
-        bands: Vec::new(),
-        note: "",
+    let x_label = key_label(key);
+    let marked = |label, key, colour| Line {
+        markers: true,
+        ..line(label, column(ok, key), colour, false)
     };
-    files.extend(tiltsim_report::plot::write_chart(
+    let p_ct_title = format!("{sweep}: comfort P_{{CT}}, EN 12299 per transition");
+    let peak_title = format!("{sweep}: peak passenger lateral acceleration");
+    let panels = [
+        Chart {
+            title: &p_ct_title,
+            x_label: &x_label,
+            y_label: "P_{CT} (%)",
+            lines: vec![
+                marked("standing", "p_ct_en12299_standing_pct", "#1f77b4"),
+                marked("seated", "p_ct_en12299_seated_pct", "#2ca02c"),
+            ],
+            ..Default::default()
+        },
+        Chart {
+            title: &peak_title,
+            x_label: &x_label,
+            y_label: "peak lateral acceleration (%g)",
+            lines: vec![marked("peak", "lat_acc_peak_pct_g", "#d62728")],
+            ..Default::default()
+        },
+    ];
+    files.extend(tiltsim_report::plot::write_panels(
         dir,
         "sweep_comfort",
-        &chart,
+        &panels,
         &x,
     )?);
     Ok(files)
@@ -518,7 +585,7 @@ pub(super) fn write_plots(
     let t: Vec<f64> = (0..n).map(series_time).collect();
     let bands = tiltsim_report::analysis::bands(base);
     match plan {
-        Plan::MonteCarlo { .. } => monte_carlo_plots(&dir, &ok, &t, bands),
-        Plan::Grid { key, .. } => grid_plots(&dir, key, &ok, &t, bands),
+        Plan::MonteCarlo { spread, .. } => monte_carlo_plots(&dir, (base, *spread), &ok, &t, bands),
+        Plan::Grid { key, .. } => grid_plots(&dir, (base, key), &ok, &t, bands),
     }
 }
