@@ -1,10 +1,14 @@
-//! Output directories: one run per directory, and a directory holds one run (docs/outputs.md,
-//! "Output directories").
+//! Outputs as users read them: one run per output directory and a directory holds one run
+//! (docs/outputs.md, "Output directories"); the figures (`outputs/figures.rs`).
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use tiltsim_suite::{run, scenario, spawn, temp_dir, wait_for, wait_with_limit};
+
+/// The figures: titles, units, markup, captions, notes, steps and markers.
+#[path = "outputs/figures.rs"]
+mod figures;
 
 const LOCK: &str = ".tiltsim.lock";
 
