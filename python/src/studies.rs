@@ -235,7 +235,7 @@ pub(crate) fn compare<'py>(
         .iter()
         .map(|(f, s, _)| (f.clone(), s.clone()))
         .collect();
-    let notes = tiltsim_report::comparison::distinct(&mut pairs, &dir);
+    let notes = tiltsim_report::compare::distinct(&mut pairs, &dir);
     let exe = loaded[0].2.clone();
     let interrupt = Arc::new(AtomicBool::new(false));
     let done = Arc::new(AtomicU64::new(0));
@@ -249,7 +249,7 @@ pub(crate) fn compare<'py>(
             let interrupt = interrupt.clone();
             let done = done.clone();
             move || {
-                use tiltsim_report::comparison::Comparison;
+                use tiltsim_report::compare::Comparison;
                 let mut cmp = Comparison::start(&dir, &pairs)?;
                 let mut base = RunOptions::new(dir.clone(), exe);
                 base.interrupt = interrupt;
@@ -261,12 +261,12 @@ pub(crate) fn compare<'py>(
                     done.fetch_add(1, Ordering::Relaxed);
                 }
                 let (_, csv) = cmp.finish()?;
-                Ok::<_, tiltsim_report::comparison::CompareError>((csv, summaries))
+                Ok::<_, tiltsim_report::compare::CompareError>((csv, summaries))
             }
         },
     );
     let (csv, summaries) = compared.map_err(|e| {
-        use tiltsim_report::comparison::CompareError as E;
+        use tiltsim_report::compare::CompareError as E;
         match e {
             E::Invalid(m) => invalid(py, m),
             E::Failed(m) => error(py, "ParticipantError", m),

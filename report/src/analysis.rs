@@ -243,7 +243,7 @@ const PLOT_POINTS: usize = 40_000;
 /// Writes `dir/plots/*.svg` and `*.png` from `dir/timeseries.csv`.
 pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<PathBuf>> {
     let rows = tiltsim_master::table::rows_to_plot(dir, PLOT_POINTS)?;
-    let controller = crate::compare::controller_name(s);
+    let controller = crate::table4::controller_name(s);
     let who = crate::plot::RunTitle {
         scenario: &s.name,
         controller: &controller,

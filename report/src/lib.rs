@@ -8,13 +8,14 @@
 //!   with its rows in memory), then fill the summary's quick look, comfort and flags from its
 //!   rows, write `summary.json` and `perf.json` and draw its figures;
 //! * [`analysis::assess`] and [`analysis::write_plots`] on a finished run's directory;
-//! * [`compare::entry`] and [`compare::tables`]: the paper's Table 4 from several runs;
+//! * [`compare`]: a comparison run into a directory (`tiltsim compare`), and
+//!   [`table4::entry`] and [`table4::tables`]: the paper's Table 4 from several runs;
 //! * [`linearize::report`]: the controllers' linear design model and the PI loop's margins;
 //! * [`plot`]: one chart layout written as SVG and rendered to PNG.
 
 pub mod analysis;
 pub mod compare;
-pub mod comparison;
 pub mod linearize;
 pub mod pipeline;
 pub mod plot;
+pub mod table4;

@@ -199,16 +199,13 @@ fn replay(job: &Job) -> Result<Ran, JobError> {
     })
 }
 
-/// The analysis, `summary.json`, `perf.json`, the recording's close and the figures.
-fn finish(job: &Job, ran: Ran, mut warnings: Vec<String>) -> Done {
+/// Fills the summary's results, comfort and flags from the run's rows (on disk, or `rows`
+/// when kept in memory), or says why they were not computed (an interrupt, a series that
+/// could not be read whole).
+fn analyse(job: &Job, summary: &mut Summary, rows: &[Row]) {
     let s = job.scenario;
     let opts = &job.opts;
     let files = !opts.keep_rows;
-    let Ran {
-        mut summary,
-        rows,
-        recording,
-    } = ran;
     let interrupted = opts.interrupt.load(std::sync::atomic::Ordering::Relaxed);
     if interrupted {
         // An hour's series takes tens of seconds to analyse: `tiltsim plot DIR` draws it later.
@@ -220,7 +217,7 @@ fn finish(job: &Job, ran: Ran, mut warnings: Vec<String>) -> Done {
         let source = if files {
             Rows::File(&opts.out_dir)
         } else {
-            Rows::Kept(&rows)
+            Rows::Kept(rows)
         };
         match crate::analysis::assess(s, source) {
             Ok(a) => {
@@ -248,6 +245,19 @@ fn finish(job: &Job, ran: Ran, mut warnings: Vec<String>) -> Done {
             ));
         }
     }
+}
+
+/// The analysis, `summary.json`, `perf.json`, the recording's close and the figures.
+fn finish(job: &Job, ran: Ran, mut warnings: Vec<String>) -> Done {
+    let s = job.scenario;
+    let opts = &job.opts;
+    let files = !opts.keep_rows;
+    let Ran {
+        mut summary,
+        rows,
+        recording,
+    } = ran;
+    analyse(job, &mut summary, &rows);
     summary.comfort_valid =
         summary.analysis_skipped.is_none() && !summary.flags.comfort_not_valid();
     if files {

@@ -15,13 +15,10 @@ const MAX_FILE_LINES: usize = 750;
 /// Lines a function may have.
 const MAX_FN_LINES: usize = 100;
 
-/// Offenders known now, under rework in report/: `(file, None)` for a file too long,
-/// `(file, Some(function))` for a function. Each must still offend, so the list can only
-/// shrink: remove an entry once its file or function is within the rule.
-const ALLOWED: &[(&str, Option<&str>)] = &[
-    ("report/src/compare.rs", None),
-    ("report/src/pipeline.rs", Some("finish")),
-];
+/// Offenders allowed for a while: `(file, None)` for a file too long, `(file, Some(function))`
+/// for a function. Each must still offend, so the list can only shrink: remove an entry once
+/// its file or function is within the rule. None today.
+const ALLOWED: &[(&str, Option<&str>)] = &[];
 
 /// A file or a function over its limit.
 #[derive(Debug, Clone, PartialEq)]

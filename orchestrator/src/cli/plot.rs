@@ -31,7 +31,7 @@ fn run_figures(dir: &Path) -> Result<Vec<PathBuf>, CliError> {
 
 /// A compare's figures: each run's, then the runs side by side.
 fn compare_figures(dir: &Path) -> Result<Vec<PathBuf>, CliError> {
-    let manifest = tiltsim_report::compare::Manifest::read(dir).ok_or_else(|| {
+    let manifest = tiltsim_report::table4::Manifest::read(dir).ok_or_else(|| {
         CliError::Invalid(format!(
             "{}: not the compare.json of a compare of this version of tiltsim",
             dir.join("compare.json").display()
@@ -52,7 +52,7 @@ fn compare_figures(dir: &Path) -> Result<Vec<PathBuf>, CliError> {
         runs.push((r.dir.clone(), load(&run.join("scenario.toml"))?, run));
     }
     let drawn = tiltsim_report::analysis::write_compare_plots(&runs, dir).and_then(|mut f| {
-        f.extend(tiltsim_report::compare::write_trade_off_plot(
+        f.extend(tiltsim_report::table4::write_trade_off_plot(
             &manifest.trade_off,
             dir,
         )?);

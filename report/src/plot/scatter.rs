@@ -127,7 +127,7 @@ fn draw_series(p: &mut Vec<Prim>, f: &Frame, se: &Series) {
 /// `out/plots/trade_off.{svg,png}`: each controller's P_CT on the curve against its lateral
 /// mean comfort on the straight (nothing when no curve run has a straight twin).
 pub fn write_trade_off_plot(
-    points: &[crate::compare::TradeOffPoint],
+    points: &[crate::table4::TradeOffPoint],
     out: &std::path::Path,
 ) -> std::io::Result<Vec<std::path::PathBuf>> {
     if points.is_empty() {

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use tiltsim_assessment::comfort::{metric, METRICS};
 use tiltsim_master::scenario::Scenario;
-use tiltsim_report::compare::fmt;
+use tiltsim_report::table4::fmt;
 use tiltsim_report::plot::{Chart, Line, PALETTE};
 
 use super::{identity, Plan, Row, Shard, PERTURBED, SERIES_DT};
