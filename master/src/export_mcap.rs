@@ -18,8 +18,8 @@ use crate::engine::mcap::{EventMessage, McapRecorder, TickData};
 use crate::engine::summary::deterministic;
 use crate::engine::Inits;
 use crate::links::LinkId;
-use crate::table::Row;
 use crate::scenario::{Master, Scenario};
+use crate::table::Row;
 
 /// Why a run could not be exported.
 #[derive(Debug, thiserror::Error)]

@@ -40,11 +40,11 @@ pub mod float_text;
 pub mod free;
 pub mod links;
 pub mod outdir;
-pub mod table;
 pub mod participant_replay;
 pub mod roles;
 pub mod scenario;
 pub mod signals;
+pub mod table;
 
 pub use engine::{run, RunOptions, Summary};
 pub use scenario::{Master, Scenario, Transport};

@@ -19,8 +19,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use tiltsim_master::engine::{RunError, RunOptions};
-use tiltsim_master::table::{Row, COLUMNS, OFFSETS, TYPES};
 use tiltsim_master::scenario::{Execution, Master, Scenario, Transport};
+use tiltsim_master::table::{Row, COLUMNS, OFFSETS, TYPES};
 
 mod studies;
 

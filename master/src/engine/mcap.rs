@@ -29,7 +29,7 @@ use std::path::{Path, PathBuf};
 use cosim::msg::{FromActuator, FromController, FromPlant, ToActuator, ToController, ToPlant};
 use cosim::Role;
 
-use super::observer::{Observer, FinishedTick};
+use super::observer::{FinishedTick, Observer};
 use crate::events::EventLog;
 use crate::links::LinkId;
 

@@ -41,13 +41,13 @@ pub use summary::{
 };
 
 use crate::events::EventLog;
-use crate::table::{Recorder, Row};
 use crate::roles::RoleMap;
 use crate::scenario::{Scenario, Transport};
+use crate::table::{Recorder, Row};
 use launch::Held;
 pub use observer::LatencyHistogram;
 use observer::{
-    ComputeStats, DriveEvents, Latency, Observer, Pacing, RowRecorder, RowSink, FinishedTick,
+    ComputeStats, DriveEvents, FinishedTick, Latency, Observer, Pacing, RowRecorder, RowSink,
 };
 use observer::{TickTiming, Trace};
 use team::Team;

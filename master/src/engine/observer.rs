@@ -14,8 +14,8 @@ use super::launch::Held;
 use super::summary::{LinkLatency, PacingReport, SolverReport};
 use super::team::Exchange;
 use crate::events::{EventKind, EventLog};
-use crate::table::{Recorder, Row};
 use crate::roles::RoleMap;
+use crate::table::{Recorder, Row};
 
 /// One finished tick, as the observers see it.
 pub(crate) struct FinishedTick<'a> {

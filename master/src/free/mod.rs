@@ -17,9 +17,9 @@
 pub mod compose;
 pub mod recording;
 mod relay;
-pub mod timing_replay;
 pub mod run;
 pub mod timing;
+pub mod timing_replay;
 pub mod trace;
 
 use std::path::Path;
@@ -32,11 +32,11 @@ use cosim::LinkError;
 use crate::engine::launch::Participants;
 use crate::engine::observer::{RowRecorder, RowSink};
 use crate::engine::{RunError, RunMode, Status, Summary};
-use crate::table::{Recorder, Row};
 use crate::scenario::{Execution, Scenario, Transport};
+use crate::table::{Recorder, Row};
 
-pub use timing_replay::{replay_timing, Replayed};
 pub use run::{run, FreeReport, FreeTiming};
+pub use timing_replay::{replay_timing, Replayed};
 pub use trace::TraceError;
 
 /// Why a free run or a replay could not be carried out.

@@ -88,9 +88,10 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
     let recording = match kept {
         Some(kept) => {
             let path = dir.join("run.mcap");
-            let r =
-                super::recording::record(&path, s.run.dt_s, &store, &kept, ticks, start_ns, &events)
-                    .map_err(|e| FreeError::io(&path, e))?;
+            let r = super::recording::record(
+                &path, s.run.dt_s, &store, &kept, ticks, start_ns, &events,
+            )
+            .map_err(|e| FreeError::io(&path, e))?;
             Some(r)
         }
         None => None,

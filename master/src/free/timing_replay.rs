@@ -77,7 +77,11 @@ fn ask<I: Message, O: Message>(
 /// Replays the trace at `trace_path` with scenario `s` (its own or another system's) on
 /// `s.run.transport`; writes `timeseries.csv`, `events.csv` and `scenario.toml` to
 /// `opts.out_dir`.
-pub fn replay_timing(s: &Scenario, trace_path: &Path, opts: &RunOptions) -> Result<Replayed, FreeError> {
+pub fn replay_timing(
+    s: &Scenario,
+    trace_path: &Path,
+    opts: &RunOptions,
+) -> Result<Replayed, FreeError> {
     let period = s.controller_period_ticks();
     let trace = trace::read(trace_path, s.run.dt_s, s.steps(), period)?;
     let mut order = trace.steps;

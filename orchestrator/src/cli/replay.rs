@@ -52,19 +52,20 @@ pub fn exec(a: ReplayArgs) -> CliResult {
         .unwrap_or_else(|| a.run_dir.join(format!("replay-{}", role.name())));
     let at = match a.transport.map(tiltsim_master::scenario::Transport::from) {
         Some(tiltsim_master::scenario::Transport::Ipc) => {
-            tiltsim_master::participant_replay::Where::Process(std::env::current_exe().map_err(|e| {
-                CliError::Failed(format!("cannot find the tiltsim executable: {e}"))
-            })?)
+            tiltsim_master::participant_replay::Where::Process(std::env::current_exe().map_err(
+                |e| CliError::Failed(format!("cannot find the tiltsim executable: {e}")),
+            )?)
         }
         _ => tiltsim_master::participant_replay::Where::InProcess,
     };
-    let r =
-        tiltsim_master::participant_replay::replay(&a.run_dir, role, &s, &at, &out).map_err(|e| match e {
+    let r = tiltsim_master::participant_replay::replay(&a.run_dir, role, &s, &at, &out).map_err(
+        |e| match e {
             tiltsim_master::participant_replay::ReplayError::Recording { .. } => {
                 CliError::Invalid(e.to_string())
             }
             _ => CliError::Failed(e.to_string()),
-        })?;
+        },
+    )?;
     let lost = r
         .lost_at_step
         .map(|k| format!(" (lost at step {k} in the recording; replayed up to it)"))

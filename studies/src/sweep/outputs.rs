@@ -8,8 +8,8 @@ use serde::{Deserialize, Serialize};
 
 use tiltsim_assessment::comfort::{metric, METRICS};
 use tiltsim_master::scenario::Scenario;
-use tiltsim_report::table4::fmt;
 use tiltsim_report::plot::{Chart, Line, PALETTE};
+use tiltsim_report::table4::fmt;
 
 use super::{identity, Plan, Row, Shard, PERTURBED, SERIES_DT};
 
@@ -388,7 +388,11 @@ pub(super) fn ecdf(values: &[f64]) -> (Vec<f64>, Vec<f64>) {
         return (Vec::new(), Vec::new());
     };
     let n = x.len();
-    let pad = if hi > lo { 0.05 * (hi - lo) } else { 0.05 * lo.abs().max(1.0) };
+    let pad = if hi > lo {
+        0.05 * (hi - lo)
+    } else {
+        0.05 * lo.abs().max(1.0)
+    };
     x.insert(0, lo - pad);
     x.push(hi + pad);
     let mut share: Vec<f64> = (0..=n).map(|i| 100.0 * i as f64 / n as f64).collect();
