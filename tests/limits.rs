@@ -191,8 +191,16 @@ fn sigterm_to_the_process_group_is_an_interruption_in_a_run_and_in_a_paced_wait(
         if name == "lockstep" {
             until_written(&out.join("timeseries.csv"), 100_000);
         } else {
-            // Every participant process is up before the first wait.
-            std::thread::sleep(Duration::from_millis(500));
+            // Every participant process is up before the first wait: its three children are
+            // there, then their start and the Init exchange (no file shows the paced wait; a
+            // signal while a participant starts is a different outcome, tested elsewhere).
+            let children = format!("/proc/{0}/task/{0}/children", child.id());
+            wait_for(Duration::from_secs(60), || {
+                let list = std::fs::read_to_string(&children).ok()?;
+                (list.split_whitespace().count() >= 3).then_some(())
+            })
+            .expect("the participants did not start");
+            std::thread::sleep(Duration::from_secs(3));
         }
         // As systemd, Slurm's scancel or a container runtime send it: to every process.
         // SAFETY: kill(2) with a negative pid signals the group the child leads.
