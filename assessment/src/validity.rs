@@ -1,5 +1,5 @@
 //! Whether a run's numbers mean what they say: flags in `summary.json` → `flags`, each with the
-//! measured value that raised it or would have (docs/results.md, "Reading the flags").
+//! measured value that raised it or would have (docs/outputs.md, "A run's files", `summary.json`).
 //!
 //! * `oscillation`: a sustained oscillation of the roll error θ_v − θ_v^d where the reference
 //!   is steady (straights and steady curve, from 2 s after the reference last moved: a
