@@ -7,11 +7,12 @@
 //! ```
 //!
 //! It prints the observer's part of the summary as JSON; `out/peak/timeseries.csv` holds the
-//! rows it watched.
+//! rows it watched, written by the built-in rows observer added before it.
 
 use std::path::PathBuf;
 
 use tiltsim_master::engine::observe::{Observer, Start, Tick};
+use tiltsim_master::engine::outputs::Rows;
 use tiltsim_master::engine::{Run, RunOptions, Summary};
 use tiltsim_master::scenario::{Scenario, Transport};
 
@@ -69,7 +70,17 @@ fn main() {
     };
     s.run.transport = Transport::InProcess;
     let opts = RunOptions::new(PathBuf::from(out), PathBuf::from("tiltsim"));
+    let csv = std::fs::create_dir_all(out)
+        .and_then(|()| Rows::to_file(&opts.out_dir.join("timeseries.csv"), s.run.dt_s));
+    let csv = match csv {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("{out}: {e}");
+            std::process::exit(1);
+        }
+    };
     let ran = Run::new(&s, scenario, &opts)
+        .add_observer(Box::new(csv))
         .add_observer(Box::new(PeakLateral::default()))
         .simulate();
     match ran {

@@ -47,6 +47,8 @@ pub enum EventKind {
     OvervoltageTrip,
     /// The braking chopper switched on (value: link voltage, V).
     ChopperOn,
+    /// A caller's manipulator acted (`engine::manipulate`; detail: in its own words).
+    Manipulated,
 }
 
 /// One line of `events.csv`.

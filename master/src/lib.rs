@@ -6,8 +6,10 @@
 //! A caller runs a scenario with:
 //! * [`Scenario::load`] (the file, validated: every error names the field and what is
 //!   allowed);
-//! * [`engine::run`] (or [`engine::run_recorded`], which also hands back the open `run.mcap`
-//!   recording and, with `--trace`, the binned request latency) with [`RunOptions`];
+//! * [`engine::Run`] with [`RunOptions`], its observers (the outputs among them:
+//!   [`engine::outputs`], and the caller's own: [`engine::observe`]) and its manipulators
+//!   ([`engine::manipulate`]); [`engine::run`] is the short form that writes the rows to
+//!   `timeseries.csv`;
 //! * the [`Summary`] it returns (the schema of `summary.json`), and the recorded series read
 //!   back as typed rows: [`table::each_row`], [`table::Rows`].
 //!

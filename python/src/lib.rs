@@ -18,6 +18,7 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use tiltsim_master::engine::outputs::Outputs;
 use tiltsim_master::engine::{RunError, RunOptions};
 use tiltsim_master::scenario::{Execution, Master, Scenario, Transport};
 use tiltsim_master::table::{Row, COLUMNS, OFFSETS, TYPES};
@@ -423,12 +424,10 @@ fn run<'py>(
     let (dir, scratch) = directory(py, out.as_deref(), "run")?;
     let interrupt = Arc::new(AtomicBool::new(false));
     let ticks = Arc::new(AtomicU64::new(0));
+    let ticks_seen = ticks.clone();
     let mut opts = RunOptions::new(dir.clone(), exe);
     opts.interrupt = interrupt.clone();
     opts.plots = plots;
-    opts.record = record;
-    opts.keep_rows = out.is_none();
-    opts.ticks_done = Some(ticks.clone());
     let steps = s.steps();
     let file = origin.to_string();
     let keep_files = out.is_some();
@@ -438,19 +437,26 @@ fn run<'py>(
         (&|| ticks.load(Ordering::Relaxed), steps),
         progress.as_ref(),
         move || {
+            let out_dir = opts.out_dir.clone();
             let mut job = tiltsim_report::pipeline::Job::new(&s, file, opts);
             job.replay_trace = replay_trace;
             // Without `out` the run writes into a scratch directory removed afterwards.
             job.claim = keep_files;
-            tiltsim_report::pipeline::carry_out(&job).and_then(|done| {
+            job.outputs = Outputs {
+                record,
+                rows_in_memory: !keep_files,
+                ticks_done: Some(ticks_seen),
+                ..Outputs::default()
+            };
+            tiltsim_report::pipeline::carry_out(job).and_then(|done| {
                 if !keep_files {
                     return Ok(done);
                 }
                 // What the run wrote is what the arrays hold.
-                let rows = tiltsim_master::table::read_rows(&job.opts.out_dir).map_err(|e| {
+                let rows = tiltsim_master::table::read_rows(&out_dir).map_err(|e| {
                     tiltsim_report::pipeline::JobError::Failed(format!(
                         "{}: {e}",
-                        job.opts.out_dir.display()
+                        out_dir.display()
                     ))
                 })?;
                 Ok(tiltsim_report::pipeline::Done { rows, ..done })

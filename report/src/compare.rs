@@ -100,7 +100,7 @@ impl Comparison {
         opts.out_dir = dir.clone();
         let mut job = crate::pipeline::Job::new(&s, file.display().to_string(), opts);
         job.claim = false;
-        let done = crate::pipeline::carry_out(&job).map_err(|e| match e {
+        let done = crate::pipeline::carry_out(job).map_err(|e| match e {
             crate::pipeline::JobError::Run(tiltsim_master::engine::RunError::Interrupted {
                 ..
             }) => CompareError::Interrupted(format!("{}: {e}", file.display())),

@@ -8,6 +8,9 @@
 use std::path::{Path, PathBuf};
 
 use tiltsim_master::budget::{self, Verdict};
+use tiltsim_master::engine::manipulate::Manipulator;
+use tiltsim_master::engine::observe::Observer;
+use tiltsim_master::engine::outputs::Outputs;
 use tiltsim_master::engine::{RunError, RunMode, RunOptions, Status, Summary};
 use tiltsim_master::free::{FreeError, TraceError};
 use tiltsim_master::scenario::{Execution, Scenario};
@@ -22,14 +25,22 @@ pub fn as_timing_replay(s: &mut Scenario) {
 }
 
 /// What to run and how.
-#[derive(Debug, Clone)]
 pub struct Job<'a> {
     /// The scenario, validated.
     pub scenario: &'a Scenario,
     /// Where it came from, for the summary (a path, or a name).
     pub scenario_file: String,
-    /// How to run it; `opts.keep_rows` keeps the rows in memory and writes no file.
+    /// How to run it.
     pub opts: RunOptions,
+    /// What it writes beside its summary (`outputs.rows_in_memory` keeps the rows in memory
+    /// and writes no file at all).
+    pub outputs: Outputs,
+    /// The caller's observers of a lock-step run, told after the outputs' own (a free run and
+    /// a timing replay take none: [`carry_out`] refuses them).
+    pub observers: Vec<Box<dyn Observer>>,
+    /// The caller's manipulators of a lock-step run, after the scenario's own (refused for
+    /// the other modes, as observers are).
+    pub manipulators: Vec<Box<dyn Manipulator>>,
     /// Replay this free run's timing trace in lock-step instead of running the scenario's
     /// execution (`tiltsim replay-timing`).
     pub replay_trace: Option<PathBuf>,
@@ -46,9 +57,17 @@ impl<'a> Job<'a> {
             scenario,
             scenario_file: scenario_file.into(),
             opts,
+            outputs: Outputs::default(),
+            observers: Vec::new(),
+            manipulators: Vec::new(),
             replay_trace: None,
             claim: true,
         }
+    }
+
+    /// Whether it writes files (not when its rows are kept in memory).
+    pub fn writes_files(&self) -> bool {
+        !self.outputs.rows_in_memory
     }
 
     /// How this job runs.
@@ -66,7 +85,7 @@ impl<'a> Job<'a> {
 pub struct Done {
     /// The run's summary, analysed (as written to `summary.json`).
     pub summary: Summary,
-    /// The rows, when kept in memory (`opts.keep_rows`); empty otherwise.
+    /// The rows, when kept in memory (`outputs.rows_in_memory`); empty otherwise.
     pub rows: Vec<Row>,
     /// What the user should know that did not stop the run (a large share of the disk, a
     /// figure not drawn, a file not written).
@@ -105,17 +124,27 @@ impl From<FreeError> for JobError {
 
 /// Carries out `job`: see the module's description. Refuses before anything is written when
 /// the outputs would not fit on the disk or the directory is another run's.
-pub fn carry_out(job: &Job) -> Result<Done, JobError> {
+pub fn carry_out(mut job: Job) -> Result<Done, JobError> {
     let s = job.scenario;
-    let opts = &job.opts;
-    let files = !opts.keep_rows;
+    let files = job.writes_files();
     let mut warnings = Vec::new();
+    let extra = !job.observers.is_empty() || !job.manipulators.is_empty();
+    if extra && job.mode() != RunMode::LockStep {
+        return Err(JobError::Invalid(format!(
+            "{}: observers and manipulators act on a lock-step run; this one is {}",
+            job.scenario_file,
+            match job.mode() {
+                RunMode::Free => "a free run (run.execution = \"free\")",
+                _ => "a replay of a free run's timing",
+            }
+        )));
+    }
     if files {
         let extras = budget::Extras {
-            trace: opts.trace,
-            record: opts.record,
+            trace: job.outputs.trace,
+            record: job.outputs.record,
         };
-        match budget::check(s, &opts.out_dir, extras) {
+        match budget::check(s, &job.opts.out_dir, extras) {
             Verdict::Fits => {}
             Verdict::Warn(m) => warnings.push(format!("{}: {m}", job.scenario_file)),
             Verdict::Refuse(m) => {
@@ -125,18 +154,18 @@ pub fn carry_out(job: &Job) -> Result<Done, JobError> {
     }
     let lock = if files && job.claim {
         Some(
-            tiltsim_master::outdir::claim_run(&opts.out_dir, "run")
+            tiltsim_master::outdir::claim_run(&job.opts.out_dir, "run")
                 .map_err(|e| JobError::Invalid(e.to_string()))?,
         )
     } else {
         None
     };
     let ran = match job.mode() {
-        RunMode::LockStep => lock_step(job, &mut warnings)?,
-        RunMode::Free => free(job)?,
-        RunMode::ReplayTiming => replay(job)?,
+        RunMode::LockStep => lock_step(&mut job, &mut warnings)?,
+        RunMode::Free => free(&job)?,
+        RunMode::ReplayTiming => replay(&job)?,
     };
-    let mut done = finish(job, ran, warnings);
+    let mut done = finish(&job, ran, warnings);
     done.replaced_earlier_run = lock.as_ref().is_some_and(|l| l.replaced() > 0);
     Ok(done)
 }
@@ -150,16 +179,33 @@ struct Ran {
 
 /// `run.mcap`, open until the summary closes it.
 enum Recording {
-    LockStep(tiltsim_master::engine::Recording),
+    LockStep(
+        tiltsim_master::engine::mcap::McapRecorder,
+        tiltsim_master::events::EventLog,
+    ),
     Free(tiltsim_master::free::recording::FreeRecording),
 }
 
-fn lock_step(job: &Job, warnings: &mut Vec<String>) -> Result<Ran, JobError> {
+/// The lock-step: the outputs' observers first, then the caller's.
+fn lock_step(job: &mut Job, warnings: &mut Vec<String>) -> Result<Ran, JobError> {
     let opts = &job.opts;
-    let ran = tiltsim_master::engine::run_recorded(job.scenario, &job.scenario_file, opts)?;
+    let s = job.scenario;
+    std::fs::create_dir_all(&opts.out_dir).map_err(RunError::io(opts.out_dir.clone()))?;
+    let made = job
+        .outputs
+        .observers(s, &opts.out_dir)
+        .map_err(|(path, source)| RunError::Io { path, source })?;
+    let mut run = tiltsim_master::engine::Run::new(s, &job.scenario_file, opts);
+    for o in made.observers.into_iter().chain(job.observers.drain(..)) {
+        run = run.add_observer(o);
+    }
+    for m in job.manipulators.drain(..) {
+        run = run.add_manipulator(m);
+    }
+    let ran = run.simulate()?;
     let mut summary = ran.summary;
     // With `--trace`: a figure that cannot be written fails the run, as the trace would.
-    if let Some(h) = ran.latency_histogram {
+    if let Some(h) = ran.latency_histogram.filter(|_| job.outputs.trace) {
         if let Err(e) = crate::analysis::latency_histogram(&opts.out_dir, &job.scenario.name, &h) {
             if summary.error.is_none() {
                 summary.status = Status::Failed;
@@ -171,14 +217,17 @@ fn lock_step(job: &Job, warnings: &mut Vec<String>) -> Result<Ran, JobError> {
     }
     Ok(Ran {
         summary,
-        rows: ran.rows.unwrap_or_default(),
-        recording: ran.recording.map(Recording::LockStep),
+        rows: made.rows.and_then(|h| h.take()).unwrap_or_default(),
+        recording: made
+            .recording
+            .and_then(|h| h.take())
+            .map(|r| Recording::LockStep(r, ran.events)),
     })
 }
 
 fn free(job: &Job) -> Result<Ran, JobError> {
     let s = job.scenario;
-    let mut r = tiltsim_master::free::run(s, &job.opts)?;
+    let mut r = tiltsim_master::free::run(s, &job.opts, &job.outputs)?;
     let summary = tiltsim_master::free::summary_of_run(s, &job.scenario_file, &mut r);
     Ok(Ran {
         summary,
@@ -190,7 +239,7 @@ fn free(job: &Job) -> Result<Ran, JobError> {
 fn replay(job: &Job) -> Result<Ran, JobError> {
     let s = job.scenario;
     let trace = job.replay_trace.as_deref().unwrap_or(Path::new(""));
-    let mut r = tiltsim_master::free::replay_timing(s, trace, &job.opts)?;
+    let mut r = tiltsim_master::free::replay_timing(s, trace, &job.opts, &job.outputs)?;
     let summary = tiltsim_master::free::summary_of_replay(s, &job.scenario_file, trace, &r);
     Ok(Ran {
         summary,
@@ -205,7 +254,7 @@ fn replay(job: &Job) -> Result<Ran, JobError> {
 fn analyse(job: &Job, summary: &mut Summary, rows: &[Row]) {
     let s = job.scenario;
     let opts = &job.opts;
-    let files = !opts.keep_rows;
+    let files = job.writes_files();
     let interrupted = opts.interrupt.load(std::sync::atomic::Ordering::Relaxed);
     if interrupted {
         // An hour's series takes tens of seconds to analyse: `tiltsim plot DIR` draws it later.
@@ -251,7 +300,7 @@ fn analyse(job: &Job, summary: &mut Summary, rows: &[Row]) {
 fn finish(job: &Job, ran: Ran, mut warnings: Vec<String>) -> Done {
     let s = job.scenario;
     let opts = &job.opts;
-    let files = !opts.keep_rows;
+    let files = job.writes_files();
     let Ran {
         mut summary,
         rows,
@@ -283,7 +332,7 @@ fn finish(job: &Job, ran: Ran, mut warnings: Vec<String>) -> Done {
     }
     if let Some(rec) = recording {
         let closed = match rec {
-            Recording::LockStep(r) => r.finish(&summary),
+            Recording::LockStep(r, events) => r.finish(&events, &summary),
             Recording::Free(r) => {
                 let det = tiltsim_master::engine::summary::deterministic(
                     serde_json::to_value(&summary).unwrap_or_default(),

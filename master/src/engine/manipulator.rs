@@ -1,18 +1,17 @@
-//! Manipulators of the participants: scheduled process faults, and the degraded-mode
-//! replacement of a participant that failed. (The manipulator of the values in flight, the
-//! link effects, is `crate::links::LinkSet`.)
+//! The scenario's own manipulators (`super::manipulate`): the link effects on the values in
+//! flight (`crate::links::LinkSet`), the scheduled process faults, and the degraded-mode
+//! replacement of a participant that failed.
 
 use std::time::Duration;
 
-use cosim::endpoint::ExitReport;
 use cosim::msg::FLAG_CRASH;
-use cosim::{Endpoint, InProcess, LinkError, Message, ProcessFault, Role};
+use cosim::{LinkError, ProcessFault, Role};
 
-use super::launch::{Held, Participants};
+use super::manipulate::{Control, Manipulator};
 use crate::degraded::{FallbackController, NeutralBar};
 use crate::events::{EventKind, EventLog};
 use crate::faults::{Fallback, FaultAction, Faults, OnFailure, ScheduledFault};
-use crate::roles::RoleMap;
+use crate::links::{LinkId, LinkSet};
 use crate::scenario::Scenario;
 
 /// The scenario's scheduled faults, each at its tick.
@@ -29,40 +28,6 @@ impl FaultSchedule {
                 .iter()
                 .map(|x| (((x.at_s / dt).round().max(0.0)) as u64, x.clone()))
                 .collect(),
-        }
-    }
-
-    /// Applies the faults due at tick `k` to participants not already `lost`: a kill or stall
-    /// through the endpoint, a crash as a flag on the next request.
-    pub fn apply(
-        &self,
-        k: u64,
-        ps: &mut Participants,
-        flags: &mut RoleMap<u32>,
-        lost: RoleMap<bool>,
-        ev: &mut EventLog,
-    ) {
-        for (_, f) in self.due.iter().filter(|(at, _)| *at == k) {
-            let role = f.participant;
-            if lost[role] {
-                continue;
-            }
-            let fault = match f.action {
-                FaultAction::Kill => Some(ProcessFault::Kill),
-                FaultAction::Stall => Some(ProcessFault::Stall(Duration::from_secs_f64(f.stall_s))),
-                FaultAction::Crash => {
-                    flags[role] |= FLAG_CRASH;
-                    None
-                }
-            };
-            if let Some(fault) = fault {
-                match role {
-                    Role::Plant => ps.plant.inject(fault),
-                    Role::Actuator => ps.actuator.inject(fault),
-                    Role::Controller => ps.controller.inject(fault),
-                }
-            }
-            Self::log(k, f, ev);
         }
     }
 
@@ -102,6 +67,41 @@ impl FaultSchedule {
     }
 }
 
+/// The scheduled faults, each applied before its tick to a participant not already replaced:
+/// a kill or stall through the endpoint, a crash as a flag on the next request.
+impl Manipulator for FaultSchedule {
+    fn name(&self) -> &str {
+        "faults"
+    }
+    fn tick_commencing(&mut self, k: u64, ctl: &mut Control<'_>) {
+        for (_, f) in self.due.iter().filter(|(at, _)| *at == k) {
+            let role = f.participant;
+            if ctl.replaced(role) {
+                continue;
+            }
+            match f.action {
+                FaultAction::Kill => ctl.inject(role, ProcessFault::Kill),
+                FaultAction::Stall => ctl.inject(
+                    role,
+                    ProcessFault::Stall(Duration::from_secs_f64(f.stall_s)),
+                ),
+                FaultAction::Crash => ctl.flag_next_request(role, FLAG_CRASH),
+            }
+            Self::log(k, f, ctl.events);
+        }
+    }
+}
+
+/// The link effects of the scenario (`crate::links`) on the values in flight.
+impl Manipulator for LinkSet {
+    fn name(&self) -> &str {
+        "links"
+    }
+    fn carry(&mut self, link: LinkId, k: u64, t: f64, v: f64, events: &mut EventLog) -> f64 {
+        LinkSet::carry(self, link, k, t, v, events)
+    }
+}
+
 /// Replaces a lost actuator or controller by its degraded-mode stand-in (docs/model.md D26).
 pub(crate) struct Degrader {
     policy: OnFailure,
@@ -109,12 +109,6 @@ pub(crate) struct Degrader {
     fallback: Fallback,
     dt: f64,
     controller_period: f64,
-    lost: RoleMap<Option<ExitReport>>,
-    degraded: bool,
-}
-
-fn shut<I: Message, O: Message>(mut ep: Box<dyn Endpoint<I, O>>) -> ExitReport {
-    ep.shutdown()
 }
 
 impl Degrader {
@@ -126,68 +120,54 @@ impl Degrader {
             fallback: s.faults.controller_fallback,
             dt: s.run.dt_s,
             controller_period: s.controller.period_s,
-            lost: RoleMap::default(),
-            degraded: false,
         }
     }
+}
 
-    /// Whether a participant was replaced.
-    pub fn degraded(&self) -> bool {
-        self.degraded
-    }
-
-    /// Which roles were replaced.
-    pub fn lost_roles(&self) -> RoleMap<bool> {
-        RoleMap::new(Role::ALL.map(|r| self.lost[r].is_some()))
-    }
-
-    /// The exit reports of the replaced participants.
-    pub fn take_lost(&mut self) -> RoleMap<Option<ExitReport>> {
-        std::mem::take(&mut self.lost)
+impl Manipulator for Degrader {
+    fn name(&self) -> &str {
+        "degraded"
     }
 
     /// Replaces the participant that failed with `e` when the scenario says so (never the
-    /// plant, never twice); otherwise returns `e`.
-    pub fn replace(
+    /// plant, never twice); otherwise hands `e` on.
+    fn participant_failed(
         &mut self,
-        ps: &mut Participants,
-        held: &Held,
         k: u64,
         e: LinkError,
-        ev: &mut EventLog,
+        ctl: &mut Control<'_>,
     ) -> Result<(), LinkError> {
         let role = e.role();
-        if self.policy != OnFailure::Degrade || role == Role::Plant || self.lost[role].is_some() {
+        if self.policy != OnFailure::Degrade || role == Role::Plant || ctl.replaced(role) {
             return Err(e);
         }
+        let (_, a, c) = ctl.latest();
         let detail = if role == Role::Actuator {
-            let bar = NeutralBar::new(held.a.delta_a, self.neutral_ramp_s, self.dt);
-            let old = std::mem::replace(&mut ps.actuator, Box::new(InProcess::new(bar)));
-            self.lost[role] = Some(shut(old));
+            let bar = NeutralBar::new(a.delta_a, self.neutral_ramp_s, self.dt);
+            ctl.replace_actuator(bar);
             format!("bar ramps to neutral over {} s", self.neutral_ramp_s)
         } else {
             let ramp = match self.fallback {
                 Fallback::Neutral => Some(self.neutral_ramp_s),
                 Fallback::Hold => None,
             };
-            let fb = FallbackController::new(held.c.delta_a_cmd, ramp, self.controller_period);
-            let old = std::mem::replace(&mut ps.controller, Box::new(InProcess::new(fb)));
-            self.lost[role] = Some(shut(old));
+            let fb = FallbackController::new(c.delta_a_cmd, ramp, self.controller_period);
+            ctl.replace_controller(fb);
             match ramp {
                 Some(r) => format!("bar command ramps to neutral over {r} s"),
                 None => "last bar command held".into(),
             }
         };
-        ev.push(
+        ctl.events.push(
             k,
             role.name(),
             EventKind::ParticipantLost,
             f64::NAN,
             e.cause(),
         );
-        ev.push(k, role.name(), EventKind::Degraded, f64::NAN, detail);
+        ctl.events
+            .push(k, role.name(), EventKind::Degraded, f64::NAN, detail);
         tracing::warn!("{e}; continuing degraded");
-        self.degraded = true;
         Ok(())
     }
 }

@@ -29,7 +29,6 @@ use std::path::{Path, PathBuf};
 use cosim::msg::{FromActuator, FromController, FromPlant, ToActuator, ToController, ToPlant};
 use cosim::Role;
 
-use super::observer::{FinishedTick, Observer};
 use crate::events::EventLog;
 use crate::links::LinkId;
 
@@ -218,7 +217,7 @@ pub fn message(step: u64, fields: &[&str], values: &[f64]) -> String {
 /// Writes `run.mcap` as the run goes, in log-time order: a tick's inputs, links and controller
 /// messages at t_k, then the events of tick k, then the plant's and the actuator's outputs at
 /// t_(k+1), the time their values hold at.
-pub(crate) struct McapRecorder {
+pub struct McapRecorder {
     out: mcap::Writer<BufWriter<File>>,
     path: PathBuf,
     dt_ns: u64,
@@ -312,8 +311,8 @@ impl McapRecorder {
     }
 
     /// Queues the events of `log` not taken yet.
-    fn take_events(&mut self, log: &EventLog) {
-        let new = log.events.get(self.taken..).unwrap_or(&[]);
+    pub(crate) fn take_events(&mut self, log: &[crate::events::Event]) {
+        let new = log.get(self.taken..).unwrap_or(&[]);
         self.taken += new.len();
         self.queued.extend(new.iter().map(EventMessage::from));
     }
@@ -369,7 +368,7 @@ impl McapRecorder {
         events: &EventLog,
         summary: &super::Summary,
     ) -> std::io::Result<PathBuf> {
-        self.take_events(events);
+        self.take_events(&events.events);
         let det = super::summary::deterministic(serde_json::to_value(summary).unwrap_or_default());
         let end = summary.steps_completed * self.dt_ns;
         self.close(&det, &summary.perf(), end)
@@ -436,7 +435,7 @@ pub(crate) fn level(kind: crate::events::EventKind) -> u8 {
         K::Drop | K::Jitter => 1,
         K::Delay | K::JitterOn | K::DropOn | K::Bias | K::Noise | K::ChopperOn => 2,
         K::DropWindow | K::FreezeWindow | K::NanWindow | K::ValueWindow => 2,
-        K::FaultInjected | K::Degraded | K::BadInputHeld => 3,
+        K::FaultInjected | K::Degraded | K::BadInputHeld | K::Manipulated => 3,
         K::ParticipantLost | K::OvercurrentTrip | K::OvervoltageTrip => 4,
         K::RunFailed => 5,
     }
@@ -614,31 +613,5 @@ impl McapRecorder {
         self.put(i + 1, next, a_got, &m)?;
         let m = message(k + 1, ch(j + 1), &plant_out(d.p));
         self.put(j + 1, next, p_got, &m)
-    }
-}
-
-impl Observer for McapRecorder {
-    fn after_tick(&mut self, t: &FinishedTick, ev: &mut EventLog) -> std::io::Result<()> {
-        self.take_events(ev);
-        let k = t.k;
-        // Wall-clock times of this tick's step exchanges (the Init ones have step 0 too).
-        let when = |role: Role| {
-            t.exchanges
-                .iter()
-                .rev()
-                .find(|x| x.role == role && x.step == k)
-                .map(|x| (x.sent_ns, x.received_ns))
-        };
-        self.write_tick(&TickData {
-            k,
-            due: t.controller_due,
-            to_controller: t.to_controller,
-            p: &t.held.p,
-            a: &t.held.a,
-            c: &t.held.c,
-            rx: t.rx,
-            tx: t.tx,
-            wall: Role::ALL.map(when),
-        })
     }
 }

@@ -6,31 +6,37 @@
 //!   manipulators on the way ([`manipulator`]: scheduled faults, degraded replacement; link
 //!   effects in `crate::links`);
 //! * [`algorithm`]: the master algorithms, Gauss-Seidel and Jacobi;
-//! * [`observer`]: the recorder, timing, compute, latency, trace, pacing and drive events;
+//! * [`observer`]: the engine's own measurements: timing, compute, latency, pacing and drive
+//!   events;
 //! * [`observe`]: the [`Observer`](observe::Observer) trait a caller implements and adds to a
-//!   [`Run`], with its lifecycle (start, each tick, finish with its part of the summary);
+//!   [`Run`], with its lifecycle (start, each tick, close, finish with its part of the
+//!   summary); [`outputs`]: the rows, trace, recording and progress as observers;
+//! * [`manipulate`]: the [`Manipulator`](manipulate::Manipulator) trait: what acts on the
+//!   participants and the values in flight (link effects, scheduled faults, degraded
+//!   stand-ins, and the caller's own), in an ordered list the caller extends;
 //! * [`cpu_plan`]: where the participants' processes run; [`mcap`]: `run.mcap`;
 //! * [`summary`]: the schema of `summary.json`.
 //!
-//! A [`Run`] is built by the caller (`Run::new(..).add_observer(..).simulate()`); [`run`] and
-//! [`run_recorded`] are its short forms. It reads as: launch, loop, shut down, report. Analysis of the recorded series (quick
+//! A [`Run`] is built by the caller (`Run::new(..).add_observer(..).add_manipulator(..)
+//! .simulate()`); [`run`] is its short form with the rows written to `timeseries.csv`. It reads as: launch, loop, shut down, report. Analysis of the recorded series (quick
 //! look, comfort, flags, figures) is the caller's step (`tiltsim_report::analysis`).
 
 pub(crate) mod algorithm;
 pub mod cpu_plan;
 pub(crate) mod launch;
+pub mod manipulate;
 pub(crate) mod manipulator;
 pub mod mcap;
 pub mod observe;
 pub(crate) mod observer;
 mod options;
+pub mod outputs;
 pub mod summary;
 pub(crate) mod team;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use cosim::msg::now_ns;
 use cosim::{LinkError, Role};
 
 pub use launch::{finish_logs, Inits};
@@ -43,68 +49,46 @@ pub use summary::{
 use crate::events::EventLog;
 use crate::roles::RoleMap;
 use crate::scenario::{Scenario, Transport};
-use crate::table::{Recorder, Row};
 use launch::Held;
 pub use observer::LatencyHistogram;
-use observer::{
-    ComputeStats, DriveEvents, FinishedTick, Latency, Observer, Pacing, RowRecorder, RowSink,
-};
-use observer::{TickTiming, Trace};
+use observer::{ComputeStats, DriveEvents, FinishedTick, Latency, Observer, Pacing, TickTiming};
+use outputs::Outputs;
 use team::Team;
 
-/// The observers of one run.
+/// The observers of one run: the engine's own measurements, then the caller's list.
 struct Observers {
-    recorder: RowRecorder,
     timing: TickTiming,
     compute: ComputeStats,
     latency: Latency,
     drive: DriveEvents,
-    trace: Option<Trace>,
     pacing: Option<Pacing>,
-    progress: Option<observer::Progress>,
-    ticks_done: Option<std::sync::Arc<std::sync::atomic::AtomicU64>>,
-    mcap: Option<mcap::McapRecorder>,
     cpu_plan: Option<cpu_plan::CpuPlanner>,
-    /// The caller's observers, in the order added.
-    user: Vec<Box<dyn observe::Observer>>,
+    /// The caller's observers (the outputs among them), in the order added.
+    list: Vec<Box<dyn observe::Observer>>,
+    /// Ticks every observer was told about.
+    ticks: u64,
     /// Base tick (s), for the times the caller's observers see.
     dt: f64,
 }
 
 impl Observers {
-    fn new(s: &Scenario, opts: &RunOptions, out: Outputs) -> Self {
-        let Outputs {
-            recorder,
-            trace,
-            mcap,
-        } = out;
+    fn new(s: &Scenario, opts: &RunOptions, list: Vec<Box<dyn observe::Observer>>) -> Self {
         Observers {
-            recorder,
             cpu_plan: None,
             timing: TickTiming::default(),
             compute: ComputeStats::default(),
             latency: Latency::default(),
             drive: DriveEvents::default(),
-            trace,
-            mcap,
-            progress: if opts.machine_progress {
-                Some(observer::Progress::new(s.steps(), s.run.dt_s))
-            } else if opts.progress_bar {
-                Some(observer::Progress::bar(s.steps(), s.run.dt_s))
-            } else {
-                None
-            },
-            ticks_done: opts.ticks_done.clone(),
             pacing: opts
                 .pace
                 .map(|f| Pacing::new(f, s.run.dt_s, opts.realtime.is_some())),
-            user: Vec::new(),
+            list,
+            ticks: 0,
             dt: s.run.dt_s,
         }
     }
 
-    /// Tells the caller's observers and the recorders the outputs at the start time (before
-    /// the first tick).
+    /// Tells the caller's observers the outputs at the start time (before the first tick).
     fn at_start(&mut self, s: &Scenario, held: &Held) -> std::io::Result<()> {
         let start = observe::Start {
             scenario: &s.name,
@@ -114,13 +98,10 @@ impl Observers {
             actuator: &held.a,
             controller: &held.c,
         };
-        for o in &mut self.user {
+        for o in &mut self.list {
             o.start(&start)?;
         }
-        if let Some(m) = &mut self.mcap {
-            m.at_start(&held.p, &held.a)?;
-        }
-        self.recorder.at_start(held)
+        Ok(())
     }
 
     fn before_tick(&mut self, k: u64) {
@@ -130,8 +111,8 @@ impl Observers {
     }
 
     /// Tells every observer about tick `t.k`, in this order: the timing first, so that a tick's
-    /// wall time ends with its exchanges (as the coordination overhead is defined), the
-    /// recorder last. Static calls: no allocation per tick.
+    /// wall time ends with its exchanges (as the coordination overhead is defined), then the
+    /// engine's other measurements, then the caller's list. No allocation per tick.
     fn after_tick(&mut self, t: &FinishedTick, ev: &mut EventLog) -> std::io::Result<()> {
         self.timing.after_tick(t, ev)?;
         if let Some(p) = &mut self.pacing {
@@ -140,35 +121,40 @@ impl Observers {
         self.compute.after_tick(t, ev)?;
         self.latency.after_tick(t, ev)?;
         self.drive.after_tick(t, ev)?;
-        if let Some(tr) = &mut self.trace {
-            tr.after_tick(t, ev)?;
+        let tick = observe::Tick {
+            k: t.k,
+            time: cosim::time::tick_time(t.k + 1, self.dt),
+            plant: &t.held.p,
+            actuator: &t.held.a,
+            controller: &t.held.c,
+            controller_stepped: t.controller_due,
+            to_controller: t.controller_due.then_some(t.to_controller),
+            sent: observe::LinkValues::from_ordered(t.tx),
+            received: observe::LinkValues::from_ordered(t.rx),
+            exchanges: t.exchanges,
+            events: &ev.events,
+        };
+        for o in &mut self.list {
+            o.tick(&tick)?;
         }
-        if let Some(p) = &mut self.progress {
-            p.after_tick(t, ev)?;
-        }
-        if let Some(n) = &self.ticks_done {
-            n.store(t.k + 1, std::sync::atomic::Ordering::Relaxed);
-        }
-        if !self.user.is_empty() {
-            let tick = observe::Tick {
-                k: t.k,
-                time: cosim::time::tick_time(t.k + 1, self.dt),
-                plant: &t.held.p,
-                actuator: &t.held.a,
-                controller: &t.held.c,
-                controller_stepped: t.controller_due,
-                to_controller: t.controller_due.then_some(t.to_controller),
-                sent: observe::LinkValues::from_ordered(t.tx),
-                received: observe::LinkValues::from_ordered(t.rx),
-            };
-            for o in &mut self.user {
-                o.tick(&tick)?;
-            }
-        }
-        if let Some(m) = &mut self.mcap {
-            m.after_tick(t, ev)?;
-        }
-        self.recorder.after_tick(t, ev)
+        self.ticks = t.k + 1;
+        Ok(())
+    }
+
+    /// Closes the caller's observers; every error, in their order.
+    fn close(&mut self) -> Vec<std::io::Error> {
+        self.list
+            .iter_mut()
+            .filter_map(|o| o.close().err())
+            .collect()
+    }
+
+    /// The ticks done and held whole by every observer.
+    fn ticks_kept(&self) -> u64 {
+        self.list
+            .iter()
+            .filter_map(|o| o.ticks_kept())
+            .fold(self.ticks, u64::min)
     }
 }
 
@@ -316,59 +302,14 @@ fn lockstep_pipelined(
     Ok(())
 }
 
-/// The files a run writes as it goes.
-struct Outputs {
-    recorder: RowRecorder,
-    trace: Option<Trace>,
-    mcap: Option<mcap::McapRecorder>,
-}
-
-/// A run's `run.mcap`, still open for the events and the analysed summary.
-pub struct Recording {
-    rec: mcap::McapRecorder,
-    events: EventLog,
-}
-
-impl Recording {
-    /// Writes the events and `summary`, and closes the file; returns its path.
-    pub fn finish(self, summary: &Summary) -> std::io::Result<std::path::PathBuf> {
-        self.rec.finish(&self.events, summary)
-    }
-}
-
-/// The files a run writes as it goes: the output directory, `timeseries.csv` (header first),
-/// `trace.csv` with `--trace` (header first), `run.mcap` with `--record`, and
-/// `scenario.toml` (the scenario as run).
-fn create_outputs(s: &Scenario, opts: &RunOptions) -> Result<Outputs, RunError> {
+/// Creates the output directory and writes `scenario.toml` (the scenario as run): every
+/// mode's first step.
+pub(crate) fn prepare(s: &Scenario, opts: &RunOptions) -> Result<(), RunError> {
     let dir = &opts.out_dir;
     std::fs::create_dir_all(dir).map_err(RunError::io(dir.clone()))?;
-    let rec = if opts.keep_rows {
-        RowSink::Kept(Vec::with_capacity(s.steps() as usize + 1))
-    } else {
-        let csv = dir.join("timeseries.csv");
-        RowSink::File(Box::new(Recorder::create(&csv).map_err(RunError::io(csv))?))
-    };
-    let rec = RowRecorder::new(s.run.dt_s, rec);
-    let trace = if opts.trace {
-        let path = dir.join("trace.csv");
-        Some(Trace::create(&path, now_ns(), s.run.dt_s).map_err(RunError::io(path))?)
-    } else {
-        None
-    };
-    let mcap = if opts.record {
-        let path = dir.join("run.mcap");
-        Some(mcap::McapRecorder::create(&path, s.run.dt_s).map_err(RunError::io(path))?)
-    } else {
-        None
-    };
     let resolved = dir.join("scenario.toml");
     crate::files::write_atomic(&resolved, toml::to_string(s).unwrap_or_default())
-        .map_err(RunError::io(resolved))?;
-    Ok(Outputs {
-        recorder: rec,
-        trace,
-        mcap,
-    })
+        .map_err(RunError::io(resolved))
 }
 
 /// What a finished loop leaves for the report.
@@ -397,13 +338,13 @@ fn shut_down(
 ) -> Ended {
     let pids = team.ps.pids();
     let counts = team.ps.counts();
+    let degraded = team.degraded();
     let lost = team.take_lost();
     let exits = team.ps.shut_down(lost);
     // FMUs unpacked by participant processes that were killed.
     if !team.scenario().participants.is_empty() {
         tiltsim_fmi::archive::remove_dead_unpacked();
     }
-    let degraded = team.degraded();
     let mut leftover = Vec::new();
     let mut participant_logs = Vec::new();
     if let Some(hub) = team.ps.hub.take() {
@@ -433,10 +374,21 @@ fn shut_down(
     }
 }
 
-/// Removes a run's shared-memory files when dropped: on every way out of [`run`], a failed
-/// start, an error, a panic, as well as the normal end (where [`shut_down`] has already
-/// removed them and reported any it could not).
-struct RunFilesGuard(String);
+/// Removes a run's shared-memory files when dropped: on every way out of a run (lock-step,
+/// free or a timing replay), a failed start, an error, a panic, as well as the normal end
+/// (where the shut-down has already removed them and reported any it could not).
+pub(crate) struct RunFilesGuard(pub(crate) String);
+
+/// The run's iceoryx2 prefix: the caller's, or a unique one; none in process.
+pub(crate) fn ipc_prefix(s: &Scenario, opts: &RunOptions) -> String {
+    match s.run.transport {
+        Transport::Ipc => opts
+            .ipc_prefix
+            .clone()
+            .unwrap_or_else(cosim::ipc::unique_prefix),
+        Transport::InProcess => String::new(),
+    }
+}
 
 impl Drop for RunFilesGuard {
     fn drop(&mut self) {
@@ -446,51 +398,49 @@ impl Drop for RunFilesGuard {
     }
 }
 
-/// Runs a validated scenario: launch, loop, shut down, report. Always writes what it has to
-/// `out_dir` (`timeseries.csv`, `events.csv`, `scenario.toml`, `trace.csv` with `--trace`);
-/// the returned summary says whether the run completed. The participants are shut down and
-/// the shared-memory files removed before any output after the loop is written, so a write
-/// that fails (a full disk) is reported in the summary and never skips the clean-up.
-/// `results`, `comfort` and `flags` are left for the caller's analysis
-/// (`tiltsim_report::analysis::analyse`).
+/// Runs a validated scenario with its rows written to `timeseries.csv`: launch, loop, shut
+/// down, report. Always writes what it has to `out_dir` (`timeseries.csv`, `events.csv`,
+/// `columns.csv`, `scenario.toml`); the returned summary says whether the run completed. The
+/// participants are shut down and the shared-memory files removed before any output after the
+/// loop is written, so a write that fails (a full disk) is reported in the summary and never
+/// skips the clean-up. `results`, `comfort` and `flags` are left for the caller's analysis
+/// (`tiltsim_report::analysis::analyse`). For other outputs, build a [`Run`].
 pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summary, RunError> {
-    let Ran {
-        summary, recording, ..
-    } = run_recorded(s, scenario_file, opts)?;
-    if let Some(r) = recording {
-        if let Err(e) = r.finish(&summary) {
-            tracing::warn!("recording not completed: {e}");
-        }
+    prepare(s, opts)?;
+    let made = Outputs::default()
+        .observers(s, &opts.out_dir)
+        .map_err(|(path, source)| RunError::Io { path, source })?;
+    let mut run = Run::new(s, scenario_file, opts);
+    for o in made.observers {
+        run = run.add_observer(o);
     }
-    Ok(summary)
+    Ok(run.simulate()?.summary)
 }
 
-/// What [`run_recorded`] returns.
+/// What a [`Run`] returns.
 pub struct Ran {
     /// The run's summary (not yet analysed).
     pub summary: Summary,
-    /// `run.mcap` (with `--record`), open for the caller to finish with the analysed summary.
-    pub recording: Option<Recording>,
-    /// The rows, when kept in memory (`RunOptions::keep_rows`) instead of `timeseries.csv`.
-    pub rows: Option<Vec<Row>>,
-    /// With `--trace`: the request latency binned for the caller's histogram figure.
+    /// Every event of the run (`events.csv`), for a recording closed after the analysis.
+    pub events: EventLog,
+    /// The request latency binned for a histogram figure (when the run measured wall-clock
+    /// times, `RunOptions::timing`).
     pub latency_histogram: Option<LatencyHistogram>,
 }
 
-/// [`run`], leaving `run.mcap` (with `--record`) open for the caller to finish with the
-/// analysed summary, and handing back the rows kept in memory.
-pub fn run_recorded(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Ran, RunError> {
-    Run::new(s, scenario_file, opts).simulate()
-}
-
-/// A lock-step run as the caller builds it: the scenario, the options, and the caller's
-/// observers in the order they are told about each tick.
+/// A lock-step run as the caller builds it: the scenario, the options, and the observers in
+/// the order they are told about each tick (the outputs among them: [`outputs`]).
 ///
 /// ```no_run
-/// # use tiltsim_master::engine::{observe, Run, RunOptions};
+/// # use tiltsim_master::engine::{observe, outputs, Run, RunOptions};
 /// # fn f(s: &tiltsim_master::scenario::Scenario, mine: Box<dyn observe::Observer>) {
 /// let opts = RunOptions::new("out/mine".into(), "tiltsim".into());
-/// let ran = Run::new(s, "mine.toml", &opts).add_observer(mine).simulate();
+/// std::fs::create_dir_all(&opts.out_dir).unwrap();
+/// let csv = outputs::Rows::to_file(&opts.out_dir.join("timeseries.csv"), s.run.dt_s).unwrap();
+/// let ran = Run::new(s, "mine.toml", &opts)
+///     .add_observer(Box::new(csv))
+///     .add_observer(mine)
+///     .simulate();
 /// # }
 /// ```
 pub struct Run<'a> {
@@ -498,16 +448,20 @@ pub struct Run<'a> {
     scenario_file: &'a str,
     opts: &'a RunOptions,
     observers: Vec<Box<dyn observe::Observer>>,
+    manipulators: Vec<Box<dyn manipulate::Manipulator>>,
 }
 
 impl<'a> Run<'a> {
-    /// A run of `s` (read from `scenario_file`, as the summary names it) with `opts`.
+    /// A run of `s` (read from `scenario_file`, as the summary names it) with `opts`, with
+    /// no observers and the scenario's own manipulators (link effects, scheduled faults,
+    /// degraded stand-ins).
     pub fn new(s: &'a Scenario, scenario_file: &'a str, opts: &'a RunOptions) -> Self {
         Run {
             s,
             scenario_file,
             opts,
             observers: Vec::new(),
+            manipulators: Vec::new(),
         }
     }
 
@@ -517,8 +471,14 @@ impl<'a> Run<'a> {
         self
     }
 
+    /// Adds a manipulator after the scenario's own and those added before.
+    pub fn add_manipulator(mut self, m: Box<dyn manipulate::Manipulator>) -> Self {
+        self.manipulators.push(m);
+        self
+    }
+
     /// Runs the lock-step to its end (or to the failure or interrupt that ends it early), as
-    /// [`run_recorded`] describes, with the observers' parts in the summary.
+    /// [`run`] describes, with the observers' parts in the summary.
     pub fn simulate(self) -> Result<Ran, RunError> {
         let names: Vec<&str> = self.observers.iter().map(|o| o.name()).collect();
         if let Some(dup) = names
@@ -530,24 +490,20 @@ impl<'a> Run<'a> {
                 "two observers are named `{dup}`; each needs its own name (its key in summary.json)"
             )));
         }
-        simulate(self.s, self.scenario_file, self.opts, self.observers)
+        simulate(self)
     }
 }
 
-fn simulate(
-    s: &Scenario,
-    scenario_file: &str,
-    opts: &RunOptions,
-    observers: Vec<Box<dyn observe::Observer>>,
-) -> Result<Ran, RunError> {
-    let outputs = create_outputs(s, opts)?;
-    let prefix = match s.run.transport {
-        Transport::Ipc => opts
-            .ipc_prefix
-            .clone()
-            .unwrap_or_else(cosim::ipc::unique_prefix),
-        Transport::InProcess => String::new(),
-    };
+fn simulate(run: Run<'_>) -> Result<Ran, RunError> {
+    let Run {
+        s,
+        scenario_file,
+        opts,
+        observers,
+        manipulators,
+    } = run;
+    prepare(s, opts)?;
+    let prefix = ipc_prefix(s, opts);
     let _files = RunFilesGuard(prefix.clone());
     let cpu0 = launch::cpu_self();
     // `start` may pin this process to one CPU for the run; the set is restored afterwards so
@@ -560,10 +516,9 @@ fn simulate(
             finish_logs(&opts.out_dir);
         }
     })?;
-    let mut team = Team::new(s, ps);
+    let mut team = Team::new(s, ps, manipulators);
     team.timed = opts.timing;
-    let mut obs = Observers::new(s, opts, outputs);
-    obs.user = observers;
+    let mut obs = Observers::new(s, opts, observers);
     obs.cpu_plan = cpu_plan::CpuPlanner::new(s, &cpus);
     let loop_started = Instant::now();
     let mut outcome = lockstep(&mut team, &mut obs, &opts.interrupt);
@@ -572,37 +527,31 @@ fn simulate(
     if opts.realtime.is_some() {
         cosim::realtime::leave();
     }
-    let finished = obs.recorder.finish();
-    if let (Ok(()), Err(e)) = (&outcome, finished) {
-        outcome = Err(Stop::Write(e));
+    // Outputs after the loop: each failure is kept for the summary, none skips another.
+    let mut write_errors = Vec::new();
+    for e in obs.close() {
+        match outcome {
+            Ok(()) => outcome = Err(Stop::Write(e)),
+            Err(_) => write_errors.push(e),
+        }
     }
-    let rows = obs.recorder.ticks();
-    let kept = obs.recorder.take_kept();
+    let rows = obs.ticks_kept();
     if let Err(Stop::Link(e)) = &outcome {
         team.log_failure(rows, e);
     }
     let mut events = EventLog::default();
     std::mem::swap(&mut events, &mut team.events);
     let ended = shut_down(team, &opts.out_dir, &prefix, &cpus, outcome, wall, cpu0);
-    // Outputs after the loop: each failure is kept for the summary, none skips another.
-    let mut write_errors = Vec::new();
     if let Err(e) = events.write(&opts.out_dir.join("events.csv")) {
         write_errors.push(e);
     }
     if let Err(e) = crate::columns::write_run(&opts.out_dir) {
         write_errors.push(e);
     }
-    let mut latency_histogram = None;
-    if let Some(tr) = &mut obs.trace {
-        match tr.finish() {
-            Ok(()) => latency_histogram = Some(obs.latency.request_histogram()),
-            Err(e) => write_errors.push(e),
-        }
-    }
-    let mcap = obs.mcap.take();
-    let mut user = std::mem::take(&mut obs.user);
+    let latency_histogram = opts.timing.then(|| obs.latency.request_histogram());
+    let mut list = std::mem::take(&mut obs.list);
     let mut summary = report(s, scenario_file, opts, &prefix, obs, ended, rows);
-    for o in &mut user {
+    for o in &mut list {
         if let Some(part) = o.finish(&summary) {
             summary.observers.insert(o.name().to_string(), part);
         }
@@ -615,8 +564,7 @@ fn simulate(
     }
     Ok(Ran {
         summary,
-        recording: mcap.map(|rec| Recording { rec, events }),
-        rows: kept,
+        events,
         latency_histogram,
     })
 }

@@ -6,18 +6,43 @@
 //!    first tick;
 //! 2. [`Observer::tick`] after every tick's exchanges, in tick order, with the outputs at the
 //!    end of the tick (row k + 1) and what each link carried;
-//! 3. [`Observer::finish`] once after the last tick, also when the run failed or was
-//!    interrupted (the summary says which), with the engine's summary; what it returns is its
-//!    part of `summary.json`, under `observers.<name>`.
+//! 3. [`Observer::close`] once after the last tick (or the failure or interrupt that ended the
+//!    loop), before the participants are stopped: an observer that writes a file completes it
+//!    here;
+//! 4. [`Observer::finish`] once, also when the run failed or was interrupted (the summary says
+//!    which), with the engine's summary; what it returns is its part of `summary.json`, under
+//!    `observers.<name>`.
 //!
-//! An error from `start` or `tick` stops the run as a failed write does: the run ends with what
-//! was recorded so far and its summary names the error. Observers run after the engine's own
-//! (timing, compute, latency, trace, progress) and before the recording and the row writer,
-//! in the order they were added; a tick's wall time does not include them.
+//! An error from `start`, `tick` or `close` stops the run as a failed write does: the run ends
+//! with what was recorded so far and its summary names the error. Observers run after the
+//! engine's own measurements (tick timing, compute, latency, pacing, the drive's protection
+//! events), in the order they were added; a tick's wall time does not include them.
+//!
+//! The engine writes no series of its own: the rows (`timeseries.csv` or in memory), the
+//! trace, the MCAP recording and the progress are observers too ([`super::outputs`]), added
+//! by the caller in the order it wants them told.
 
-use cosim::msg::{FromActuator, FromController, FromPlant, ToController};
+use cosim::msg::{FromActuator, FromController, FromPlant, Header, ToController};
+use cosim::Role;
 
 use super::Summary;
+use crate::events::Event;
+
+/// One request to a participant and its reply, stamped on the monotonic clock
+/// ([`cosim::msg::now_ns`], ns; all zero when the run measures no wall-clock times).
+#[derive(Debug, Clone, Copy)]
+pub struct Exchange {
+    /// The tick it belongs to (the initialisation's exchanges count as tick 0's).
+    pub step: u64,
+    /// The participant asked.
+    pub role: Role,
+    /// The orchestrator sent the request.
+    pub sent_ns: u64,
+    /// The reply's header (the participant's receive and send times, its compute time).
+    pub reply: Header,
+    /// The orchestrator had the reply.
+    pub received_ns: u64,
+}
 
 /// What each of the four links carried in one tick, by link.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -33,6 +58,17 @@ pub struct LinkValues {
 }
 
 impl LinkValues {
+    /// In the engine's `LinkId` order.
+    pub(crate) fn ordered(&self) -> [f64; 4] {
+        use crate::links::LinkId;
+        let mut v = [0.0; 4];
+        v[LinkId::ActuatorCommand as usize] = self.actuator_command;
+        v[LinkId::BarAngle as usize] = self.bar_angle;
+        v[LinkId::Measurement as usize] = self.measurement;
+        v[LinkId::BarTwist as usize] = self.bar_twist;
+        v
+    }
+
     /// From the engine's `LinkId`-ordered array.
     pub(crate) fn from_ordered(v: &[f64; 4]) -> Self {
         use crate::links::LinkId;
@@ -84,6 +120,12 @@ pub struct Tick<'a> {
     /// What each link's receiver got this tick (after the link's effects: delay, loss,
     /// noise, bias, faults).
     pub received: LinkValues,
+    /// This tick's requests and replies, in the order they were made (tick 0's begin with
+    /// the initialisation's).
+    pub exchanges: &'a [Exchange],
+    /// Every event of the run so far (`events.csv`), in the log's order: the link effects
+    /// described at the start, faults, losses, the drive's protections up to this tick.
+    pub events: &'a [Event],
 }
 
 /// Something that watches a run without changing it (see the module's lifecycle).
@@ -100,6 +142,18 @@ pub trait Observer: Send {
     /// After tick `tick.k`'s exchanges.
     fn tick(&mut self, tick: &Tick<'_>) -> std::io::Result<()>;
 
+    /// After the last tick, before the participants are stopped: completes what it writes.
+    fn close(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+
+    /// The ticks whose records it holds whole, when that can be fewer than the ticks it was
+    /// told about (a file whose last writes failed); the summary's `steps_completed` is the
+    /// least of these and the ticks the engine finished.
+    fn ticks_kept(&self) -> Option<u64> {
+        None
+    }
+
     /// After the last tick (or the failure or interrupt that ended the run early): its part
     /// of `summary.json`, or `None` for none.
     fn finish(&mut self, _summary: &Summary) -> Option<serde_json::Value> {
@@ -110,6 +164,7 @@ pub trait Observer: Send {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::engine::outputs::Rows;
     use crate::engine::{Run, RunError, RunOptions, Status};
     use crate::scenario::{Scenario, Transport};
 
@@ -174,8 +229,7 @@ mod tests {
         s.run.duration_s = Some(0.5);
         let dir =
             std::env::temp_dir().join(format!("tiltsim-observe-{name}-{}", std::process::id()));
-        let mut opts = RunOptions::new(dir, "tiltsim".into());
-        opts.keep_rows = true;
+        let opts = RunOptions::new(dir, "tiltsim".into());
         (s, opts)
     }
 
@@ -183,9 +237,11 @@ mod tests {
     fn observers_see_start_every_tick_in_order_and_report_in_the_summary() {
         let (s, opts) = short_run("order");
         let log = Default::default();
+        let (rows, kept) = Rows::in_memory(s.run.dt_s, 0);
         let ran = Run::new(&s, "paper-passive.toml", &opts)
             .add_observer(counter("a", None, &log))
             .add_observer(counter("b", None, &log))
+            .add_observer(Box::new(rows))
             .simulate()
             .unwrap();
         assert_eq!(ran.summary.status, Status::Completed);
@@ -200,7 +256,7 @@ mod tests {
         // In the order added, tick by tick.
         let log = log.lock().unwrap();
         assert_eq!(&log[..4], ["a:0", "b:0", "a:1", "b:1"]);
-        let rows = ran.rows.unwrap();
+        let rows = kept.take().unwrap();
         assert_eq!(rows.len() as u64, steps + 1);
         let _ = std::fs::remove_dir_all(&opts.out_dir);
     }
@@ -209,8 +265,10 @@ mod tests {
     fn an_observer_that_fails_ends_the_run_with_what_was_recorded_and_names_are_unique() {
         let (s, opts) = short_run("fail");
         let log = Default::default();
+        let (rows, kept) = Rows::in_memory(s.run.dt_s, 0);
         let ran = Run::new(&s, "paper-passive.toml", &opts)
             .add_observer(counter("a", Some(100), &log))
+            .add_observer(Box::new(rows))
             .simulate()
             .unwrap();
         assert_eq!(ran.summary.status, Status::Failed);
@@ -221,7 +279,9 @@ mod tests {
             .unwrap_or("")
             .contains("observer gave up"));
         assert_eq!(ran.summary.observers["a"]["ticks"], 100);
-        assert_eq!(ran.rows.unwrap().len(), 101);
+        // The rows observer, after the one that failed, was told about ticks 0 to 99.
+        assert_eq!(kept.take().unwrap().len(), 101);
+        assert_eq!(ran.summary.steps_completed, 100);
         let same = Run::new(&s, "paper-passive.toml", &opts)
             .add_observer(counter("a", None, &log))
             .add_observer(counter("a", None, &log))

@@ -1,9 +1,10 @@
-//! Observers: everything that watches the lock-step without changing it. Each implements
-//! [`Observer`] and is told about every tick once its exchanges are done: the recorder, the
-//! per-tick timing, the participants' compute times and the QP solver, the link latency, the
-//! trace, the real-time pacing and the drive's protection events.
+//! The engine's own measurements of the lock-step, each told about every tick once its
+//! exchanges are done, before the caller's observers (`super::observe`): the per-tick timing,
+//! the participants' compute times and the QP solver, the link latency, the real-time pacing
+//! and the drive's protection events. They fill the summary; the rows, trace, recording and
+//! progress are the caller's observers (`super::outputs`). [`RowRecorder`] is the row sink
+//! both the lock-step's [`super::outputs::Rows`] and a free run's row stream write through.
 
-use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use actuator_proc::bldc::limit;
@@ -11,8 +12,8 @@ use cosim::stats::{Percentiles, Timings};
 use cosim::Role;
 
 use super::launch::Held;
+use super::observe::Exchange;
 use super::summary::{LinkLatency, PacingReport, SolverReport};
-use super::team::Exchange;
 use crate::events::{EventKind, EventLog};
 use crate::roles::RoleMap;
 use crate::table::{Recorder, Row};
@@ -50,10 +51,8 @@ pub(crate) trait Observer {
 }
 
 /// Streams every tick's [`Row`] to `timeseries.csv`, or keeps it in memory
-/// (`RunOptions::keep_rows`), after the row at the start time.
+/// (a sweep's samples), row 0 first.
 pub(crate) struct RowRecorder {
-    /// Base tick (s), for each row's time.
-    dt: f64,
     to: RowSink,
 }
 
@@ -66,9 +65,9 @@ pub(crate) enum RowSink {
 }
 
 impl RowRecorder {
-    /// Rows of a grid of `dt` s to `to`.
-    pub fn new(dt: f64, to: RowSink) -> Self {
-        RowRecorder { dt, to }
+    /// Rows to `to`.
+    pub fn new(to: RowSink) -> Self {
+        RowRecorder { to }
     }
 
     /// Writes what is buffered (a no-op in memory).
@@ -77,11 +76,6 @@ impl RowRecorder {
             RowSink::File(r) => r.finish(),
             RowSink::Kept(_) => Ok(()),
         }
-    }
-
-    /// Writes row 0, the outputs at the start time (before the first tick).
-    pub fn at_start(&mut self, held: &Held) -> std::io::Result<()> {
-        self.put(Row::at_start(self.dt, &held.p, &held.a, &held.c))
     }
 
     /// Writes one row.
@@ -110,13 +104,6 @@ impl RowRecorder {
             RowSink::File(_) => None,
             RowSink::Kept(v) => Some(std::mem::take(v)),
         }
-    }
-}
-
-impl Observer for RowRecorder {
-    fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
-        let h = t.held;
-        self.put(Row::after_tick(t.k, self.dt, &h.p, &h.a, &h.c, t.rx))
     }
 }
 
@@ -273,75 +260,6 @@ impl Latency {
     }
 }
 
-/// Every exchange's timestamps, streamed to `trace.csv` (ns from the start of the loop) as the
-/// run goes, like the time series.
-pub(crate) struct Trace {
-    origin_ns: u64,
-    dt: f64,
-    path: PathBuf,
-    out: csv::Writer<std::io::BufWriter<std::fs::File>>,
-}
-
-impl Trace {
-    /// Creates `path` with its header; times count from `origin_ns`, tick `k` is at `k·dt`.
-    pub fn create(path: &Path, origin_ns: u64, dt: f64) -> std::io::Result<Self> {
-        let file = std::io::BufWriter::with_capacity(1 << 16, std::fs::File::create(path)?);
-        let mut out = csv::Writer::from_writer(file);
-        out.write_record([
-            "step",
-            "t",
-            "participant",
-            "request_sent_ns",
-            "request_received_ns",
-            "step_started_ns",
-            "step_finished_ns",
-            "reply_sent_ns",
-            "reply_received_ns",
-        ])
-        .map_err(std::io::Error::other)?;
-        out.flush()?;
-        Ok(Trace {
-            origin_ns,
-            dt,
-            path: path.to_path_buf(),
-            out,
-        })
-    }
-
-    fn named(&self, e: impl std::fmt::Display) -> std::io::Error {
-        std::io::Error::other(format!("{}: {e}", self.path.display()))
-    }
-
-    /// Writes what is buffered.
-    pub fn finish(&mut self) -> std::io::Result<()> {
-        self.out.flush().map_err(|e| self.named(e))
-    }
-}
-
-impl Observer for Trace {
-    fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
-        let rel = |t: u64| t.saturating_sub(self.origin_ns);
-        for x in t.exchanges {
-            let h = &x.reply;
-            let r = self.out.serialize((
-                x.step,
-                crate::table::fmt_f64(x.step as f64 * self.dt),
-                x.role.name(),
-                rel(x.sent_ns),
-                rel(h.recv_ns),
-                rel(h.recv_ns),
-                rel(h.recv_ns + h.compute_ns),
-                rel(h.sent_ns),
-                rel(x.received_ns),
-            ));
-            if let Err(e) = r {
-                return Err(self.named(e));
-            }
-        }
-        Ok(())
-    }
-}
-
 /// Real-time pacing (`--pace`): waits until tick k's wall-clock start, counts late ticks.
 pub(crate) struct Pacing {
     factor: f64,
@@ -471,80 +389,6 @@ impl Observer for Pacing {
             self.causes[cause] += 1;
         }
         self.previous_late = late;
-        Ok(())
-    }
-}
-
-/// `--progress machine`: one JSON line on standard error at every whole percent of the run's
-/// ticks: `{"progress":P,"step":K,"steps":N,"t_s":T,"wall_s":W}` (wall seconds since the
-/// loop began). For wrappers and notebooks; never in a result file.
-pub(crate) struct Progress {
-    steps: u64,
-    dt: f64,
-    next: u64,
-    started: Instant,
-    /// A bar for a person at a terminal instead of the machine lines.
-    bar: Option<indicatif::ProgressBar>,
-}
-
-impl Progress {
-    /// Progress over `steps` ticks of `dt` (s), a JSON line per percent.
-    pub fn new(steps: u64, dt: f64) -> Self {
-        Progress {
-            steps,
-            dt,
-            next: 1,
-            started: Instant::now(),
-            bar: None,
-        }
-    }
-
-    /// Progress over `steps` ticks of `dt` (s) as a bar of simulated seconds, redrawn at
-    /// every percent (the tick loop pays one comparison per tick).
-    pub fn bar(steps: u64, dt: f64) -> Self {
-        let total = steps as f64 * dt;
-        let bar = indicatif::ProgressBar::new(100);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{bar:40} {pos:>3}% {msg} [{elapsed_precise}, {eta} left]",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-            .progress_chars("=> "),
-        );
-        bar.set_message(format!("of {total:.1} s simulated"));
-        Progress {
-            bar: Some(bar),
-            ..Progress::new(steps, dt)
-        }
-    }
-}
-
-impl Drop for Progress {
-    fn drop(&mut self) {
-        if let Some(b) = &self.bar {
-            b.finish_and_clear();
-        }
-    }
-}
-
-impl Observer for Progress {
-    fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
-        let done = t.k + 1;
-        // The percent reached with this tick (each percent once, 100 at the last tick).
-        let percent = done * 100 / self.steps.max(1);
-        if percent >= self.next {
-            self.next = percent + 1;
-            if let Some(b) = &self.bar {
-                b.set_position(percent);
-                return Ok(());
-            }
-            eprintln!(
-                "{{\"progress\":{percent},\"step\":{done},\"steps\":{},\"t_s\":{},\"wall_s\":{:.3}}}",
-                self.steps,
-                crate::table::fmt_f64(done as f64 * self.dt),
-                self.started.elapsed().as_secs_f64()
-            );
-        }
         Ok(())
     }
 }

@@ -7,7 +7,10 @@ use std::sync::Arc;
 use cosim::Role;
 use serde::Serialize;
 
-/// How to run a scenario (command-line choices on top of the file).
+/// How to run a scenario (command-line choices on top of the file). What the run writes
+/// beside its summary and events is chosen apart from this: observers added to a lock-step
+/// [`Run`](super::Run) ([`super::outputs`]), or the [`Outputs`](super::outputs::Outputs) a free
+/// run reads.
 #[derive(Debug, Clone)]
 pub struct RunOptions {
     /// Output directory.
@@ -22,30 +25,15 @@ pub struct RunOptions {
     pub interrupt: Arc<AtomicBool>,
     /// Draw `plots/` after the run (the caller's analysis step reads this).
     pub plots: bool,
-    /// Write `trace.csv` (every exchange's timestamps) and the latency histogram.
-    pub trace: bool,
     /// Run the lock-step at this many simulated seconds per wall second.
     pub pace: Option<f64>,
     /// Run every process under `SCHED_FIFO` at this priority with memory locked (paced runs).
     pub realtime: Option<i32>,
-    /// Print a JSON line to standard error at every percent of the run (`--progress machine`).
-    pub machine_progress: bool,
-    /// Draw a progress bar on standard error (a run started from a terminal).
-    pub progress_bar: bool,
-    /// Record the run as `run.mcap` (`--record`).
-    pub record: bool,
-    /// Keep the rows in memory instead of writing `timeseries.csv` (a sweep's samples, whose
-    /// directories are removed after their analysis): the run's analysis reads them from there
-    /// and no plots are drawn.
-    pub keep_rows: bool,
     /// Measure wall-clock times: each exchange's send and receive stamps and each
     /// participant's compute per call (link latency, compute statistics, `trace.csv`). A
     /// sweep's in-process samples turn it off: they report none of it, and the clock reads
     /// cost about 5 % of a sample. Values never depend on it.
     pub timing: bool,
-    /// Ticks finished so far, stored after each tick for a caller that watches the run from
-    /// another thread (a notebook's progress bar).
-    pub ticks_done: Option<Arc<std::sync::atomic::AtomicU64>>,
 }
 
 impl RunOptions {
@@ -59,15 +47,9 @@ impl RunOptions {
             ipc_prefix: None,
             interrupt: Arc::new(AtomicBool::new(false)),
             plots: true,
-            trace: false,
             pace: None,
             realtime: None,
-            machine_progress: false,
-            progress_bar: false,
-            record: false,
-            keep_rows: false,
             timing: true,
-            ticks_done: None,
         }
     }
 }

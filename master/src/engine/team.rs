@@ -9,27 +9,14 @@ use cosim::msg::{ToActuator, ToController, ToPlant, FLAG_HELD, FLAG_HOLD_BAD_INP
 use cosim::{Endpoint, Kind, LinkError, Role};
 
 use super::launch::{Held, Participants};
+use super::manipulate::{Control, Manipulator};
 use super::manipulator::{Degrader, FaultSchedule};
+pub(crate) use super::observe::Exchange;
 use crate::events::{EventKind, EventLog};
 use crate::faults::OnBadData;
 use crate::links::{LinkId, LinkSet};
 use crate::roles::RoleMap;
 use crate::scenario::Scenario;
-
-/// One request and its reply, as the observers see it (monotonic ns).
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Exchange {
-    /// Tick.
-    pub step: u64,
-    /// Participant.
-    pub role: Role,
-    /// The orchestrator sent the request.
-    pub sent_ns: u64,
-    /// The reply's header (participant's receive and send times, compute time).
-    pub reply: Header,
-    /// The orchestrator had the reply.
-    pub received_ns: u64,
-}
 
 /// Picks one participant's endpoint out of the set.
 pub(crate) type Pick<I, O> = fn(&mut Participants) -> &mut Box<dyn Endpoint<I, O>>;
@@ -56,9 +43,10 @@ pub(crate) struct Team<'a> {
     pub ps: Participants,
     /// Their latest outputs.
     pub held: Held,
-    links: LinkSet,
-    faults: FaultSchedule,
-    degrader: Degrader,
+    /// The scenario's manipulators, then the caller's.
+    manipulators: Vec<Box<dyn Manipulator>>,
+    /// The participants replaced by stand-ins, with their exit reports.
+    lost: RoleMap<Option<ExitReport>>,
     /// Request flags for the next request of each role (crash faults).
     flags: RoleMap<u32>,
     /// What happened, in simulated time.
@@ -70,17 +58,23 @@ pub(crate) struct Team<'a> {
 }
 
 impl<'a> Team<'a> {
-    /// The team of scenario `s` around running participants `ps`.
-    pub fn new(s: &'a Scenario, ps: Participants) -> Self {
+    /// The team of scenario `s` around running participants `ps`, with the scenario's
+    /// manipulators (link effects, scheduled faults, degraded stand-ins) and then `extra`.
+    pub fn new(s: &'a Scenario, ps: Participants, extra: Vec<Box<dyn Manipulator>>) -> Self {
         let mut events = EventLog::new(s.run.dt_s);
         LinkSet::describe(&s.links, &mut events);
+        let mut manipulators: Vec<Box<dyn Manipulator>> = vec![
+            Box::new(LinkSet::new(&s.links, s.run.seed)),
+            Box::new(FaultSchedule::new(&s.faults, s.run.dt_s)),
+            Box::new(Degrader::new(s)),
+        ];
+        manipulators.extend(extra);
         Team {
             s,
             ps,
             held: Held::default(),
-            links: LinkSet::new(&s.links, s.run.seed),
-            faults: FaultSchedule::new(&s.faults, s.run.dt_s),
-            degrader: Degrader::new(s),
+            manipulators,
+            lost: RoleMap::default(),
             flags: RoleMap::default(),
             events,
             exchanges: Vec::new(),
@@ -95,29 +89,40 @@ impl<'a> Team<'a> {
 
     /// Whether a participant was lost and replaced.
     pub fn degraded(&self) -> bool {
-        self.degrader.degraded()
+        Role::ALL.iter().any(|r| self.lost[*r].is_some())
     }
 
     /// Exit reports of participants replaced by their stand-ins.
     pub fn take_lost(&mut self) -> RoleMap<Option<ExitReport>> {
-        self.degrader.take_lost()
+        std::mem::take(&mut self.lost)
     }
 
-    /// Applies the faults scheduled for tick `k`.
+    /// What the manipulators may act on.
+    fn control(&mut self) -> (Control<'_>, &mut Vec<Box<dyn Manipulator>>) {
+        let ctl = Control {
+            ps: &mut self.ps,
+            held: &self.held,
+            flags: &mut self.flags,
+            lost: &mut self.lost,
+            events: &mut self.events,
+        };
+        (ctl, &mut self.manipulators)
+    }
+
+    /// Tells the manipulators that tick `k` begins (the scheduled faults act here).
     pub fn inject_faults(&mut self, k: u64) {
-        self.faults.apply(
-            k,
-            &mut self.ps,
-            &mut self.flags,
-            self.degrader.lost_roles(),
-            &mut self.events,
-        );
+        let (mut ctl, ms) = self.control();
+        for m in ms.iter_mut() {
+            m.tick_commencing(k, &mut ctl);
+        }
     }
 
-    /// Carries value `v` sent at tick `k` over `link`.
+    /// Carries value `v` sent at tick `k` over `link`, through every manipulator in order.
     pub fn carry(&mut self, link: LinkId, k: u64, v: f64) -> f64 {
         let t = cosim::time::tick_time(k, self.s.run.dt_s);
-        self.links.carry(link, k, t, v, &mut self.events)
+        self.manipulators
+            .iter_mut()
+            .fold(v, |v, m| m.carry(link, k, t, v, &mut self.events))
     }
 
     /// The initial outputs at t₀ of every participant.
@@ -215,10 +220,18 @@ impl<'a> Team<'a> {
         self.collect(pick, k, kind, t0)
     }
 
-    /// Replaces the participant that failed with `e` by its stand-in, or returns `e`.
+    /// Asks the manipulators, in order, to replace the participant that failed with `e` by
+    /// a stand-in; returns `e` (as the last one handed it on) when none does.
     fn recover(&mut self, k: u64, e: LinkError) -> Result<(), LinkError> {
-        self.degrader
-            .replace(&mut self.ps, &self.held, k, e, &mut self.events)
+        let (mut ctl, ms) = self.control();
+        let mut e = e;
+        for m in ms.iter_mut() {
+            match m.participant_failed(k, e, &mut ctl) {
+                Ok(()) => return Ok(()),
+                Err(next) => e = next,
+            }
+        }
+        Err(e)
     }
 
     /// One step exchange; on failure the degraded-mode stand-in (if the scenario has one)

@@ -94,15 +94,26 @@ impl Scenario {
     }
 }
 
-/// Removes a run's shared-memory files when dropped (on every way out).
-pub(crate) struct FilesGuard(pub String);
+pub(crate) use crate::engine::RunFilesGuard as FilesGuard;
 
-impl Drop for FilesGuard {
-    fn drop(&mut self) {
-        if !self.0.is_empty() {
-            cosim::ipc::remove_run_files(&self.0);
-        }
+/// Stops every participant of a free run or a replay, removes the run's shared-memory files
+/// and restores this process's CPU set (`cpus`, when the run pinned it).
+pub(crate) fn shut_down(
+    mut ps: Participants,
+    prefix: &str,
+    cpus: &[usize],
+) -> crate::roles::RoleMap<cosim::endpoint::ExitReport> {
+    let exits = ps.shut_down(crate::roles::RoleMap::default());
+    if let Some(hub) = ps.hub.take() {
+        hub.cleanup_dead();
+        drop(ps);
+        drop(hub);
+        cosim::ipc::remove_run_files(prefix);
     }
+    if !cpus.is_empty() {
+        cosim::ipc::set_cpus(cpus);
+    }
+    exits
 }
 
 /// The `Init` exchange of every participant, lock-step: the outputs at t₀ into `store`.
@@ -158,7 +169,7 @@ pub(crate) fn run_events(
 /// The rows of a free run or its replay, written as they complete: the row at the start time,
 /// then each tick's row as soon as the plant's step of that tick is in (everything a row names
 /// was sent before the plant read it), to `timeseries.csv` or kept in memory
-/// (`RunOptions::keep_rows`).
+/// (`Outputs::rows_in_memory`).
 pub(crate) struct RowStream {
     rec: RowRecorder,
     /// The next tick to write.
@@ -169,15 +180,18 @@ pub(crate) struct RowStream {
 
 impl RowStream {
     /// Creates `timeseries.csv` (header first), or the rows' place in memory.
-    pub(crate) fn create(s: &Scenario, opts: &crate::engine::RunOptions) -> Result<Self, RunError> {
-        let sink = if opts.keep_rows {
+    pub(crate) fn create(
+        opts: &crate::engine::RunOptions,
+        out: &crate::engine::outputs::Outputs,
+    ) -> Result<Self, RunError> {
+        let sink = if out.rows_in_memory {
             RowSink::Kept(Vec::new())
         } else {
             let csv = opts.out_dir.join("timeseries.csv");
             RowSink::File(Box::new(Recorder::create(&csv).map_err(RunError::io(csv))?))
         };
         Ok(RowStream {
-            rec: RowRecorder::new(s.run.dt_s, sink),
+            rec: RowRecorder::new(sink),
             next: 0,
             reads: [-1; 3],
         })
@@ -310,7 +324,7 @@ mod tests {
         let mut store = compose::Store::new(period, 1e-3, &Default::default(), 1);
         store.put_init(Default::default(), Default::default(), Default::default());
         let mut rows = RowStream {
-            rec: RowRecorder::new(1e-3, RowSink::Kept(Vec::new())),
+            rec: RowRecorder::new(RowSink::Kept(Vec::new())),
             next: 0,
             reads: [-1; 3],
         };

@@ -14,9 +14,10 @@ use super::compose::Store;
 use super::relay::{Deliveries, Relay};
 use super::timing::Stats;
 use super::trace::{StepTrace, TraceHead, TraceWriter, TIMING_CSV};
-use super::{init_all, FilesGuard, FreeError, RowStream};
+use super::{init_all, shut_down, FilesGuard, FreeError, RowStream};
 use crate::engine::launch::{self, Participants};
 use crate::engine::manipulator::FaultSchedule;
+use crate::engine::outputs::Outputs;
 use crate::engine::{RunOptions, Status};
 use crate::faults::FaultAction;
 use crate::links::LinkId;
@@ -35,12 +36,9 @@ const HUB_NAP: Duration = Duration::from_micros(20);
 
 /// Runs `s` free over IPC: streams `timing.csv` and `timeseries.csv` to `opts.out_dir` as the
 /// steps come in, then writes `events.csv`, `columns.csv` and `scenario.toml`.
-pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
+pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport, FreeError> {
     let dir = &opts.out_dir;
-    std::fs::create_dir_all(dir).map_err(|e| FreeError::io(dir, e))?;
-    let resolved = dir.join("scenario.toml");
-    crate::files::write_atomic(&resolved, toml::to_string(s).unwrap_or_default())
-        .map_err(|e| FreeError::io(&resolved, e))?;
+    crate::engine::prepare(s, opts).map_err(FreeError::Run)?;
     let prefix = opts
         .ipc_prefix
         .clone()
@@ -49,7 +47,7 @@ pub fn run(s: &Scenario, opts: &RunOptions) -> Result<FreeReport, FreeError> {
     let cpus = cosim::ipc::allowed_cpus();
     let ps = launch::start(s, opts, &prefix).map_err(FreeError::Run)?;
     let placement = place(s, &ps, &cpus);
-    let mut hub = Hub::new(s, opts, ps)?;
+    let mut hub = Hub::new(s, opts, out, ps)?;
     let outcome = hub.run();
     let last_ns = now_ns();
     let Hub {
@@ -158,25 +156,6 @@ fn place(s: &Scenario, ps: &Participants, cpus: &[usize]) -> BTreeMap<String, us
     placed
 }
 
-/// Stops the participants and removes the run's files; returns their exits.
-fn shut_down(
-    mut ps: Participants,
-    prefix: &str,
-    cpus: &[usize],
-) -> RoleMap<cosim::endpoint::ExitReport> {
-    let exits = ps.shut_down(RoleMap::default());
-    if let Some(hub) = ps.hub.take() {
-        hub.cleanup_dead();
-        drop(ps);
-        drop(hub);
-        cosim::ipc::remove_run_files(prefix);
-    }
-    if !cpus.is_empty() {
-        cosim::ipc::set_cpus(cpus);
-    }
-    exits
-}
-
 /// The orchestrator's side of a free run: the participants, what they have sent, what was
 /// relayed to whom, and the files the steps stream to.
 struct Hub<'a> {
@@ -241,11 +220,16 @@ impl Output {
 
 impl<'a> Hub<'a> {
     /// Creates `timeseries.csv`, which the rows stream to.
-    fn new(s: &'a Scenario, opts: &'a RunOptions, ps: Participants) -> Result<Self, FreeError> {
+    fn new(
+        s: &'a Scenario,
+        opts: &'a RunOptions,
+        out: &Outputs,
+        ps: Participants,
+    ) -> Result<Self, FreeError> {
         let steps = s.steps();
         let period = s.controller_period_ticks();
         let dt_ns = (s.run.dt_s * 1e9).round() as u64;
-        let rows = RowStream::create(s, opts).map_err(FreeError::Run)?;
+        let rows = RowStream::create(opts, out).map_err(FreeError::Run)?;
         let start_ns = now_ns();
         Ok(Hub {
             s,
@@ -258,7 +242,7 @@ impl<'a> Hub<'a> {
             deliveries: Deliveries::new(),
             faults: FaultSchedule::new(&s.faults, s.run.dt_s),
             stats: Stats::new(dt_ns, period),
-            kept: opts.record.then(Vec::new),
+            kept: out.record.then(Vec::new),
             done: RoleMap::default(),
             totals: RoleMap::new([steps, steps, steps.div_ceil(period)]),
             ticks: RoleMap::new([1, 1, period]),

@@ -114,7 +114,7 @@ pub struct FreeReport {
     pub ipc_prefix: String,
     /// Shared-memory files left behind (empty unless something is wrong).
     pub leftover_ipc_files: Vec<String>,
-    /// The rows, when kept in memory (`RunOptions::keep_rows`).
+    /// The rows, when kept in memory (`Outputs::rows_in_memory`).
     pub rows: Option<Vec<crate::table::Row>>,
     /// `run.mcap` (`--record`), to be closed with the summary.
     pub recording: Option<super::recording::FreeRecording>,

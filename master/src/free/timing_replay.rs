@@ -16,8 +16,8 @@ use super::compose::Store;
 use super::trace::{self, col, StepTrace, TraceError};
 use super::{init_all, FilesGuard, FreeError, RowStream};
 use crate::engine::launch::{self, Participants};
+use crate::engine::outputs::Outputs;
 use crate::engine::RunOptions;
-use crate::roles::RoleMap;
 use crate::scenario::{Scenario, Transport};
 
 /// What a replay did.
@@ -29,7 +29,7 @@ pub struct Replayed {
     pub exchanges: u64,
     /// What a partial trace lacks (`None`: the whole run was replayed).
     pub partial: Option<String>,
-    /// The rows, when kept in memory (`RunOptions::keep_rows`).
+    /// The rows, when kept in memory (`Outputs::rows_in_memory`).
     pub rows: Option<Vec<crate::table::Row>>,
     /// Each participant's exit.
     pub exits: crate::roles::RoleMap<cosim::endpoint::ExitReport>,
@@ -81,6 +81,7 @@ pub fn replay_timing(
     s: &Scenario,
     trace_path: &Path,
     opts: &RunOptions,
+    out: &Outputs,
 ) -> Result<Replayed, FreeError> {
     let period = s.controller_period_ticks();
     let trace = trace::read(trace_path, s.run.dt_s, s.steps(), period)?;
@@ -88,25 +89,17 @@ pub fn replay_timing(
     order.sort_by_key(|t| (t.read_ns, col(t.role)));
     check_causal(trace_path, &order, period)?;
     let dir = &opts.out_dir;
-    std::fs::create_dir_all(dir).map_err(|e| FreeError::io(dir, e))?;
-    let resolved = dir.join("scenario.toml");
-    crate::files::write_atomic(&resolved, toml::to_string(s).unwrap_or_default())
-        .map_err(|e| FreeError::io(&resolved, e))?;
-    let prefix = match s.run.transport {
-        Transport::Ipc => opts
-            .ipc_prefix
-            .clone()
-            .unwrap_or_else(cosim::ipc::unique_prefix),
-        Transport::InProcess => String::new(),
-    };
+    crate::engine::prepare(s, opts).map_err(FreeError::Run)?;
+    let prefix = crate::engine::ipc_prefix(s, opts);
     let guard = FilesGuard(prefix.clone());
     let cpus = cosim::ipc::allowed_cpus();
-    let mut rows = RowStream::create(s, opts).map_err(FreeError::Run)?;
+    let mut rows = RowStream::create(opts, out).map_err(FreeError::Run)?;
     let mut ps = launch::start(s, opts, &prefix).map_err(FreeError::Run)?;
     let mut store = Store::new(period, s.run.dt_s, &s.links, s.run.seed);
     let outcome = replay_steps(s, opts, &order, &mut ps, &mut store, &mut rows);
     let pids = ps.pids();
-    let exits = shut_down(ps, &prefix, guard, &cpus);
+    let exits = super::shut_down(ps, &prefix, &cpus);
+    drop(guard);
     let participant_logs = if s.run.transport == Transport::Ipc {
         crate::engine::finish_logs(dir)
     } else {
@@ -201,27 +194,6 @@ fn replay_step(
         }
     }
     Ok(())
-}
-
-/// Stops the participants and removes the run's files (`guard`'s too); returns their exits.
-fn shut_down(
-    mut ps: Participants,
-    prefix: &str,
-    guard: FilesGuard,
-    cpus: &[usize],
-) -> RoleMap<cosim::endpoint::ExitReport> {
-    let exits = ps.shut_down(RoleMap::default());
-    if let Some(hub) = ps.hub.take() {
-        hub.cleanup_dead();
-        drop(ps);
-        drop(hub);
-        cosim::ipc::remove_run_files(prefix);
-    }
-    drop(guard);
-    if !cpus.is_empty() {
-        cosim::ipc::set_cpus(cpus);
-    }
-    exits
 }
 
 /// Finishes `timeseries.csv` and writes `events.csv` and `columns.csv`; returns the ticks

@@ -70,6 +70,6 @@ pub fn replay_timing(a: ReplayTimingArgs) -> CliResult {
     let trace = a.run_dir.join(tiltsim_master::free::trace::TIMING_CSV);
     let mut job = Job::new(&s, file.display().to_string(), opts);
     job.replay_trace = Some(trace);
-    let done = carry_out(&job).map_err(CliError::of_job)?;
+    let done = carry_out(job).map_err(CliError::of_job)?;
     super::run::report(&done, &s, &out, a.quiet)
 }

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use super::bounds::{self, End};
 use super::common::{interrupt_and_exe, load, MasterArg, TransportArg, WaitArg};
 use super::error::{CliError, CliResult};
+use tiltsim_master::engine::outputs::{Outputs, ProgressStyle};
 use tiltsim_master::engine::{RunOptions, Status, Summary};
 use tiltsim_master::scenario::Scenario;
 use tiltsim_report::pipeline::{carry_out, Job};
@@ -193,21 +194,23 @@ pub fn exec(a: RunArgs) -> CliResult {
         ipc_prefix: a.ipc_prefix.clone(),
         interrupt,
         plots: true,
-        trace: a.trace,
         pace: a.pace,
         realtime,
-        machine_progress: a.progress.is_some(),
-        // A person watching: a bar, unless quiet or reading the machine lines.
-        progress_bar: a.progress.is_none()
-            && !a.quiet
-            && std::io::IsTerminal::is_terminal(&std::io::stderr()),
-        record: a.record,
-        keep_rows: false,
         timing: true,
-        ticks_done: None,
     };
-    let job = Job::new(&s, a.scenario.display().to_string(), opts);
-    let done = carry_out(&job).map_err(CliError::of_job)?;
+    // A person watching gets a bar, unless quiet or reading the machine lines.
+    let bar = !a.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let mut job = Job::new(&s, a.scenario.display().to_string(), opts);
+    job.outputs = Outputs {
+        trace: a.trace,
+        record: a.record,
+        progress: match a.progress {
+            Some(_) => Some(ProgressStyle::Lines),
+            None => bar.then_some(ProgressStyle::Bar),
+        },
+        ..Outputs::default()
+    };
+    let done = carry_out(job).map_err(CliError::of_job)?;
     report(&done, &s, &out, a.quiet)
 }
 
