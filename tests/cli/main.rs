@@ -1,0 +1,15 @@
+//! The `tiltsim` program as a user runs it, in-process and over iceoryx2: templates and
+//! `--set`, output directories and figures, sweeps, the bench, the lock-step runtime over both
+//! transports, the endpoint contract, free runs and their replay, recordings, and the pinned
+//! outputs of `tests/pinned.txt`.
+
+mod bench;
+mod contract;
+mod freerun;
+mod getting_started;
+mod outputs;
+mod pinned;
+mod record;
+mod sweep;
+mod sweep_merge;
+mod transport;
