@@ -3,12 +3,13 @@
 use std::path::{Path, PathBuf};
 use tiltsim_suite::{leftovers, prefix, scenario, summary, temp_dir, Series, Tiltsim};
 
-/// `paper-lqg` with the `[faults]` TOML `faults` appended, written as `NAME.toml`: a
-/// `[[faults.schedule]]` entry is an array-of-tables element, which `--set` cannot add.
-fn lqg_with(name: &str, faults: &str) -> PathBuf {
+/// `paper-lqg` with the TOML `extra` appended, written as `NAME.toml`, for what `--set`
+/// cannot add: a `[[faults.schedule]]` entry (an array-of-tables element) or a window (a
+/// table whose two fields must arrive together, and each `--set` is applied alone).
+fn lqg_with(name: &str, extra: &str) -> PathBuf {
     let text = std::fs::read_to_string(scenario("paper-lqg.toml")).unwrap();
     let p = temp_dir(&format!("{name}-scenario")).join(format!("{name}.toml"));
-    std::fs::write(&p, format!("{text}\n{faults}\n")).unwrap();
+    std::fs::write(&p, format!("{text}\n{extra}\n")).unwrap();
     p
 }
 
@@ -40,13 +41,13 @@ fn bytes(p: PathBuf) -> Vec<u8> {
 
 #[test]
 fn link_effects_change_the_recorded_signals_exactly_as_declared_on_both_transports() {
-    let cmd = ideal(&scenario("paper-lqg.toml"))
+    let sc = lqg_with(
+        "links",
+        "[links.bar_angle]\nfreeze_window = { start_s = 4.0, end_s = 4.5 }\n",
+    );
+    let cmd = ideal(&sc)
         .set("links.actuator_command.delay_ticks", 20)
         .set("links.measurement.bias", 0.002)
-        .set(
-            "links.bar_angle.freeze_window",
-            "{ start_s = 4.0, end_s = 4.5 }",
-        )
         .duration(6);
     let dir = temp_dir("links");
     let pfx = prefix("links");
@@ -115,12 +116,11 @@ fn link_effects_change_the_recorded_signals_exactly_as_declared_on_both_transpor
 
 #[test]
 fn a_nan_on_a_link_is_caught_by_its_receiver_and_ends_or_degrades_the_run() {
-    let window = ideal(&scenario("paper-lqg.toml"))
-        .set(
-            "links.measurement.nan_window",
-            "{ start_s = 5.0, end_s = 5.1 }",
-        )
-        .duration(6);
+    let sc = lqg_with(
+        "nan",
+        "[links.measurement]\nnan_window = { start_s = 5.0, end_s = 5.1 }\n",
+    );
+    let window = ideal(&sc).duration(6);
     let dir = temp_dir("nan-link");
     let pfx = prefix("nanlink");
     let (code, err) = go(window.clone(), &dir.join("abort"), "ipc", &pfx);
