@@ -59,8 +59,8 @@ pub fn run(args: &[&str]) -> (i32, String, String) {
     Tiltsim::command(args).result()
 }
 
-/// One `tiltsim run` command line, built with a typed method for each common flag of
-/// `tiltsim run` (see `tiltsim run --help`) and [`Tiltsim::arg`] for any other:
+/// A `tiltsim` command line, mostly `tiltsim run`, built with a typed method for each common
+/// flag of `tiltsim run` (see `tiltsim run --help`) and [`Tiltsim::arg`] for any other:
 ///
 /// ```no_run
 /// # use tiltsim_suite::Tiltsim;
