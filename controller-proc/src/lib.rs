@@ -502,7 +502,7 @@ mod tests {
         let (v, k, c) = (45.0, 1e-3, 6f64.to_radians());
         let (gk, gc) = passive_roll_gains(&VehicleParams::default(), v);
         let th_p = gk * k + gc * c;
-        // The static force and moment solve of tests/vehicle_physics.rs gives −1.0239°.
+        // The static force and moment solve of tests/models/vehicle_physics.rs gives −1.0239°.
         assert!(
             (th_p.to_degrees() + 1.0239).abs() < 5e-4,
             "passive roll {} deg",

@@ -1,7 +1,7 @@
 //! `tiltsim export-mcap RUN_DIR`: the `run.mcap` of a finished run, made from its files
 //! (`timeseries.csv`, `events.csv`, `summary.json`, `scenario.toml`, and `trace.csv` and
 //! `perf.json` when present), with the same channels and messages as `tiltsim run --record`
-//! writes live (`tests/record.rs` compares the two). What the files do not hold is rebuilt
+//! writes live (`tests/cli/record.rs` compares the two). What the files do not hold is rebuilt
 //! exactly: the participants' outputs at t₀ (each model built from `scenario.toml`), and
 //! what each link's sender sent, which is the sender's held output in the row the master
 //! algorithm reads it from. Publish times come from `trace.csv` (ns from the loop's start)

@@ -7,7 +7,7 @@
 //! A Jacobi master (libcosim's fixed-step algorithm, FMPy's container) running the system at
 //! the base tick computes what `tiltsim run --master jacobi` computes: every participant is
 //! given the others' outputs of the tick before, and the controller computes on its own ticks
-//! and holds its outputs between (tests/fmi.rs compares them bit for bit).
+//! and holds its outputs between (tests/outside/fmpy/fmi.rs compares them bit for bit).
 
 use std::path::{Path, PathBuf};
 

@@ -3,7 +3,7 @@
 //! effects, faults and bad data), its outputs compared with the recorded ones message by
 //! message. With the recorded scenario a deterministic participant reproduces every output
 //! byte for byte; with a changed setting the report says where the outputs first differ and
-//! by how much. This is also the project's determinism check (`tests/record.rs`).
+//! by how much. This is also the project's determinism check (`tests/cli/record.rs`).
 //!
 //! Replay stops where the recording says the participant was lost (a scheduled fault or a
 //! failure): after that its stand-in answered, not the model.

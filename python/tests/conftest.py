@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def cli_exe() -> str:
-    """The Rust ``tiltsim`` executable: ``TILTSIM_CLI`` (set by the suite's tests/python.rs),
+    """The Rust ``tiltsim`` executable: ``TILTSIM_CLI`` (set by the suite's tests/outside/pytest/python.rs),
     else the release build in this repository. Missing, the tests fail naming it."""
     exe = os.environ.get("TILTSIM_CLI") or str(ROOT / "target" / "release" / "tiltsim")
     if not os.access(exe, os.X_OK):

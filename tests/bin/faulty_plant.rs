@@ -1,5 +1,5 @@
 //! Test-only participant: the real plant, served by the real transport, that misbehaves on
-//! purpose at one step. Used by `tests/faults.rs` through `tiltsim run --participant-exe
+//! purpose at one step. Used by `tests/faults/faults.rs` through `tiltsim run --participant-exe
 //! plant=PATH`. `TILTSIM_FAULT=MODE@STEP` (inherited from the test) chooses:
 //! `nan` (NaN lateral acceleration in the reply), `version` (wrong protocol version),
 //! `size` (wrong sample size), `skip` (reply carries the next step's index), `hang` (never

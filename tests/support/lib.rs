@@ -1,4 +1,4 @@
-//! Helpers shared by tiltsim's integration tests (`tests/*.rs`).
+//! Helpers shared by tiltsim's integration tests (`tests/{models,cli,faults,outside}/`).
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -51,23 +51,252 @@ pub fn prefix(name: &str) -> String {
 
 /// Starts `tiltsim ARGS`, capturing its output.
 pub fn spawn(args: &[&str]) -> Child {
-    Command::new(tiltsim())
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start tiltsim")
+    Tiltsim::command(args).spawn()
 }
 
 /// Runs `tiltsim ARGS` to completion: (exit code, stdout, stderr).
 pub fn run(args: &[&str]) -> (i32, String, String) {
-    let out = spawn(args).wait_with_output().expect("wait for tiltsim");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    Tiltsim::command(args).result()
+}
+
+/// A `tiltsim` command line, mostly `tiltsim run`, built with a typed method for each common
+/// flag of `tiltsim run` (see `tiltsim run --help`) and [`Tiltsim::arg`] for any other:
+///
+/// ```no_run
+/// # use tiltsim_suite::Tiltsim;
+/// # let dir = std::path::Path::new("/tmp/out");
+/// let out = Tiltsim::run("paper-lqg.toml")
+///     .out(dir)
+///     .set("controller.mode", "lqg")
+///     .transport_in_process()
+///     .quiet()
+///     .success();
+/// ```
+///
+/// The command starts when one of [`output`](Tiltsim::output), [`result`](Tiltsim::result),
+/// [`success`](Tiltsim::success), [`failure`](Tiltsim::failure) or [`spawn`](Tiltsim::spawn)
+/// is called; the builder can be run again.
+#[derive(Debug, Clone)]
+pub struct Tiltsim {
+    args: Vec<std::ffi::OsString>,
+    envs: Vec<(std::ffi::OsString, std::ffi::OsString)>,
+}
+
+impl Tiltsim {
+    /// `tiltsim run SCENARIO`: a shipped scenario by its file name (`paper-lqg.toml`, looked up
+    /// in `scenarios/`), or any other path (a relative one with a folder is taken as it is).
+    pub fn run(scenario: impl AsRef<Path>) -> Tiltsim {
+        let s = scenario.as_ref();
+        let s = if s.is_relative() && s.parent() == Some(Path::new("")) {
+            self::scenario(&s.to_string_lossy())
+        } else {
+            s.to_path_buf()
+        };
+        Tiltsim::command(["run"]).arg(s)
+    }
+
+    /// Any other command: `tiltsim ARGS`.
+    pub fn command<I, S>(args: I) -> Tiltsim
+    where
+        I: IntoIterator<Item = S>,
+        S: AsRef<std::ffi::OsStr>,
+    {
+        Tiltsim {
+            args: args.into_iter().map(|a| a.as_ref().to_owned()).collect(),
+            envs: Vec::new(),
+        }
+    }
+
+    /// One more argument as it is.
+    pub fn arg(mut self, a: impl AsRef<std::ffi::OsStr>) -> Tiltsim {
+        self.args.push(a.as_ref().to_owned());
+        self
+    }
+
+    /// More arguments as they are.
+    pub fn args<I, S>(mut self, args: I) -> Tiltsim
+    where
+        I: IntoIterator<Item = S>,
+        S: AsRef<std::ffi::OsStr>,
+    {
+        self.args
+            .extend(args.into_iter().map(|a| a.as_ref().to_owned()));
+        self
+    }
+
+    /// An environment variable of the command.
+    pub fn env(mut self, key: &str, value: impl AsRef<std::ffi::OsStr>) -> Tiltsim {
+        self.envs.push((key.into(), value.as_ref().to_owned()));
+        self
+    }
+
+    /// `--out DIR`.
+    pub fn out(self, dir: impl AsRef<Path>) -> Tiltsim {
+        self.arg("--out").arg(dir.as_ref())
+    }
+
+    /// `--transport NAME` (`in-process` or `ipc`).
+    pub fn transport(self, name: &str) -> Tiltsim {
+        self.arg("--transport").arg(name)
+    }
+
+    /// `--transport in-process`.
+    pub fn transport_in_process(self) -> Tiltsim {
+        self.transport("in-process")
+    }
+
+    /// `--transport ipc`.
+    pub fn transport_ipc(self) -> Tiltsim {
+        self.transport("ipc")
+    }
+
+    /// `--ipc-prefix PREFIX`: the iceoryx2 file prefix of the run (see [`prefix`]).
+    pub fn ipc_prefix(self, prefix: &str) -> Tiltsim {
+        self.arg("--ipc-prefix").arg(prefix)
+    }
+
+    /// `--master NAME` (`gauss-seidel` or `jacobi`).
+    pub fn master(self, name: &str) -> Tiltsim {
+        self.arg("--master").arg(name)
+    }
+
+    /// `--seed N`.
+    pub fn seed(self, seed: impl std::fmt::Display) -> Tiltsim {
+        self.arg("--seed").arg(seed.to_string())
+    }
+
+    /// `--wait NAME` (`spin`, `adaptive`, `sleep`, `paced`).
+    pub fn wait(self, name: &str) -> Tiltsim {
+        self.arg("--wait").arg(name)
+    }
+
+    /// `--deadline-ms MS`.
+    pub fn deadline_ms(self, ms: impl std::fmt::Display) -> Tiltsim {
+        self.arg("--deadline-ms").arg(ms.to_string())
+    }
+
+    /// `--duration SECONDS` (simulated).
+    pub fn duration(self, s: impl std::fmt::Display) -> Tiltsim {
+        self.arg("--duration").arg(s.to_string())
+    }
+
+    /// `--set KEY=VALUE`: a scenario value by its dotted path.
+    pub fn set(self, key: &str, value: impl std::fmt::Display) -> Tiltsim {
+        self.arg("--set").arg(format!("{key}={value}"))
+    }
+
+    /// `--trace`.
+    pub fn trace(self) -> Tiltsim {
+        self.arg("--trace")
+    }
+
+    /// `--pace FACTOR`.
+    pub fn pace(self, factor: impl std::fmt::Display) -> Tiltsim {
+        self.arg("--pace").arg(factor.to_string())
+    }
+
+    /// `--realtime` (with `--pace`).
+    pub fn realtime(self) -> Tiltsim {
+        self.arg("--realtime")
+    }
+
+    /// `--progress machine`: a JSON line per percent on standard error.
+    pub fn progress_machine(self) -> Tiltsim {
+        self.arg("--progress").arg("machine")
+    }
+
+    /// `--record`.
+    pub fn record(self) -> Tiltsim {
+        self.arg("--record")
+    }
+
+    /// `--free-run`.
+    pub fn free_run(self) -> Tiltsim {
+        self.arg("--free-run")
+    }
+
+    /// `--participant-exe ROLE=PATH`: ROLE served by another executable.
+    pub fn participant_exe(self, role: &str, exe: impl AsRef<Path>) -> Tiltsim {
+        self.arg("--participant-exe")
+            .arg(format!("{role}={}", exe.as_ref().display()))
+    }
+
+    /// `-q`: nothing printed but errors.
+    pub fn quiet(self) -> Tiltsim {
+        self.arg("-q")
+    }
+
+    /// The command line, for messages.
+    pub fn line(&self) -> String {
+        let mut s = String::from("tiltsim");
+        for a in &self.args {
+            s.push(' ');
+            s.push_str(&a.to_string_lossy());
+        }
+        s
+    }
+
+    /// The command, not started: standard input closed, output captured.
+    pub fn to_command(&self) -> Command {
+        let mut c = Command::new(tiltsim());
+        c.args(&self.args)
+            .envs(self.envs.iter().map(|(k, v)| (k, v)))
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
+        c
+    }
+
+    /// Starts the command.
+    pub fn spawn(&self) -> Child {
+        self.to_command()
+            .spawn()
+            .unwrap_or_else(|e| panic!("{}: {e}", self.line()))
+    }
+
+    /// Runs the command to its end.
+    pub fn output(&self) -> std::process::Output {
+        self.to_command()
+            .output()
+            .unwrap_or_else(|e| panic!("{}: {e}", self.line()))
+    }
+
+    /// Runs the command to its end: (exit code, stdout, stderr).
+    pub fn result(&self) -> (i32, String, String) {
+        let out = self.output();
+        (
+            out.status.code().unwrap_or(-1),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    }
+
+    /// Runs the command, which must succeed (the command line and its standard error
+    /// otherwise); its output.
+    pub fn success(&self) -> std::process::Output {
+        let out = self.output();
+        assert!(
+            out.status.success(),
+            "{} ended with {}:\n{}",
+            self.line(),
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out
+    }
+
+    /// Runs the command, which must end with exit `code` (the command line and its standard
+    /// error otherwise); its standard error.
+    pub fn failure(&self, code: i32) -> String {
+        let (got, _, err) = self.result();
+        assert_eq!(
+            got,
+            code,
+            "{} ended with exit {got}, not {code}:\n{err}",
+            self.line()
+        );
+        err
+    }
 }
 
 /// Child processes of `pid` as (pid, comm), read from /proc.
@@ -194,16 +423,11 @@ pub fn scenario_with(file: &str, from: &str, to: &str, name: &str) -> PathBuf {
 /// the run directory; the run must complete.
 pub fn run_in_process(name: &str, path: &Path) -> PathBuf {
     let out = temp_dir(name).join("out");
-    let (code, _, err) = run(&[
-        "run",
-        path.to_str().expect("utf-8 path"),
-        "--out",
-        out.to_str().expect("utf-8 path"),
-        "--transport",
-        "in-process",
-        "-q",
-    ]);
-    assert_eq!(code, 0, "{name}: {err}");
+    Tiltsim::run(path)
+        .out(&out)
+        .transport_in_process()
+        .quiet()
+        .success();
     out
 }
 
@@ -246,7 +470,9 @@ pub fn fmi_python() -> PathBuf {
         .expect("run scripts/fmi-venv.sh");
     assert!(
         out.status.success(),
-        "scripts/fmi-venv.sh could not make the FMI check environment (FMPy, libcosimpy, pythonfmu from PyPI):\n{}",
+        "scripts/fmi-venv.sh could not make the outside checks' environment {} (the tools of \
+         scripts/fmi-requirements.txt from PyPI; it needs python3 with venv and pip):\n{}",
+        venv.display(),
         String::from_utf8_lossy(&out.stderr)
     );
     let py = venv.join("bin/python");
@@ -254,18 +480,35 @@ pub fn fmi_python() -> PathBuf {
     py
 }
 
-/// Runs a program of the FMI check environment (`python`, `pythonfmu`) with `args`:
-/// (exit code, stdout, stderr).
+/// Runs a program of the outside checks' environment (`python`, `pythonfmu`, `rerun`) with
+/// `args`: (exit code, stdout, stderr). A program or a Python module that is not there fails
+/// the test naming it and how to install it (`scripts/fmi-requirements.txt`,
+/// `scripts/fmi-venv.sh`), never skips it.
 pub fn fmi_tool(tool: &str, args: &[&str]) -> (i32, String, String) {
-    let bin = fmi_python().with_file_name(tool);
+    let py = fmi_python();
+    let bin = py.with_file_name(tool);
+    let venv = py.parent().and_then(Path::parent).expect("the environment");
+    let install = format!(
+        "install the outside tools of scripts/fmi-requirements.txt with `bash scripts/fmi-venv.sh {}`",
+        venv.display()
+    );
+    assert!(
+        bin.exists(),
+        "`{tool}` is missing from {}: {install}",
+        venv.display()
+    );
     let out = Command::new(&bin)
         .args(args)
         .output()
-        .unwrap_or_else(|e| panic!("{}: {e}", bin.display()));
+        .unwrap_or_else(|e| panic!("{} does not start ({e}): {install}", bin.display()));
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    if let Some(line) = err.lines().find(|l| l.starts_with("ModuleNotFoundError")) {
+        panic!("`{tool}` lacks a Python module ({line}): {install}");
+    }
     (
         out.status.code().unwrap_or(-1),
         String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
+        err,
     )
 }
 

@@ -1,0 +1,17 @@
+//! The `tiltsim` program as a user runs it, in-process and over iceoryx2: templates and
+//! `--set`, output directories and figures, sweeps, the bench, the lock-step runtime over both
+//! transports, the endpoint contract, free runs and their replay, recordings, and the pinned
+//! outputs of `tests/pinned.txt`. One check here also reads a recording with the Python
+//! registry's `mcap` reader, from the environment the `outside` tests use
+//! (`freerun::link_effects_and_a_stall_act_in_a_free_run_and_its_replay_repeats_them`).
+
+mod bench;
+mod contract;
+mod freerun;
+mod getting_started;
+mod outputs;
+mod pinned;
+mod record;
+mod sweep;
+mod sweep_merge;
+mod transport;
