@@ -438,3 +438,55 @@ fn an_observer_written_outside_the_crates_sees_every_row_of_the_table() {
     assert_eq!(part["ticks"].as_u64().unwrap() as usize, rows.len() - 2);
     assert_eq!(part["status"], "completed");
 }
+
+/// The manipulator of `examples/quantised_sensor.rs`, written outside the crates: every
+/// measurement the controller got is a whole multiple of the resolution, within half of it
+/// of what the plant sent the tick before (row k's θ_v measured reaches the controller in
+/// tick k, row k + 1's `rx_measurement`), every tick's sample passed through it, and what it
+/// logged is in `events.csv`.
+#[test]
+fn a_manipulator_written_outside_the_crates_acts_on_every_sample_of_its_link() {
+    let exe = std::env::current_exe()
+        .unwrap()
+        .parent()
+        .and_then(Path::parent)
+        .unwrap()
+        .join("examples")
+        .join("quantised_sensor");
+    assert!(exe.exists(), "{} not built", exe.display());
+    let out = temp_dir("quantised-sensor").join("run");
+    let q = 0.001;
+    let p = std::process::Command::new(&exe)
+        .args([s(&scenario("paper-lqg.toml")), s(&out), "0.001"])
+        .output()
+        .unwrap();
+    assert!(p.status.success(), "{}", String::from_utf8_lossy(&p.stderr));
+    let said: serde_json::Value = serde_json::from_slice(&p.stdout).unwrap();
+    let table = std::fs::read_to_string(out.join("timeseries.csv")).unwrap();
+    let rows = tiltsim_suite::csv_table(&table);
+    let col = |name: &str| rows[0].iter().position(|c| c == name).unwrap();
+    let (rx, sent) = (col("rx_measurement"), col("theta_v_meas"));
+    let v = |r: &Vec<String>, c: usize| r[c].parse::<f64>().unwrap();
+    let ticks = rows.len() - 2;
+    assert_eq!(said["quantised"].as_u64().unwrap() as usize, ticks);
+    assert_eq!(said["status"], "completed");
+    let mut levels = std::collections::BTreeSet::new();
+    for k in 1..=ticks {
+        let got = v(&rows[k + 1], rx);
+        let n = (got / q).round();
+        assert_eq!((n * q).to_bits(), got.to_bits(), "row {}: {got}", k + 1);
+        assert!(
+            (got - v(&rows[k], sent)).abs() <= q / 2.0 + 1e-15,
+            "row {}",
+            k + 1
+        );
+        levels.insert(n as i64);
+    }
+    // The body rolls through many levels on the curve (up to about 5° = 87 mrad).
+    assert!(levels.len() > 20, "{} levels", levels.len());
+    let events = std::fs::read_to_string(out.join("events.csv")).unwrap();
+    assert!(
+        events.contains("0.0,0,measurement,manipulated,0.001,measurement quantised to 0.001 rad"),
+        "{events}"
+    );
+}
