@@ -4,9 +4,9 @@
 
 use std::path::{Path, PathBuf};
 
+use tiltsim_formats::table::Rows;
 use tiltsim_master::engine::{LatencyHistogram, QuickLook};
-use tiltsim_master::scenario::Scenario;
-use tiltsim_master::table::Rows;
+use tiltsim_scenario::scenario::Scenario;
 
 /// What the analysis of a recorded series finds: the quick look, ride comfort and the
 /// validity flags.
@@ -135,7 +135,7 @@ fn transitions(s: &Scenario) -> [(f64, f64); 2] {
 
 /// One recorded row with its quantities derived for comfort, as [`scan`] hands them over.
 struct Derived {
-    row: tiltsim_master::table::Row,
+    row: tiltsim_formats::table::Row,
     /// θ_v^d at the row's position, continuous (rad).
     reference: f64,
 }
@@ -153,7 +153,7 @@ struct Derived {
 pub fn scan(
     s: &Scenario,
     rows: Rows,
-    mut visit: impl FnMut(&tiltsim_master::table::Row, &tiltsim_assessment::comfort::Sample),
+    mut visit: impl FnMut(&tiltsim_formats::table::Row, &tiltsim_assessment::comfort::Sample),
 ) -> std::io::Result<u64> {
     let controller = controller_proc::Controller::new(&s.controller_init()).ok();
     let veh = vehicle_model::Vehicle::new(s.vehicle.clone(), s.track.speed());
@@ -201,7 +201,7 @@ pub fn scan(
     let mut prev: Option<Derived> = None;
     let mut cur: Option<Derived> = None;
     let n = rows.each(|r| {
-        if r.step % 4096 == 0 && tiltsim_master::signals::received() {
+        if r.step % 4096 == 0 && tiltsim_rundir::signals::received() {
             return false;
         }
         let next = Derived {
@@ -242,7 +242,7 @@ const PLOT_POINTS: usize = 40_000;
 
 /// Writes `dir/plots/*.svg` and `*.png` from `dir/timeseries.csv`.
 pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<PathBuf>> {
-    let rows = tiltsim_master::table::rows_to_plot(dir, PLOT_POINTS)?;
+    let rows = tiltsim_formats::table::rows_to_plot(dir, PLOT_POINTS)?;
     let controller = crate::table4::controller_name(s);
     let who = crate::plot::RunTitle {
         scenario: &s.name,
@@ -280,12 +280,12 @@ pub fn write_compare_plots(
 ) -> std::io::Result<Vec<PathBuf>> {
     use crate::plot::cite::{caption, compare_figure, Quantity};
     use crate::plot::{Chart, Line, PALETTE};
-    use tiltsim_master::table::Row;
+    use tiltsim_formats::table::Row;
     let mut data = Vec::new();
     for (label, _, dir) in runs {
         data.push((
             label.as_str(),
-            tiltsim_master::table::rows_to_plot(dir, PLOT_POINTS)?,
+            tiltsim_formats::table::rows_to_plot(dir, PLOT_POINTS)?,
         ));
     }
     let n = data.iter().map(|(_, r)| r.len()).min().unwrap_or(0);
@@ -409,7 +409,7 @@ impl QuickLooker {
         }
     }
 
-    fn push(&mut self, r: &tiltsim_master::table::Row) {
+    fn push(&mut self, r: &tiltsim_formats::table::Row) {
         let q = &mut self.q;
         q.lat_acc_peak = q.lat_acc_peak.max(r.lat_acc.abs());
         q.delta_a_peak = q.delta_a_peak.max(r.delta_a.abs());

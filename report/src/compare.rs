@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use tiltsim_master::engine::{RunOptions, Status, Summary};
-use tiltsim_master::outdir::{self, Lock, OutDirError};
-use tiltsim_master::scenario::Scenario;
+use tiltsim_rundir::outdir::{self, Lock, OutDirError};
+use tiltsim_scenario::scenario::Scenario;
 
 use crate::table4::{Entry, Manifest, ManifestRun};
 
@@ -30,7 +30,7 @@ fn invalid(e: OutDirError) -> CompareError {
 
 fn write_json<T: serde::Serialize>(path: &Path, v: &T) -> Result<(), CompareError> {
     let text = serde_json::to_string_pretty(v).unwrap_or_default() + "\n";
-    tiltsim_master::files::write_atomic(path, text).map_err(|e| CompareError::Failed(e.to_string()))
+    tiltsim_rundir::files::write_atomic(path, text).map_err(|e| CompareError::Failed(e.to_string()))
 }
 
 /// Gives scenarios of one name distinct directories and labels (`name`, `name-2`, ...);
@@ -139,7 +139,7 @@ impl Comparison {
         self.manifest.trade_off = crate::table4::trade_off_points(&self.entries);
         let (md, csv) = crate::table4::tables(&self.entries);
         for (name, text) in [("table.md", &md), ("table.csv", &csv)] {
-            tiltsim_master::files::write_atomic(&out.join(name), text)
+            tiltsim_rundir::files::write_atomic(&out.join(name), text)
                 .map_err(|e| CompareError::Failed(e.to_string()))?;
         }
         let runs: Vec<_> = self

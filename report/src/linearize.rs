@@ -8,7 +8,7 @@ use controller_proc::pi_loop::{ActuatorLag, PiLoop};
 use controller_proc::{Lqg, Mode, Mpc};
 use serde_json::{json, Value};
 
-use tiltsim_master::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 
 /// Targets of `tiltsim linearize --design-pi`.
 #[derive(Debug, Clone, Copy)]

@@ -7,20 +7,20 @@
 
 use std::path::{Path, PathBuf};
 
-use tiltsim_master::budget::{self, Verdict};
+use tiltsim_formats::table::{Row, Rows};
 use tiltsim_master::engine::manipulate::Manipulator;
 use tiltsim_master::engine::observe::Observer;
 use tiltsim_master::engine::outputs::Outputs;
 use tiltsim_master::engine::{RunError, RunMode, RunOptions, Status, Summary};
 use tiltsim_master::free::{FreeError, TraceError};
-use tiltsim_master::scenario::{Execution, Scenario};
-use tiltsim_master::table::{Row, Rows};
+use tiltsim_rundir::budget::{self, Verdict};
+use tiltsim_scenario::scenario::{Execution, Scenario};
 
 /// Makes `s` the system a replay of a free run's timing runs: lock-step, and with no busy
 /// wait in the controller (a study's wall-clock load, which changes no value). Every front
 /// end that replays a timing trace applies this before validating the scenario.
 pub fn as_timing_replay(s: &mut Scenario) {
-    s.run.execution = tiltsim_master::scenario::Execution::LockStep;
+    s.run.execution = tiltsim_scenario::scenario::Execution::LockStep;
     s.run.controller_busy_wait_s = 0.0;
 }
 
@@ -154,7 +154,7 @@ pub fn carry_out(mut job: Job) -> Result<Done, JobError> {
     }
     let lock = if files && job.claim {
         Some(
-            tiltsim_master::outdir::claim_run(&job.opts.out_dir, "run")
+            tiltsim_rundir::outdir::claim_run(&job.opts.out_dir, "run")
                 .map_err(|e| JobError::Invalid(e.to_string()))?,
         )
     } else {
@@ -260,7 +260,7 @@ fn analyse(job: &Job, summary: &mut Summary, rows: &[Row]) {
         // An hour's series takes tens of seconds to analyse: `tiltsim plot DIR` draws it later.
         summary.analysis_skipped = Some(format!(
             "interrupted by {}: comfort, flags and figures not computed",
-            tiltsim_master::signals::describe()
+            tiltsim_rundir::signals::describe()
         ));
     } else {
         let source = if files {
@@ -287,10 +287,10 @@ fn analyse(job: &Job, summary: &mut Summary, rows: &[Row]) {
                 margin_s: f.not_real_time_margin_s,
             });
         }
-        if tiltsim_master::signals::received() {
+        if tiltsim_rundir::signals::received() {
             summary.analysis_skipped = Some(format!(
                 "interrupted by {} during the analysis: comfort and flags incomplete, figures not drawn",
-                tiltsim_master::signals::describe()
+                tiltsim_rundir::signals::describe()
             ));
         }
     }
@@ -319,7 +319,7 @@ fn finish(job: &Job, ran: Ran, mut warnings: Vec<String>) -> Done {
             let text = value
                 .map(|v| serde_json::to_string_pretty(&v).unwrap_or_default() + "\n")
                 .unwrap_or_default();
-            if let Err(e) = tiltsim_master::files::write_atomic(&path, text) {
+            if let Err(e) = tiltsim_rundir::files::write_atomic(&path, text) {
                 let what = format!("cannot write {}: {e}", path.display());
                 if summary.error.is_none() && summary.status == Status::Completed {
                     summary.status = Status::Failed;

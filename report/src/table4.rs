@@ -8,7 +8,7 @@ use controller_proc::Mode;
 
 use tiltsim_assessment::comfort::{metric, Comfort};
 use tiltsim_master::engine::Summary;
-use tiltsim_master::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 
 /// The metrics of the paper's Table 4, in its row order (its P_CT is the whole-run-peak form).
 const TABLE4: [&str; 7] = [
@@ -624,7 +624,7 @@ const RESERVED: [&str; 5] = [
     "compare.json",
     "table.md",
     "table.csv",
-    tiltsim_master::outdir::LOCK_FILE,
+    tiltsim_rundir::outdir::LOCK_FILE,
 ];
 
 /// Distinct subdirectory names for runs of scenarios named `names`, in order: a name already

@@ -15,7 +15,7 @@ use cosim::wait::WaitStrategy;
 use serde::Serialize;
 
 use tiltsim_master::engine::{self, RunOptions, Status, Summary};
-use tiltsim_master::scenario::{Master, Scenario, Transport};
+use tiltsim_scenario::scenario::{Master, Scenario, Transport};
 
 /// One measured configuration.
 #[derive(Debug, Clone, Serialize)]

@@ -8,5 +8,5 @@
 //! * [`budget`]: what a run will write, estimated before it starts ([`budget::check`]).
 
 pub mod bench;
-pub use tiltsim_master::budget;
+pub use tiltsim_rundir::budget;
 pub mod sweep;

@@ -26,13 +26,12 @@ use std::path::Path;
 
 use cosim::msg::{FromActuator, FromController, FromPlant, Header, Kind};
 use cosim::msg::{ToActuator, ToController, ToPlant};
-use cosim::settings::Checker;
 use cosim::LinkError;
 
 use crate::engine::launch::Participants;
 use crate::engine::observer::{RowRecorder, RowSink};
 use crate::engine::{RunError, RunMode, Status, Summary};
-use crate::scenario::{Execution, Scenario, Transport};
+use crate::scenario::Scenario;
 use crate::table::{Recorder, Row};
 
 pub use run::{run, FreeReport, FreeTiming};
@@ -56,41 +55,6 @@ impl FreeError {
             path: path.to_path_buf(),
             source,
         })
-    }
-}
-
-impl Scenario {
-    /// The rules of `run.execution` and `run.controller_busy_wait_s`.
-    pub(crate) fn validate_execution(&self, c: &mut Checker) {
-        let r = &self.run;
-        c.range(
-            "controller_busy_wait_s",
-            r.controller_busy_wait_s,
-            0.0,
-            1.0,
-            "s",
-        );
-        if r.execution == Execution::LockStep {
-            c.require(
-                r.controller_busy_wait_s == 0.0,
-                "controller_busy_wait_s",
-                r.controller_busy_wait_s,
-                "0 unless run.execution = \"free\" (a lock-step run's values do not depend on compute time)",
-            );
-            return;
-        }
-        c.require(
-            r.transport == Transport::Ipc,
-            "execution",
-            "\"free\"",
-            "\"free\" only with run.transport = \"ipc\": in one process the participants have no clocks of their own",
-        );
-        c.require(
-            self.faults.on_failure == crate::faults::OnFailure::Abort,
-            "execution",
-            "\"free\"",
-            "\"lock-step\" when faults.on_failure = \"degrade\" (a free run ends, naming the participant, when one fails; stand-ins replace participants in lock-step only)",
-        );
     }
 }
 

@@ -5,7 +5,7 @@
 //! title.
 
 use controller_proc::Mode;
-use tiltsim_master::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 use vehicle_model::{IrregularityModel, IrregularityParams, TrackParams, VehicleParams};
 
 /// The paper's tracks.

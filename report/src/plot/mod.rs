@@ -530,7 +530,7 @@ pub fn write_chart(
 ) -> std::io::Result<[PathBuf; 2]> {
     let sc = layout(chart, x);
     let svg = dir.join(format!("{name}.svg"));
-    tiltsim_master::files::write_atomic(&svg, to_svg(&sc))?;
+    tiltsim_rundir::files::write_atomic(&svg, to_svg(&sc))?;
     let png = dir.join(format!("{name}.png"));
     write_png(&sc, &png)?;
     Ok([svg, png])
@@ -557,7 +557,7 @@ pub fn write_panels(
         all.h += sc.h;
     }
     let svg = dir.join(format!("{name}.svg"));
-    tiltsim_master::files::write_atomic(&svg, to_svg(&all))?;
+    tiltsim_rundir::files::write_atomic(&svg, to_svg(&all))?;
     let png = dir.join(format!("{name}.png"));
     write_png(&all, &png)?;
     Ok([svg, png])

@@ -55,7 +55,7 @@ pub fn write_png(sc: &Scene, path: &Path) -> std::io::Result<()> {
     let (w, h, px) = rasterise(sc)?;
     let mut bytes = Vec::new();
     encode_png(w, h, &px, &mut bytes)?;
-    tiltsim_master::files::write_atomic(path, bytes)
+    tiltsim_rundir::files::write_atomic(path, bytes)
 }
 
 fn encode_png(w: u32, h: u32, px: &[u8], out: &mut Vec<u8>) -> std::io::Result<()> {

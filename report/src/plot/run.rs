@@ -11,7 +11,7 @@ pub const SECTION_NOTE: &str = "shaded: transitions (light), steady curve (dark)
 /// One line of a run's chart: its label, the value it takes from a row, colour and dash.
 type RowLine = (
     &'static str,
-    Box<dyn Fn(&tiltsim_master::table::Row) -> f64>,
+    Box<dyn Fn(&tiltsim_formats::table::Row) -> f64>,
     &'static str,
     bool,
 );
@@ -140,7 +140,7 @@ const DRIVE_FIGURES: [&str; 2] = ["control", "motor"];
 /// Charts that share a file name are the panels of one figure, drawn one above the other.
 pub fn write_run_plots(
     dir: &Path,
-    rows: &[tiltsim_master::table::Row],
+    rows: &[tiltsim_formats::table::Row],
     sections: &[(f64, f64, bool)],
     u_max: f64,
     who: &RunTitle,

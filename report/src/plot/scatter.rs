@@ -74,7 +74,7 @@ pub fn write_scatter(
         prims: p,
     };
     let svg = dir.join(format!("{name}.svg"));
-    tiltsim_master::files::write_atomic(&svg, to_svg(&sc))?;
+    tiltsim_rundir::files::write_atomic(&svg, to_svg(&sc))?;
     let png = dir.join(format!("{name}.png"));
     write_png(&sc, &png)?;
     Ok([svg, png])

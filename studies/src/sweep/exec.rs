@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex};
 
 use tiltsim_assessment::comfort::{values, METRICS};
 use tiltsim_master::engine::{RunOptions, Status};
-use tiltsim_master::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 
 use super::{identity, resume, sample, Plan, Row, SampleStatus, SweepError, SERIES_DT};
 
@@ -195,7 +195,7 @@ pub(super) fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row 
         Ok(done) if !ex.keep_runs => (Ok(done.summary), done.rows),
         Ok(done) => (
             Ok(done.summary),
-            tiltsim_master::table::read_rows(&dir).unwrap_or_default(),
+            tiltsim_formats::table::read_rows(&dir).unwrap_or_default(),
         ),
         Err(e) => (Err(e), Vec::new()),
     };
@@ -352,24 +352,24 @@ fn progress_bar(shown: bool, n: usize) -> indicatif::ProgressBar {
 
 /// Removes an earlier sweep's results from `out`: its tables, figures and kept sample runs
 /// (`runs/sample-NNNN`, each cleared as a run), never files the program does not write.
-pub(super) fn clear_results(out: &Path) -> Result<(), tiltsim_master::outdir::OutDirError> {
-    tiltsim_master::outdir::clear_sweep_results(out)?;
+pub(super) fn clear_results(out: &Path) -> Result<(), tiltsim_rundir::outdir::OutDirError> {
+    tiltsim_rundir::outdir::clear_sweep_results(out)?;
     let runs = out.join("runs");
     if let Ok(entries) = std::fs::read_dir(&runs) {
         for e in entries.flatten() {
             let name = e.file_name().to_string_lossy().into_owned();
             if name.starts_with("sample-") && e.path().is_dir() {
-                tiltsim_master::outdir::clear_run(&e.path())?;
-                tiltsim_master::outdir::remove_if_empty(&e.path());
+                tiltsim_rundir::outdir::clear_run(&e.path())?;
+                tiltsim_rundir::outdir::remove_if_empty(&e.path());
             }
         }
-        tiltsim_master::outdir::remove_if_empty(&runs);
+        tiltsim_rundir::outdir::remove_if_empty(&runs);
     }
     Ok(())
 }
 
 /// Clears `out` for a merged sweep: an earlier sweep's results and kept samples.
-pub fn clear_for_merge(out: &Path) -> Result<(), tiltsim_master::outdir::OutDirError> {
+pub fn clear_for_merge(out: &Path) -> Result<(), tiltsim_rundir::outdir::OutDirError> {
     clear_results(out)?;
     resume::clear(out);
     Ok(())

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use tiltsim_assessment::comfort::METRICS;
-use tiltsim_master::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 
 use super::outputs::{series_time, SERIES_COLUMNS};
 use super::{check_params, identity, Plan, Row, SampleStatus, Shard, SweepError, SweepFile};
@@ -204,7 +204,7 @@ fn read_series(
             return Err(format!(
                 "{at}: sample {j} at time {} where {} follows",
                 v[0],
-                tiltsim_master::table::fmt_f64(want)
+                tiltsim_formats::table::fmt_f64(want)
             ));
         }
         series.push(v[1]);

@@ -101,7 +101,7 @@ pub struct Row {
 
 #[cfg(test)]
 mod tests {
-    use tiltsim_master::scenario::Scenario;
+    use tiltsim_scenario::scenario::Scenario;
 
     use super::*;
 

@@ -7,9 +7,9 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use tiltsim_assessment::comfort::{metric, METRICS};
-use tiltsim_master::scenario::Scenario;
 use tiltsim_report::plot::{Chart, Line, PALETTE};
 use tiltsim_report::table4::fmt;
+use tiltsim_scenario::scenario::Scenario;
 
 use super::{identity, Plan, Row, Shard, PERTURBED, SERIES_DT};
 
@@ -126,7 +126,7 @@ pub const SERIES_COLUMNS: [&str; 3] = [SAMPLE_COLUMN, "time", "lat_acc"];
 /// The time of point `i` of a sample's series (s): `i`·[`SERIES_DT`], the double nearest to
 /// it.
 pub fn series_time(i: usize) -> f64 {
-    tiltsim_master::table::tick_time(i as u64, SERIES_DT)
+    tiltsim_formats::table::tick_time(i as u64, SERIES_DT)
 }
 
 /// `series.csv`, tidy (one line per sample and time): each sample's lateral acceleration at
@@ -140,8 +140,8 @@ pub(super) fn series_csv(rows: &[Row]) -> String {
                 text,
                 "{},{},{}",
                 r.sample,
-                tiltsim_master::table::fmt_f64(series_time(i)),
-                tiltsim_master::table::fmt_f64(*v)
+                tiltsim_formats::table::fmt_f64(series_time(i)),
+                tiltsim_formats::table::fmt_f64(*v)
             );
         }
     }
@@ -149,9 +149,9 @@ pub(super) fn series_csv(rows: &[Row]) -> String {
 }
 
 /// `columns.csv` of a sweep: each column of `samples.csv` and `series.csv` with its unit
-/// (see `tiltsim_master::columns`).
+/// (see `tiltsim_formats::columns`).
 pub(super) fn columns_csv(plan: &Plan) -> String {
-    use tiltsim_master::columns::Column;
+    use tiltsim_formats::columns::Column;
     let s = "samples.csv";
     let mut all = vec![Column::new(s, SAMPLE_COLUMN, "", "Sample index")];
     for c in plan.columns() {
@@ -187,7 +187,7 @@ pub(super) fn columns_csv(plan: &Plan) -> String {
             "Passenger lateral acceleration, eq 13",
         ),
     ]);
-    tiltsim_master::columns::csv_text(&all)
+    tiltsim_formats::columns::csv_text(&all)
 }
 
 /// `table.md` and `table.csv` of a Monte Carlo sweep: each metric's distribution.
@@ -341,7 +341,7 @@ pub fn write_outputs(
     let mut files = Vec::new();
     let mut put = |name: &str, text: &str| -> std::io::Result<()> {
         let p = out.join(name);
-        tiltsim_master::files::write_atomic(&p, text)?;
+        tiltsim_rundir::files::write_atomic(&p, text)?;
         files.push(p);
         Ok(())
     };

@@ -3,7 +3,7 @@
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
-use tiltsim_master::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 
 use super::SweepError;
 

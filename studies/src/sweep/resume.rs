@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{identity, Plan, Row, SampleStatus, Shard, SweepError};
 use tiltsim_assessment::comfort::METRICS;
-use tiltsim_master::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 
 /// A row as kept on disk: every float by its bits (NaN included).
 #[derive(Serialize, Deserialize)]
@@ -118,7 +118,7 @@ pub fn clear(out: &Path) {
     let dir = out.join("done");
     remove_samples(&dir);
     let _ = std::fs::remove_file(dir.join("plan.json"));
-    tiltsim_master::outdir::remove_if_empty(&dir);
+    tiltsim_rundir::outdir::remove_if_empty(&dir);
 }
 
 impl Done {
@@ -181,7 +181,7 @@ impl Done {
                 );
             }
             std::fs::create_dir_all(&dir)
-                .and_then(|_| tiltsim_master::files::write_atomic(&id_path, seal(&id)))
+                .and_then(|_| tiltsim_rundir::files::write_atomic(&id_path, seal(&id)))
                 .map_err(|e| SweepError::Files(format!("{}: {e}", dir.display())))?;
         }
         Ok((
@@ -270,6 +270,6 @@ impl Done {
                 series: bits(&r.series),
             },
         };
-        tiltsim_master::files::write_atomic(&self.path(r.sample), seal(&k))
+        tiltsim_rundir::files::write_atomic(&self.path(r.sample), seal(&k))
     }
 }

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use crate::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 
 /// Bytes per row of `timeseries.csv` with the ideal actuator: its drive columns stay 0, the
 /// other 25 hold up to 17 significant digits once the run is under way (measured 373 B on
@@ -75,7 +75,7 @@ pub fn estimate(s: &Scenario, extras: Extras) -> Estimate {
         } else {
             0
         }
-        + if s.run.execution == crate::scenario::Execution::Free {
+        + if s.run.execution == tiltsim_scenario::scenario::Execution::Free {
             TIMING_BYTES_PER_TICK
         } else {
             0

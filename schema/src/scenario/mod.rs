@@ -569,13 +569,6 @@ mod tests {
         same(&[CommandShaping::Hold, CommandShaping::Ramp]);
         use crate::faults::FaultAction;
         same(&[FaultAction::Kill, FaultAction::Stall, FaultAction::Crash]);
-        use crate::engine::Status;
-        same(&[
-            Status::Completed,
-            Status::Failed,
-            Status::Degraded,
-            Status::Interrupted,
-        ]);
     }
 
     #[test]

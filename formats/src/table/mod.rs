@@ -10,6 +10,7 @@
 use serde::{Deserialize, Serialize};
 
 use cosim::msg::{FromActuator, FromController, FromPlant};
+use tiltsim_scenario::links::LinkId;
 
 mod cells;
 mod reader;
@@ -170,7 +171,7 @@ impl Row {
     /// Row 0: the outputs at the start time. Nothing has travelled a link yet, so each
     /// `rx_*` column holds what its sender holds.
     pub fn at_start(dt: f64, p: &FromPlant, a: &FromActuator, c: &FromController) -> Self {
-        Self::of(0, dt, p, a, c, &crate::links::LinkId::carried(p, a, c))
+        Self::of(0, dt, p, a, c, &LinkId::carried(p, a, c))
     }
 
     fn of(

@@ -178,6 +178,39 @@ impl Scenario {
         all.errors
     }
 
+    /// The rules of `run.execution` and `run.controller_busy_wait_s`.
+    fn validate_execution(&self, c: &mut Checker) {
+        let r = &self.run;
+        c.range(
+            "controller_busy_wait_s",
+            r.controller_busy_wait_s,
+            0.0,
+            1.0,
+            "s",
+        );
+        if r.execution == Execution::LockStep {
+            c.require(
+                r.controller_busy_wait_s == 0.0,
+                "controller_busy_wait_s",
+                r.controller_busy_wait_s,
+                "0 unless run.execution = \"free\" (a lock-step run's values do not depend on compute time)",
+            );
+            return;
+        }
+        c.require(
+            r.transport == Transport::Ipc,
+            "execution",
+            "\"free\"",
+            "\"free\" only with run.transport = \"ipc\": in one process the participants have no clocks of their own",
+        );
+        c.require(
+            self.faults.on_failure == crate::faults::OnFailure::Abort,
+            "execution",
+            "\"free\"",
+            "\"lock-step\" when faults.on_failure = \"degrade\" (a free run ends, naming the participant, when one fails; stand-ins replace participants in lock-step only)",
+        );
+    }
+
     /// Every FMU checked against its description: the file, the library for this platform,
     /// the mapping's names, causalities and types, the parameters and the step size.
     pub(super) fn validate_fmus(&self) -> Vec<FieldError> {

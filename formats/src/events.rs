@@ -145,7 +145,7 @@ impl EventLog {
         let bytes = w
             .into_inner()
             .map_err(|e| std::io::Error::other(e.to_string()))?;
-        crate::files::write_atomic(path, bytes)
+        tiltsim_rundir::files::write_atomic(path, bytes)
     }
 }
 

@@ -90,7 +90,7 @@ pub fn csv_text(columns: &[Column]) -> String {
 
 /// Writes `dir/columns.csv` for `columns`, whole or not at all.
 pub fn write(dir: &Path, columns: &[Column]) -> std::io::Result<()> {
-    crate::files::write_atomic(&dir.join("columns.csv"), csv_text(columns))
+    tiltsim_rundir::files::write_atomic(&dir.join("columns.csv"), csv_text(columns))
 }
 
 /// Writes `dir/columns.csv` for a run's tables (`timeseries.csv` and `events.csv`).

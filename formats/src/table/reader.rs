@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use super::{Row, COLUMNS};
 
 /// Where a run's rows are: its directory's `timeseries.csv`, or kept in memory (a sweep's
-/// samples, [`crate::engine::RunOptions::keep_rows`]).
+/// samples, `tiltsim_master::engine::RunOptions::keep_rows`).
 #[derive(Debug, Clone, Copy)]
 pub enum Rows<'a> {
     /// `timeseries.csv` of this directory.
@@ -182,7 +182,7 @@ pub fn rows_to_plot(dir: &Path, points: usize) -> std::io::Result<Vec<Row>> {
             out.push(lo);
             out.push(hi);
         }
-        !crate::signals::received()
+        !tiltsim_rundir::signals::received()
     })?;
     if !k.is_multiple_of(block) {
         out.push(lo);
