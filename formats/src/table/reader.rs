@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use super::{Row, COLUMNS};
 
 /// Where a run's rows are: its directory's `timeseries.csv`, or kept in memory (a sweep's
-/// samples, `tiltsim_master::engine::RunOptions::keep_rows`).
+/// samples, `tiltsim_master::engine::outputs::Outputs::rows_in_memory`).
 #[derive(Debug, Clone, Copy)]
 pub enum Rows<'a> {
     /// `timeseries.csv` of this directory.
