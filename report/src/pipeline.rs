@@ -204,6 +204,12 @@ fn lock_step(job: &mut Job, warnings: &mut Vec<String>) -> Result<Ran, JobError>
     }
     let ran = run.simulate()?;
     let mut summary = ran.summary;
+    // Over IPC, other work on the machine slows the exchanges; in-process gives the same bytes.
+    if summary.transport == tiltsim_scenario::scenario::Transport::Ipc {
+        if let Some(note) = summary.timing.machine.as_ref().and_then(|m| m.note()) {
+            warnings.push(note);
+        }
+    }
     // With `--trace`: a figure that cannot be written fails the run, as the trace would.
     if let Some(h) = ran.latency_histogram.filter(|_| job.outputs.trace) {
         if let Err(e) = crate::analysis::latency_histogram(&opts.out_dir, &job.scenario.name, &h) {

@@ -75,13 +75,21 @@ pub struct Report {
     pub wall_in_process_s: f64,
     /// Wall time across processes (s), Gauss-Seidel, adaptive wait: the median of its rounds.
     pub wall_ipc_s: f64,
-    /// `wall_ipc_s / wall_in_process_s`.
-    pub ipc_over_in_process: f64,
+    /// `wall_ipc_s / wall_in_process_s`; `None` when withheld ([`Report::ratio_withheld`]).
+    pub ipc_over_in_process: Option<f64>,
     /// Wall time across processes (s), Jacobi (pipelined, measured CPU plan), adaptive wait:
     /// the median of its rounds.
     pub wall_ipc_jacobi_s: f64,
-    /// `wall_ipc_jacobi_s / wall_in_process_s`.
-    pub jacobi_ipc_over_in_process: f64,
+    /// `wall_ipc_jacobi_s / wall_in_process_s`; `None` when withheld.
+    pub jacobi_ipc_over_in_process: Option<f64>,
+    /// Why the wall-time ratios are not drawn: the rounds spread too widely, or the machine
+    /// had more runnable tasks than CPUs (the load it ran under is in `load_average`).
+    pub ratio_withheld: Option<String>,
+    /// The 1-minute load average before the first configuration and after the last.
+    pub load_average: LoadSpan,
+    /// Each compared configuration's spread over its rounds, (max − min) / median; `None`
+    /// with fewer than three rounds.
+    pub wall_spread: [Option<f64>; 3],
     /// Every round's wall time of the three configurations the ratios compare.
     pub wall_rounds: WallRounds,
     /// The machine's ping-pong floors, measured after the configurations (`tiltsim bench`).
@@ -111,6 +119,63 @@ impl WallRounds {
         };
         list.push(wall_s);
     }
+}
+
+/// The 1-minute load average around a measurement (`None` where Linux does not report it).
+#[derive(Debug, Clone, Serialize)]
+pub struct LoadSpan {
+    /// Before the first run.
+    pub before: Option<f64>,
+    /// After the last.
+    pub after: Option<f64>,
+}
+
+/// The spread of the rounds above which a ratio of medians is not drawn: rounds that span
+/// more than half their median leave the median itself uncertain by about a quarter, more
+/// than the difference between the configurations a ratio is read for.
+pub const MAX_SPREAD: f64 = 0.5;
+
+/// (max − min) / median of `v`, `None` with fewer than three values.
+fn spread(v: &[f64]) -> Option<f64> {
+    if v.len() < 3 {
+        return None;
+    }
+    let (lo, hi) = v
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| {
+            (l.min(*x), h.max(*x))
+        });
+    let m = median(v);
+    (m > 0.0).then(|| (hi - lo) / m)
+}
+
+/// Why ratios of these rounds, measured under `load` on `cpus` CPUs, mean nothing, if so.
+fn withheld(walls: &WallRounds, load: &LoadSpan, cpus: usize) -> Option<String> {
+    let names = ["in-process", "IPC gauss-seidel", "IPC jacobi"];
+    let lists = [
+        &walls.in_process_s,
+        &walls.ipc_gauss_seidel_s,
+        &walls.ipc_jacobi_s,
+    ];
+    for (name, v) in names.iter().zip(lists) {
+        if let Some(s) = spread(v).filter(|s| *s > MAX_SPREAD) {
+            return Some(format!(
+                "the {name} rounds spread over {:.0} % of their median (more than {:.0} %)",
+                s * 100.0,
+                MAX_SPREAD * 100.0
+            ));
+        }
+    }
+    let most = load
+        .before
+        .into_iter()
+        .chain(load.after)
+        .fold(0.0, f64::max);
+    (most > cpus as f64).then(|| {
+        format!(
+            "the machine had more runnable tasks than CPUs (load average {most:.1} on {cpus} CPUs)"
+        )
+    })
 }
 
 /// The median of `v` (the lower of the middle two), NaN when empty.
@@ -185,6 +250,7 @@ pub fn run(
 ) -> Result<Report, BenchError> {
     let mut configs = Vec::new();
     let mut walls = WallRounds::default();
+    let load_before = tiltsim_master::engine::machine::load_average();
     for (i, (t, m, w)) in configurations().into_iter().enumerate() {
         // Spinning waiters on a 2-CPU machine starve each other (a tick costs whole
         // scheduler slices), so spin gets a tenth of the ticks; the table shows how many.
@@ -220,26 +286,32 @@ pub fn run(
         median(&walls.ipc_gauss_seidel_s),
         median(&walls.ipc_jacobi_s),
     );
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let load_average = LoadSpan {
+        before: load_before,
+        after: tiltsim_master::engine::machine::load_average(),
+    };
+    let ratio_withheld = withheld(&walls, &load_average, cpus);
+    let ratio = |w: f64| (wall_local > 0.0 && ratio_withheld.is_none()).then(|| w / wall_local);
     Ok(Report {
         scenario: base.name.clone(),
         duration_s: duration,
-        cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        cpus,
         machine: Machine::this(),
         ipc_round_trip_floor_us: floor,
         configs,
         wall_in_process_s: wall_local,
         wall_ipc_s: wall_ipc,
-        ipc_over_in_process: if wall_local > 0.0 {
-            wall_ipc / wall_local
-        } else {
-            f64::NAN
-        },
+        ipc_over_in_process: ratio(wall_ipc),
         wall_ipc_jacobi_s: wall_jacobi,
-        jacobi_ipc_over_in_process: if wall_local > 0.0 {
-            wall_jacobi / wall_local
-        } else {
-            f64::NAN
-        },
+        jacobi_ipc_over_in_process: ratio(wall_jacobi),
+        wall_spread: [
+            spread(&walls.in_process_s),
+            spread(&walls.ipc_gauss_seidel_s),
+            spread(&walls.ipc_jacobi_s),
+        ],
+        ratio_withheld,
+        load_average,
         wall_rounds: walls,
         machine_floors: None,
     })
@@ -398,19 +470,32 @@ pub fn table(r: &Report) -> String {
             c.cpu_s
         );
     }
+    let ratio = |x: Option<f64>| x.map_or("withheld".into(), |x| format!("{x:.2}"));
+    let load = |x: Option<f64>| x.map_or("unknown".into(), |x| format!("{x:.2}"));
     let _ = writeln!(
         s,
         "\niceoryx2 round-trip floor (best p50 over the IPC configurations): {:.2} µs\n\
-         wall time, median of {} round(s): in-process {:.3} s, IPC (gauss-seidel, adaptive) {:.3} s, ratio {:.2}; \
-         IPC (jacobi, adaptive) {:.3} s, ratio {:.2}",
+         load average (1 min): {} before, {} after, on {} CPUs\n\
+         wall time, median of {} round(s): in-process {:.3} s, IPC (gauss-seidel, adaptive) {:.3} s, ratio {}; \
+         IPC (jacobi, adaptive) {:.3} s, ratio {}",
         r.ipc_round_trip_floor_us,
+        load(r.load_average.before),
+        load(r.load_average.after),
+        r.cpus,
         r.wall_rounds.in_process_s.len(),
         r.wall_in_process_s,
         r.wall_ipc_s,
-        r.ipc_over_in_process,
+        ratio(r.ipc_over_in_process),
         r.wall_ipc_jacobi_s,
-        r.jacobi_ipc_over_in_process
+        ratio(r.jacobi_ipc_over_in_process)
     );
+    if let Some(why) = &r.ratio_withheld {
+        let _ = writeln!(
+            s,
+            "ratios withheld: {why}; a ratio from these runs would measure the machine, not \
+             tiltsim (rerun on a quieter machine, or with more --rounds)"
+        );
+    }
     if let Some(f) = &r.machine_floors {
         let _ = writeln!(
             s,
@@ -545,4 +630,39 @@ pub fn fmu_table(scenario: &str, transport: &str, rows: &[FmuCost]) -> String {
         ));
     }
     t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ratios_are_withheld_when_rounds_spread_or_the_machine_is_overloaded() {
+        let quiet = LoadSpan {
+            before: Some(0.3),
+            after: Some(0.6),
+        };
+        let walls = |ipc: Vec<f64>| WallRounds {
+            in_process_s: vec![1.0, 1.1, 1.05],
+            ipc_gauss_seidel_s: ipc,
+            ipc_jacobi_s: vec![1.2, 1.25, 1.3],
+        };
+        // Rounds within a tenth of each other on a quiet machine: drawn.
+        assert_eq!(withheld(&walls(vec![1.5, 1.6, 1.55]), &quiet, 2), None);
+        // One round 1.5 s, the next 30 s (a build started beside it): withheld, named.
+        let why = withheld(&walls(vec![1.5, 30.0, 1.6]), &quiet, 2).unwrap();
+        assert!(
+            why.contains("IPC gauss-seidel") && why.contains("1781 %"),
+            "{why}"
+        );
+        // Fewer than three rounds: no spread to judge, the load still counts.
+        assert_eq!(spread(&[1.0, 9.0]), None);
+        let busy = LoadSpan {
+            before: Some(0.5),
+            after: Some(6.2),
+        };
+        let why = withheld(&walls(vec![1.5]), &busy, 2).unwrap();
+        assert!(why.contains("load average 6.2 on 2 CPUs"), "{why}");
+        assert_eq!(spread(&[1.0, 1.5, 2.0]), Some(1.0 / 1.5));
+    }
 }

@@ -24,6 +24,7 @@
 pub(crate) mod algorithm;
 pub mod cpu_plan;
 pub(crate) mod launch;
+pub mod machine;
 pub mod manipulate;
 pub(crate) mod manipulator;
 pub mod mcap;
@@ -521,8 +522,22 @@ fn simulate(run: Run<'_>) -> Result<Ran, RunError> {
     let mut obs = Observers::new(s, opts, observers);
     obs.cpu_plan = cpu_plan::CpuPlanner::new(s, &cpus);
     let loop_started = Instant::now();
+    let waited0 = machine::runqueue_wait_ns();
     let mut outcome = lockstep(&mut team, &mut obs, &opts.interrupt);
     let wall = loop_started.elapsed().as_secs_f64();
+    let load = match (
+        waited0,
+        machine::runqueue_wait_ns(),
+        machine::load_average(),
+    ) {
+        (Some(a), Some(b), Some(l)) => Some(machine::MachineLoad::of(
+            b.saturating_sub(a),
+            wall,
+            l,
+            cpus.len().max(1),
+        )),
+        _ => None,
+    };
     // The analysis and the files after the loop run at ordinary priority.
     if opts.realtime.is_some() {
         cosim::realtime::leave();
@@ -551,6 +566,7 @@ fn simulate(run: Run<'_>) -> Result<Ran, RunError> {
     let latency_histogram = opts.timing.then(|| obs.latency.request_histogram());
     let mut list = std::mem::take(&mut obs.list);
     let mut summary = report(s, scenario_file, opts, &prefix, obs, ended, rows);
+    summary.timing.machine = load;
     for o in &mut list {
         if let Some(part) = o.finish(&summary) {
             summary.observers.insert(o.name().to_string(), part);
@@ -651,6 +667,7 @@ fn timing(obs: &mut Observers, e: &Ended) -> Timing {
         mean: o.mean,
         tick_us: obs.timing.ticks.percentiles(),
         cpu_plan: obs.cpu_plan.as_ref().and_then(|p| p.report()),
+        machine: None,
         cpu_s: CpuTime {
             orchestrator: e.cpu_orchestrator,
             participants: e.exits.iter().filter_map(|(_, x)| x.cpu_s).sum(),
