@@ -395,20 +395,26 @@ fn a_compare_gives_same_named_scenarios_distinct_directories_and_columns() {
     assert!(err.contains("compare"), "{err}");
 }
 
-/// The observer of `examples/peak_observer.rs`, written outside the crates as a user writes
-/// one: what it reports in its part of the summary is what the run's own table holds (the
-/// largest |lat_acc| of every row, at that row's time, one tick per row after the first).
-#[test]
-fn an_observer_written_outside_the_crates_sees_every_row_of_the_table() {
-    // Examples are built beside the test binaries (target/<profile>/examples).
+/// An example's executable: examples are built beside the test binaries
+/// (target/<profile>/examples).
+fn example(name: &str) -> PathBuf {
     let exe = std::env::current_exe()
         .unwrap()
         .parent()
         .and_then(Path::parent)
         .unwrap()
         .join("examples")
-        .join("peak_observer");
+        .join(name);
     assert!(exe.exists(), "{} not built", exe.display());
+    exe
+}
+
+/// The observer of `examples/peak_observer.rs`, written outside the crates as a user writes
+/// one: what it reports in its part of the summary is what the run's own table holds (the
+/// largest |lat_acc| of every row, at that row's time, one tick per row after the first).
+#[test]
+fn an_observer_written_outside_the_crates_sees_every_row_of_the_table() {
+    let exe = example("peak_observer");
     let out = temp_dir("peak-observer").join("run");
     let p = std::process::Command::new(&exe)
         .args([s(&scenario("paper-passive.toml")), s(&out)])
@@ -446,14 +452,7 @@ fn an_observer_written_outside_the_crates_sees_every_row_of_the_table() {
 /// logged is in `events.csv`.
 #[test]
 fn a_manipulator_written_outside_the_crates_acts_on_every_sample_of_its_link() {
-    let exe = std::env::current_exe()
-        .unwrap()
-        .parent()
-        .and_then(Path::parent)
-        .unwrap()
-        .join("examples")
-        .join("quantised_sensor");
-    assert!(exe.exists(), "{} not built", exe.display());
+    let exe = example("quantised_sensor");
     let out = temp_dir("quantised-sensor").join("run");
     let q = 0.001;
     let p = std::process::Command::new(&exe)
