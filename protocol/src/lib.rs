@@ -10,6 +10,8 @@
 //! * [`time`]: simulated time on the tick grid, computed one way everywhere.
 //! * [`settings`]: the field checker every crate's settings use, so that a rejected setting
 //!   names its field, its value and what is allowed.
+//! * [`wire`]: the samples as bytes on a network (little-endian fields at their pinned
+//!   offsets, padding zero), for transports that cannot share memory.
 //!
 //! `layout_tests` pins the wire layout (sizes and offsets) against the protocol version.
 //!
@@ -20,6 +22,7 @@ pub mod msg;
 pub mod participant;
 pub mod settings;
 pub mod time;
+pub mod wire;
 
 #[cfg(test)]
 mod layout_tests;

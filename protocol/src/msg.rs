@@ -192,6 +192,39 @@ pub trait Message: Copy + Default + core::fmt::Debug + ZeroCopySend + Send + 'st
         h.size = core::mem::size_of::<Self>() as u32;
         h.sent_ns = sent_ns;
     }
+    /// Writes every field little-endian at its offset into `out` (`size_of::<Self>()` bytes,
+    /// padding left as it is): the network form ([`crate::wire`]).
+    fn write_wire(&self, out: &mut [u8]);
+    /// Reads the fields back from bytes [`Message::write_wire`] wrote.
+    fn read_wire(b: &[u8]) -> Self;
+    /// The sample as bytes on a network, padding zero.
+    fn to_wire(&self) -> Vec<u8> {
+        let mut out = vec![0u8; core::mem::size_of::<Self>()];
+        self.write_wire(&mut out);
+        out
+    }
+    /// A sample from bytes on a network: the length and the protocol version are checked
+    /// before the rest is read.
+    fn from_wire(b: &[u8]) -> Result<Self, crate::wire::WireError> {
+        use crate::wire::{Wire, WireError};
+        let expected = core::mem::size_of::<Self>();
+        if b.len() != expected {
+            return Err(WireError::Length {
+                sample: Self::NAME,
+                expected,
+                got: b.len(),
+            });
+        }
+        let version = <u32 as Wire>::get(&b[core::mem::offset_of!(Header, version)..]);
+        if version != PROTOCOL_VERSION {
+            return Err(WireError::Version {
+                sample: Self::NAME,
+                expected: PROTOCOL_VERSION,
+                got: version,
+            });
+        }
+        Ok(Self::read_wire(b))
+    }
 }
 
 macro_rules! message {
@@ -223,7 +256,16 @@ macro_rules! message {
                 let checks = [$(FiniteCheck::all_finite(&self.$f)),*];
                 checks.iter().position(|ok| !ok)
             }
+            fn write_wire(&self, out: &mut [u8]) {
+                use crate::wire::Wire;
+                self.put(out);
+            }
+            fn read_wire(b: &[u8]) -> Self {
+                use crate::wire::Wire;
+                Self::get(b)
+            }
         }
+        crate::wire::wire_fields!($name { header $(, $f)* });
         impl Scalars for $name {
             const FIELD_INFO: &'static [FieldInfo] = &[$(FieldInfo {
                 name: stringify!($f),
