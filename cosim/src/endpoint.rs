@@ -57,6 +57,17 @@ pub enum LinkError {
     /// The transport itself failed.
     #[error("transport to participant {role} failed: {what}")]
     Transport { role: Role, what: String },
+    /// A participant on another host failed an exchange: it left the run (its connection
+    /// closed, or its link went silent past the lease) or did not answer within the deadline.
+    #[error("participant {role} on host {host} {what}, at step {step}")]
+    Remote {
+        role: Role,
+        host: String,
+        step: u64,
+        /// One word for the event log, as [`LinkError::cause`] gives it.
+        cause: &'static str,
+        what: String,
+    },
 }
 
 impl LinkError {
@@ -71,7 +82,8 @@ impl LinkError {
             | LinkError::Malformed { role, .. }
             | LinkError::NonFinite { role, .. }
             | LinkError::BadInput { role, .. }
-            | LinkError::Transport { role, .. } => *role,
+            | LinkError::Transport { role, .. }
+            | LinkError::Remote { role, .. } => *role,
         }
     }
     /// One word for the cause, free of pids and wall-clock numbers (for the event log).
@@ -86,6 +98,7 @@ impl LinkError {
             LinkError::NonFinite { .. } => "non-finite-output",
             LinkError::BadInput { .. } => "non-finite-input",
             LinkError::Transport { .. } => "transport",
+            LinkError::Remote { cause, .. } => cause,
         }
     }
 }

@@ -22,6 +22,9 @@ use tiltsim_scenario::scenario::{Execution, Scenario};
 pub fn as_timing_replay(s: &mut Scenario) {
     s.run.execution = tiltsim_scenario::scenario::Execution::LockStep;
     s.run.controller_busy_wait_s = 0.0;
+    // A free run across hosts is replayed on one machine: its trace holds the network's
+    // timing, on the orchestrator's clock.
+    s.network = Default::default();
 }
 
 /// What to run and how.

@@ -5,11 +5,12 @@
 //! faults, the stand-ins for a lost participant) is `tiltsim-master`'s.
 //!
 //! Modules: [`scenario`] (the file, its loading and validation), [`links`] (link-effect
-//! settings and the link names), [`faults`] (process-fault settings), [`roles`] (a value per
-//! role).
+//! settings and the link names), [`faults`] (process-fault settings), [`network`]
+//! (participants on other hosts), [`roles`] (a value per role).
 
 pub mod faults;
 pub mod links;
+pub mod network;
 pub mod roles;
 pub mod scenario;
 

@@ -9,6 +9,7 @@ mod bench;
 mod contract;
 mod freerun;
 mod getting_started;
+mod network;
 mod outputs;
 mod pinned;
 mod record;

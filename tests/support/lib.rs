@@ -80,6 +80,8 @@ pub fn run(args: &[&str]) -> (i32, String, String) {
 pub struct Tiltsim {
     args: Vec<std::ffi::OsString>,
     envs: Vec<(std::ffi::OsString, std::ffi::OsString)>,
+    /// The network namespace the command runs in ([`hosts::Host`]), if not this host's.
+    netns: Option<String>,
 }
 
 impl Tiltsim {
@@ -104,6 +106,7 @@ impl Tiltsim {
         Tiltsim {
             args: args.into_iter().map(|a| a.as_ref().to_owned()).collect(),
             envs: Vec::new(),
+            netns: None,
         }
     }
 
@@ -236,9 +239,22 @@ impl Tiltsim {
         s
     }
 
+    /// Runs the command on a test host of its own ([`hosts::Host`]).
+    pub fn on(mut self, host: &hosts::Host) -> Tiltsim {
+        self.netns = Some(host.netns().to_string());
+        self
+    }
+
     /// The command, not started: standard input closed, output captured.
     pub fn to_command(&self) -> Command {
-        let mut c = Command::new(tiltsim());
+        let mut c = match &self.netns {
+            Some(ns) => {
+                let mut c = Command::new(hosts::ip());
+                c.args(["netns", "exec", ns]).arg(tiltsim());
+                c
+            }
+            None => Command::new(tiltsim()),
+        };
         c.args(&self.args)
             .envs(self.envs.iter().map(|(k, v)| (k, v)))
             .stdin(Stdio::null())
@@ -587,6 +603,7 @@ impl Drop for Hogs {
     }
 }
 
+pub mod hosts;
 /// The house rule on the size of files and functions, kept by a test.
 #[cfg(test)]
 mod shape;

@@ -72,6 +72,8 @@ impl CpuPlanner {
             || s.run.master != Master::Jacobi
             || !s.run.pin_cpus
             || s.run.cpu_plan != CpuPlanMode::Measured
+            // A participant on another host has no CPU here to place.
+            || !s.network.is_local()
         {
             return None;
         }

@@ -13,6 +13,7 @@ use cosim::{Endpoint, InProcess, Participant, Role};
 use plant_proc::{Plant, PlantSettings};
 use serde::Serialize;
 use tiltsim_fmi::{ActuatorIo, ControllerIo, PlantIo};
+use tiltsim_net::{NetHub, NetSettings};
 
 use super::{RunError, RunOptions};
 use crate::roles::RoleMap;
@@ -78,6 +79,8 @@ pub(crate) struct Participants {
     pub controller: ControllerEp,
     /// The transport's hub (IPC only).
     pub hub: Option<IpcHub>,
+    /// The network's hub, when some participants are on other hosts (`[network]`).
+    pub net: Option<NetHub>,
     /// Which participants run on the orchestrator's CPU (set by the CPU plan).
     shares_cpu: RoleMap<bool>,
 }
@@ -86,6 +89,11 @@ impl Participants {
     /// Process ids (this process's for in-process participants).
     pub fn pids(&self) -> RoleMap<u32> {
         RoleMap::new([self.plant.pid(), self.actuator.pid(), self.controller.pid()])
+    }
+
+    /// Which participants are on other hosts.
+    pub fn remote(&self) -> RoleMap<bool> {
+        RoleMap::new(Role::ALL.map(|r| self.net.as_ref().is_some_and(|n| n.is_remote(r))))
     }
 
     /// Records which participants now run on the orchestrator's CPU: the orchestrator yields
@@ -151,9 +159,92 @@ pub(crate) fn start(
 ) -> Result<Participants, RunError> {
     let inits = Inits::from(s);
     warn_missing_fmu_outputs(s);
-    match s.run.transport {
-        Transport::InProcess => start_in_process(s, opts, &inits),
-        Transport::Ipc => start_processes(s, opts, prefix, &inits),
+    let mut net = open_network(s, opts, &inits)?;
+    let mut ps = match s.run.transport {
+        Transport::InProcess => start_in_process(s, opts, &inits, &mut net),
+        Transport::Ipc => start_processes(s, opts, prefix, &inits, &mut net),
+    }?;
+    ps.net = net;
+    Ok(ps)
+}
+
+/// The network's hub of a run with participants on other hosts (`[network]`): listening on
+/// `network.listen`, with the run's secret (the caller's, or one drawn now and printed in the
+/// command that joins).
+fn open_network(
+    s: &Scenario,
+    opts: &RunOptions,
+    inits: &Inits,
+) -> Result<Option<NetHub>, RunError> {
+    if s.network.is_local() {
+        return Ok(None);
+    }
+    let (secret, drawn) = match &opts.network_secret {
+        Some(secret) => (secret.clone(), false),
+        None => (
+            tiltsim_net::new_secret().map_err(RunError::io("/dev/urandom".into()))?,
+            true,
+        ),
+    };
+    let remote = s
+        .network
+        .remote
+        .iter()
+        .map(|&r| {
+            let params = match r {
+                Role::Plant => json(&inits.plant),
+                Role::Actuator => json(&inits.actuator),
+                Role::Controller => json(&inits.controller),
+            };
+            (r, params)
+        })
+        .collect();
+    let hub = NetHub::open(
+        NetSettings {
+            listen: s.network.listen.clone(),
+            secret: secret.clone(),
+            deadline: Duration::from_millis(s.run.deadline_ms),
+            join_timeout: Duration::from_secs_f64(s.network.join_timeout_s),
+            lease: Duration::from_millis(s.network.lease_ms),
+        },
+        remote,
+    )?;
+    for &r in &s.network.remote {
+        let credentials = if drawn {
+            format!("{}={secret} ", tiltsim_net::serve::SECRET_VAR)
+        } else {
+            String::new()
+        };
+        // Shown at the default verbosity: the run waits for the user here.
+        tracing::warn!(
+            "waiting for the {r} to join at {}: on its host run `{credentials}{}`{}",
+            s.network.listen,
+            hub.join_command(r),
+            if drawn {
+                ""
+            } else {
+                " with the run's secret in TILTSIM_SECRET or --secret-file"
+            }
+        );
+    }
+    Ok(Some(hub))
+}
+
+/// The endpoint of `role` when it joins from another host, once it has joined.
+fn remote<I: cosim::msg::Message, O: cosim::msg::Message>(
+    net: &mut Option<NetHub>,
+    role: Role,
+    opts: &RunOptions,
+) -> Result<Option<tiltsim_net::NetEndpoint<I, O>>, RunError> {
+    match net {
+        Some(hub) if hub.is_remote(role) => Ok(Some(
+            hub.await_join(role, Some(&opts.interrupt))
+                .map_err(|e| match e {
+                    tiltsim_net::NetError::Interrupted { role } => RunError::Interrupted { role },
+                    e => RunError::Net(e),
+                })?,
+        )),
+        _ => Ok(None),
     }
 }
 
@@ -186,6 +277,7 @@ fn start_in_process(
     s: &Scenario,
     opts: &RunOptions,
     inits: &Inits,
+    net: &mut Option<NetHub>,
 ) -> Result<Participants, RunError> {
     // A model in this process, with the run's stall deadline and timing.
     fn local<P: Participant>(model: P, s: &Scenario, opts: &RunOptions) -> InProcess<P> {
@@ -193,17 +285,26 @@ fn start_in_process(
             .with_deadline(Duration::from_millis(s.run.deadline_ms))
             .timed(opts.timing)
     }
-    let plant: PlantEp = match s.fmu_init(Role::Plant) {
-        Some(init) => Box::new(local(fmu_model::<PlantIo>(init)?, s, opts)),
-        None => Box::new(local(Plant::new(&inits.plant), s, opts)),
+    let plant: PlantEp = match (remote(net, Role::Plant, opts)?, s.fmu_init(Role::Plant)) {
+        (Some(ep), _) => Box::new(ep),
+        (None, Some(init)) => Box::new(local(fmu_model::<PlantIo>(init)?, s, opts)),
+        (None, None) => Box::new(local(Plant::new(&inits.plant), s, opts)),
     };
-    let actuator: ActuatorEp = match s.fmu_init(Role::Actuator) {
-        Some(init) => Box::new(local(fmu_model::<ActuatorIo>(init)?, s, opts)),
-        None => Box::new(local(Actuator::new(&inits.actuator), s, opts)),
+    let actuator: ActuatorEp = match (
+        remote(net, Role::Actuator, opts)?,
+        s.fmu_init(Role::Actuator),
+    ) {
+        (Some(ep), _) => Box::new(ep),
+        (None, Some(init)) => Box::new(local(fmu_model::<ActuatorIo>(init)?, s, opts)),
+        (None, None) => Box::new(local(Actuator::new(&inits.actuator), s, opts)),
     };
-    let controller: ControllerEp = match s.fmu_init(Role::Controller) {
-        Some(init) => Box::new(local(fmu_model::<ControllerIo>(init)?, s, opts)),
-        None => Box::new(local(
+    let controller: ControllerEp = match (
+        remote(net, Role::Controller, opts)?,
+        s.fmu_init(Role::Controller),
+    ) {
+        (Some(ep), _) => Box::new(ep),
+        (None, Some(init)) => Box::new(local(fmu_model::<ControllerIo>(init)?, s, opts)),
+        (None, None) => Box::new(local(
             Controller::new(&inits.controller).map_err(RunError::Design)?,
             s,
             opts,
@@ -214,6 +315,7 @@ fn start_in_process(
         actuator,
         controller,
         hub: None,
+        net: None,
         shares_cpu: RoleMap::default(),
     })
 }
@@ -226,6 +328,7 @@ fn start_processes(
     opts: &RunOptions,
     prefix: &str,
     inits: &Inits,
+    net: &mut Option<NetHub>,
 ) -> Result<Participants, RunError> {
     // Files of runs whose orchestrator was killed before it could clean up.
     for p in cosim::ipc::remove_dead_runs() {
@@ -249,32 +352,45 @@ fn start_processes(
         cosim::ipc::pin_to_cpu(own);
     }
     let startup = Duration::from_millis(s.run.startup_ms);
-    let plant = hub
-        .spawn::<ToPlant, FromPlant>(
-            Role::Plant,
-            &launch(s, opts, Role::Plant, json(&inits.plant)),
-            startup,
-        )
-        .map_err(started)?;
-    let actuator = hub
-        .spawn::<ToActuator, FromActuator>(
-            Role::Actuator,
-            &launch(s, opts, Role::Actuator, json(&inits.actuator)),
-            startup,
-        )
-        .map_err(started)?;
-    let controller = hub
-        .spawn::<ToController, FromController>(
-            Role::Controller,
-            &launch(s, opts, Role::Controller, json(&inits.controller)),
-            startup,
-        )
-        .map_err(started)?;
+    let plant: PlantEp = match remote(net, Role::Plant, opts)? {
+        Some(ep) => Box::new(ep),
+        None => Box::new(
+            hub.spawn::<ToPlant, FromPlant>(
+                Role::Plant,
+                &launch(s, opts, Role::Plant, json(&inits.plant)),
+                startup,
+            )
+            .map_err(started)?,
+        ),
+    };
+    let actuator: ActuatorEp = match remote(net, Role::Actuator, opts)? {
+        Some(ep) => Box::new(ep),
+        None => Box::new(
+            hub.spawn::<ToActuator, FromActuator>(
+                Role::Actuator,
+                &launch(s, opts, Role::Actuator, json(&inits.actuator)),
+                startup,
+            )
+            .map_err(started)?,
+        ),
+    };
+    let controller: ControllerEp = match remote(net, Role::Controller, opts)? {
+        Some(ep) => Box::new(ep),
+        None => Box::new(
+            hub.spawn::<ToController, FromController>(
+                Role::Controller,
+                &launch(s, opts, Role::Controller, json(&inits.controller)),
+                startup,
+            )
+            .map_err(started)?,
+        ),
+    };
     Ok(Participants {
-        plant: Box::new(plant),
-        actuator: Box::new(actuator),
-        controller: Box::new(controller),
+        plant,
+        actuator,
+        controller,
         hub: Some(hub),
+        net: None,
         shares_cpu: RoleMap::default(),
     })
 }

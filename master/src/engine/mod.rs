@@ -323,6 +323,7 @@ struct Ended {
     counts: RoleMap<cosim::endpoint::ExchangeCounts>,
     leftover: Vec<String>,
     participant_logs: Vec<String>,
+    network: Option<summary::NetworkReport>,
     degraded: bool,
 }
 
@@ -342,6 +343,7 @@ fn shut_down(
     let degraded = team.degraded();
     let lost = team.take_lost();
     let exits = team.ps.shut_down(lost);
+    let network = team.ps.net.as_ref().map(summary::NetworkReport::of);
     // FMUs unpacked by participant processes that were killed.
     if !team.scenario().participants.is_empty() {
         tiltsim_fmi::archive::remove_dead_unpacked();
@@ -371,6 +373,7 @@ fn shut_down(
         counts,
         leftover,
         participant_logs,
+        network,
         degraded,
     }
 }
@@ -608,6 +611,7 @@ fn report(
     sm.ipc_prefix = prefix.to_string();
     sm.leftover_ipc_files = e.leftover;
     sm.participant_logs = e.participant_logs;
+    sm.network = e.network;
     sm
 }
 

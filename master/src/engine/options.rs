@@ -34,6 +34,9 @@ pub struct RunOptions {
     /// sweep's in-process samples turn it off: they report none of it, and the clock reads
     /// cost about 5 % of a sample. Values never depend on it.
     pub timing: bool,
+    /// The secret participants on other hosts prove they hold to join (`[network]`); one is
+    /// drawn and printed with the command that joins when `None`.
+    pub network_secret: Option<String>,
 }
 
 impl RunOptions {
@@ -50,6 +53,7 @@ impl RunOptions {
             pace: None,
             realtime: None,
             timing: true,
+            network_secret: None,
         }
     }
 }
@@ -94,6 +98,10 @@ pub enum RunError {
     /// Transport set-up.
     #[error(transparent)]
     Ipc(#[from] cosim::ipc::IpcError),
+    /// The network transport (`[network]`): a participant never joined, the address could
+    /// not be listened on.
+    #[error(transparent)]
+    Net(#[from] tiltsim_net::NetError),
     /// The controller design failed.
     #[error("controller design: {0}")]
     Design(String),

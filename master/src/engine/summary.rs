@@ -11,6 +11,31 @@ use serde::Serialize;
 use super::Status;
 use crate::scenario::{Master, Transport};
 
+/// `summary.json` → `network`: the run's participants on other hosts.
+#[derive(Debug, Clone, Serialize)]
+pub struct NetworkReport {
+    /// Where the orchestrator listened.
+    pub listen: String,
+    /// The run's key, in every key expression of the run.
+    pub run_key: String,
+    /// The participants that joined, in role order.
+    pub joined: Vec<tiltsim_net::Joined>,
+    /// The participants refused at joining, in arrival order.
+    pub refused: Vec<tiltsim_net::Refusal>,
+}
+
+impl NetworkReport {
+    /// The report of a run's network hub.
+    pub fn of(hub: &tiltsim_net::NetHub) -> Self {
+        NetworkReport {
+            listen: hub.settings().listen.clone(),
+            run_key: hub.run_key().to_string(),
+            joined: hub.joined(),
+            refused: hub.refusals(),
+        }
+    }
+}
+
 /// One participant in the summary.
 #[derive(Debug, Clone, Serialize)]
 pub struct ParticipantReport {
@@ -142,6 +167,11 @@ pub struct Summary {
     /// when none wrote anything.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub participant_logs: Vec<String>,
+    /// Participants on other hosts: the run's address and key, who joined (host, pid, the
+    /// offset of its clock and how well it is known) and who was refused. Absent when every
+    /// participant ran on this host.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub network: Option<NetworkReport>,
     /// What the caller's observers ([`super::observe::Observer`]) reported when the run
     /// finished, by observer name. Absent when there were none.
     #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
@@ -211,6 +241,7 @@ impl Summary {
             ipc_prefix: String::new(),
             leftover_ipc_files: Vec::new(),
             participant_logs: Vec::new(),
+            network: None,
             observers: std::collections::BTreeMap::new(),
             free_run: None,
             timing_trace: None,

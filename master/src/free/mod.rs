@@ -232,6 +232,7 @@ pub fn summary_of_run(s: &Scenario, scenario_file: &str, r: &mut FreeReport) -> 
     sm.set_progress(r.steps_completed, r.wall_time_s);
     sm.ipc_prefix = r.ipc_prefix.clone();
     sm.leftover_ipc_files = r.leftover_ipc_files.clone();
+    sm.network = r.network.clone();
     sm.participant_logs = r.participant_logs.clone();
     sm.free_run = Some(r.timing.clone());
     sm.timing_trace = Some(trace::TIMING_CSV.to_string());

@@ -66,6 +66,10 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
         write_errors.push(format!("{}: {e}", path.display()));
     }
     let pids = ps.pids();
+    let network = ps
+        .net
+        .as_ref()
+        .map(crate::engine::summary::NetworkReport::of);
     let exits = shut_down(ps, &prefix, &cpus);
     drop(guard);
     let participant_logs = crate::engine::finish_logs(dir);
@@ -126,6 +130,7 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
         recording,
         write_errors,
         participant_logs,
+        network,
     })
 }
 
@@ -149,6 +154,10 @@ fn place(s: &Scenario, ps: &Participants, cpus: &[usize]) -> BTreeMap<String, us
         (Role::Actuator, first),
         (Role::Controller, last),
     ] {
+        // A participant on another host has no process here to place.
+        if s.network.is_remote(r) {
+            continue;
+        }
         if cosim::ipc::set_cpus_of(pids[r], &[cpu]) {
             placed.insert(r.name().to_string(), cpu);
         }
@@ -502,9 +511,16 @@ impl<'a> Hub<'a> {
 /// SIGSTOP resumed later, a crash a flag on the participant's next input.
 fn inject(faults: &FaultSchedule, k: u64, ps: &mut Participants, flags: &mut RoleMap<u32>) {
     let pids = ps.pids();
+    let remote = ps.remote();
     for f in faults.due_at(k) {
         let role = f.participant;
         match f.action {
+            FaultAction::Kill if remote[role] => match role {
+                // A participant on another host is told to kill itself.
+                Role::Plant => ps.plant.inject(ProcessFault::Kill),
+                Role::Actuator => ps.actuator.inject(ProcessFault::Kill),
+                Role::Controller => ps.controller.inject(ProcessFault::Kill),
+            },
             FaultAction::Kill => {
                 // SAFETY: a signal to our own child, not reaped yet (it is reaped by the
                 // endpoint, which then reports its exit).

@@ -122,6 +122,9 @@ pub struct FreeReport {
     pub write_errors: Vec<String>,
     /// Participant logs that are not empty (`logs/<role>.log`).
     pub participant_logs: Vec<String>,
+    /// Participants on other hosts: who joined, their clocks' offsets (`summary.json` →
+    /// `network`).
+    pub network: Option<crate::engine::summary::NetworkReport>,
 }
 
 /// The link a consumer reads from a producer, by its `[links]` name.

@@ -17,14 +17,14 @@ pub struct BenchArgs {
     /// Simulated seconds per configuration.
     #[arg(long, default_value_t = 2.0,
           value_parser = bounds::real((0.01, End::Closed), (600.0, End::Closed), " s"))]
-    duration: f64,
+    pub(super) duration: f64,
     /// Rounds of the three runs the wall-time ratios compare (in-process, IPC Gauss-Seidel, IPC
     /// Jacobi), run one after the other; the ratios are those of the median walls.
     #[arg(long, default_value_t = 3, value_parser = bounds::int(1..=100usize, ""))]
-    repeat: usize,
+    pub(super) repeat: usize,
     /// JSON report.
     #[arg(long, default_value = "out/bench.json")]
-    out: PathBuf,
+    pub(super) out: PathBuf,
     /// Measure only the transport's floor as iceoryx2's own benchmark does: two processes on
     /// their own CPUs, busy-waiting, one-way latency for 64 B to 4 KB.
     #[arg(long)]
@@ -35,11 +35,19 @@ pub struct BenchArgs {
     same_cpu: bool,
     /// Round trips per size with --ping-pong.
     #[arg(long, default_value_t = 100_000, value_parser = bounds::int(100..=10_000_000usize, ""))]
-    rounds: usize,
+    pub(super) rounds: usize,
     /// Measure each participant as its exported FMU (FMI 3.0, its own process) against the
     /// native participant: wall time per tick, medians of --fmu-runs alternating runs.
     #[arg(long)]
     fmu: bool,
+    /// Measure a participant on another host: the network's round-trip floor, then the
+    /// scenario with its plant served over the network against in one process, both masters
+    /// (docs/network.md).
+    #[arg(long, conflicts_with_all = ["ping_pong", "fmu"])]
+    pub(super) network: bool,
+    /// With --network: where the bench listens (each run on the next port up).
+    #[arg(long, default_value = "tcp/127.0.0.1:17447", requires = "network")]
+    pub(super) listen: String,
     /// Runs of each with --fmu.
     #[arg(long, default_value_t = 5, value_parser = bounds::int(1..=100usize, ""))]
     fmu_runs: usize,
@@ -191,6 +199,9 @@ pub fn exec(a: BenchArgs) -> CliResult {
         return Err(CliError::Invalid(format!(
             "command line: --duration {d}: allowed (0, 600] s"
         )));
+    }
+    if a.network {
+        return super::bench_network::network(&a, &s, &exe, &a.listen);
     }
     let scratch = tiltsim_studies::bench::scratch_dir(&a.out);
     if a.fmu {

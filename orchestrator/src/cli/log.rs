@@ -64,8 +64,13 @@ where
 
 /// Starts the log for this process.
 pub fn init(v: Verbosity) {
-    let filter =
-        tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| v.level().into());
+    // Zenoh's own notes on how its sessions are configured (no gossip, no multicast, by
+    // design here) are not the user's business below -vv; its errors are.
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
+        let level = v.level();
+        let zenoh = if v.verbose >= 2 { level } else { "error" };
+        tracing_subscriber::EnvFilter::new(format!("{level},zenoh={zenoh},zenoh_transport={zenoh}"))
+    });
     let builder = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr);

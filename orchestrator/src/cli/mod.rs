@@ -5,6 +5,7 @@
 //! 2 invalid input (command line or scenario file); 130 interrupted (Ctrl-C, SIGTERM, SIGHUP).
 
 mod bench;
+mod bench_network;
 mod bounds;
 mod clean;
 mod common;
@@ -102,8 +103,12 @@ enum Command {
     /// The echo side of `bench --ping-pong`.
     #[command(hide = true)]
     BenchEcho(bench::EchoArgs),
-    /// Serve one participant over iceoryx2 (how the orchestrator starts its processes).
+    /// The echo side of `bench --network`.
     #[command(hide = true)]
+    BenchNetEcho(bench_network::NetEchoArgs),
+    /// Serve one participant: on another host, join a run with `--connect ENDPOINT` and the
+    /// run's secret (TILTSIM_SECRET or `--secret-file`); on this host the orchestrator starts
+    /// it over iceoryx2 itself.
     Participant(participant::ParticipantArgs),
     /// Serve an FMU as one participant over iceoryx2 (`[participants.<role>] fmu = ...`).
     #[command(hide = true)]
@@ -121,7 +126,10 @@ impl Command {
         };
         let detailed = matches!(
             self,
-            Command::Participant(_) | Command::FmuParticipant(_) | Command::BenchEcho(_)
+            Command::Participant(_)
+                | Command::FmuParticipant(_)
+                | Command::BenchEcho(_)
+                | Command::BenchNetEcho(_)
         );
         log::Verbosity {
             verbose,
@@ -172,6 +180,7 @@ where
         Command::Clean(a) => clean::exec(a),
         Command::Replay(a) => replay::exec(a),
         Command::BenchEcho(a) => bench::echo(a),
+        Command::BenchNetEcho(a) => bench_network::echo(a),
         Command::ExportMcap(a) => export_mcap::exec(a),
         Command::Participant(a) => participant::exec(a),
         Command::FmuParticipant(a) => participant::exec_fmu(a),

@@ -9,7 +9,9 @@ use tiltsim_fmi::{ActuatorIo, ControllerIo, FmuInit, FmuParticipant, PlantIo};
 pub struct ParticipantArgs {
     /// plant, actuator or controller.
     role: String,
-    /// `--params JSON --prefix P [--wait W] [--cpu N]`, passed to the participant.
+    /// `--params JSON --prefix P [--wait W] [--cpu N]`, passed to the participant; or, on
+    /// another host, `--connect ENDPOINT [--run KEY] [--secret-file PATH]
+    /// [--join-timeout-s S] [--lease-ms MS]` (the secret from TILTSIM_SECRET otherwise).
     #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
     rest: Vec<String>,
 }
@@ -23,12 +25,39 @@ fn role_of(a: &ParticipantArgs) -> Result<cosim::Role, CliError> {
     })
 }
 
-/// Runs the command.
+/// Runs the command: over iceoryx2 as the orchestrator starts it, or, with `--connect`, as a
+/// participant on another host that joins a run over the network.
 pub fn exec(a: ParticipantArgs) -> CliResult {
+    if tiltsim_net::serve::JoinArgs::wanted(&a.rest) {
+        return exec_remote(&a);
+    }
     match role_of(&a)? {
         cosim::Role::Plant => plant_proc::serve(&a.rest),
         cosim::Role::Actuator => actuator_proc::serve(&a.rest),
         cosim::Role::Controller => controller_proc::serve(&a.rest),
+    }
+    .map_err(|e| CliError::Participant(e.to_string()))
+}
+
+/// Joins a run on another host (`--connect ENDPOINT`) and serves the native model of the
+/// role with the settings the run sends.
+fn exec_remote(a: &ParticipantArgs) -> CliResult {
+    use tiltsim_net::serve::participant_main;
+    let role = role_of(a)?;
+    match role {
+        cosim::Role::Plant => participant_main(role, &a.rest, |s: plant_proc::PlantSettings| {
+            Ok(plant_proc::Plant::new(&s))
+        }),
+        cosim::Role::Actuator => {
+            participant_main(role, &a.rest, |s: actuator_proc::ActuatorInit| {
+                Ok(actuator_proc::Actuator::new(&s))
+            })
+        }
+        cosim::Role::Controller => {
+            participant_main(role, &a.rest, |s: controller_proc::ControllerInit| {
+                controller_proc::Controller::new(&s)
+            })
+        }
     }
     .map_err(|e| CliError::Participant(e.to_string()))
 }

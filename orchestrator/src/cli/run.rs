@@ -73,9 +73,72 @@ pub struct RunArgs {
     /// DIR/timing.csv, which `tiltsim replay-timing DIR` replays exactly in lock-step.
     #[arg(long)]
     free_run: bool,
+    /// Serve ROLE from another host (adds it to network.remote; repeatable): the run waits
+    /// for `tiltsim participant ROLE --connect ADDRESS` started there (docs/network.md).
+    #[arg(long, value_enum, value_name = "ROLE")]
+    remote: Vec<RoleArg>,
+    /// Where the run listens for participants on other hosts, overriding network.listen
+    /// (`tcp/ADDRESS:PORT`).
+    #[arg(long, value_name = "ENDPOINT")]
+    listen: Option<String>,
+    /// File holding the secret participants on other hosts prove they hold [default: the
+    /// TILTSIM_SECRET variable, or a secret drawn for the run and printed with the command
+    /// that joins].
+    #[arg(long, value_name = "PATH")]
+    secret_file: Option<PathBuf>,
     /// Print nothing but errors: no progress bar, no warnings, no report.
     #[arg(short, long)]
     quiet: bool,
+}
+
+/// A participant's role on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RoleArg {
+    /// The vehicle and track.
+    Plant,
+    /// The drive.
+    Actuator,
+    /// The tilt controller.
+    Controller,
+}
+
+impl From<RoleArg> for cosim::Role {
+    fn from(r: RoleArg) -> Self {
+        match r {
+            RoleArg::Plant => cosim::Role::Plant,
+            RoleArg::Actuator => cosim::Role::Actuator,
+            RoleArg::Controller => cosim::Role::Controller,
+        }
+    }
+}
+
+/// The run's secret for participants on other hosts: `--secret-file`, else `TILTSIM_SECRET`,
+/// else none (the engine draws one).
+fn network_secret(a: &RunArgs) -> Result<Option<String>, CliError> {
+    let secret = match &a.secret_file {
+        Some(path) => Some(
+            std::fs::read_to_string(path)
+                .map_err(|e| {
+                    CliError::Invalid(format!(
+                        "command line: --secret-file {}: {e}",
+                        path.display()
+                    ))
+                })?
+                .trim()
+                .to_string(),
+        ),
+        None => std::env::var(tiltsim_net::serve::SECRET_VAR).ok(),
+    };
+    match secret {
+        Some(s) if s.trim().is_empty() => Err(CliError::Invalid(match &a.secret_file {
+            Some(path) => format!(
+                "command line: --secret-file {}: the file is empty",
+                path.display()
+            ),
+            None => format!("{} is set but empty", tiltsim_net::serve::SECRET_VAR),
+        })),
+        other => Ok(other.map(|s| s.trim().to_string())),
+    }
 }
 
 impl RunArgs {
@@ -115,6 +178,15 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
     }
     if a.free_run {
         s.run.execution = tiltsim_master::scenario::Execution::Free;
+    }
+    for &r in &a.remote {
+        let r = cosim::Role::from(r);
+        if !s.network.remote.contains(&r) {
+            s.network.remote.push(r);
+        }
+    }
+    if let Some(l) = &a.listen {
+        s.network.listen = l.clone();
     }
     for kv in &a.set {
         let bad = || CliError::Invalid(format!("command line: --set {kv}: expected KEY=VALUE"));
@@ -197,6 +269,7 @@ pub fn exec(a: RunArgs) -> CliResult {
         pace: a.pace,
         realtime,
         timing: true,
+        network_secret: network_secret(&a)?,
     };
     // A person watching gets a bar, unless quiet or reading the machine lines.
     let bar = !a.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());

@@ -174,6 +174,9 @@ pub struct Scenario {
     /// Participants replaced by FMUs (`[participants.<role>]`); absent: the native ones.
     #[serde(skip_serializing_if = "FmuParticipants::is_empty")]
     pub participants: FmuParticipants,
+    /// Participants on other hosts (`[network]`); absent: every participant on this host.
+    #[serde(skip_serializing_if = "crate::network::Network::is_local")]
+    pub network: crate::network::Network,
 }
 
 /// `[participants]`: an FMU for any role in place of tiltsim's own participant.

@@ -140,6 +140,17 @@ impl Scenario {
         all.merge(self.comfort.validate("comfort"));
         all.merge(self.links.validate("links"));
         all.merge(self.faults.validate("faults"));
+        all.merge(self.network.validate("network"));
+        let mut c = Checker::new("network");
+        for &r in &self.network.remote {
+            c.require(
+                self.participants.get(r).is_none(),
+                "remote",
+                r,
+                "roles played by tiltsim's own models: an FMU ([participants.<role>]) runs on the orchestrator's host",
+            );
+        }
+        all.merge(c);
         if let Some(v) = &self.design_vehicle {
             all.merge(v.validate("design_vehicle"));
         }

@@ -1,0 +1,425 @@
+//! The orchestrator's side: the run's session, its offer, the join handshake's judge, and the
+//! ports of every remote role, declared before anyone joins so that no reply can be published
+//! before the orchestrator listens for it.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+use zenoh::handlers::{FifoChannel, FifoChannelHandler};
+use zenoh::pubsub::{Publisher, Subscriber};
+use zenoh::qos::CongestionControl;
+use zenoh::query::{Query, Queryable};
+use zenoh::sample::{Sample, SampleKind};
+use zenoh::Wait;
+
+use cosim::msg::{now_ns, Message, PROTOCOL_VERSION};
+use cosim::Role;
+
+use crate::endpoint::NetEndpoint;
+use crate::join::{judge, Hello, Judge, Offer, Welcome};
+use crate::{keys, new_secret, session, zenoh_error, NetError, NetSettings};
+
+/// A remote participant that joined.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Joined {
+    /// Its role.
+    pub role: Role,
+    /// Its host's name.
+    pub host: String,
+    /// Its process id there.
+    pub pid: u32,
+    /// The orchestrator's clock minus the participant's (ns), measured at joining.
+    pub clock_offset_ns: i64,
+    /// The round trip of that measurement (ns): the offset is known to within half of it.
+    pub clock_rtt_ns: u64,
+}
+
+/// A participant refused at joining.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Refusal {
+    /// The role it asked for.
+    pub role: Role,
+    /// Its host's name.
+    pub host: String,
+    /// Its process id there.
+    pub pid: u32,
+    /// Why it was refused.
+    pub reason: String,
+}
+
+/// Samples a reply subscriber holds: the lock-step has one in flight.
+const REPLY_BUFFER: usize = 1024;
+
+pub(crate) fn idx(r: Role) -> usize {
+    match r {
+        Role::Plant => 0,
+        Role::Actuator => 1,
+        Role::Controller => 2,
+    }
+}
+
+/// What the session's callbacks share with the hub and its endpoints.
+pub(crate) struct Shared {
+    run: String,
+    offer_nonce: String,
+    secret: String,
+    params: [Option<String>; 3],
+    joined: Mutex<[Option<Joined>; 3]>,
+    refusals: Mutex<Vec<Refusal>>,
+    /// Whether each role's liveliness token is present.
+    pub(crate) alive: [AtomicBool; 3],
+    /// What each role said last outside the exchange.
+    pub(crate) notes: Mutex<[Option<String>; 3]>,
+}
+
+impl Shared {
+    fn awaited(&self) -> Vec<Role> {
+        let joined = self.joined.lock().unwrap_or_else(|e| e.into_inner());
+        Role::ALL
+            .into_iter()
+            .filter(|&r| self.params[idx(r)].is_some() && joined[idx(r)].is_none())
+            .collect()
+    }
+
+    /// Answers a hello on the join key of `role`.
+    fn admit(&self, role: Role, hello: &Hello) -> Welcome {
+        let mut joined = self.joined.lock().unwrap_or_else(|e| e.into_inner());
+        let remote = |r: Role| self.params[idx(r)].is_some();
+        let snapshot = joined.clone();
+        let holder = move |r: Role| snapshot[idx(r)].as_ref().map(|j| (j.host.clone(), j.pid));
+        let verdict = judge(
+            &Judge {
+                secret: &self.secret,
+                run: &self.run,
+                offer_nonce: &self.offer_nonce,
+                remote: &remote,
+                holder: &holder,
+            },
+            role,
+            hello,
+        );
+        match verdict {
+            Ok(()) => {
+                joined[idx(role)] = Some(Joined {
+                    role,
+                    host: hello.host.clone(),
+                    pid: hello.pid,
+                    clock_offset_ns: hello.clock_offset_ns,
+                    clock_rtt_ns: hello.clock_rtt_ns,
+                });
+                tracing::info!(
+                    "participant {role} joined from host {} (pid {}), clock offset {:.3} ms ± {:.3} ms",
+                    hello.host,
+                    hello.pid,
+                    hello.clock_offset_ns as f64 * 1e-6,
+                    hello.clock_rtt_ns as f64 * 0.5e-6
+                );
+                Welcome {
+                    accepted: true,
+                    reason: String::new(),
+                    params: self.params[idx(role)].clone().unwrap_or_default(),
+                }
+            }
+            Err(reason) => {
+                tracing::warn!(
+                    "refused a participant for {role} from host {} (pid {}): {reason}",
+                    hello.host,
+                    hello.pid
+                );
+                self.refusals
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .push(Refusal {
+                        role,
+                        host: hello.host.clone(),
+                        pid: hello.pid,
+                        reason: reason.clone(),
+                    });
+                Welcome {
+                    accepted: false,
+                    reason,
+                    params: String::new(),
+                }
+            }
+        }
+    }
+
+    pub(crate) fn note(&self, role: Role) -> Option<String> {
+        self.notes.lock().unwrap_or_else(|e| e.into_inner())[idx(role)].clone()
+    }
+}
+
+/// One remote role's ports, declared when the hub opens.
+pub(crate) struct Ports {
+    pub(crate) request: Publisher<'static>,
+    pub(crate) control: Publisher<'static>,
+    pub(crate) replies: Subscriber<FifoChannelHandler<Sample>>,
+}
+
+/// The orchestrator's side of the network transport for one run.
+pub struct NetHub {
+    settings: NetSettings,
+    session: zenoh::Session,
+    shared: Arc<Shared>,
+    ports: [Option<Ports>; 3],
+    _queryables: Vec<Queryable<()>>,
+    _subscribers: Vec<Subscriber<()>>,
+    _token: zenoh::liveliness::LivelinessToken,
+}
+
+impl NetHub {
+    /// Opens the run's session on `settings.listen` for the roles in `remote`, each with its
+    /// settings as JSON, and starts answering offers and hellos.
+    pub fn open(settings: NetSettings, remote: Vec<(Role, String)>) -> Result<Self, NetError> {
+        let urandom = |e: std::io::Error| NetError::Zenoh {
+            what: "drawing the run's key".into(),
+            why: e.to_string(),
+        };
+        let run = new_secret().map_err(urandom)?;
+        let offer_nonce = new_secret().map_err(urandom)?;
+        let mut params: [Option<String>; 3] = Default::default();
+        for (r, p) in remote {
+            params[idx(r)] = Some(p);
+        }
+        let shared = Arc::new(Shared {
+            run: run.clone(),
+            offer_nonce,
+            secret: settings.secret.clone(),
+            params,
+            joined: Mutex::default(),
+            refusals: Mutex::default(),
+            alive: Default::default(),
+            notes: Mutex::default(),
+        });
+        let session = session::open(
+            &session::End::Listen(settings.listen.clone()),
+            settings.lease,
+        )?;
+        let mut ports: [Option<Ports>; 3] = Default::default();
+        for r in Role::ALL {
+            if shared.params[idx(r)].is_none() {
+                continue;
+            }
+            let publisher = |key: String| {
+                session
+                    .declare_publisher(key)
+                    .congestion_control(CongestionControl::Block)
+                    .express(true)
+                    .wait()
+                    .map_err(zenoh_error("declaring a publisher"))
+            };
+            ports[idx(r)] = Some(Ports {
+                request: publisher(keys::request(&run, r))?,
+                control: publisher(keys::control(&run, r))?,
+                replies: session
+                    .declare_subscriber(keys::reply(&run, r))
+                    .with(FifoChannel::new(REPLY_BUFFER))
+                    .wait()
+                    .map_err(zenoh_error("declaring a subscriber"))?,
+            });
+        }
+        let mut queryables = Vec::new();
+        let s = shared.clone();
+        queryables.push(
+            session
+                .declare_queryable(keys::offer(&run))
+                .callback(move |q: Query| {
+                    let offer = Offer {
+                        run: s.run.clone(),
+                        nonce: s.offer_nonce.clone(),
+                        protocol_version: PROTOCOL_VERSION,
+                        awaited: s.awaited(),
+                    };
+                    let body = serde_json::to_vec(&offer).unwrap_or_default();
+                    let _ = q.reply(q.key_expr().clone(), body).wait();
+                })
+                .wait()
+                .map_err(zenoh_error("declaring the run's offer"))?,
+        );
+        queryables.push(
+            session
+                .declare_queryable(keys::clock(&run))
+                .callback(move |q: Query| {
+                    let _ = q
+                        .reply(q.key_expr().clone(), now_ns().to_le_bytes().to_vec())
+                        .wait();
+                })
+                .wait()
+                .map_err(zenoh_error("declaring the run's clock"))?,
+        );
+        let s = shared.clone();
+        queryables.push(
+            session
+                .declare_queryable(keys::join_any(&run))
+                .callback(move |q: Query| {
+                    let role = q
+                        .key_expr()
+                        .as_str()
+                        .split('/')
+                        .nth(4)
+                        .and_then(Role::parse);
+                    let hello: Option<Hello> = q
+                        .payload()
+                        .and_then(|p| serde_json::from_slice(&p.to_bytes()).ok());
+                    let welcome = match (role, hello) {
+                        (Some(role), Some(hello)) => s.admit(role, &hello),
+                        _ => Welcome {
+                            accepted: false,
+                            reason: "not a hello of this protocol".into(),
+                            params: String::new(),
+                        },
+                    };
+                    let body = serde_json::to_vec(&welcome).unwrap_or_default();
+                    let _ = q.reply(q.key_expr().clone(), body).wait();
+                })
+                .wait()
+                .map_err(zenoh_error("declaring the run's join"))?,
+        );
+        let mut subscribers = Vec::new();
+        let s = shared.clone();
+        subscribers.push(
+            session
+                .liveliness()
+                .declare_subscriber(keys::alive_any(&run))
+                .history(true)
+                .callback(move |sample: Sample| {
+                    if let Some(r) = keys::role_of(sample.key_expr().as_str()) {
+                        let up = sample.kind() == SampleKind::Put;
+                        s.alive[idx(r)].store(up, Ordering::Release);
+                    }
+                })
+                .wait()
+                .map_err(zenoh_error("watching the participants' liveliness"))?,
+        );
+        let s = shared.clone();
+        subscribers.push(
+            session
+                .declare_subscriber(keys::note_any(&run))
+                .callback(move |sample: Sample| {
+                    if let Some(r) = keys::role_of(sample.key_expr().as_str()) {
+                        let text =
+                            String::from_utf8_lossy(&sample.payload().to_bytes()).into_owned();
+                        s.notes.lock().unwrap_or_else(|e| e.into_inner())[idx(r)] = Some(text);
+                    }
+                })
+                .wait()
+                .map_err(zenoh_error("listening to the participants' notes"))?,
+        );
+        let token = session
+            .liveliness()
+            .declare_token(keys::orchestrator_alive(&run))
+            .wait()
+            .map_err(zenoh_error("declaring the orchestrator's liveliness"))?;
+        Ok(NetHub {
+            settings,
+            session,
+            shared,
+            ports,
+            _queryables: queryables,
+            _subscribers: subscribers,
+            _token: token,
+        })
+    }
+
+    /// Whether `role` joins from another host in this run.
+    pub fn is_remote(&self, role: Role) -> bool {
+        self.shared.params[idx(role)].is_some()
+    }
+
+    /// The run's key (in every key expression of the run).
+    pub fn run_key(&self) -> &str {
+        &self.shared.run
+    }
+
+    /// The run's settings.
+    pub fn settings(&self) -> &NetSettings {
+        &self.settings
+    }
+
+    /// The command that joins `role` to this run from another host (the secret left to
+    /// `TILTSIM_SECRET` or a file).
+    pub fn join_command(&self, role: Role) -> String {
+        format!(
+            "tiltsim participant {role} --connect {} --run {}",
+            self.settings.listen, self.shared.run
+        )
+    }
+
+    /// Waits until `role` has joined, then hands over its endpoint. Ends with an error naming
+    /// the role, the address and the participants refused meanwhile when the join timeout
+    /// passes, or when `interrupt` is set.
+    pub fn await_join<I: Message, O: Message>(
+        &mut self,
+        role: Role,
+        interrupt: Option<&AtomicBool>,
+    ) -> Result<NetEndpoint<I, O>, NetError> {
+        let start = Instant::now();
+        loop {
+            let joined =
+                self.shared.joined.lock().unwrap_or_else(|e| e.into_inner())[idx(role)].clone();
+            if let Some(j) = joined {
+                let ports = self.ports[idx(role)].take().ok_or_else(|| {
+                    NetError::Participant(format!("{role} has no ports in this run"))
+                })?;
+                return Ok(NetEndpoint::new(
+                    j,
+                    ports,
+                    self.shared.clone(),
+                    self.session.clone(),
+                    self.settings.deadline,
+                ));
+            }
+            if interrupt.is_some_and(|f| f.load(Ordering::Relaxed)) {
+                return Err(NetError::Interrupted { role });
+            }
+            if start.elapsed() >= self.settings.join_timeout {
+                let refused: Vec<String> = self
+                    .refusals()
+                    .into_iter()
+                    .filter(|r| r.role == role)
+                    .map(|r| format!("host {} (pid {}): {}", r.host, r.pid, r.reason))
+                    .collect();
+                return Err(NetError::NeverJoined {
+                    role,
+                    listen: self.settings.listen.clone(),
+                    waited_s: start.elapsed().as_secs_f64(),
+                    refused: if refused.is_empty() {
+                        String::new()
+                    } else {
+                        format!("; refused: {}", refused.join("; "))
+                    },
+                });
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// The participants that joined, in role order.
+    pub fn joined(&self) -> Vec<Joined> {
+        self.shared
+            .joined
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .iter()
+            .flatten()
+            .cloned()
+            .collect()
+    }
+
+    /// The participants refused so far, in arrival order.
+    pub fn refusals(&self) -> Vec<Refusal> {
+        self.shared
+            .refusals
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+}
+
+impl Drop for NetHub {
+    fn drop(&mut self) {
+        let _ = self.session.close().wait();
+    }
+}
