@@ -126,13 +126,15 @@ fn a_remote_controller_and_actuator_give_the_bytes_of_one_process() {
 
 #[test]
 fn wrong_credentials_and_a_second_participant_for_a_role_are_refused_by_name() {
+    use std::sync::atomic::Ordering;
     let pair = Pair::new("creds");
     let dir = temp_dir("net-creds");
-    let run = orchestrator(&pair, "paper-lqg.toml", &["controller"], &dir)
-        .duration(1)
+    let mut run = orchestrator(&pair, "paper-lqg.toml", &["controller"], &dir)
+        .duration(10)
         .deadline_ms(20_000)
-        .quiet()
+        .progress_machine()
         .spawn();
+    let step = watch_steps(&mut run);
     let (code, err) = finish(
         participant(&pair.b, &pair.a, "controller", "not-the-secret").spawn(),
         "wrong secret",
@@ -143,34 +145,39 @@ fn wrong_credentials_and_a_second_participant_for_a_role_are_refused_by_name() {
         "a participant with another secret is told why: {err}"
     );
     let right = participant(&pair.b, &pair.a, "controller", SECRET).spawn();
-    // The second comes once the first holds the role; it is refused and names the first.
-    let summary_seen = wait_for(LIMIT, || {
-        let (code, _, err) = participant(&pair.b, &pair.a, "controller", SECRET).result();
-        (code == 1 && err.contains("has already joined")).then_some(err)
-    });
-    let (code, err) = finish(run, "orchestrator");
+    // Steps go on once the controller has joined; a second one is then refused, naming the
+    // first.
+    assert!(
+        wait_for(LIMIT, || (step.load(Ordering::Acquire) >= 1).then_some(())).is_some(),
+        "the run never started"
+    );
+    let (code, _, second) = participant(&pair.b, &pair.a, "controller", SECRET)
+        .args(["--join-timeout-s", "30"])
+        .result();
+    assert_eq!(code, 1, "{second}");
+    assert!(
+        second.contains("refused by the run: controller has already joined (from host"),
+        "{second}"
+    );
+    let (code, _, err) = wait_with_limit(run, LIMIT);
     assert_eq!(
         code, 0,
         "the run goes on with the participant that belongs: {err}"
     );
     assert_eq!(finish(right, "controller").0, 0);
-    let second = summary_seen.expect("a second controller is refused");
-    assert!(
-        second.contains("controller has already joined (from host"),
-        "{second}"
-    );
     let refused = summary(&dir)["network"]["refused"]
         .as_array()
         .unwrap()
         .clone();
-    assert!(refused.len() >= 2, "{refused:?}");
+    assert_eq!(refused.len(), 2, "{refused:?}");
     assert!(refused[0]["reason"]
         .as_str()
         .unwrap()
         .contains("wrong credentials"));
-    assert!(refused
-        .iter()
-        .any(|r| r["reason"].as_str().unwrap().contains("already joined")));
+    assert!(refused[1]["reason"]
+        .as_str()
+        .unwrap()
+        .contains("already joined"));
 }
 
 #[test]

@@ -37,6 +37,27 @@ fn ip_run(args: &[&str]) -> Result<(), String> {
     }
 }
 
+/// Removes the hosts of test processes that were killed before they could remove their own
+/// (`tiltsim-<pid>-...` where no process `pid` runs).
+fn remove_dead_hosts() {
+    let Ok(out) = Command::new(ip()).args(["netns", "list"]).output() else {
+        return;
+    };
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let name = line.split_whitespace().next().unwrap_or("");
+        let Some(pid) = name
+            .strip_prefix("tiltsim-")
+            .and_then(|r| r.split('-').next())
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if !std::path::Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = ip_run(&["netns", "del", name]);
+        }
+    }
+}
+
 /// One host: a network namespace with one end of the pair's link.
 #[derive(Debug)]
 pub struct Host {
@@ -91,8 +112,10 @@ impl Pair {
     pub fn new(tag: &str) -> Pair {
         static N: AtomicU32 = AtomicU32::new(0);
         let n = N.fetch_add(1, Ordering::Relaxed);
-        let id = format!("{}{n}", std::process::id() % 100_000);
-        let ns = |side: &str| format!("tiltsim-{tag}-{id}{side}");
+        remove_dead_hosts();
+        let pid = std::process::id();
+        let id = format!("{}{n}", pid % 100_000);
+        let ns = |side: &str| format!("tiltsim-{pid}-{n}-{tag}{side}");
         // Interface names are at most 15 bytes.
         let link = |side: &str| format!("ts{id}{side}");
         let pair = Pair {
