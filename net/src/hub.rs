@@ -197,116 +197,9 @@ impl NetHub {
             &session::End::Listen(settings.listen.clone()),
             settings.lease,
         )?;
-        let mut ports: [Option<Ports>; 3] = Default::default();
-        for r in Role::ALL {
-            if shared.params[idx(r)].is_none() {
-                continue;
-            }
-            let publisher = |key: String| {
-                session
-                    .declare_publisher(key)
-                    .congestion_control(CongestionControl::Block)
-                    .express(true)
-                    .wait()
-                    .map_err(zenoh_error("declaring a publisher"))
-            };
-            ports[idx(r)] = Some(Ports {
-                request: publisher(keys::request(&run, r))?,
-                control: publisher(keys::control(&run, r))?,
-                replies: session
-                    .declare_subscriber(keys::reply(&run, r))
-                    .with(FifoChannel::new(REPLY_BUFFER))
-                    .wait()
-                    .map_err(zenoh_error("declaring a subscriber"))?,
-            });
-        }
-        let mut queryables = Vec::new();
-        let s = shared.clone();
-        queryables.push(
-            session
-                .declare_queryable(keys::offer(&run))
-                .callback(move |q: Query| {
-                    let offer = Offer {
-                        run: s.run.clone(),
-                        nonce: s.offer_nonce.clone(),
-                        protocol_version: PROTOCOL_VERSION,
-                        awaited: s.awaited(),
-                    };
-                    let body = serde_json::to_vec(&offer).unwrap_or_default();
-                    let _ = q.reply(q.key_expr().clone(), body).wait();
-                })
-                .wait()
-                .map_err(zenoh_error("declaring the run's offer"))?,
-        );
-        queryables.push(
-            session
-                .declare_queryable(keys::clock(&run))
-                .callback(move |q: Query| {
-                    let _ = q
-                        .reply(q.key_expr().clone(), now_ns().to_le_bytes().to_vec())
-                        .wait();
-                })
-                .wait()
-                .map_err(zenoh_error("declaring the run's clock"))?,
-        );
-        let s = shared.clone();
-        queryables.push(
-            session
-                .declare_queryable(keys::join_any(&run))
-                .callback(move |q: Query| {
-                    let role = q
-                        .key_expr()
-                        .as_str()
-                        .split('/')
-                        .nth(4)
-                        .and_then(Role::parse);
-                    let hello: Option<Hello> = q
-                        .payload()
-                        .and_then(|p| serde_json::from_slice(&p.to_bytes()).ok());
-                    let welcome = match (role, hello) {
-                        (Some(role), Some(hello)) => s.admit(role, &hello),
-                        _ => Welcome {
-                            accepted: false,
-                            reason: "not a hello of this protocol".into(),
-                            params: String::new(),
-                        },
-                    };
-                    let body = serde_json::to_vec(&welcome).unwrap_or_default();
-                    let _ = q.reply(q.key_expr().clone(), body).wait();
-                })
-                .wait()
-                .map_err(zenoh_error("declaring the run's join"))?,
-        );
-        let mut subscribers = Vec::new();
-        let s = shared.clone();
-        subscribers.push(
-            session
-                .liveliness()
-                .declare_subscriber(keys::alive_any(&run))
-                .history(true)
-                .callback(move |sample: Sample| {
-                    if let Some(r) = keys::role_of(sample.key_expr().as_str()) {
-                        let up = sample.kind() == SampleKind::Put;
-                        s.alive[idx(r)].store(up, Ordering::Release);
-                    }
-                })
-                .wait()
-                .map_err(zenoh_error("watching the participants' liveliness"))?,
-        );
-        let s = shared.clone();
-        subscribers.push(
-            session
-                .declare_subscriber(keys::note_any(&run))
-                .callback(move |sample: Sample| {
-                    if let Some(r) = keys::role_of(sample.key_expr().as_str()) {
-                        let text =
-                            String::from_utf8_lossy(&sample.payload().to_bytes()).into_owned();
-                        s.notes.lock().unwrap_or_else(|e| e.into_inner())[idx(r)] = Some(text);
-                    }
-                })
-                .wait()
-                .map_err(zenoh_error("listening to the participants' notes"))?,
-        );
+        let ports = declare_ports(&session, &shared)?;
+        let queryables = answer_joins(&session, &shared)?;
+        let subscribers = watch_participants(&session, &shared)?;
         let token = session
             .liveliness()
             .declare_token(keys::orchestrator_alive(&run))
@@ -416,6 +309,140 @@ impl NetHub {
             .unwrap_or_else(|e| e.into_inner())
             .clone()
     }
+}
+
+/// Every remote role's ports: its requests and process faults out, its replies in, declared
+/// before anyone joins.
+fn declare_ports(
+    session: &zenoh::Session,
+    shared: &Shared,
+) -> Result<[Option<Ports>; 3], NetError> {
+    let mut ports: [Option<Ports>; 3] = Default::default();
+    for r in Role::ALL {
+        if shared.params[idx(r)].is_none() {
+            continue;
+        }
+        let publisher = |key: String| {
+            session
+                .declare_publisher(key)
+                .congestion_control(CongestionControl::Block)
+                .express(true)
+                .wait()
+                .map_err(zenoh_error("declaring a publisher"))
+        };
+        ports[idx(r)] = Some(Ports {
+            request: publisher(keys::request(&shared.run, r))?,
+            control: publisher(keys::control(&shared.run, r))?,
+            replies: session
+                .declare_subscriber(keys::reply(&shared.run, r))
+                .with(FifoChannel::new(REPLY_BUFFER))
+                .wait()
+                .map_err(zenoh_error("declaring a subscriber"))?,
+        });
+    }
+    Ok(ports)
+}
+
+/// The run's offer, its clock and the judge of hellos.
+fn answer_joins(
+    session: &zenoh::Session,
+    shared: &Arc<Shared>,
+) -> Result<Vec<Queryable<()>>, NetError> {
+    let mut queryables = Vec::new();
+    let s = shared.clone();
+    queryables.push(
+        session
+            .declare_queryable(keys::offer(&shared.run))
+            .callback(move |q: Query| {
+                let offer = Offer {
+                    run: s.run.clone(),
+                    nonce: s.offer_nonce.clone(),
+                    protocol_version: PROTOCOL_VERSION,
+                    awaited: s.awaited(),
+                };
+                let body = serde_json::to_vec(&offer).unwrap_or_default();
+                let _ = q.reply(q.key_expr().clone(), body).wait();
+            })
+            .wait()
+            .map_err(zenoh_error("declaring the run's offer"))?,
+    );
+    queryables.push(
+        session
+            .declare_queryable(keys::clock(&shared.run))
+            .callback(move |q: Query| {
+                let _ = q
+                    .reply(q.key_expr().clone(), now_ns().to_le_bytes().to_vec())
+                    .wait();
+            })
+            .wait()
+            .map_err(zenoh_error("declaring the run's clock"))?,
+    );
+    let s = shared.clone();
+    queryables.push(
+        session
+            .declare_queryable(keys::join_any(&shared.run))
+            .callback(move |q: Query| {
+                let role = q
+                    .key_expr()
+                    .as_str()
+                    .split('/')
+                    .nth(4)
+                    .and_then(Role::parse);
+                let hello: Option<Hello> = q
+                    .payload()
+                    .and_then(|p| serde_json::from_slice(&p.to_bytes()).ok());
+                let welcome = match (role, hello) {
+                    (Some(role), Some(hello)) => s.admit(role, &hello),
+                    _ => Welcome {
+                        accepted: false,
+                        reason: "not a hello of this protocol".into(),
+                        params: String::new(),
+                    },
+                };
+                let body = serde_json::to_vec(&welcome).unwrap_or_default();
+                let _ = q.reply(q.key_expr().clone(), body).wait();
+            })
+            .wait()
+            .map_err(zenoh_error("declaring the run's join"))?,
+    );
+    Ok(queryables)
+}
+
+/// The participants' liveliness tokens and notes, into `shared`.
+fn watch_participants(
+    session: &zenoh::Session,
+    shared: &Arc<Shared>,
+) -> Result<Vec<Subscriber<()>>, NetError> {
+    let mut subscribers = Vec::new();
+    let s = shared.clone();
+    subscribers.push(
+        session
+            .liveliness()
+            .declare_subscriber(keys::alive_any(&shared.run))
+            .history(true)
+            .callback(move |sample: Sample| {
+                if let Some(r) = keys::role_of(sample.key_expr().as_str()) {
+                    let up = sample.kind() == SampleKind::Put;
+                    s.alive[idx(r)].store(up, Ordering::Release);
+                }
+            })
+            .wait()
+            .map_err(zenoh_error("watching the participants' liveliness"))?,
+    );
+    let s = shared.clone();
+    subscribers.push(
+        session
+            .declare_subscriber(keys::note_any(&shared.run))
+            .callback(move |sample: Sample| {
+                if let Some(r) = keys::role_of(sample.key_expr().as_str()) {
+                    let text = String::from_utf8_lossy(&sample.payload().to_bytes()).into_owned();
+                    s.notes.lock().unwrap_or_else(|e| e.into_inner())[idx(r)] = Some(text);
+                }
+            })
+            .wait()
+            .map_err(zenoh_error("listening to the participants' notes"))?,
+    );
+    Ok(subscribers)
 }
 
 impl Drop for NetHub {

@@ -241,78 +241,94 @@ fn measure_clock(session: &zenoh::Session, run: &str) -> (i64, u64) {
     clock_offset(&samples).unwrap_or((0, 0))
 }
 
-fn join_and_serve<S, P>(
+/// What a joined participant holds of the run: its ports, the process faults ordered, the
+/// orchestrator's presence.
+struct Ports {
+    requests: zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<Sample>>,
+    replies: zenoh::pubsub::Publisher<'static>,
+    stall_ns: Arc<AtomicU64>,
+    orchestrator_gone: Arc<AtomicBool>,
+    _control: zenoh::pubsub::Subscriber<()>,
+    _watch: zenoh::pubsub::Subscriber<()>,
+    _token: zenoh::liveliness::LivelinessToken,
+}
+
+/// Declares everything the run will send to, or watch of, this participant, before the
+/// hello: the run's first request cannot overtake the subscription it is meant for.
+fn declare(session: &zenoh::Session, run: &str, role: Role) -> Result<Ports, NetError> {
+    let stall_ns = Arc::new(AtomicU64::new(0));
+    let stall = stall_ns.clone();
+    let orchestrator_gone = Arc::new(AtomicBool::new(false));
+    let gone = orchestrator_gone.clone();
+    Ok(Ports {
+        requests: session
+            .declare_subscriber(keys::request(run, role))
+            .with(FifoChannel::new(1024))
+            .wait()
+            .map_err(zenoh_error("declaring the request subscriber"))?,
+        _control: session
+            .declare_subscriber(keys::control(run, role))
+            .callback(move |s: Sample| {
+                let order = String::from_utf8_lossy(&s.payload().to_bytes()).into_owned();
+                if order == "kill" {
+                    // A scheduled `kill` fault: end as SIGKILL ends a process on one host.
+                    // SAFETY: kill with this process's own pid has no preconditions.
+                    unsafe { libc::kill(libc::getpid(), libc::SIGKILL) };
+                } else if let Some(ns) = order.strip_prefix("stall ").and_then(|n| n.parse().ok()) {
+                    stall.store(ns, Ordering::Release);
+                }
+            })
+            .wait()
+            .map_err(zenoh_error("declaring the control subscriber"))?,
+        replies: session
+            .declare_publisher(keys::reply(run, role))
+            .congestion_control(CongestionControl::Block)
+            .express(true)
+            .wait()
+            .map_err(zenoh_error("declaring the reply publisher"))?,
+        _watch: session
+            .liveliness()
+            .declare_subscriber(keys::orchestrator_alive(run))
+            .callback(move |s: Sample| {
+                if s.kind() == SampleKind::Delete {
+                    gone.store(true, Ordering::Release);
+                }
+            })
+            .wait()
+            .map_err(zenoh_error("watching the run's orchestrator"))?,
+        _token: session
+            .liveliness()
+            .declare_token(keys::alive(run, role))
+            .wait()
+            .map_err(zenoh_error("declaring this participant's liveliness"))?,
+        stall_ns,
+        orchestrator_gone,
+    })
+}
+
+/// Sends the hello to the run of `offer` and returns the settings it answers with, or why it
+/// refused.
+fn hello(
     session: &zenoh::Session,
     role: Role,
     a: &JoinArgs,
-    make: impl FnOnce(S) -> Result<P, String>,
-) -> Result<(), NetError>
-where
-    S: serde::de::DeserializeOwned,
-    P: Participant,
-{
-    let offer = find_offer(session, role, a)?;
-    let run = offer.run.clone();
-    let (clock_offset_ns, clock_rtt_ns) = measure_clock(session, &run);
-    // Everything the run will send to, or watch of, this participant is declared before the
-    // hello: the run's first request cannot overtake the subscription it is meant for.
-    let requests = session
-        .declare_subscriber(keys::request(&run, role))
-        .with(FifoChannel::new(1024))
-        .wait()
-        .map_err(zenoh_error("declaring the request subscriber"))?;
-    let stall_ns = Arc::new(AtomicU64::new(0));
-    let stall = stall_ns.clone();
-    let _control = session
-        .declare_subscriber(keys::control(&run, role))
-        .callback(move |s: Sample| {
-            let order = String::from_utf8_lossy(&s.payload().to_bytes()).into_owned();
-            if order == "kill" {
-                // A scheduled `kill` fault: end as SIGKILL ends a process on one host.
-                // SAFETY: kill with this process's own pid has no preconditions.
-                unsafe { libc::kill(libc::getpid(), libc::SIGKILL) };
-            } else if let Some(ns) = order.strip_prefix("stall ").and_then(|n| n.parse().ok()) {
-                stall.store(ns, Ordering::Release);
-            }
-        })
-        .wait()
-        .map_err(zenoh_error("declaring the control subscriber"))?;
-    let replies = session
-        .declare_publisher(keys::reply(&run, role))
-        .congestion_control(CongestionControl::Block)
-        .express(true)
-        .wait()
-        .map_err(zenoh_error("declaring the reply publisher"))?;
-    let orchestrator_gone = Arc::new(AtomicBool::new(false));
-    let gone = orchestrator_gone.clone();
-    let _watch = session
-        .liveliness()
-        .declare_subscriber(keys::orchestrator_alive(&run))
-        .callback(move |s: Sample| {
-            if s.kind() == SampleKind::Delete {
-                gone.store(true, Ordering::Release);
-            }
-        })
-        .wait()
-        .map_err(zenoh_error("watching the run's orchestrator"))?;
-    let _token = session
-        .liveliness()
-        .declare_token(keys::alive(&run, role))
-        .wait()
-        .map_err(zenoh_error("declaring this participant's liveliness"))?;
+    offer: &Offer,
+    clock: (i64, u64),
+) -> Result<String, NetError> {
+    let run = &offer.run;
     let nonce = new_secret().map_err(|e| fail(role, format!("drawing a nonce: {e}")))?;
     let hello = Hello {
         role,
         protocol_version: PROTOCOL_VERSION,
         host: host_name(),
         pid: std::process::id(),
-        proof: proof(&a.secret, &run, role, &offer.nonce, &nonce),
+        proof: proof(&a.secret, run, role, &offer.nonce, &nonce),
         nonce,
-        clock_offset_ns,
-        clock_rtt_ns,
+        clock_offset_ns: clock.0,
+        clock_rtt_ns: clock.1,
     };
     let answer = session
-        .get(keys::join(&run, role))
+        .get(keys::join(run, role))
         .payload(serde_json::to_vec(&hello).unwrap_or_default())
         .timeout(Duration::from_secs(5))
         .wait()
@@ -335,12 +351,30 @@ where
             format!("refused by the run: {}", welcome.reason),
         ));
     }
+    Ok(welcome.params)
+}
+
+fn join_and_serve<S, P>(
+    session: &zenoh::Session,
+    role: Role,
+    a: &JoinArgs,
+    make: impl FnOnce(S) -> Result<P, String>,
+) -> Result<(), NetError>
+where
+    S: serde::de::DeserializeOwned,
+    P: Participant,
+{
+    let offer = find_offer(session, role, a)?;
+    let run = offer.run.clone();
+    let clock = measure_clock(session, &run);
+    let ports = declare(session, &run, role)?;
+    let params = hello(session, role, a, &offer, clock)?;
     let note = |text: String| {
         let _ = session
             .put(keys::note(&run, role), text.into_bytes())
             .wait();
     };
-    let settings: S = serde_json::from_str(&welcome.params).map_err(|e| {
+    let settings: S = serde_json::from_str(&params).map_err(|e| {
         note(format!("its settings do not parse: {e}"));
         fail(role, format!("bad settings from the run: {e}"))
     })?;
@@ -348,22 +382,34 @@ where
         note(e.clone());
         fail(role, e)
     })?;
-    let mut served = Served::new(model);
+    serve_lockstep(Served::new(model), &ports, clock.0, &note).map_err(|why| fail(role, why))
+}
+
+/// Serves requests in lock-step until the run stops this participant; a free run's start
+/// hands over to [`Free`]. What ends it otherwise is noted to the run and returned.
+fn serve_lockstep<P: Participant>(
+    mut served: Served<P>,
+    ports: &Ports,
+    clock_offset_ns: i64,
+    note: &dyn Fn(String),
+) -> Result<(), String> {
+    let failed = |why: String| {
+        note(why.clone());
+        why
+    };
     let mut last_step: Option<u64> = None;
     let cpu0 = cpu_s();
     loop {
-        if orchestrator_gone.load(Ordering::Acquire) {
-            return Err(fail(role, "the run's orchestrator left"));
+        if ports.orchestrator_gone.load(Ordering::Acquire) {
+            return Err("the run's orchestrator left".into());
         }
-        let sample = match requests.recv_timeout(Duration::from_millis(100)) {
+        let sample = match ports.requests.recv_timeout(Duration::from_millis(100)) {
             Ok(Some(s)) => s,
             Ok(None) => continue,
-            Err(e) => return Err(fail(role, format!("receiving: {e}"))),
+            Err(e) => return Err(format!("receiving: {e}")),
         };
-        let req = P::Input::from_wire(&sample.payload().to_bytes()).map_err(|e| {
-            note(format!("a request it cannot read: {e}"));
-            fail(role, e)
-        })?;
+        let req = P::Input::from_wire(&sample.payload().to_bytes())
+            .map_err(|e| failed(format!("a request it cannot read: {e}")))?;
         let h = *req.header();
         match Kind::from_raw(h.kind) {
             Some(Kind::Stop) => {
@@ -371,52 +417,43 @@ where
                 return Ok(());
             }
             Some(Kind::Init) => last_step = None,
+            Some(Kind::Step) if h.flags & FLAG_FREE_START != 0 => {
+                // The start of a free run: from here the participant keeps its own clock.
+                let free = Free {
+                    requests: &ports.requests,
+                    replies: &ports.replies,
+                    stall_ns: &ports.stall_ns,
+                    orchestrator_gone: &ports.orchestrator_gone,
+                    clock_offset_ns,
+                };
+                return free.serve(&mut served, req).map_err(failed);
+            }
             Some(Kind::Step) => {
-                if h.flags & FLAG_FREE_START != 0 {
-                    // The start of a free run: from here the participant keeps its own clock.
-                    let free = Free {
-                        requests: &requests,
-                        replies: &replies,
-                        stall_ns: &stall_ns,
-                        orchestrator_gone: &orchestrator_gone,
-                        clock_offset_ns,
-                    };
-                    return free.serve(&mut served, req).map_err(|why| {
-                        note(why.clone());
-                        fail(role, why)
-                    });
-                }
-                if last_step.is_some_and(|l| h.step <= l) {
-                    let why = format!("step {} after step {}", h.step, last_step.unwrap_or(0));
-                    note(why.clone());
-                    return Err(fail(role, why));
+                if let Some(l) = last_step.filter(|&l| h.step <= l) {
+                    return Err(failed(format!("step {} after step {l}", h.step)));
                 }
                 last_step = Some(h.step);
             }
-            None => {
-                let why = format!("a request of kind {}", h.kind);
-                note(why.clone());
-                return Err(fail(role, why));
-            }
+            None => return Err(failed(format!("a request of kind {}", h.kind))),
         }
         if h.flags & FLAG_CRASH != 0 {
             // A scheduled `crash` fault: die as a crashing process does.
             std::process::abort();
         }
-        let stall = stall_ns.swap(0, Ordering::AcqRel);
+        let stall = ports.stall_ns.swap(0, Ordering::AcqRel);
         if stall > 0 {
             std::thread::sleep(Duration::from_nanos(stall));
         }
         let mut reply = served.answer(&req);
         if let Some(why) = served.model.failure() {
-            note(format!("failed: {why}"));
-            return Err(fail(role, why));
+            return Err(failed(format!("failed: {why}")));
         }
         reply.header_mut().attempt = h.attempt;
-        replies
+        ports
+            .replies
             .put(reply.to_wire())
             .wait()
-            .map_err(|e| fail(role, format!("sending step {}: {e}", h.step)))?;
+            .map_err(|e| format!("sending step {}: {e}", h.step))?;
     }
 }
 

@@ -125,6 +125,13 @@ pub fn exec(a: SweepArgs) -> CliResult {
     // In-process by default: a sample then costs no process start, and the results are the
     // same bytes either way.
     s.run.transport = a.transport.map_or(Transport::InProcess, Into::into);
+    if !s.network.is_local() {
+        return Err(CliError::Invalid(format!(
+            "{}: network.remote = {:?}: a sweep runs every sample on this host; remove [network] remote",
+            a.scenario.display(),
+            s.network.remote.iter().map(|r| r.name()).collect::<Vec<_>>()
+        )));
+    }
     let plan = plan(&a, &s)?;
     let shard = match a.shard.as_deref() {
         None => None,
