@@ -80,6 +80,9 @@ fn an_mpc_update_allocates_nothing() {
         }
         // The first updates may size what Clarabel keeps for the QP forms it meets first.
         let late: u64 = counts[50..].iter().sum();
-        assert_eq!(late, 0, "preview {preview}: allocations per update {counts:?}");
+        assert_eq!(
+            late, 0,
+            "preview {preview}: allocations per update {counts:?}"
+        );
     }
 }

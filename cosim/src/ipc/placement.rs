@@ -166,7 +166,12 @@ impl Drop for Claim {
 /// Places the run with `prefix`: looks at which CPUs are idle, then, under the registry's lock,
 /// reads the other runs' claims, chooses ([`choose`]) and writes this run's claim. `allowed`
 /// are the CPUs this thread may use.
-pub fn place(prefix: &str, asked: WaitStrategy, pin: bool, allowed: &[usize]) -> (Placement, Claim) {
+pub fn place(
+    prefix: &str,
+    asked: WaitStrategy,
+    pin: bool,
+    allowed: &[usize],
+) -> (Placement, Claim) {
     if !pin || allowed.len() < 2 {
         return (choose(asked, pin, allowed, &[], &[]), Claim::none());
     }
@@ -250,7 +255,9 @@ fn write_claim(dir: &Path, prefix: &str, cpus: &[usize]) -> std::io::Result<Clai
     let mut f = File::create(&path)?;
     if !try_lock(&f) {
         let _ = std::fs::remove_file(&path);
-        return Err(std::io::Error::other("claim file locked by another process"));
+        return Err(std::io::Error::other(
+            "claim file locked by another process",
+        ));
     }
     let text: String = cpus.iter().map(|c| format!("{c}\n")).collect();
     f.write_all(text.as_bytes())?;

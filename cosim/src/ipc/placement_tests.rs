@@ -87,7 +87,11 @@ fn two_runs_claim_disjoint_cpus_and_a_dropped_claim_is_released() {
     assert_eq!(live_claims(dir.path()), vec![2, 3]);
     drop(b);
     assert!(live_claims(dir.path()).is_empty());
-    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "files removed");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "files removed"
+    );
 }
 
 #[test]
@@ -95,7 +99,11 @@ fn a_claim_whose_owner_is_gone_does_not_count() {
     // The lock of a killed run is released by the kernel; its file stays until the run's files
     // are cleaned. Written without a lock, it stands for such a file.
     let dir = TempDir::new("dead");
-    std::fs::write(dir.path().join(format!("{}{CLAIM_FILE}", prefix("dead"))), "0\n1\n").unwrap();
+    std::fs::write(
+        dir.path().join(format!("{}{CLAIM_FILE}", prefix("dead"))),
+        "0\n1\n",
+    )
+    .unwrap();
     assert!(live_claims(dir.path()).is_empty());
 }
 
