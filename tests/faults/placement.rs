@@ -76,6 +76,7 @@ fn a_second_run_chooses_around_the_first_ones_claim_and_a_killed_runs_claim_goes
     let claimed = wait_for(Duration::from_secs(120), || claim_of(&first));
     let Some(claimed) = claimed else {
         let _ = a.kill();
+        let _ = a.wait();
         // Other runs of this machine held every pair: nothing claimed, nothing to check.
         eprintln!("the first run claimed no CPUs (other runs hold them)");
         return;
