@@ -1,6 +1,9 @@
-//! An MPC update allocates nothing once the controller runs: every buffer of the filter, the
-//! prediction and the QP is set up with the controller, so an update's time is its arithmetic
-//! and Clarabel's iterations, never the allocator's.
+//! An MPC update allocates no buffer of its own once the controller runs: the filter, the
+//! prediction, the horizon's references and the moves are written into buffers set up with
+//! the controller. Three allocations per update remain, inside `DefaultSolver::solve`: by
+//! Clarabel 0.11's source, each solve resets its timers and inserts their nested timers
+//! again, which its settings cannot turn off. The test holds an update to those three, so that
+//! no allocation of ours comes back unnoticed.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -33,6 +36,9 @@ unsafe impl GlobalAlloc for Counting {
     }
 }
 
+/// Allocations per update inside Clarabel's `solve` (its timers).
+const CLARABEL_PER_SOLVE: u64 = 3;
+
 #[global_allocator]
 static ALLOC: Counting = Counting;
 
@@ -60,7 +66,7 @@ fn mpc(preview: bool) -> Controller {
 }
 
 #[test]
-fn an_mpc_update_allocates_nothing() {
+fn an_mpc_update_allocates_no_more_than_the_solvers_timers() {
     for preview in [false, true] {
         let mut c = mpc(preview);
         let period = 0.05;
@@ -79,9 +85,9 @@ fn an_mpc_update_allocates_nothing() {
             counts.push(n);
         }
         // The first updates may size what Clarabel keeps for the QP forms it meets first.
-        let late: u64 = counts[50..].iter().sum();
-        assert_eq!(
-            late, 0,
+        let most = counts[50..].iter().copied().max().unwrap_or(0);
+        assert!(
+            most <= CLARABEL_PER_SOLVE,
             "preview {preview}: allocations per update {counts:?}"
         );
     }
