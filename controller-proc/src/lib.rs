@@ -310,6 +310,9 @@ pub struct Controller {
     /// Passive quasi-static roll per unit curvature (rad·m) and per unit cant (rad/rad).
     roll_gains: (f64, f64),
     localiser: Localiser,
+    /// The MPC's references and track inputs over its horizon, filled in place each update.
+    horizon_r: Vec<f64>,
+    horizon_w: Vec<[f64; 6]>,
 }
 
 impl Controller {
@@ -357,6 +360,8 @@ impl Controller {
             law,
             roll_gains,
             localiser: Localiser::new(&c.localisation, init.seed),
+            horizon_r: Vec::with_capacity(c.mpc.horizon_p),
+            horizon_w: Vec::with_capacity(c.mpc.horizon_p),
         })
     }
 
@@ -404,7 +409,11 @@ impl Controller {
                 out.theta_v_hat = u.theta_v_hat;
             }
             Law::Mpc(_) => {
-                let (r, w) = self.horizon(s, theta_ref);
+                let (mut r, mut w) = (
+                    std::mem::take(&mut self.horizon_r),
+                    std::mem::take(&mut self.horizon_w),
+                );
+                self.horizon(s, theta_ref, &mut r, &mut w);
                 let Law::Mpc(mpc) = &mut self.law else {
                     unreachable!()
                 };
@@ -413,6 +422,7 @@ impl Controller {
                     r: &r,
                     w: &w,
                 });
+                (self.horizon_r, self.horizon_w) = (r, w);
                 out.delta_a_cmd = u.u;
                 out.theta_v_hat = u.theta_v_hat;
                 out.solver_iterations = u.iterations;
@@ -426,24 +436,22 @@ impl Controller {
         out
     }
 
-    /// References r(k+1..k+p) and track inputs ω(k..k+p−1) over the MPC horizon: held at
-    /// their current values, or read ahead from the database with preview.
-    fn horizon(&self, s: f64, theta_ref: f64) -> (Vec<f64>, Vec<[f64; 6]>) {
+    /// References r(k+1..k+p) and track inputs ω(k..k+p−1) over the MPC horizon, into `r` and
+    /// `w`: held at their current values, or read ahead from the database with preview.
+    fn horizon(&self, s: f64, theta_ref: f64, r: &mut Vec<f64>, w: &mut Vec<[f64; 6]>) {
+        r.clear();
+        w.clear();
         let Law::Mpc(mpc) = &self.law else {
-            return (Vec::new(), Vec::new());
+            return;
         };
         let p = mpc.horizon();
         let ds = self.v * self.s.period_s;
         if mpc.preview() {
-            let r = (1..=p)
-                .map(|i| self.reference_at(s + ds * i as f64))
-                .collect();
-            let w = (0..p)
-                .map(|j| self.track_input_at(s + ds * j as f64))
-                .collect();
-            (r, w)
+            r.extend((1..=p).map(|i| self.reference_at(s + ds * i as f64)));
+            w.extend((0..p).map(|j| self.track_input_at(s + ds * j as f64)));
         } else {
-            (vec![theta_ref; p], vec![self.track_input_at(s); p])
+            r.resize(p, theta_ref);
+            w.resize(p, self.track_input_at(s));
         }
     }
 }

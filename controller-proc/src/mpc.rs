@@ -185,6 +185,39 @@ pub struct Mpc {
     q: Vec<f64>,
     bvec: Vec<f64>,
     track_input: bool,
+    /// The update's working space, sized once: an update allocates nothing.
+    work: Work,
+}
+
+/// The buffers of one update ([`Mpc::step`]). Each product is written with `mul_to`, the
+/// kernel `*` itself calls, so the values are those of the expressions they replace, bit for
+/// bit.
+struct Work {
+    /// Filtered state x̂(k|k) (10×1).
+    x_f: DMatrix<f64>,
+    /// The predicted state x̂(k+1|k) (10×1).
+    next: DMatrix<f64>,
+    /// Γ ω (10×1).
+    gw: DMatrix<f64>,
+    /// ω (6×1).
+    w: DMatrix<f64>,
+    /// A 1×1 product (C x, a row of the prediction times x).
+    one: DMatrix<f64>,
+    /// The free response f (p).
+    f: Vec<f64>,
+}
+
+impl Work {
+    fn new(n: usize, p: usize) -> Self {
+        Work {
+            x_f: DMatrix::zeros(n, 1),
+            next: DMatrix::zeros(n, 1),
+            gw: DMatrix::zeros(n, 1),
+            w: DMatrix::zeros(6, 1),
+            one: DMatrix::zeros(1, 1),
+            f: Vec::with_capacity(p),
+        }
+    }
 }
 
 /// Which rows of the QP (eq 34) an update solves. Rows are left out only where they cannot
@@ -481,27 +514,41 @@ impl Mpc {
             q,
             bvec,
             track_input: k.track_input,
+            work: Work::new(n, p),
         })
     }
 
     /// The free response f (p): the prediction with Δu = 0 from the filtered state.
     pub fn free_response(&self, x_f: &DMatrix<f64>, w: &[[f64; 6]]) -> Vec<f64> {
+        let mut f = Vec::with_capacity(self.s.horizon_p);
+        self.free_response_into(x_f, w, &mut f, &mut DMatrix::zeros(1, 1));
+        f
+    }
+
+    /// [`Mpc::free_response`] into `f`, with `one` (1×1) for each row's product.
+    fn free_response_into(
+        &self,
+        x_f: &DMatrix<f64>,
+        w: &[[f64; 6]],
+        f: &mut Vec<f64>,
+        one: &mut DMatrix<f64>,
+    ) {
         let p = self.s.horizon_p;
-        (1..=p)
-            .map(|i| {
-                let mut v = (self.fx.row(i - 1) * x_f)[(0, 0)] + self.step[i] * self.u_prev;
-                if self.track_input {
-                    for (j, wj) in w.iter().enumerate().take(i) {
-                        v += self.fw[i - 1][j]
-                            .iter()
-                            .zip(wj)
-                            .map(|(a, b)| a * b)
-                            .sum::<f64>();
-                    }
+        f.clear();
+        for i in 1..=p {
+            self.fx.row(i - 1).mul_to(x_f, one);
+            let mut v = one[(0, 0)] + self.step[i] * self.u_prev;
+            if self.track_input {
+                for (j, wj) in w.iter().enumerate().take(i) {
+                    v += self.fw[i - 1][j]
+                        .iter()
+                        .zip(wj)
+                        .map(|(a, b)| a * b)
+                        .sum::<f64>();
                 }
-                v
-            })
-            .collect()
+            }
+            f.push(v);
+        }
     }
 
     /// The unconstrained optimum Δu* = −H⁻¹ Θᵀ Λ_ξ (f − r), for checking the QP.
@@ -573,6 +620,19 @@ impl Mpc {
     /// Solves the QP in the form `rows`, whether or not the rows left out could bind (for
     /// checking [`Mpc::solve`]).
     pub fn solve_with(&mut self, f: &[f64], r: &[f64], rows: QpRows) -> (Vec<f64>, u32, bool) {
+        let mm = self.s.horizon_m;
+        let (iterations, solved) = self.solve_in_place(f, r, rows);
+        if solved {
+            let x = &self.forms[rows as usize].solver.solution.x;
+            (x[..mm].to_vec(), iterations, true)
+        } else {
+            (vec![0.0; mm], iterations, false)
+        }
+    }
+
+    /// Solves the QP in the form `rows`, leaving the moves in that form's solution:
+    /// (iterations, solved).
+    fn solve_in_place(&mut self, f: &[f64], r: &[f64], rows: QpRows) -> (u32, bool) {
         let (p, mm) = (self.s.horizon_p, self.s.horizon_m);
         let lam = self.s.output_weight;
         for l in 0..mm {
@@ -600,7 +660,7 @@ impl Mpc {
         form.q.copy_from_slice(&self.q[..nv]);
         form.b.copy_from_slice(&self.bvec[form.rows.clone()]);
         if form.solver.update_q(&form.q).is_err() || form.solver.update_b(&form.b).is_err() {
-            return (vec![0.0; mm], 0, false);
+            return (0, false);
         }
         form.solver.solve();
         let sol = &form.solver.solution;
@@ -608,33 +668,62 @@ impl Mpc {
             sol.status,
             SolverStatus::Solved | SolverStatus::AlmostSolved
         ) && sol.x.iter().all(|v| v.is_finite());
-        if solved {
-            (sol.x[..mm].to_vec(), sol.iterations, true)
-        } else {
-            (vec![0.0; mm], sol.iterations, false)
-        }
+        (sol.iterations, solved)
     }
 
-    /// One period: filter, optimise, apply the first move (eq 35), predict.
+    /// One period: filter, optimise, apply the first move (eq 35), predict. Allocates nothing
+    /// (the buffers are the controller's, `Work`).
     pub fn step(&mut self, input: &MpcInput) -> MpcUpdate {
-        let x_f = self.filter(input.xi);
-        let f = self.free_response(&x_f, input.w);
-        let (du, iterations, solved) = self.solve(&f, input.r);
+        let mut work = std::mem::replace(&mut self.work, Work::new(0, 0));
+        let Work {
+            x_f,
+            next,
+            gw,
+            w,
+            one,
+            f,
+        } = &mut work;
+        // The filter (as `filter`): x̂(k|k) = x̂ + L_est (ξ − C x̂).
+        self.c.mul_to(&self.x_hat, one);
+        let innovation = input.xi - one[(0, 0)];
+        for ((xf, xh), l) in x_f.iter_mut().zip(self.x_hat.iter()).zip(self.l_est.iter()) {
+            *xf = xh + l * innovation;
+        }
+        self.free_response_into(x_f, input.w, f, one);
+        let rows = self.rows_needed(f);
+        let (iterations, solved) = self.solve_in_place(f, input.r, rows);
+        let du_first = if solved {
+            self.forms[rows as usize].solver.solution.x[0]
+        } else {
+            0.0
+        };
         // Clamp against rounding at the limits (the QP holds them to ~1e-8 rad).
-        let du0 = du[0].clamp(-self.du_max, self.du_max);
+        let du0 = du_first.clamp(-self.du_max, self.du_max);
         let u_old = self.u_prev;
         let u = (u_old + du0).clamp(-self.u_max, self.u_max);
         self.u_prev = u;
-        let mut next = &self.a * &x_f + &self.b * u_old + &self.b1 * (u - u_old);
+        // x̂(k+1|k) = A x̂(k|k) + B u(k−1) + Γ₁ (u − u(k−1)) [+ Γ ω], summed in that order.
+        self.a.mul_to(x_f, next);
+        let du = u - u_old;
+        for ((n, b), b1) in next.iter_mut().zip(self.b.iter()).zip(self.b1.iter()) {
+            *n = (*n + b * u_old) + b1 * du;
+        }
         if self.track_input {
-            if let Some(w) = input.w.first() {
-                next += &self.g * DMatrix::from_column_slice(6, 1, w);
+            if let Some(wk) = input.w.first() {
+                w.copy_from_slice(wk);
+                self.g.mul_to(w, gw);
+                for (n, g) in next.iter_mut().zip(gw.iter()) {
+                    *n += g;
+                }
             }
         }
-        self.x_hat = next;
+        std::mem::swap(&mut self.x_hat, next);
+        self.c.mul_to(x_f, one);
+        let theta_v_hat = one[(0, 0)];
+        self.work = work;
         MpcUpdate {
             u,
-            theta_v_hat: (&self.c * &x_f)[(0, 0)],
+            theta_v_hat,
             iterations,
             solved,
         }

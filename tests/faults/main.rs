@@ -6,4 +6,5 @@ mod failures;
 mod faults;
 mod limits;
 mod load;
+mod placement;
 mod resources;

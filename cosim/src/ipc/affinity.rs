@@ -47,11 +47,3 @@ pub fn set_cpus_of(pid: u32, cpus: &[usize]) -> bool {
         ) == 0
     }
 }
-
-/// CPU placement of a run: the orchestrator on one CPU, every participant on another, so the
-/// participants' waits round-robin on one run queue while the orchestrator polls undisturbed.
-/// `None` when fewer than two CPUs are allowed.
-pub fn cpu_plan() -> Option<(usize, usize)> {
-    let cpus = allowed_cpus();
-    (cpus.len() >= 2).then(|| (cpus[0], cpus[cpus.len() - 1]))
-}

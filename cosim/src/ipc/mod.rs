@@ -12,17 +12,19 @@
 //! Files: this one (settings, errors, configuration, services, draining), [`hub`] (the
 //! orchestrator's side: the hub and one endpoint per participant), [`serve`] (the
 //! participant's side), [`supervise`] (reaping participant processes), [`affinity`] (CPU
-//! placement) and [`cleanup`] (the run's shared-memory files).
+//! pinning), [`placement`] (which CPUs a run claims among other runs and work) and
+//! [`cleanup`] (the run's shared-memory files).
 
 mod affinity;
 mod cleanup;
 mod free;
 mod hub;
 pub mod pingpong;
+pub mod placement;
 mod serve;
 mod supervise;
 
-pub use affinity::{allowed_cpus, cpu_plan, pin_to_cpu, set_cpus, set_cpus_of};
+pub use affinity::{allowed_cpus, pin_to_cpu, set_cpus, set_cpus_of};
 pub use cleanup::{
     boot_id, claim_prefix, leftover_files, remove_dead_runs, remove_run_files, start_ticks, Owner,
 };

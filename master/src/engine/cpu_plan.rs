@@ -1,7 +1,7 @@
 //! The CPU plan of a Jacobi run over IPC, chosen from the participants' measured compute.
 //!
-//! Every IPC run starts with the orchestrator on the first allowed CPU and the participants
-//! together on the last (`cosim::ipc::cpu_plan`). Under Jacobi the participants compute at
+//! An IPC run pinned to a pair of CPUs starts with the orchestrator on one and the participants
+//! together on the other (`cosim::ipc::placement`). Under Jacobi the participants compute at
 //! the same time, so a heavy one (the event-driven actuator: ~6 µs per tick against ~0.15 µs
 //! for the plant) is delayed by the others on its CPU. After a warm-up the planner measures
 //! each participant's compute per tick and the orchestrator's own work; when one participant
@@ -14,6 +14,7 @@
 
 use serde::Serialize;
 
+use cosim::ipc::placement::Placement;
 use cosim::Role;
 
 use super::launch::Participants;
@@ -62,12 +63,12 @@ pub(crate) struct CpuPlanner {
 const HEAVY_SHARE: f64 = 0.5;
 
 impl CpuPlanner {
-    /// A planner for `s`, if it runs Jacobi over IPC with CPU pinning on two or more of
-    /// `cpus` (the CPUs allowed before the run pinned anything). Gauss-Seidel keeps the
+    /// A planner for `s`, if it runs Jacobi over IPC pinned to a pair of CPUs (`placement`:
+    /// the orchestrator's and the participants'). Gauss-Seidel keeps the
     /// starting placement: its participants answer one after the other, so the plan would
     /// only move the light ones' process switches onto the orchestrator's CPU (measured: no
     /// faster, docs/architecture.md).
-    pub fn new(s: &Scenario, cpus: &[usize]) -> Option<Self> {
+    pub fn new(s: &Scenario, placement: Option<&Placement>) -> Option<Self> {
         if s.run.transport != Transport::Ipc
             || s.run.master != Master::Jacobi
             || !s.run.pin_cpus
@@ -77,8 +78,8 @@ impl CpuPlanner {
         {
             return None;
         }
-        let cpus = match (cpus.first(), cpus.last()) {
-            (Some(&a), Some(&b)) if a != b => (a, b),
+        let cpus = match placement.map(|p| (p.orchestrator_cpu, p.shared_participant_cpu())) {
+            Some((Some(a), Some(b))) => (a, b),
             _ => return None,
         };
         // Long enough to see the controller's updates several times.

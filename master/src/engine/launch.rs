@@ -7,8 +7,10 @@ use std::time::Duration;
 use actuator_proc::{Actuator, ActuatorInit};
 use controller_proc::{Controller, ControllerInit};
 use cosim::endpoint::{ExchangeCounts, ExitReport};
-use cosim::ipc::{IpcHub, IpcSettings, Launch};
+use cosim::ipc::placement::{self, Claim, Placement};
+use cosim::ipc::{IpcError, IpcHub, IpcSettings, Launch};
 use cosim::msg::{FromActuator, FromController, FromPlant, ToActuator, ToController, ToPlant};
+use cosim::wait::WaitStrategy;
 use cosim::{Endpoint, InProcess, Participant, Role};
 use plant_proc::{Plant, PlantSettings};
 use serde::Serialize;
@@ -83,6 +85,10 @@ pub(crate) struct Participants {
     pub net: Option<NetHub>,
     /// Which participants run on the orchestrator's CPU (set by the CPU plan).
     shares_cpu: RoleMap<bool>,
+    /// Where the processes run and how they wait (IPC only), for `timing.placement`.
+    pub placement: Option<Placement>,
+    /// The run's claim on its CPUs, released when the participants are dropped.
+    _claim: Claim,
 }
 
 impl Participants {
@@ -317,12 +323,14 @@ fn start_in_process(
         hub: None,
         net: None,
         shares_cpu: RoleMap::default(),
+        placement: None,
+        _claim: Claim::none(),
     })
 }
 
 /// The participants as processes of `opts.participant_exe` (or its override for a role)
-/// connected over iceoryx2 with `prefix`, after the files of dead runs are removed and this
-/// process is pinned by the CPU plan.
+/// connected over iceoryx2 with `prefix`, after the files of dead runs are removed and the run
+/// is placed among the other runs and work on the machine (`cosim::ipc::placement`).
 fn start_processes(
     s: &Scenario,
     opts: &RunOptions,
@@ -334,21 +342,26 @@ fn start_processes(
     for p in cosim::ipc::remove_dead_runs() {
         tracing::info!("removed the files of dead run {p}");
     }
-    let plan = if s.run.pin_cpus {
-        cosim::ipc::cpu_plan()
-    } else {
-        None
-    };
+    // The owner file first: a claim left by a killed run is then removed with its files.
+    cosim::ipc::claim_prefix(prefix)
+        .map_err(|e| IpcError::Iceoryx(format!("owner file of {prefix}: {e}")))?;
+    let (placement, claim) = placement::place(
+        prefix,
+        s.run.wait,
+        s.run.pin_cpus,
+        &cosim::ipc::allowed_cpus(),
+    );
+    tracing::info!("placement: {placement:?}");
     let hub = IpcHub::new(IpcSettings {
         prefix: prefix.to_string(),
-        wait: s.run.wait,
+        wait: placement.wait,
         deadline: Duration::from_millis(s.run.deadline_ms),
         ceiling: Duration::from_millis(s.run.hang_ceiling_ms),
-        participant_cpu: plan.map(|p| p.1),
+        participant_cpu: placement.shared_participant_cpu(),
     })?
     .interrupted_by(opts.interrupt.clone())
     .logs_into(opts.out_dir.join(crate::outdir::RUN_LOGS));
-    if let Some((own, _)) = plan {
+    if let Some(own) = placement.orchestrator_cpu {
         cosim::ipc::pin_to_cpu(own);
     }
     let startup = Duration::from_millis(s.run.startup_ms);
@@ -385,6 +398,23 @@ fn start_processes(
             .map_err(started)?,
         ),
     };
+    if placement.reason == placement::Reason::FreeCpuEach {
+        // Spinning, each alone on one of three CPUs; the kernel spreads them. A participant on
+        // another host has no process here.
+        for (role, pid) in [
+            (Role::Plant, plant.pid()),
+            (Role::Actuator, actuator.pid()),
+            (Role::Controller, controller.pid()),
+        ] {
+            if !s.network.is_remote(role) {
+                cosim::ipc::set_cpus_of(pid, &placement.participant_cpus);
+            }
+        }
+    }
+    if placement.wait == WaitStrategy::Paced {
+        // Its naps end on time (the participants do the same).
+        cosim::wait::tight_timer_slack();
+    }
     Ok(Participants {
         plant,
         actuator,
@@ -392,6 +422,8 @@ fn start_processes(
         hub: Some(hub),
         net: None,
         shares_cpu: RoleMap::default(),
+        placement: Some(placement),
+        _claim: claim,
     })
 }
 

@@ -325,6 +325,7 @@ struct Ended {
     participant_logs: Vec<String>,
     network: Option<summary::NetworkReport>,
     degraded: bool,
+    placement: Option<cosim::ipc::placement::Placement>,
 }
 
 /// Stops every participant, removes the run's shared-memory files and the empty participant
@@ -340,6 +341,7 @@ fn shut_down(
 ) -> Ended {
     let pids = team.ps.pids();
     let counts = team.ps.counts();
+    let placement = team.ps.placement.take();
     let degraded = team.degraded();
     let lost = team.take_lost();
     let exits = team.ps.shut_down(lost);
@@ -375,6 +377,7 @@ fn shut_down(
         participant_logs,
         network,
         degraded,
+        placement,
     }
 }
 
@@ -523,7 +526,7 @@ fn simulate(run: Run<'_>) -> Result<Ran, RunError> {
     let mut team = Team::new(s, ps, manipulators);
     team.timed = opts.timing;
     let mut obs = Observers::new(s, opts, observers);
-    obs.cpu_plan = cpu_plan::CpuPlanner::new(s, &cpus);
+    obs.cpu_plan = cpu_plan::CpuPlanner::new(s, team.ps.placement.as_ref());
     let loop_started = Instant::now();
     let waited0 = machine::runqueue_wait_ns();
     let mut outcome = lockstep(&mut team, &mut obs, &opts.interrupt);
@@ -672,6 +675,7 @@ fn timing(obs: &mut Observers, e: &Ended) -> Timing {
         tick_us: obs.timing.ticks.percentiles(),
         cpu_plan: obs.cpu_plan.as_ref().and_then(|p| p.report()),
         machine: None,
+        placement: e.placement.clone(),
         cpu_s: CpuTime {
             orchestrator: e.cpu_orchestrator,
             participants: e.exits.iter().filter_map(|(_, x)| x.cpu_s).sum(),

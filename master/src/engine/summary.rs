@@ -83,6 +83,10 @@ pub struct Timing {
     /// The CPU plan chosen from the participants' measured compute (Jacobi over IPC).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cpu_plan: Option<super::cpu_plan::CpuPlanReport>,
+    /// Where the run's processes ran among the other runs and work on the machine, why, and
+    /// how they waited (IPC only; `cosim::ipc::placement`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub placement: Option<cosim::ipc::placement::Placement>,
     /// How long the loop waited for a CPU and the load average (when the kernel reports
     /// them): whether other work on the machine slowed the run.
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -253,10 +253,10 @@ pub fn run(
         .into_iter()
         .filter(|j| !kept.iter().any(|r| r.sample == *j))
         .collect();
-    let mut base = base.clone();
-    // Parallel process runs must not all pin themselves to the same two CPUs.
-    base.run.pin_cpus = false;
-    let rows = run_parallel(&base, plan, &todo, ex, &done);
+    // Parallel samples over IPC place themselves like concurrent runs: each pins to CPUs no
+    // other run claims, or, when there are none left, lets the kernel balance it
+    // (`cosim::ipc::placement`).
+    let rows = run_parallel(base, plan, &todo, ex, &done);
     let _ = std::fs::remove_dir(ex.out.join("runs"));
     let mut all: Vec<Row> = rows.into_iter().flatten().chain(kept).collect();
     all.sort_by_key(|r| r.sample);
