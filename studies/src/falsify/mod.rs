@@ -1,0 +1,40 @@
+//! `tiltsim falsify`: the admissible timing that hurts the ride most, found by a search guided
+//! by the objective and replayable exactly.
+//!
+//! * [`bounds`]: the admissible timing of each link (a bounds file, or the envelope of
+//!   recorded free runs' `timing.csv`);
+//! * [`timing`]: a point of the unit cube mapped to a timing trace that is causal and within
+//!   its bounds by construction, and the check of any trace against bounds;
+//! * [`objective`]: a summary metric to maximise, or a requirement whose margin is minimised;
+//! * [`cmaes`]: the search, CMA-ES (Hansen's tutorial);
+//! * [`search`]: the evaluations (the in-process lock-step replay of each candidate trace, a
+//!   generation in parallel), the search against uniform random sampling with the same
+//!   budget, resumable;
+//! * [`outputs`]: the worst trace and its run directory, the progress table and figure, the
+//!   result.
+
+pub mod bounds;
+pub mod cmaes;
+pub mod objective;
+pub mod outputs;
+pub mod search;
+pub mod timing;
+
+pub use bounds::{Bounds, LinkBound};
+pub use objective::Objective;
+pub use outputs::{falsify, Outcome};
+pub use search::{run, Exec, Falsified, Spec};
+
+/// Why a search could not be carried out.
+#[derive(Debug, thiserror::Error)]
+pub enum FalsifyError {
+    /// Bad input: the message names the file or flag, the field and what is allowed.
+    #[error("{0}")]
+    Invalid(String),
+    /// A file could not be written or read.
+    #[error("{0}")]
+    Files(String),
+    /// A run failed where it must not (the worst trace's replay).
+    #[error("{0}")]
+    Run(String),
+}
