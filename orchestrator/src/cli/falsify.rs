@@ -215,11 +215,11 @@ fn print_report(
         }
     }
     println!(
-        "{} evaluations in {:.1} s wall with {jobs} parallel ({:.3} s per evaluation; a plain in-process run: {:.3} s){}",
+        "{} evaluations in {:.1} s wall with {jobs} parallel ({:.3} s CPU per evaluation; a plain in-process run: {:.3} s CPU){}",
         f.evals.len(),
         o.search_s,
-        o.evaluation_s,
-        o.plain_run_s,
+        o.evaluation_cpu_s,
+        o.plain_run_cpu_s,
         if o.resumed_evaluations > 0 {
             format!("; {} resumed", o.resumed_evaluations)
         } else {

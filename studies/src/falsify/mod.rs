@@ -38,3 +38,6 @@ pub enum FalsifyError {
     #[error("{0}")]
     Run(String),
 }
+
+#[cfg(test)]
+mod tests;

@@ -105,12 +105,28 @@ pub struct Falsified {
     pub dims: usize,
     /// Population size of the search.
     pub lambda: usize,
-    /// Mean wall time of one evaluation (s).
+    /// Mean CPU time of one evaluation (s).
     pub eval_s: f64,
     /// Wall time of the whole search and sampling (s).
     pub wall_s: f64,
     /// Evaluations taken from an earlier, interrupted invocation.
     pub resumed: usize,
+}
+
+/// CPU time of the calling thread (s): an in-process run's whole cost (its participants step
+/// on the thread that runs it), unaffected by other work on the machine, as wall time is.
+pub fn thread_cpu_s() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid timespec for the call to fill.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    if rc == 0 {
+        ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+    } else {
+        f64::NAN
+    }
 }
 
 /// `u = 1 / (1 + e^{−x})`, each coordinate.
@@ -245,7 +261,7 @@ struct Ctx<'a> {
     ticks: [TickBound; 4],
     ex: &'a Exec,
     kept: Kept,
-    /// Wall time of the evaluations run here (s) and their number.
+    /// CPU time of the evaluations run here (s) and their number.
     timed: Mutex<(f64, usize)>,
 }
 
@@ -273,13 +289,13 @@ impl Ctx<'_> {
                         Some(e) => (e.metric, e.objective, e.error.clone()),
                         None => {
                             let dir = self.ex.out.join("evals").join(format!("{}-{n:05}", method.name()));
-                            let t0 = Instant::now();
+                            let t0 = thread_cpu_s();
                             let v = evaluate(self.s, &self.layout, &self.ticks, &self.spec.objective, &points[i], dir, &self.ex.interrupt);
                             if self.ex.interrupt.load(Ordering::Relaxed) {
                                 break;
                             }
                             if let Ok(mut t) = self.timed.lock() {
-                                t.0 += t0.elapsed().as_secs_f64();
+                                t.0 += thread_cpu_s() - t0;
                                 t.1 += 1;
                             }
                             self.kept.put(&Eval {
