@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use super::bounds;
 use super::common::{interrupt_and_exe, load};
 use super::error::{CliError, CliResult};
-use tiltsim_master::scenario::{Scenario, Transport};
+use tiltsim_master::scenario::Scenario;
 use tiltsim_studies::falsify::{self, Bounds, Exec, FalsifyError, Objective, Spec};
 
 /// The most evaluations of a search (`--budget`).
@@ -70,30 +70,7 @@ fn scenario(a: &FalsifyArgs) -> Result<Scenario, CliError> {
             .with_setting(k.trim(), v)
             .map_err(|e| CliError::Invalid(format!("command line: --set {kv}: {e}")))?;
     }
-    tiltsim_report::pipeline::as_timing_replay(&mut s);
-    s.run.transport = Transport::InProcess;
-    let file = a.scenario.display();
-    let errors = s.validate();
-    if !errors.is_empty() {
-        let lines: Vec<String> = errors.iter().map(|e| format!("{file}: {e}")).collect();
-        return Err(CliError::Invalid(lines.join("\nerror: ")));
-    }
-    for (name, l) in tiltsim_master::links::LINK_NAMES
-        .iter()
-        .zip(s.links.all())
-    {
-        let timing = [
-            ("delay_ticks", l.delay_ticks > 0),
-            ("jitter", l.jitter != Default::default()),
-            ("drop_probability", l.drop_probability > 0.0),
-            ("drop_window", l.drop_window.is_some()),
-        ];
-        if let Some((field, _)) = timing.iter().find(|(_, set)| *set) {
-            return Err(CliError::Invalid(format!(
-                "{file}: links.{name}.{field}: the search sets the links' timing; allowed: none of delay_ticks, jitter, drop_probability, drop_window"
-            )));
-        }
-    }
+    falsify::prepare(&mut s, &a.scenario.display().to_string()).map_err(invalid)?;
     Ok(s)
 }
 

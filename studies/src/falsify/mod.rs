@@ -25,6 +25,33 @@ pub use objective::Objective;
 pub use outputs::{falsify, Outcome};
 pub use search::{run, Exec, Falsified, Spec};
 
+/// Makes `s` the system a search replays (lock-step, in process, as a timing replay) and
+/// checks it (`file` names it in errors): valid, and without timing effects on its links, whose
+/// place the searched timing takes.
+pub fn prepare(s: &mut tiltsim_scenario::scenario::Scenario, file: &str) -> Result<(), FalsifyError> {
+    tiltsim_report::pipeline::as_timing_replay(s);
+    s.run.transport = tiltsim_scenario::scenario::Transport::InProcess;
+    let errors = s.validate();
+    if !errors.is_empty() {
+        let lines: Vec<String> = errors.iter().map(|e| format!("{file}: {e}")).collect();
+        return Err(FalsifyError::Invalid(lines.join("\nerror: ")));
+    }
+    for (name, l) in tiltsim_scenario::links::LINK_NAMES.iter().zip(s.links.all()) {
+        let timing = [
+            ("delay_ticks", l.delay_ticks > 0),
+            ("jitter", l.jitter != Default::default()),
+            ("drop_probability", l.drop_probability > 0.0),
+            ("drop_window", l.drop_window.is_some()),
+        ];
+        if let Some((field, _)) = timing.iter().find(|(_, set)| *set) {
+            return Err(FalsifyError::Invalid(format!(
+                "{file}: links.{name}.{field}: the search sets the links' timing; allowed: none of delay_ticks, jitter, drop_probability, drop_window"
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Why a search could not be carried out.
 #[derive(Debug, thiserror::Error)]
 pub enum FalsifyError {
