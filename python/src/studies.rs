@@ -337,7 +337,10 @@ pub(crate) fn falsify<'py>(
         e => error(py, "ParticipantError", e.to_string()),
     };
     if !(1..=100_000).contains(&budget) {
-        return Err(invalid(py, format!("budget = {budget}: allowed 1 to 100000")));
+        return Err(invalid(
+            py,
+            format!("budget = {budget}: allowed 1 to 100000"),
+        ));
     }
     let objective = match (objective, requirement) {
         (Some(_), Some(_)) => {
@@ -397,18 +400,27 @@ pub(crate) fn falsify<'py>(
         }
     }
     result.set_item("worst", worst)?;
+    result.set_item("progress", progress_frame(py, &f.evals)?)?;
+    result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
+    Ok(result)
+}
+
+/// A search's evaluations as `progress.csv` has them.
+fn progress_frame<'py>(
+    py: Python<'py>,
+    evals: &[tiltsim_studies::falsify::search::Eval],
+) -> PyResult<Bound<'py, PyDict>> {
+    use tiltsim_studies::falsify as fz;
     let progress = PyDict::new(py);
-    let col = |g: fn(&fz::search::Eval) -> f64| PyArray1::from_iter(py, f.evals.iter().map(g));
-    let method: Vec<&str> = f.evals.iter().map(|e| e.method.name()).collect();
+    let col = |g: fn(&fz::search::Eval) -> f64| PyArray1::from_iter(py, evals.iter().map(g));
+    let method: Vec<&str> = evals.iter().map(|e| e.method.name()).collect();
     progress.set_item("method", PyList::new(py, method)?)?;
     progress.set_item(
         "evaluation",
-        PyArray1::from_iter(py, f.evals.iter().map(|e| e.evaluation as i64)),
+        PyArray1::from_iter(py, evals.iter().map(|e| e.evaluation as i64)),
     )?;
     progress.set_item("metric", col(|e| e.metric))?;
     progress.set_item("objective", col(|e| e.objective))?;
     progress.set_item("best_so_far", col(|e| e.best_so_far))?;
-    result.set_item("progress", progress)?;
-    result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
-    Ok(result)
+    Ok(progress)
 }

@@ -254,9 +254,13 @@ fn replay(job: &mut Job) -> Result<Ran, JobError> {
         .clone()
         .unwrap_or_else(|| PathBuf::from("(in memory)"));
     let mut r = match job.replay_steps.take() {
-        Some(steps) => {
-            tiltsim_master::free::timing_replay::replay_trace(s, steps, &trace, &job.opts, &job.outputs)?
-        }
+        Some(steps) => tiltsim_master::free::timing_replay::replay_trace(
+            s,
+            steps,
+            &trace,
+            &job.opts,
+            &job.outputs,
+        )?,
         None => tiltsim_master::free::replay_timing(s, &trace, &job.opts, &job.outputs)?,
     };
     let trace = trace.as_path();

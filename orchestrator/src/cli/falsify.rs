@@ -19,7 +19,11 @@ pub struct FalsifyArgs {
     scenario: PathBuf,
     /// The admissible timing per link: a TOML file with a table per link
     /// (`[actuator_command] delay_ms = [0, 60]  jitter_ms = 10  loss_pct = 1  freeze_ms = 0`).
-    #[arg(long, required_unless_present = "envelope", conflicts_with = "envelope")]
+    #[arg(
+        long,
+        required_unless_present = "envelope",
+        conflicts_with = "envelope"
+    )]
     bounds: Option<PathBuf>,
     /// Take the admissible timing as the envelope of the free runs in these directories
     /// (their timing.csv); repeatable.
@@ -174,7 +178,10 @@ fn print_report(
     out: &Path,
     jobs: usize,
 ) {
-    println!("{}: {} within {}", o.scenario, o.objective, spec.bounds_from);
+    println!(
+        "{}: {} within {}",
+        o.scenario, o.objective, spec.bounds_from
+    );
     println!("| evaluations | CMA-ES best so far | random sampling best so far |");
     println!("|---:|---:|---:|");
     for (k, s, r) in falsify::outputs::checkpoints(&f.evals, spec.budget) {
@@ -188,7 +195,10 @@ fn print_report(
         if v {
             println!("requirement {} VIOLATED by {:.4}", o.objective, -m);
         } else {
-            println!("requirement {} met at the worst timing found, margin {m:.4}", o.objective);
+            println!(
+                "requirement {} met at the worst timing found, margin {m:.4}",
+                o.objective
+            );
         }
     }
     println!(

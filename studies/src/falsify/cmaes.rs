@@ -54,7 +54,8 @@ impl CmaEs {
         let c_c = (4.0 + mu_eff / nf) / (nf + 4.0 + 2.0 * mu_eff / nf);
         let c_sigma = (mu_eff + 2.0) / (nf + mu_eff + 5.0);
         let c_1 = 2.0 / ((nf + 1.3).powi(2) + mu_eff);
-        let c_mu = (1.0 - c_1).min(2.0 * (mu_eff - 2.0 + 1.0 / mu_eff) / ((nf + 2.0).powi(2) + mu_eff));
+        let c_mu =
+            (1.0 - c_1).min(2.0 * (mu_eff - 2.0 + 1.0 / mu_eff) / ((nf + 2.0).powi(2) + mu_eff));
         let d_sigma = 1.0 + 2.0 * (((mu_eff - 1.0) / (nf + 1.0)).sqrt() - 1.0).max(0.0) + c_sigma;
         let chi_n = nf.sqrt() * (1.0 - 1.0 / (4.0 * nf) + 1.0 / (21.0 * nf * nf));
         let mut m = mean;
@@ -111,7 +112,8 @@ impl CmaEs {
         }
         self.mean += self.sigma * &y_w;
         // C^{-1/2} = B D^{-1} Bᵀ.
-        let inv_sqrt = &self.b * DMatrix::from_diagonal(&self.d.map(|x| 1.0 / x)) * self.b.transpose();
+        let inv_sqrt =
+            &self.b * DMatrix::from_diagonal(&self.d.map(|x| 1.0 / x)) * self.b.transpose();
         self.p_sigma = (1.0 - self.c_sigma) * &self.p_sigma
             + (self.c_sigma * (2.0 - self.c_sigma) * self.mu_eff).sqrt() * (inv_sqrt * &y_w);
         self.generation += 1;
@@ -156,7 +158,12 @@ mod tests {
     #[test]
     fn cma_es_finds_the_maximum_of_a_quadratic() {
         let top = [0.3, -0.2, 0.5, 0.1];
-        let f = |x: &[f64]| -x.iter().zip(top).map(|(a, b)| (a - b) * (a - b) * 10.0).sum::<f64>();
+        let f = |x: &[f64]| {
+            -x.iter()
+                .zip(top)
+                .map(|(a, b)| (a - b) * (a - b) * 10.0)
+                .sum::<f64>()
+        };
         let mut es = CmaEs::new(vec![0.0; 4], 0.5, 7);
         for _ in 0..150 {
             let xs = es.ask();

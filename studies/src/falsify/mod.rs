@@ -28,7 +28,10 @@ pub use search::{run, Exec, Falsified, Spec};
 /// Makes `s` the system a search replays (lock-step, in process, as a timing replay) and
 /// checks it (`file` names it in errors): valid, and without timing effects on its links, whose
 /// place the searched timing takes.
-pub fn prepare(s: &mut tiltsim_scenario::scenario::Scenario, file: &str) -> Result<(), FalsifyError> {
+pub fn prepare(
+    s: &mut tiltsim_scenario::scenario::Scenario,
+    file: &str,
+) -> Result<(), FalsifyError> {
     tiltsim_report::pipeline::as_timing_replay(s);
     s.run.transport = tiltsim_scenario::scenario::Transport::InProcess;
     let errors = s.validate();
@@ -36,7 +39,10 @@ pub fn prepare(s: &mut tiltsim_scenario::scenario::Scenario, file: &str) -> Resu
         let lines: Vec<String> = errors.iter().map(|e| format!("{file}: {e}")).collect();
         return Err(FalsifyError::Invalid(lines.join("\nerror: ")));
     }
-    for (name, l) in tiltsim_scenario::links::LINK_NAMES.iter().zip(s.links.all()) {
+    for (name, l) in tiltsim_scenario::links::LINK_NAMES
+        .iter()
+        .zip(s.links.all())
+    {
         let timing = [
             ("delay_ticks", l.delay_ticks > 0),
             ("jitter", l.jitter != Default::default()),

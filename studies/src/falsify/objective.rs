@@ -77,7 +77,10 @@ pub fn metric_index(name: &str, flag: &str) -> Result<usize, FalsifyError> {
 impl Objective {
     /// `--objective NAME`.
     pub fn maximise(name: &str) -> Result<Objective, FalsifyError> {
-        Ok(Objective::Maximise(metric_index(name.trim(), "--objective")?))
+        Ok(Objective::Maximise(metric_index(
+            name.trim(),
+            "--objective",
+        )?))
     }
 
     /// `--requirement "NAME OP VALUE"`, OP one of `<`, `<=`, `>`, `>=`.

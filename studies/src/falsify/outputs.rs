@@ -129,7 +129,8 @@ pub fn write_worst(
     let mut job = tiltsim_report::pipeline::Job::new(s, s.name.clone(), opts);
     job.claim = false;
     job.replay_trace = Some(path);
-    let done = tiltsim_report::pipeline::carry_out(job).map_err(|e| FalsifyError::Run(e.to_string()))?;
+    let done =
+        tiltsim_report::pipeline::carry_out(job).map_err(|e| FalsifyError::Run(e.to_string()))?;
     drop(lock);
     if done.summary.status != Status::Completed {
         return Err(FalsifyError::Run(format!(
@@ -138,11 +139,18 @@ pub fn write_worst(
             done.summary.error.unwrap_or_default()
         )));
     }
-    Ok((METRICS[spec.objective.metric()].get)(&done.summary.comfort))
+    Ok((METRICS[spec.objective.metric()].get)(
+        &done.summary.comfort,
+    ))
 }
 
 /// Writes `progress.csv` and the progress figure.
-pub fn write_progress(out: &Path, s: &Scenario, spec: &Spec, evals: &[Eval]) -> Result<(), FalsifyError> {
+pub fn write_progress(
+    out: &Path,
+    s: &Scenario,
+    spec: &Spec,
+    evals: &[Eval],
+) -> Result<(), FalsifyError> {
     let csv_path = out.join("progress.csv");
     let mut w = csv::Writer::from_path(&csv_path).map_err(|e| files_error(&csv_path, e))?;
     for e in evals {
@@ -170,7 +178,10 @@ pub fn write_progress(out: &Path, s: &Scenario, spec: &Spec, evals: &[Eval]) -> 
     let y_label = if requirement {
         format!("margin of {} (lowest so far)", spec.objective.describe())
     } else {
-        format!("{} (largest so far)", METRICS[spec.objective.metric()].label)
+        format!(
+            "{} (largest so far)",
+            METRICS[spec.objective.metric()].label
+        )
     };
     let title = format!(
         "{}: falsifying timing, CMA-ES against uniform random sampling ({} evaluations each)",

@@ -165,7 +165,8 @@ impl Kept {
             }
         } else {
             let _ = std::fs::remove_dir_all(&dir);
-            std::fs::create_dir_all(&dir).map_err(|e| files_error(&dir.display().to_string(), e))?;
+            std::fs::create_dir_all(&dir)
+                .map_err(|e| files_error(&dir.display().to_string(), e))?;
             std::fs::write(&id, format!("{fingerprint}\n"))
                 .map_err(|e| files_error(&id.display().to_string(), e))?;
         }
@@ -186,7 +187,9 @@ impl Kept {
     }
 
     fn put(&self, e: &Eval) {
-        let mut w = csv::WriterBuilder::new().has_headers(false).from_writer(Vec::new());
+        let mut w = csv::WriterBuilder::new()
+            .has_headers(false)
+            .from_writer(Vec::new());
         if w.serialize(e).is_ok() {
             if let (Ok(line), Ok(mut f)) = (w.into_inner(), self.file.lock()) {
                 let _ = f.write_all(&line);
@@ -288,9 +291,21 @@ impl Ctx<'_> {
                     let v = match self.kept.values.get(&(method, n)) {
                         Some(e) => (e.metric, e.objective, e.error.clone()),
                         None => {
-                            let dir = self.ex.out.join("evals").join(format!("{}-{n:05}", method.name()));
+                            let dir = self
+                                .ex
+                                .out
+                                .join("evals")
+                                .join(format!("{}-{n:05}", method.name()));
                             let t0 = thread_cpu_s();
-                            let v = evaluate(self.s, &self.layout, &self.ticks, &self.spec.objective, &points[i], dir, &self.ex.interrupt);
+                            let v = evaluate(
+                                self.s,
+                                &self.layout,
+                                &self.ticks,
+                                &self.spec.objective,
+                                &points[i],
+                                dir,
+                                &self.ex.interrupt,
+                            );
                             if self.ex.interrupt.load(Ordering::Relaxed) {
                                 break;
                             }
@@ -366,9 +381,7 @@ pub fn run(s: &Scenario, spec: &Spec, ex: &Exec) -> Result<Falsified, FalsifyErr
         best_pt = worst_random;
     }
     let worst = best_pt.ok_or_else(|| {
-        FalsifyError::Run(
-            "no evaluation completed (each one's error is in done/evals.csv)".into(),
-        )
+        FalsifyError::Run("no evaluation completed (each one's error is in done/evals.csv)".into())
     })?;
     search.extend(random);
     let (spent, n) = ctx.timed.lock().map(|t| *t).unwrap_or((0.0, 0));
@@ -387,10 +400,16 @@ pub fn run(s: &Scenario, spec: &Spec, ex: &Exec) -> Result<Falsified, FalsifyErr
 type Best = Option<(Vec<f64>, Eval)>;
 
 /// Appends the evaluations of `values` (for points `pts`) to `evals`, keeping the best.
-fn record(method: Method, pts: &[Vec<f64>], values: Vec<(f64, f64, String)>, evals: &mut Vec<Eval>, best: &mut Best) {
+fn record(
+    method: Method,
+    pts: &[Vec<f64>],
+    values: Vec<(f64, f64, String)>,
+    evals: &mut Vec<Eval>,
+    best: &mut Best,
+) {
     for (u, (metric, objective, error)) in pts.iter().zip(values) {
-        let better = !objective.is_nan()
-            && best.as_ref().is_none_or(|(_, b)| objective > b.objective);
+        let better =
+            !objective.is_nan() && best.as_ref().is_none_or(|(_, b)| objective > b.objective);
         let prev = best.as_ref().map_or(f64::NAN, |(_, b)| b.objective);
         let e = Eval {
             method,

@@ -75,7 +75,10 @@ fn the_check_refuses_a_trace_out_of_bounds() {
     // All knots at the top: every command 60 ticks late.
     let narrow = Bounds::default().ticks(&s, "t").unwrap();
     let e = timing::check(&s, &t, &narrow).unwrap_err();
-    assert!(e.contains("link actuator_command") && e.contains("60"), "{e}");
+    assert!(
+        e.contains("link actuator_command") && e.contains("60"),
+        "{e}"
+    );
 }
 
 /// With the lock-step bounds (no delay, nothing lost), each consumer step reads what the
@@ -104,21 +107,39 @@ fn lock_step_bounds_give_the_lock_step_reads() {
 fn bad_bounds_name_the_field() {
     let s = shipped("paper-lqg.toml", 0.5);
     for (text, field) in [
-        ("[actuator_command]\ndelay_ms = [60, 0]\n", "[actuator_command] delay_ms"),
-        ("[measurement]\ndelay_ms = [0, 1]\njitter_ms = -1\n", "[measurement] jitter_ms"),
-        ("[bar_angle]\ndelay_ms = [0, 1]\nloss_pct = 101\n", "[bar_angle] loss_pct"),
-        ("[bar_angle]\ndelay_ms = [0, 1]\nfreeze_ms = -5\n", "[bar_angle] freeze_ms"),
+        (
+            "[actuator_command]\ndelay_ms = [60, 0]\n",
+            "[actuator_command] delay_ms",
+        ),
+        (
+            "[measurement]\ndelay_ms = [0, 1]\njitter_ms = -1\n",
+            "[measurement] jitter_ms",
+        ),
+        (
+            "[bar_angle]\ndelay_ms = [0, 1]\nloss_pct = 101\n",
+            "[bar_angle] loss_pct",
+        ),
+        (
+            "[bar_angle]\ndelay_ms = [0, 1]\nfreeze_ms = -5\n",
+            "[bar_angle] freeze_ms",
+        ),
         ("[command]\ndelay_ms = [0, 1]\n", "[command]"),
         ("[bar_twist]\ndelay_ms = [0, 1]\nlatency = 3\n", "latency"),
     ] {
         let e = Bounds::parse(text, "b.toml").unwrap_err().to_string();
-        assert!(e.starts_with("b.toml: ") && e.contains(field), "{text}: {e}");
+        assert!(
+            e.starts_with("b.toml: ") && e.contains(field),
+            "{text}: {e}"
+        );
     }
     let e = bounds("[bar_twist]\ndelay_ms = [0.2, 0.8]\n")
         .ticks(&s, "b.toml")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("[bar_twist] delay_ms") && e.contains("no whole tick"), "{e}");
+    assert!(
+        e.contains("[bar_twist] delay_ms") && e.contains("no whole tick"),
+        "{e}"
+    );
 }
 
 /// Objectives: aliases resolve to the metric keys; a requirement's margin and violation; an
@@ -134,9 +155,15 @@ fn objectives_and_requirements() {
     assert_eq!(r.margin(0.25), -0.25);
     assert!(r.violated(0.25) && !r.violated(0.5));
     let e = Objective::maximise("comfort").unwrap_err().to_string();
-    assert!(e.starts_with("--objective: `comfort` is not a metric; allowed: "), "{e}");
+    assert!(
+        e.starts_with("--objective: `comfort` is not a metric; allowed: "),
+        "{e}"
+    );
     let e = Objective::requirement("p_ct = 3").unwrap_err().to_string();
-    assert!(e.starts_with("--requirement `p_ct = 3`: no comparison"), "{e}");
+    assert!(
+        e.starts_with("--requirement `p_ct = 3`: no comparison"),
+        "{e}"
+    );
     let e = Objective::requirement("p_ct < x").unwrap_err().to_string();
     assert!(e.contains("not a finite number"), "{e}");
 }

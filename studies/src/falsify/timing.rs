@@ -448,8 +448,8 @@ pub fn check(s: &Scenario, t: &Trace, b: &[TickBound; 4]) -> Result<[LinkObs; 4]
     let mut out = [LinkObs::default(); 4];
     for id in LinkId::ALL {
         let l = LinkShape::of(id, s);
-        out[id as usize] =
-            observe(&l, &reads_of(&l, &t.steps), Some(&b[id as usize])).map_err(|e| e.to_string())?;
+        out[id as usize] = observe(&l, &reads_of(&l, &t.steps), Some(&b[id as usize]))
+            .map_err(|e| e.to_string())?;
     }
     Ok(out)
 }
