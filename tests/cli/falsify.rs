@@ -91,7 +91,7 @@ fn lock_step_bounds_find_the_lock_step_result() {
     Tiltsim::run("paper-lqg.toml")
         .duration(DURATION)
         .transport_in_process()
-        .args(["--no-plots", "-q"])
+        .quiet()
         .out(dir.join("plain"))
         .success();
     let plain: serde_json::Value =
