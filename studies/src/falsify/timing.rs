@@ -402,9 +402,26 @@ pub fn observe(l: &LinkShape, r: &[i64], b: Option<&TickBound>) -> Result<LinkOb
     if obs.d_min == i64::MAX {
         obs.d_min = 0;
     }
-    // Samples not read before the last one read: explained when they could have arrived
-    // with the next sample read, in the same consumer period; dropped otherwise.
     let (d_min, d_max) = b.map_or((obs.d_min, obs.d_max), |b| (b.d_min, b.d_max));
+    let dropped = dropped(l, &first, d_min, d_max);
+    obs.dropped = dropped;
+    if let Some(b) = b {
+        if dropped > b.drops {
+            return Err(fail(format!(
+                "{dropped} samples are not delivered; the loss and freeze budgets allow {}",
+                b.drops
+            )));
+        }
+    }
+    Ok(obs)
+}
+
+/// Of link `l`'s samples before the last one read (`first`: each delivered sample and the
+/// consumer step that first read it), those not read that no delay in `[d_min, d_max]` can
+/// explain: a sample is explained when it could have arrived with the next sample read, in
+/// the same consumer period; dropped otherwise.
+fn dropped(l: &LinkShape, first: &[(u64, i64)], d_min: i64, d_max: i64) -> i64 {
+    let p = l.consumer_period as i64;
     let mut it = first.iter().peekable();
     let mut dropped = 0;
     let last_read = first.last().map_or(0, |f| f.0 + 1);
@@ -421,16 +438,7 @@ pub fn observe(l: &LinkShape, r: &[i64], b: Option<&TickBound>) -> Result<LinkOb
             dropped += 1;
         }
     }
-    obs.dropped = dropped;
-    if let Some(b) = b {
-        if dropped > b.drops {
-            return Err(fail(format!(
-                "{dropped} samples are not delivered; the loss and freeze budgets allow {}",
-                b.drops
-            )));
-        }
-    }
-    Ok(obs)
+    dropped
 }
 
 /// Checks trace `t` of scenario `s` against bounds `b`: every link's reads in send order,
