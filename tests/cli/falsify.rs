@@ -179,3 +179,30 @@ fn the_search_beats_random_sampling_with_the_same_budget() {
     assert!(s > c + 1e-3, "search {s}, constant largest delay {c}");
     assert!(c > r["nominal_metric"].as_f64().unwrap());
 }
+
+/// The same seed and budget give the same progress and worst trace with one evaluation at a
+/// time or two in parallel; run again with the same arguments, the search takes every
+/// evaluation kept in `done/` and writes the same files.
+#[test]
+fn the_result_does_not_depend_on_jobs_and_a_rerun_resumes() {
+    let dir = temp_dir("falsify-jobs");
+    let b = write(
+        &dir,
+        "b.toml",
+        "[actuator_command]\ndelay_ms = [0, 60]\njitter_ms = 10\nloss_pct = 1\n",
+    );
+    for j in ["1", "2"] {
+        falsify(&b, &dir.join(j), &["--budget", "5", "--jobs", j, "-q"]).success();
+    }
+    let (one, two) = (dir.join("1"), dir.join("2"));
+    for f in ["progress.csv", "worst/timing.csv", "worst/timeseries.csv"] {
+        assert!(
+            bytes(&one.join(f)) == bytes(&two.join(f)),
+            "{f} differs with --jobs"
+        );
+    }
+    let err = falsify(&b, &two, &["--budget", "5", "--jobs", "2", "-q"]).failure(0);
+    assert!(err.contains("resuming: 10 of 10 evaluations"), "{err}");
+    assert!(bytes(&one.join("progress.csv")) == bytes(&two.join("progress.csv")));
+    assert_eq!(result(&two)["resumed_evaluations"], 10);
+}
