@@ -25,7 +25,7 @@ use tiltsim_master::table::{Row, COLUMNS, OFFSETS, TYPES};
 
 mod studies;
 
-use studies::{compare, linearize, parse_grid, sweep};
+use studies::{compare, falsify, linearize, parse_grid, sweep};
 
 /// How often the waiting thread looks for Ctrl-C and reports progress.
 const POLL: Duration = Duration::from_millis(50);
@@ -508,6 +508,7 @@ fn cli(py: Python<'_>, argv: Vec<String>) -> i32 {
 fn _tiltsim(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(falsify, m)?)?;
     m.add_function(wrap_pyfunction!(compare, m)?)?;
     m.add_function(wrap_pyfunction!(linearize, m)?)?;
     m.add_function(wrap_pyfunction!(signals, m)?)?;

@@ -309,3 +309,118 @@ pub(crate) fn parse_grid(py: Python<'_>, spec: &str) -> PyResult<(String, Vec<f6
         Plan::MonteCarlo { .. } => Err(invalid(py, format!("grid `{spec}`"))),
     }
 }
+
+/// A falsifying search, as `tiltsim falsify`: the worst trace's text, the worst result
+/// (`result.json`'s fields), the progress (`progress.csv`'s columns) and the directory.
+#[pyfunction]
+#[pyo3(signature = (kind, value, origin, settings, bounds, bounds_origin, objective=None,
+                    requirement=None, budget=200, seed=1, jobs=None, out=None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn falsify<'py>(
+    py: Python<'py>,
+    kind: &str,
+    value: &str,
+    origin: &str,
+    settings: Vec<(String, String)>,
+    bounds: &str,
+    bounds_origin: &str,
+    objective: Option<String>,
+    requirement: Option<String>,
+    budget: i64,
+    seed: u64,
+    jobs: Option<usize>,
+    out: Option<PathBuf>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use tiltsim_studies::falsify::{self as fz, FalsifyError, Objective};
+    let bad = |e: FalsifyError| match e {
+        FalsifyError::Invalid(m) => invalid(py, m),
+        e => error(py, "ParticipantError", e.to_string()),
+    };
+    if !(1..=100_000).contains(&budget) {
+        return Err(invalid(
+            py,
+            format!("budget = {budget}: allowed 1 to 100000"),
+        ));
+    }
+    let objective = match (objective, requirement) {
+        (Some(_), Some(_)) => {
+            return Err(invalid(py, "give objective or requirement, not both"));
+        }
+        (Some(o), None) => Objective::maximise(&o),
+        (None, Some(r)) => Objective::requirement(&r),
+        (None, None) => Objective::maximise("p_ct"),
+    }
+    .map_err(bad)?;
+    let mut s = scenario_with(py, kind, value, origin, settings, None, None, None, None)?;
+    fz::prepare(&mut s, origin).map_err(bad)?;
+    let b = fz::Bounds::parse(bounds, bounds_origin).map_err(bad)?;
+    b.ticks(&s, bounds_origin).map_err(bad)?;
+    let spec = fz::Spec {
+        bounds: b,
+        bounds_from: bounds_origin.to_string(),
+        objective,
+        budget: budget as usize,
+        seed,
+    };
+    let (dir, _scratch) = directory(py, out.as_deref(), "falsify")?;
+    let lock = tiltsim_master::outdir::claim(&dir, tiltsim_master::outdir::Kind::Sweep, "falsify")
+        .map_err(|e| invalid(py, e.to_string()))?;
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let done = Arc::new(AtomicUsize::new(0));
+    let ex = fz::Exec {
+        out: dir.clone(),
+        jobs: sweep_jobs(py, jobs)?,
+        exe: PathBuf::new(),
+        interrupt: interrupt.clone(),
+        done: Some(done.clone()),
+    };
+    let count = move || done.load(Ordering::Relaxed) as u64;
+    let total = 2 * budget as u64;
+    let (found, raised) = supervise(py, &interrupt, (&count, total), None, move || {
+        fz::falsify(&s, &spec, &ex).map_err(|e| e.to_string())
+    });
+    drop(lock);
+    if let Some(e) = raised {
+        return Err(e);
+    }
+    let (f, o) = found.map_err(|e| error(py, "ParticipantError", e))?;
+    let trace = std::fs::read_to_string(dir.join("worst").join("timing.csv"))
+        .map_err(|e| error(py, "ParticipantError", format!("worst/timing.csv: {e}")))?;
+    let result = PyDict::new(py);
+    result.set_item("trace", trace)?;
+    let worst = PyDict::new(py);
+    let json = serde_json::to_value(&o).unwrap_or_default();
+    if let Some(m) = json.as_object() {
+        for (k, v) in m {
+            match v {
+                serde_json::Value::Number(n) => worst.set_item(k, n.as_f64())?,
+                serde_json::Value::Bool(b) => worst.set_item(k, *b)?,
+                v => worst.set_item(k, v.as_str().map_or(v.to_string(), str::to_string))?,
+            }
+        }
+    }
+    result.set_item("worst", worst)?;
+    result.set_item("progress", progress_frame(py, &f.evals)?)?;
+    result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
+    Ok(result)
+}
+
+/// A search's evaluations as `progress.csv` has them.
+fn progress_frame<'py>(
+    py: Python<'py>,
+    evals: &[tiltsim_studies::falsify::search::Eval],
+) -> PyResult<Bound<'py, PyDict>> {
+    use tiltsim_studies::falsify as fz;
+    let progress = PyDict::new(py);
+    let col = |g: fn(&fz::search::Eval) -> f64| PyArray1::from_iter(py, evals.iter().map(g));
+    let method: Vec<&str> = evals.iter().map(|e| e.method.name()).collect();
+    progress.set_item("method", PyList::new(py, method)?)?;
+    progress.set_item(
+        "evaluation",
+        PyArray1::from_iter(py, evals.iter().map(|e| e.evaluation as i64)),
+    )?;
+    progress.set_item("metric", col(|e| e.metric))?;
+    progress.set_item("objective", col(|e| e.objective))?;
+    progress.set_item("best_so_far", col(|e| e.best_so_far))?;
+    Ok(progress)
+}

@@ -130,3 +130,24 @@ def test_linearize_gives_the_design_model_and_gains_as_arrays(tmp_path: Path) ->
     assert np.linalg.eigvals(lin.A - lin.L @ lin.C).real.max() < 0
     mpc = tiltsim.linearize("scenarios/paper-mpc.toml")
     assert mpc.K is None and mpc.L is not None and mpc.period_s == 0.05
+
+
+def test_falsify_gives_the_command_lines_worst_trace_and_progress(tmp_path: Path) -> None:
+    bounds = tmp_path / "b.toml"
+    bounds.write_text("[actuator_command]\ndelay_ms = [0, 40]\njitter_ms = 10\n")
+    tiltsim_cli("falsify", "scenarios/paper-lqg.toml", "--bounds", str(bounds),
+                "--set", "run.duration_s=2", "--budget", "4", "--jobs", "2",
+                "--out", str(tmp_path / "cli"), "--quiet")
+    trace, worst, progress = tiltsim.falsify(
+        "scenarios/paper-lqg.toml",
+        {"actuator_command": {"delay_ms": [0, 40], "jitter_ms": 10}},
+        budget=4, jobs=1, set={"run.duration_s": 2})
+    assert trace.encode() == (tmp_path / "cli" / "worst" / "timing.csv").read_bytes()
+    want = read(tmp_path / "cli" / "progress.csv")
+    assert list(progress["method"]) == list(want["method"])
+    np.testing.assert_array_equal(progress["best_so_far"], want["best_so_far"])
+    cli = json.loads((tmp_path / "cli" / "result.json").read_text())
+    assert worst["worst_metric"] == cli["worst_metric"]
+    with pytest.raises(tiltsim.ScenarioError, match="delay_ms"):
+        tiltsim.falsify("scenarios/paper-lqg.toml",
+                        {"actuator_command": {"delay_ms": [9, 1]}}, budget=2)

@@ -33,6 +33,7 @@ __all__ = [
     "run",
     "replay_timing",
     "sweep",
+    "falsify",
     "compare",
     "linearize",
     "signals",
@@ -465,6 +466,60 @@ def sweep(
         n = len(raw["samples"]["sample_id"])
         raise Interrupted(f"interrupted: {n} samples had finished", result)
     return result
+
+
+def falsify(
+    scenario: Scenario,
+    bounds: Union[str, "os.PathLike[str]", Mapping[str, Mapping[str, Any]]],
+    *,
+    objective: Optional[str] = None,
+    requirement: Optional[str] = None,
+    budget: int = 200,
+    seed: int = 1,
+    set: Optional[Mapping[str, Any]] = None,
+    jobs: Optional[int] = None,
+    out: Union[None, str, "os.PathLike[str]"] = None,
+) -> tuple[str, dict, Any]:
+    """Searches the admissible timing for the one that hurts the ride most, as ``tiltsim
+    falsify`` does: CMA-ES against uniform random sampling with the same ``budget``.
+
+    ``bounds``: a bounds file's path, or a dict per link
+    (``{"actuator_command": {"delay_ms": [0, 60], "jitter_ms": 10, "loss_pct": 1}}``).
+    ``objective``: a metric to maximise (default ``p_ct``); or ``requirement``
+    (``"p_ct < 35"``), whose margin is minimised. Returns ``(trace, worst, progress)``: the
+    worst timing as ``timing.csv`` text (``tiltsim replay-timing`` replays it), the worst
+    result (``result.json``'s fields) and every evaluation of both methods as a DataFrame
+    (a dict of arrays without pandas). With ``out`` the files stay there.
+    """
+    kind, value, origin = _scenario(scenario)
+    if isinstance(bounds, Mapping):
+        lines = []
+        for link, fields in bounds.items():
+            lines.append(f"[{link}]")
+            for k, v in fields.items():
+                lines.append(f"{k} = {_setting_text(str(k), v)}")
+        text, bounds_origin = "\n".join(lines) + "\n", "<bounds dict>"
+    else:
+        bounds_origin = os.fspath(bounds)
+        try:
+            text = Path(bounds_origin).read_text()
+        except OSError as e:
+            raise ScenarioError(f"{bounds_origin}: {e}") from None
+    raw = _tiltsim.falsify(
+        kind,
+        value,
+        origin,
+        _settings(set),
+        text,
+        bounds_origin,
+        objective=objective,
+        requirement=requirement,
+        budget=int(budget),
+        seed=int(seed),
+        jobs=jobs,
+        out=_path(out),
+    )
+    return raw["trace"], dict(raw["worst"]), _frame(raw["progress"])
 
 
 def compare(

@@ -70,3 +70,17 @@ def parse_grid(spec: str) -> tuple[str, list[float]]:
 def cli(argv: list[str]) -> int:
     """The command line with ``argv`` (program name first); its exit code."""
 
+def falsify(
+    kind: str,
+    value: str,
+    origin: str,
+    settings: list[tuple[str, str]],
+    bounds: str,
+    bounds_origin: str,
+    objective: Optional[str] = None,
+    requirement: Optional[str] = None,
+    budget: int = 200,
+    seed: int = 1,
+    jobs: Optional[int] = None,
+    out: Optional[str] = None,
+) -> dict[str, Any]: ...

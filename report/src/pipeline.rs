@@ -5,7 +5,7 @@
 //! typed `summary.json` and one `perf.json`, `run.mcap` closed with the summary, and the
 //! figures. A front end builds a [`Job`], calls [`carry_out`] and prints what it returns.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use tiltsim_formats::table::{Row, Rows};
 use tiltsim_master::engine::manipulate::Manipulator;
@@ -47,6 +47,9 @@ pub struct Job<'a> {
     /// Replay this free run's timing trace in lock-step instead of running the scenario's
     /// execution (`tiltsim replay-timing`).
     pub replay_trace: Option<PathBuf>,
+    /// Replay this trace, held in memory, in place of a file's (`replay_trace` then only
+    /// names it): a trace made by a program (`tiltsim falsify`'s candidates).
+    pub replay_steps: Option<tiltsim_master::free::trace::Trace>,
     /// Take the output directory for this run (refused while another run holds it; an
     /// earlier run's files there are removed). A caller that has taken it already (a
     /// comparison's directory, a sweep's sample) sets this false.
@@ -64,6 +67,7 @@ impl<'a> Job<'a> {
             observers: Vec::new(),
             manipulators: Vec::new(),
             replay_trace: None,
+            replay_steps: None,
             claim: true,
         }
     }
@@ -75,10 +79,11 @@ impl<'a> Job<'a> {
 
     /// How this job runs.
     pub fn mode(&self) -> RunMode {
-        match (&self.replay_trace, self.scenario.run.execution) {
-            (Some(_), _) => RunMode::ReplayTiming,
-            (None, Execution::Free) => RunMode::Free,
-            (None, Execution::LockStep) => RunMode::LockStep,
+        let replays = self.replay_trace.is_some() || self.replay_steps.is_some();
+        match (replays, self.scenario.run.execution) {
+            (true, _) => RunMode::ReplayTiming,
+            (false, Execution::Free) => RunMode::Free,
+            (false, Execution::LockStep) => RunMode::LockStep,
         }
     }
 }
@@ -166,7 +171,7 @@ pub fn carry_out(mut job: Job) -> Result<Done, JobError> {
     let ran = match job.mode() {
         RunMode::LockStep => lock_step(&mut job, &mut warnings)?,
         RunMode::Free => free(&job)?,
-        RunMode::ReplayTiming => replay(&job)?,
+        RunMode::ReplayTiming => replay(&mut job)?,
     };
     let mut done = finish(&job, ran, warnings);
     done.replaced_earlier_run = lock.as_ref().is_some_and(|l| l.replaced() > 0);
@@ -245,10 +250,23 @@ fn free(job: &Job) -> Result<Ran, JobError> {
     })
 }
 
-fn replay(job: &Job) -> Result<Ran, JobError> {
+fn replay(job: &mut Job) -> Result<Ran, JobError> {
     let s = job.scenario;
-    let trace = job.replay_trace.as_deref().unwrap_or(Path::new(""));
-    let mut r = tiltsim_master::free::replay_timing(s, trace, &job.opts, &job.outputs)?;
+    let trace = job
+        .replay_trace
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("(in memory)"));
+    let mut r = match job.replay_steps.take() {
+        Some(steps) => tiltsim_master::free::timing_replay::replay_trace(
+            s,
+            steps,
+            &trace,
+            &job.opts,
+            &job.outputs,
+        )?,
+        None => tiltsim_master::free::replay_timing(s, &trace, &job.opts, &job.outputs)?,
+    };
+    let trace = trace.as_path();
     let summary = tiltsim_master::free::summary_of_replay(s, &job.scenario_file, trace, &r);
     Ok(Ran {
         summary,

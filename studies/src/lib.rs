@@ -9,4 +9,5 @@
 
 pub mod bench;
 pub use tiltsim_rundir::budget;
+pub mod falsify;
 pub mod sweep;

@@ -7,6 +7,7 @@
 
 mod bench;
 mod contract;
+mod falsify;
 mod freerun;
 mod getting_started;
 mod network;

@@ -85,6 +85,20 @@ pub fn replay_timing(
 ) -> Result<Replayed, FreeError> {
     let period = s.controller_period_ticks();
     let trace = trace::read(trace_path, s.run.dt_s, s.steps(), period)?;
+    replay_trace(s, trace, trace_path, opts, out)
+}
+
+/// [`replay_timing`] of a trace already in memory (`trace_path` names it in errors): a
+/// trace made by a program (`tiltsim falsify`) is replayed without a file written and read
+/// back. Its steps must be the scenario's, as [`trace::read`] checks them.
+pub fn replay_trace(
+    s: &Scenario,
+    trace: trace::Trace,
+    trace_path: &Path,
+    opts: &RunOptions,
+    out: &Outputs,
+) -> Result<Replayed, FreeError> {
+    let period = s.controller_period_ticks();
     let mut order = trace.steps;
     order.sort_by_key(|t| (t.read_ns, col(t.role)));
     check_causal(trace_path, &order, period)?;
@@ -221,8 +235,9 @@ fn finish_files(
 }
 
 /// Every input a step names was produced by a step read earlier (a trace edited by hand, or
-/// of another run, may say otherwise).
-fn check_causal(path: &Path, order: &[StepTrace], period: u64) -> Result<(), TraceError> {
+/// of another run, may say otherwise); `order` is the trace's steps sorted by read instant
+/// (and role column at equal instants), as the replay takes them.
+pub fn check_causal(path: &Path, order: &[StepTrace], period: u64) -> Result<(), TraceError> {
     let n = order.len();
     let mut done = [vec![false; n], vec![false; n], vec![false; n]];
     for t in order {

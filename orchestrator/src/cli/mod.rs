@@ -15,6 +15,7 @@ mod error;
 mod export_fmu;
 mod export_mcap;
 mod export_ssp;
+mod falsify;
 mod free_run;
 mod inspect;
 mod linearize;
@@ -69,6 +70,11 @@ enum Command {
     Sweep(sweep::SweepArgs),
     /// Merge the outputs of `tiltsim sweep --shard i/n` runs into the whole sweep's files.
     SweepMerge(sweep_merge::SweepMergeArgs),
+    /// Search the admissible timing (per-link delay range, jitter, loss and freeze budgets,
+    /// or the envelope of recorded free runs) for the one that hurts the ride most: CMA-ES
+    /// against uniform random sampling with the same budget; the worst timing is written as
+    /// DIR/worst/timing.csv, which `replay-timing DIR/worst` replays exactly.
+    Falsify(falsify::FalsifyArgs),
     /// Measure this machine: the iceoryx2 round-trip floor, the per-tick coordination
     /// overhead of every master algorithm and wait strategy, and in-process vs IPC wall time.
     Bench(bench::BenchArgs),
@@ -175,6 +181,7 @@ where
         Command::ReplayTiming(a) => free_run::replay_timing(a),
         Command::Sweep(a) => sweep::exec(a),
         Command::SweepMerge(a) => sweep_merge::exec(a),
+        Command::Falsify(a) => falsify::exec(a),
         Command::Bench(a) => bench::exec(a),
         Command::Linearize(a) => linearize::exec(a),
         Command::Clean(a) => clean::exec(a),

@@ -1,0 +1,220 @@
+//! `tiltsim falsify SCENARIO`: the admissible timing that hurts the ride most, found by
+//! CMA-ES against uniform random sampling with the same budget, replayable exactly.
+
+use std::path::{Path, PathBuf};
+
+use super::bounds;
+use super::common::{interrupt_and_exe, load};
+use super::error::{CliError, CliResult};
+use tiltsim_master::scenario::Scenario;
+use tiltsim_studies::falsify::{self, Bounds, Exec, FalsifyError, Objective, Spec};
+
+/// The most evaluations of a search (`--budget`).
+pub const MAX_BUDGET: usize = 100_000;
+
+/// Arguments.
+#[derive(clap::Args, Debug)]
+pub struct FalsifyArgs {
+    /// Scenario file (TOML).
+    scenario: PathBuf,
+    /// The admissible timing per link: a TOML file with a table per link
+    /// (`[actuator_command] delay_ms = [0, 60]  jitter_ms = 10  loss_pct = 1  freeze_ms = 0`).
+    #[arg(
+        long,
+        required_unless_present = "envelope",
+        conflicts_with = "envelope"
+    )]
+    bounds: Option<PathBuf>,
+    /// Take the admissible timing as the envelope of the free runs in these directories
+    /// (their timing.csv); repeatable.
+    #[arg(long, value_name = "RUN_DIR")]
+    envelope: Vec<PathBuf>,
+    /// The metric to maximise: a key of the comfort metrics (p_ct_en12299_standing_pct, ...)
+    /// or p_ct, p_ct_seated, lat_acc_peak, tilt_error, n_mv, jerk_peak, roll_speed_peak.
+    #[arg(long, conflicts_with = "requirement")]
+    objective: Option<String>,
+    /// A requirement whose margin is minimised, `METRIC OP VALUE` (e.g. "p_ct < 35").
+    #[arg(long)]
+    requirement: Option<String>,
+    /// Evaluations of the search (and as many of the random sampling it is compared with).
+    #[arg(long, default_value_t = 200)]
+    budget: i64,
+    /// Seed of the search and of the random sampling.
+    #[arg(long, default_value_t = 1, value_parser = bounds::int(0..=u64::MAX, ""))]
+    seed: u64,
+    /// Parallel evaluations [default: the number of CPUs]; the result does not depend on it.
+    #[arg(long, value_parser = bounds::int(1..=256usize, ""))]
+    jobs: Option<usize>,
+    /// Change a scenario setting before the search, KEY=VALUE as `tiltsim run --set`.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+    /// Output directory [default: out/falsify-<scenario name>].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// No table on standard output.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+fn invalid(e: FalsifyError) -> CliError {
+    match e {
+        FalsifyError::Invalid(m) => CliError::Invalid(m),
+        FalsifyError::Files(m) | FalsifyError::Run(m) => CliError::Failed(m),
+    }
+}
+
+/// The scenario as the search replays it: lock-step, in process, `--set` applied; its links
+/// must not have timing effects of their own (the search's timing takes their place).
+fn scenario(a: &FalsifyArgs) -> Result<Scenario, CliError> {
+    let mut s = load(&a.scenario)?;
+    for kv in &a.set {
+        let bad = || CliError::Invalid(format!("command line: --set {kv}: expected KEY=VALUE"));
+        let (k, v) = kv.split_once('=').ok_or_else(bad)?;
+        s = s
+            .with_setting(k.trim(), v)
+            .map_err(|e| CliError::Invalid(format!("command line: --set {kv}: {e}")))?;
+    }
+    falsify::prepare(&mut s, &a.scenario.display().to_string()).map_err(invalid)?;
+    Ok(s)
+}
+
+/// The bounds: the file's, or the envelope of the recorded runs.
+fn bounds_of(a: &FalsifyArgs, s: &Scenario) -> Result<(Bounds, String), CliError> {
+    if let Some(b) = &a.bounds {
+        return Ok((Bounds::read(b).map_err(invalid)?, b.display().to_string()));
+    }
+    let mut seen = Vec::new();
+    for dir in &a.envelope {
+        seen.push(envelope_of(dir, s)?);
+    }
+    let names: Vec<String> = a.envelope.iter().map(|d| d.display().to_string()).collect();
+    Ok((
+        Bounds::envelope(&seen, s),
+        format!("the envelope of {}", names.join(", ")),
+    ))
+}
+
+/// What the free run in `dir` shows of each link's timing.
+fn envelope_of(dir: &Path, s: &Scenario) -> Result<[falsify::timing::LinkObs; 4], CliError> {
+    let path = dir.join(tiltsim_master::free::trace::TIMING_CSV);
+    let t = tiltsim_master::free::trace::read(
+        &path,
+        s.run.dt_s,
+        s.steps(),
+        s.controller_period_ticks(),
+    )
+    .map_err(|e| CliError::Invalid(format!("--envelope: {e}")))?;
+    if let Some(p) = &t.partial {
+        return Err(CliError::Invalid(format!(
+            "--envelope {}: {p}; allowed: the trace of a whole free run",
+            path.display()
+        )));
+    }
+    falsify::timing::observe_all(s, &t)
+        .map_err(|e| CliError::Invalid(format!("--envelope {}: {e}", path.display())))
+}
+
+/// Runs the command.
+pub fn exec(a: FalsifyArgs) -> CliResult {
+    if a.budget < 1 || a.budget > MAX_BUDGET as i64 {
+        return Err(CliError::Invalid(format!(
+            "--budget {}: allowed a whole number of evaluations from 1 to {MAX_BUDGET}",
+            a.budget
+        )));
+    }
+    let objective = match (&a.objective, &a.requirement) {
+        (Some(o), _) => Objective::maximise(o),
+        (None, Some(r)) => Objective::requirement(r),
+        (None, None) => Objective::maximise("p_ct"),
+    }
+    .map_err(invalid)?;
+    let s = scenario(&a)?;
+    let (bounds, bounds_from) = bounds_of(&a, &s)?;
+    // Checked before anything runs: every range holds a whole tick of this scenario.
+    bounds.ticks(&s, &bounds_from).map_err(invalid)?;
+    let spec = Spec {
+        bounds,
+        bounds_from,
+        objective,
+        budget: a.budget as usize,
+        seed: a.seed,
+    };
+    let (interrupt, exe) = interrupt_and_exe()?;
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("out").join(format!("falsify-{}", s.name)));
+    let jobs = a.jobs.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    let _lock = tiltsim_master::outdir::claim(&out, tiltsim_master::outdir::Kind::Sweep, "falsify")
+        .map_err(|e| CliError::Invalid(e.to_string()))?;
+    let ex = Exec {
+        out: out.clone(),
+        jobs,
+        exe,
+        interrupt: interrupt.clone(),
+        done: None,
+    };
+    let (f, o) = falsify::falsify(&s, &spec, &ex).map_err(|e| {
+        if interrupt.load(std::sync::atomic::Ordering::Relaxed) {
+            CliError::Interrupted(e.to_string())
+        } else {
+            invalid(e)
+        }
+    })?;
+    if !a.quiet {
+        print_report(&spec, &f, &o, &out, jobs);
+    }
+    Ok(())
+}
+
+fn print_report(
+    spec: &Spec,
+    f: &falsify::Falsified,
+    o: &falsify::Outcome,
+    out: &Path,
+    jobs: usize,
+) {
+    println!(
+        "{}: {} within {}",
+        o.scenario, o.objective, spec.bounds_from
+    );
+    println!("| evaluations | CMA-ES best so far | random sampling best so far |");
+    println!("|---:|---:|---:|");
+    for (k, s, r) in falsify::outputs::checkpoints(&f.evals, spec.budget) {
+        println!("| {k} | {s:.4} | {r:.4} |");
+    }
+    println!(
+        "nominal (lock-step timing) {}: {:.4}; worst found ({} evaluation {}): {:.4}",
+        o.metric, o.nominal_metric, o.worst_found_by, o.worst_evaluation, o.worst_metric
+    );
+    if let (Some(v), Some(m)) = (o.violated, o.margin) {
+        if v {
+            println!("requirement {} VIOLATED by {:.4}", o.objective, -m);
+        } else {
+            println!(
+                "requirement {} met at the worst timing found, margin {m:.4}",
+                o.objective
+            );
+        }
+    }
+    println!(
+        "{} evaluations in {:.1} s wall with {jobs} parallel ({:.3} s CPU per evaluation; a plain in-process run: {:.3} s CPU){}",
+        f.evals.len(),
+        o.search_s,
+        o.evaluation_cpu_s,
+        o.plain_run_cpu_s,
+        if o.resumed_evaluations > 0 {
+            format!("; {} resumed", o.resumed_evaluations)
+        } else {
+            String::new()
+        }
+    );
+    println!(
+        "wrote {0}/worst/ (timing.csv: `tiltsim replay-timing {0}/worst`), progress.csv, progress.svg, result.json, bounds.toml",
+        out.display()
+    );
+}

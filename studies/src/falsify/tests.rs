@@ -1,0 +1,187 @@
+//! The mapping from points to traces: every point gives a causal trace within its bounds;
+//! the lock-step bounds give the lock-step data flow; bad bounds and objectives are refused
+//! with the field named.
+
+use rand::{Rng as _, SeedableRng as _};
+use tiltsim_scenario::links::LinkId;
+use tiltsim_scenario::scenario::Scenario;
+
+use super::bounds::{Bounds, LinkBound};
+use super::objective::Objective;
+use super::timing::{self, Layout};
+
+fn shipped(name: &str, duration_s: f64) -> Scenario {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenarios")
+        .join(name);
+    Scenario::load(&path)
+        .unwrap()
+        .with_setting("run.duration_s", &duration_s.to_string())
+        .unwrap()
+}
+
+fn bounds(text: &str) -> Bounds {
+    Bounds::parse(text, "test.toml").unwrap()
+}
+
+/// 300 random points and the cube's corners and centre for each of several bounds, on a
+/// controller of 1 tick and one of 50 ticks: every trace passes the replay's causality check
+/// and the bounds check, whose delays, jitter and drops never exceed the bounds.
+#[test]
+fn every_candidate_is_causal_and_within_its_bounds() {
+    let cases = [
+        "[actuator_command]\ndelay_ms = [0, 60]\njitter_ms = 10\nloss_pct = 1\n",
+        "[actuator_command]\ndelay_ms = [20, 80]\nfreeze_ms = 200\n[measurement]\ndelay_ms = [0, 15]\njitter_ms = 3\nloss_pct = 5\n",
+        "[bar_angle]\ndelay_ms = [0, 5]\n[bar_twist]\ndelay_ms = [1, 4]\njitter_ms = 1\nloss_pct = 2\nfreeze_ms = 30\n",
+    ];
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    for scen in ["paper-lqg.toml", "paper-mpc.toml"] {
+        let s = shipped(scen, 1.5);
+        for text in cases {
+            let b = bounds(text);
+            let ticks = b.ticks(&s, "test.toml").unwrap();
+            let layout = Layout::new(&s, &ticks);
+            let mut points: Vec<Vec<f64>> = (0..300)
+                .map(|_| (0..layout.dims).map(|_| rng.random::<f64>()).collect())
+                .collect();
+            points.push(vec![0.0; layout.dims]);
+            points.push(vec![1.0; layout.dims]);
+            points.push(vec![0.5; layout.dims]);
+            for u in points {
+                let t = layout.trace(&s, &u);
+                let obs = timing::check(&s, &t, &ticks)
+                    .unwrap_or_else(|e| panic!("{scen}, {text}: point {u:?}: {e}"));
+                // Where the consumer reads every tick the delays are seen exactly.
+                for ((o, b), id) in obs.iter().zip(&ticks).zip(LinkId::ALL) {
+                    if timing::LinkShape::of(id, &s).consumer_period == 1 {
+                        assert!(o.d_min >= b.d_min && o.d_max <= b.d_max, "{o:?} {b:?}");
+                        assert!(o.dropped <= b.drops && o.jitter <= b.jitter, "{o:?} {b:?}");
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// A trace whose reads skip back, or are later than the bounds allow, is refused with the link
+/// named.
+#[test]
+fn the_check_refuses_a_trace_out_of_bounds() {
+    let s = shipped("paper-lqg.toml", 0.5);
+    let wide = bounds("[actuator_command]\ndelay_ms = [0, 60]\n");
+    let ticks = wide.ticks(&s, "t").unwrap();
+    let layout = Layout::new(&s, &ticks);
+    let t = layout.trace(&s, &vec![1.0; layout.dims]);
+    // All knots at the top: every command 60 ticks late.
+    let narrow = Bounds::default().ticks(&s, "t").unwrap();
+    let e = timing::check(&s, &t, &narrow).unwrap_err();
+    assert!(
+        e.contains("link actuator_command") && e.contains("60"),
+        "{e}"
+    );
+}
+
+/// With the lock-step bounds (no delay, nothing lost), each consumer step reads what the
+/// lock-step coupling gives it: the controller's and the actuator's outputs of its own tick
+/// (the command held over the controller's period), the plant's of the tick before.
+#[test]
+fn lock_step_bounds_give_the_lock_step_reads() {
+    let s = shipped("paper-mpc.toml", 0.3);
+    let p = s.controller_period_ticks() as i64;
+    let ticks = Bounds::default().ticks(&s, "t").unwrap();
+    let t = Layout::new(&s, &ticks).trace(&s, &[]);
+    for st in &t.steps {
+        let k = st.step as i64;
+        let want = match st.role {
+            cosim::Role::Plant => [None, Some(k), None],
+            cosim::Role::Actuator => [Some(k - 1), None, Some(k / p * p)],
+            cosim::Role::Controller => [Some(k - 1), None, None],
+        };
+        assert_eq!(st.from, want, "{st:?}");
+    }
+}
+
+/// Bounds with min > max, a negative jitter, a loss above 100 %, an unknown link or field, or
+/// a range holding no whole tick are refused, naming the file and field.
+#[test]
+fn bad_bounds_name_the_field() {
+    let s = shipped("paper-lqg.toml", 0.5);
+    for (text, field) in [
+        (
+            "[actuator_command]\ndelay_ms = [60, 0]\n",
+            "[actuator_command] delay_ms",
+        ),
+        (
+            "[measurement]\ndelay_ms = [0, 1]\njitter_ms = -1\n",
+            "[measurement] jitter_ms",
+        ),
+        (
+            "[bar_angle]\ndelay_ms = [0, 1]\nloss_pct = 101\n",
+            "[bar_angle] loss_pct",
+        ),
+        (
+            "[bar_angle]\ndelay_ms = [0, 1]\nfreeze_ms = -5\n",
+            "[bar_angle] freeze_ms",
+        ),
+        ("[command]\ndelay_ms = [0, 1]\n", "[command]"),
+        ("[bar_twist]\ndelay_ms = [0, 1]\nlatency = 3\n", "latency"),
+    ] {
+        let e = Bounds::parse(text, "b.toml").unwrap_err().to_string();
+        assert!(
+            e.starts_with("b.toml: ") && e.contains(field),
+            "{text}: {e}"
+        );
+    }
+    let e = bounds("[bar_twist]\ndelay_ms = [0.2, 0.8]\n")
+        .ticks(&s, "b.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("[bar_twist] delay_ms") && e.contains("no whole tick"),
+        "{e}"
+    );
+}
+
+/// Objectives: aliases resolve to the metric keys; a requirement's margin and violation; an
+/// unknown metric or a malformed requirement is refused naming the flag.
+#[test]
+fn objectives_and_requirements() {
+    let o = Objective::maximise("p_ct").unwrap();
+    assert_eq!(o.key(), "p_ct_en12299_standing_pct");
+    let r = Objective::requirement("p_ct < 35").unwrap();
+    assert_eq!(r.margin(30.0), 5.0);
+    assert!(!r.violated(30.0) && r.violated(35.0) && r.violated(36.5));
+    let r = Objective::requirement("tilt_error >= 0.5").unwrap();
+    assert_eq!(r.margin(0.25), -0.25);
+    assert!(r.violated(0.25) && !r.violated(0.5));
+    let e = Objective::maximise("comfort").unwrap_err().to_string();
+    assert!(
+        e.starts_with("--objective: `comfort` is not a metric; allowed: "),
+        "{e}"
+    );
+    let e = Objective::requirement("p_ct = 3").unwrap_err().to_string();
+    assert!(
+        e.starts_with("--requirement `p_ct = 3`: no comparison"),
+        "{e}"
+    );
+    let e = Objective::requirement("p_ct < x").unwrap_err().to_string();
+    assert!(e.contains("not a finite number"), "{e}");
+}
+
+/// The envelope of a run whose commands were all 3 to 7 ticks late, with one sample lost,
+/// admits that run and no more.
+#[test]
+fn the_envelope_of_a_trace_admits_it() {
+    let s = shipped("paper-lqg.toml", 0.5);
+    let b = bounds("[actuator_command]\ndelay_ms = [3, 7]\njitter_ms = 1\nloss_pct = 0.2\n");
+    let ticks = b.ticks(&s, "t").unwrap();
+    let layout = Layout::new(&s, &ticks);
+    let t = layout.trace(&s, &vec![0.7; layout.dims]);
+    let seen = timing::observe_all(&s, &t).unwrap();
+    let env = Bounds::envelope(&[seen], &s);
+    let l = env.links[0];
+    assert!(l.delay_ms[0] >= 3.0 && l.delay_ms[1] <= 7.0, "{l:?}");
+    let et = env.ticks(&s, "envelope").unwrap();
+    timing::check(&s, &t, &et).unwrap();
+    assert_eq!(env.links[1], LinkBound::LOCK_STEP);
+}
