@@ -5,6 +5,49 @@ use std::path::PathBuf;
 
 use tiltsim_suite::{leftovers, prefix, scenario, summary, temp_dir, Series, Tiltsim};
 
+/// Runs `scenario` over IPC with `extra` arguments and one environment variable set.
+fn run_with_env(name: &str, scen: &str, extra: &[&str], env: (&str, &str)) -> PathBuf {
+    let dir = temp_dir(name);
+    let pfx = prefix(name);
+    Tiltsim::run(scenario(scen))
+        .out(&dir)
+        .transport("ipc")
+        .ipc_prefix(&pfx)
+        .env(env.0, env.1)
+        .quiet()
+        .args(extra)
+        .success();
+    assert!(leftovers(&pfx).is_empty(), "shared-memory files left");
+    dir
+}
+
+/// A one-second Jacobi run of `scen` over IPC that got a pair of CPUs to place its
+/// participants on. While other runs of this suite claim the machine's CPUs a run takes none
+/// (`contended`) and the kernel balances it, with no plan; other load does not decide (every
+/// unclaimed CPU is taken for idle). The run is repeated until it gets a pair: the other runs
+/// end.
+fn on_a_pair(name: &str, scen: &str) -> PathBuf {
+    let mut dir = PathBuf::new();
+    for attempt in 0..=100 {
+        dir = run_with_env(
+            name,
+            scen,
+            &["--master", "jacobi", "--duration", "1"],
+            (cosim::ipc::placement::ASSUME_IDLE, "1"),
+        );
+        let sm = summary(&dir);
+        if sm["timing"]["placement"]["reason"] == "free-pair" || attempt == 100 {
+            break;
+        }
+        assert!(
+            sm["timing"]["cpu_plan"].is_null(),
+            "no plan without a pair: {sm}"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(500));
+    }
+    dir
+}
+
 /// Runs `scenario` with `transport` and `master`, returns the output directory.
 fn run_with(name: &str, scen: &str, transport: &str, master: &str, extra: &[&str]) -> PathBuf {
     let dir = temp_dir(name);
@@ -197,13 +240,7 @@ fn jacobi_over_ipc_gives_the_measured_heaviest_participant_a_cpu_of_its_own() {
     // the MPC (~35 µs every 50 ticks, under 1 µs per tick) and the orchestrator's own work
     // per tick (~2-4 µs: the observers and the CSV row).
     let heavy = "paper-mpc.toml";
-    let measured = run_with(
-        "cpu-plan-measured",
-        heavy,
-        "ipc",
-        "jacobi",
-        &["--duration", "1"],
-    );
+    let measured = on_a_pair("cpu-plan-measured", heavy);
     let plan = &summary(&measured)["timing"]["cpu_plan"];
     let cpus = cosim::ipc::allowed_cpus();
     if cpus.len() >= 2 {
@@ -221,13 +258,7 @@ fn jacobi_over_ipc_gives_the_measured_heaviest_participant_a_cpu_of_its_own() {
         assert!(a >= plan["orchestrator_us"].as_f64().unwrap(), "{plan}");
         // The passive vehicle's participants (~0.15 µs per tick at most) cannot hide the
         // orchestrator's work: nobody is moved.
-        let light = run_with(
-            "cpu-plan-light",
-            "paper-passive.toml",
-            "ipc",
-            "jacobi",
-            &["--duration", "1"],
-        );
+        let light = on_a_pair("cpu-plan-light", "paper-passive.toml");
         let plan = &summary(&light)["timing"]["cpu_plan"];
         assert!(plan["own_cpu"].is_null(), "{plan}");
         assert_eq!(plan["applied"], false, "{plan}");
