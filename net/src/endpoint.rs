@@ -27,7 +27,8 @@ pub struct NetEndpoint<I: Message, O: Message> {
     joined: Joined,
     ports: Ports,
     shared: Arc<Shared>,
-    session: zenoh::Session,
+    /// Kept open for as long as the endpoint is.
+    _session: zenoh::Session,
     deadline: Duration,
     gone: Option<String>,
     /// The step of the newest reply taken (for naming a free run's failure).
@@ -50,7 +51,7 @@ impl<I: Message, O: Message> NetEndpoint<I, O> {
             joined,
             ports,
             shared,
-            session,
+            _session: session,
             deadline,
             gone: None,
             last_step: 0,
@@ -253,7 +254,6 @@ impl<I: Message, O: Message> Endpoint<I, O> for NetEndpoint<I, O> {
                 None => format!("left from host {host}"),
             }
         };
-        let _ = &self.session;
         ExitReport { status, cpu_s }
     }
 }
