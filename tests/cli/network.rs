@@ -397,3 +397,46 @@ fn a_free_run_across_hosts_is_recorded_and_replayed_byte_for_byte() {
         "the replay on one machine gives the free run's rows"
     );
 }
+
+#[test]
+fn a_scheduled_kill_of_a_remote_participant_degrades_the_run_as_in_one_process() {
+    let pair = Pair::new("sched");
+    let dir = temp_dir("net-sched");
+    // A `[[faults.schedule]]` entry is an array-of-tables element, which `--set` cannot add.
+    let base = std::fs::read_to_string(tiltsim_suite::scenario("paper-lqg.toml")).unwrap();
+    let sc = dir.join("killed.toml");
+    std::fs::write(
+        &sc,
+        format!("{base}\n[[faults.schedule]]\nparticipant = \"controller\"\naction = \"kill\"\nat_s = 0.5\n"),
+    )
+    .unwrap();
+    let local = dir.join("in-process");
+    Tiltsim::run(&sc)
+        .transport_in_process()
+        .duration(1.5)
+        .set("faults.on_failure", "degrade")
+        .out(&local)
+        .quiet()
+        .success();
+    let remote = dir.join("remote");
+    let run = orchestrator(&pair, sc.to_str().unwrap(), &["controller"], &remote)
+        .duration(1.5)
+        .set("faults.on_failure", "degrade")
+        .deadline_ms(20_000)
+        .quiet()
+        .spawn();
+    let part = participant(&pair.b, &pair.a, "controller", SECRET).spawn();
+    let (code, err) = finish(run, "orchestrator");
+    assert_eq!(code, 0, "{err}");
+    let (pcode, _) = finish(part, "controller");
+    assert_ne!(
+        pcode, 0,
+        "the participant killed itself as the schedule said"
+    );
+    assert_eq!(summary(&remote)["status"], "degraded");
+    assert!(
+        std::fs::read(local.join("timeseries.csv")).unwrap()
+            == std::fs::read(remote.join("timeseries.csv")).unwrap(),
+        "the kill reaches the remote participant at the tick it reaches one in process"
+    );
+}
