@@ -511,28 +511,10 @@ impl Free<'_> {
             if stall > 0 {
                 std::thread::sleep(Duration::from_nanos(stall));
             }
-            let mut req = input;
-            {
-                let rh = req.header_mut();
-                rh.step = j * ticks;
-                rh.kind = Kind::Step as u32;
-                rh.flags = 0;
-                rh.field = 0;
-                rh.clock = Default::default();
-            }
-            let mut reply = served.answer(&req);
+            let reply = served.answer_free(&input, j * ticks, relay, busy_ns);
             if let Some(why) = served.model.failure() {
                 return Err(format!("failed: {why}"));
             }
-            let rh = reply.header_mut();
-            if busy_ns > 0 {
-                while now_ns() < rh.recv_ns + busy_ns {
-                    std::hint::spin_loop();
-                }
-            }
-            rh.relay = relay;
-            rh.compute_ns = now_ns().saturating_sub(rh.recv_ns);
-            reply.stamp();
             self.replies
                 .put(reply.to_wire())
                 .wait()

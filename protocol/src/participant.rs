@@ -111,6 +111,40 @@ impl<P: Participant> Served<P> {
         clock_ns(self.timed)
     }
 
+    /// Answers one step of a free run, on any transport: `input` (the newest request that
+    /// arrived, or the one read last) as step `step`, whose reply carries the relay number
+    /// `relay` of that input, its compute time measured from the read to now including a
+    /// study's busy wait of `busy_ns` (the CPU is kept busy, as a slow step's), and is
+    /// stamped for sending. The caller checks [`Participant::failure`] before publishing.
+    pub fn answer_free(
+        &mut self,
+        input: &P::Input,
+        step: u64,
+        relay: u64,
+        busy_ns: u64,
+    ) -> P::Output {
+        let mut req = *input;
+        {
+            let rh = req.header_mut();
+            rh.step = step;
+            rh.kind = Kind::Step as u32;
+            rh.flags = 0;
+            rh.field = 0;
+            rh.clock = Default::default();
+        }
+        let mut reply = self.answer(&req);
+        let rh = reply.header_mut();
+        if busy_ns > 0 {
+            while crate::msg::now_ns() < rh.recv_ns + busy_ns {
+                std::hint::spin_loop();
+            }
+        }
+        rh.relay = relay;
+        rh.compute_ns = crate::msg::now_ns().saturating_sub(rh.recv_ns);
+        reply.stamp();
+        reply
+    }
+
     /// Answers one request: checks it, runs the model and stamps the reply's header.
     ///
     /// A request with a NaN or infinite value is bad data caught where it arrives: the model

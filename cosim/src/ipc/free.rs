@@ -52,13 +52,6 @@ struct Clock {
     busy_ns: u64,
 }
 
-/// Spins until `until_ns` (a study's added compute: the CPU is kept busy, as a slow step's).
-fn busy_until(until_ns: u64) {
-    while now_ns() < until_ns {
-        std::hint::spin_loop();
-    }
-}
-
 /// Runs `served` free from the starting request `first` until a `Stop` arrives or the
 /// orchestrator (process `parent`) has gone.
 pub(crate) fn serve_free<P: Participant>(
@@ -108,26 +101,10 @@ pub(crate) fn serve_free<P: Participant>(
                 P::ROLE
             )));
         }
-        let mut req = input;
-        {
-            let rh = req.header_mut();
-            rh.step = j * clock.ticks;
-            rh.kind = Kind::Step as u32;
-            rh.flags = 0;
-            rh.field = 0;
-            rh.clock = Default::default();
-        }
-        let mut reply = served.answer(&req);
+        let reply = served.answer_free(&input, j * clock.ticks, relay, clock.busy_ns);
         if let Some(why) = served.model.failure() {
             return Err(IpcError::Model(why));
         }
-        let rh = reply.header_mut();
-        if clock.busy_ns > 0 {
-            busy_until(rh.recv_ns + clock.busy_ns);
-        }
-        rh.relay = relay;
-        rh.compute_ns = now_ns().saturating_sub(rh.recv_ns);
-        reply.stamp();
         super::publish(publisher, reply).map_err(IpcError::Iceoryx)?;
     }
     Ok(())
