@@ -1,16 +1,19 @@
 //! `tiltsim bench`: the machine's numbers for the co-simulation, measured in one run.
 //!
-//! 1. The iceoryx2 round-trip floor: orchestrator → participant → orchestrator through shared
-//!    memory for the plant, whose step takes about 0.1 µs, minus that step (p50, p99).
+//! 1. The plant's round trip in a run: orchestrator → participant → orchestrator through
+//!    shared memory for the plant, whose step takes about 0.1 µs, minus that step (p50, p99).
 //! 2. The per-tick coordination overhead (tick wall time minus the participants' compute on
 //!    the critical path) of every master algorithm and wait strategy over IPC.
 //! 3. The wall time of the same scenario in-process and across processes, and their ratio.
+//! 4. iceoryx2's floor for the same tick ([`ExchangeFloors`]), set beside the overhead of
+//!    each master by [`Report::set_exchange_floors`].
 //!
 //! Each configuration is a real `engine::run` of the scenario for `duration` simulated
 //! seconds; nothing is modelled. Results print as a table and go to JSON.
 
 use std::path::{Path, PathBuf};
 
+use cosim::ipc::placement::Reason;
 use cosim::wait::WaitStrategy;
 use serde::Serialize;
 
@@ -40,19 +43,17 @@ pub struct Config {
     pub wall_s: f64,
     /// CPU seconds, orchestrator + participants.
     pub cpu_s: f64,
-    /// The transport's floor for one tick (µs): the sum of the round-trip floors of the
-    /// exchanges the tick needs (plant, actuator, and the controller
-    /// when its period comes up: on average 2 + 1/period_ticks round trips), under either
-    /// master. `None` in-process.
-    pub floor_per_tick_us: Option<f64>,
-    /// `overhead_p50_us / floor_per_tick_us`.
+    /// Where the run's processes ran (IPC only): a pair of CPUs of its own, or left to the
+    /// kernel among other work (`cosim::ipc::placement`).
+    pub placement: Option<cosim::ipc::placement::Reason>,
+    /// iceoryx2's floor for this tick's exchanges (µs): the p50 tick of the same pattern,
+    /// placement and wait with nothing of tiltsim's in between ([`ExchangeFloors`]). Only
+    /// for the IPC rows with the adaptive wait that had a pair of CPUs of their own (the
+    /// floor's placement), once the floors are measured.
+    pub exchange_floor_us: Option<f64>,
+    /// `overhead_p50_us / exchange_floor_us`: how far tiltsim's coordination is from the
+    /// transport's floor for the same pattern.
     pub overhead_over_floor: Option<f64>,
-    /// A stricter floor (µs): the round trips the tick waits for one after the other, which
-    /// is [`Config::floor_per_tick_us`] under Gauss-Seidel and one round trip under Jacobi
-    /// (every request in flight at once, as if no two participants shared a CPU).
-    pub critical_floor_per_tick_us: Option<f64>,
-    /// `overhead_p50_us / critical_floor_per_tick_us`.
-    pub overhead_over_critical_floor: Option<f64>,
 }
 
 /// The whole report.
@@ -94,6 +95,46 @@ pub struct Report {
     pub wall_rounds: WallRounds,
     /// The machine's ping-pong floors, measured after the configurations (`tiltsim bench`).
     pub machine_floors: Option<MachineFloors>,
+    /// iceoryx2's floor for the scenario's tick pattern under each master, measured after
+    /// the configurations (`tiltsim bench`).
+    pub exchange_floors: Option<ExchangeFloors>,
+}
+
+/// The wall time of a tick's exchanges with iceoryx2 alone (`cosim::ipc::pattern`): one
+/// process in the orchestrator's place and an echo for each participant, placed and waiting
+/// as an adaptive IPC run, each echo asked as often as its participant, 256-byte samples.
+#[derive(Debug, Clone, Serialize)]
+pub struct ExchangeFloors {
+    /// Every how many ticks each echo is asked (plant, actuator, controller).
+    pub every: Vec<u64>,
+    /// Ticks measured per pattern.
+    pub ticks: usize,
+    /// Per tick, one exchange after the other (Gauss-Seidel), µs.
+    pub in_turn_us: cosim::stats::Percentiles,
+    /// Per tick, every request and then every answer (Jacobi), µs.
+    pub all_at_once_us: cosim::stats::Percentiles,
+}
+
+impl Report {
+    /// Sets the exchange floors and each adaptive IPC row's ratio to its master's floor.
+    pub fn set_exchange_floors(&mut self, f: ExchangeFloors) {
+        for c in self.configs.iter_mut() {
+            let comparable = c.transport == Transport::Ipc.name()
+                && c.wait == WaitStrategy::Adaptive.name()
+                && c.placement == Some(Reason::FreePair);
+            if !comparable {
+                continue;
+            }
+            let floor = if c.master == Master::Jacobi.name() {
+                f.all_at_once_us.p50
+            } else {
+                f.in_turn_us.p50
+            };
+            c.exchange_floor_us = Some(floor);
+            c.overhead_over_floor = (floor > 0.0).then(|| c.overhead_p50_us / floor);
+        }
+        self.exchange_floors = Some(f);
+    }
 }
 
 /// The wall times (s) of each round of the configurations the ratios compare, in run order.
@@ -272,7 +313,11 @@ pub fn run(
             walls.add(t, m, WaitStrategy::Adaptive, sum.wall_time_s);
         }
     }
-    let floor = set_floors(&mut configs, base.controller_period_ticks());
+    let floor = configs
+        .iter()
+        .filter(|c| c.transport == Transport::Ipc.name())
+        .map(|c| c.plant_round_trip_p50_us)
+        .fold(f64::INFINITY, f64::min);
     let (wall_local, wall_ipc, wall_jacobi) = (
         median(&walls.in_process_s),
         median(&walls.ipc_gauss_seidel_s),
@@ -306,6 +351,7 @@ pub fn run(
         load_average,
         wall_rounds: walls,
         machine_floors: None,
+        exchange_floors: None,
     })
 }
 
@@ -344,7 +390,7 @@ fn configured(
 
 impl Config {
     /// The row of configuration `(t, m, w)` from the summary of its run (floors not yet set,
-    /// [`set_floors`]).
+    /// [`Report::set_exchange_floors`]).
     fn of(t: Transport, m: Master, w: WaitStrategy, sum: &Summary) -> Config {
         let plant = &sum.link_latency[0];
         let compute = sum.participants[0].compute_us.p50;
@@ -363,37 +409,11 @@ impl Config {
             plant_round_trip_p99_us: plant.round_trip_us.p99,
             wall_s: sum.wall_time_s,
             cpu_s: sum.timing.cpu_s.orchestrator + sum.timing.cpu_s.participants,
-            floor_per_tick_us: None,
+            placement: sum.timing.placement.as_ref().map(|p| p.reason),
+            exchange_floor_us: None,
             overhead_over_floor: None,
-            critical_floor_per_tick_us: None,
-            overhead_over_critical_floor: None,
         }
     }
-}
-
-/// Sets each IPC row's floors from the least IPC round trip, the returned floor (µs): the
-/// exchanges a tick needs (two, and the controller's every `period_ticks`), all of them for
-/// Gauss-Seidel and one in turn for Jacobi.
-fn set_floors(configs: &mut [Config], period_ticks: u64) -> f64 {
-    let floor = configs
-        .iter()
-        .filter(|c| c.transport == "ipc")
-        .map(|c| c.plant_round_trip_p50_us)
-        .fold(f64::INFINITY, f64::min);
-    let needed = 2.0 + 1.0 / period_ticks as f64;
-    for c in configs.iter_mut().filter(|c| c.transport == "ipc") {
-        let in_turn = if c.master == Master::Jacobi.name() {
-            1.0
-        } else {
-            needed
-        };
-        let (f, critical) = (needed * floor, in_turn * floor);
-        c.floor_per_tick_us = Some(f);
-        c.overhead_over_floor = (f > 0.0).then(|| c.overhead_p50_us / f);
-        c.critical_floor_per_tick_us = Some(critical);
-        c.overhead_over_critical_floor = (critical > 0.0).then(|| c.overhead_p50_us / critical);
-    }
-    floor
 }
 
 /// CPU model, logical CPUs and kernel, as Linux reports them.
@@ -434,27 +454,24 @@ pub fn table(r: &Report) -> String {
     let mut s = format!(
         "tiltsim bench: {} for {} s simulated per configuration on {} CPUs\n\
          machine: {}, {} logical CPUs, Linux {}\n\n\
-         | transport | master | wait | ticks | overhead p50 (µs) | p99 (µs) | floor per tick (µs) | overhead / floor | critical-path floor (µs) | overhead / it | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         | transport | master | wait | placement | ticks | overhead p50 (µs) | p99 (µs) | iceoryx2 floor per tick (µs) | overhead / floor | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         r.scenario, r.duration_s, r.cpus, r.machine.cpu_model, r.machine.logical_cpus, r.machine.kernel
     );
     for c in &r.configs {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {} | {} | {:.2} | {:.2} | {:.3} | {:.2} |",
+            "| {} | {} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {:.2} | {:.2} | {:.3} | {:.2} |",
             c.transport,
             c.master,
             c.wait,
+            c.placement.map_or("-", Reason::name),
             c.ticks,
             c.overhead_p50_us,
             c.overhead_p99_us,
-            c.floor_per_tick_us
+            c.exchange_floor_us
                 .map_or("-".into(), |f| format!("{f:.2}")),
             c.overhead_over_floor
-                .map_or("-".into(), |f| format!("{f:.2}")),
-            c.critical_floor_per_tick_us
-                .map_or("-".into(), |f| format!("{f:.2}")),
-            c.overhead_over_critical_floor
                 .map_or("-".into(), |f| format!("{f:.2}")),
             c.plant_round_trip_p50_us,
             c.plant_round_trip_p99_us,
@@ -466,7 +483,7 @@ pub fn table(r: &Report) -> String {
     let load = |x: Option<f64>| x.map_or("unknown".into(), |x| format!("{x:.2}"));
     let _ = writeln!(
         s,
-        "\niceoryx2 round-trip floor (best p50 over the IPC configurations): {:.2} µs\n\
+        "\nplant round trip (best p50 over the IPC configurations): {:.2} µs\n\
          load average (1 min): {} before, {} after, on {} CPUs\n\
          wall time, median of {} round(s): in-process {:.3} s, IPC (gauss-seidel, adaptive) {:.3} s, ratio {}; \
          IPC (jacobi, adaptive) {:.3} s, ratio {}",
@@ -494,6 +511,21 @@ pub fn table(r: &Report) -> String {
             "machine floors (iceoryx2 ping-pong, {} B, one way p50): {:.2} µs between processes \
              busy-waiting on their own CPUs, {:.2} µs handing one CPU from one process to another",
             f.payload_bytes, f.one_way_cross_cpu_us, f.one_way_same_cpu_us
+        );
+    }
+    if let Some(f) = &r.exchange_floors {
+        let every: Vec<String> = f.every.iter().map(u64::to_string).collect();
+        let _ = writeln!(
+            s,
+            "iceoryx2 floor per tick (an echo per participant, asked every {} ticks, placed and \
+             waiting as an adaptive run, {} ticks): p50 {:.2} µs, p99 {:.2} µs one exchange after \
+             the other (gauss-seidel); p50 {:.2} µs, p99 {:.2} µs all at once (jacobi)",
+            every.join("/"),
+            f.ticks,
+            f.in_turn_us.p50,
+            f.in_turn_us.p99,
+            f.all_at_once_us.p50,
+            f.all_at_once_us.p99
         );
     }
     s

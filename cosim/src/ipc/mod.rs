@@ -19,6 +19,7 @@ mod affinity;
 mod cleanup;
 mod free;
 mod hub;
+pub mod pattern;
 pub mod pingpong;
 pub mod placement;
 mod serve;

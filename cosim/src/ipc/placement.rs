@@ -59,6 +59,20 @@ pub enum Reason {
     RegistryUnavailable,
 }
 
+impl Reason {
+    /// Its name, as in `summary.json`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Reason::FreePair => "free-pair",
+            Reason::FreeCpuEach => "free-cpu-each",
+            Reason::NotAsked => "not-asked",
+            Reason::TooFewCpus => "too-few-cpus",
+            Reason::Contended => "contended",
+            Reason::RegistryUnavailable => "registry-unavailable",
+        }
+    }
+}
+
 /// Where a run's processes run and how they wait, for `summary.json` → `timing.placement`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Placement {

@@ -114,3 +114,18 @@ fn an_idle_cpu_is_not_busy() {
     let after = [(0, 109, 1010), (1, 101, 1010), (2, 5, 50)];
     assert_eq!(busy_between(&[0, 1, 2], &before, &after), vec![1]);
 }
+
+#[test]
+fn a_reason_is_named_as_summary_json_names_it() {
+    use Reason::*;
+    for r in [
+        FreePair,
+        FreeCpuEach,
+        NotAsked,
+        TooFewCpus,
+        Contended,
+        RegistryUnavailable,
+    ] {
+        assert_eq!(serde_json::to_value(r).unwrap(), r.name());
+    }
+}

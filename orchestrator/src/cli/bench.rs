@@ -65,12 +65,20 @@ pub struct EchoArgs {
     /// Yield between polls instead of spinning (`bench --ping-pong --same-cpu`).
     #[arg(long = "yield")]
     yielding: bool,
+    /// Answer as participant INDEX of the exchange floor's pattern instead.
+    #[arg(long, value_parser = bounds::int(0..=15usize, ""))]
+    pattern: Option<usize>,
 }
 
 /// Runs the echo side.
 pub fn echo(a: EchoArgs) -> CliResult {
     if let Some(c) = a.cpu {
         cosim::ipc::pin_to_cpu(c);
+    }
+    if let Some(index) = a.pattern {
+        cosim::wait::tight_timer_slack();
+        return cosim::ipc::pattern::echo(&a.prefix, index)
+            .map_err(|e| CliError::Failed(format!("bench-echo: {e}")));
     }
     let w = if a.yielding {
         Waiting::Yield
@@ -117,6 +125,64 @@ fn ping_pong_latencies(
     cosim::ipc::set_cpus(&cpus);
     cosim::ipc::remove_run_files(&prefix);
     result.map_err(|e| CliError::Failed(format!("bench: {e}")))
+}
+
+/// The wall time (ns) of each of `ticks` ticks of iceoryx2 exchanges alone in `order`, one echo
+/// process per entry of `every` (asked every that many ticks), placed as an adaptive IPC run
+/// places its processes: this one on the first CPU, the echoes together on the last
+/// (`cosim::ipc::pattern`).
+pub(super) fn exchange_floor(
+    exe: &std::path::Path,
+    every: &[u64],
+    order: cosim::ipc::pattern::Order,
+    ticks: usize,
+) -> Result<Vec<f64>, CliError> {
+    let cpus = cosim::ipc::allowed_cpus();
+    let prefix = cosim::ipc::unique_prefix();
+    let pinned = match (cpus.first(), cpus.last()) {
+        (Some(first), Some(last)) if first != last => Some((*first, *last)),
+        _ => None,
+    };
+    let mut children = Vec::new();
+    let mut spawned = Ok(());
+    for i in 0..every.len() {
+        let mut cmd = std::process::Command::new(exe);
+        cmd.args([
+            "bench-echo",
+            "--prefix",
+            &prefix,
+            "--pattern",
+            &i.to_string(),
+        ]);
+        if let Some((_, last)) = pinned {
+            cmd.args(["--cpu", &last.to_string()]);
+        }
+        match cmd.spawn() {
+            Ok(c) => children.push(c),
+            Err(e) => {
+                spawned = Err(CliError::Failed(format!(
+                    "bench: cannot start an echo process: {e}"
+                )));
+                break;
+            }
+        }
+    }
+    let result = spawned.and_then(|()| {
+        if let Some((first, _)) = pinned {
+            cosim::ipc::pin_to_cpu(first);
+        }
+        cosim::ipc::pattern::measure(&prefix, every, order, ticks)
+            .map_err(|e| CliError::Failed(format!("bench: {e}")))
+    });
+    for mut c in children {
+        if result.is_err() {
+            let _ = c.kill();
+        }
+        let _ = c.wait();
+    }
+    cosim::ipc::set_cpus(&cpus);
+    cosim::ipc::remove_run_files(&prefix);
+    result
 }
 
 /// `--ping-pong`: the echo process on the last CPU, this one on the first (`--same-cpu`: both
@@ -185,6 +251,32 @@ fn machine_floors(
     })
 }
 
+/// iceoryx2's floor for `s`'s ticks under both masters: the plant and the actuator asked every
+/// tick, the controller every period, [`EXCHANGE_TICKS`] ticks each.
+fn exchange_floors(
+    exe: &std::path::Path,
+    s: &tiltsim_master::scenario::Scenario,
+) -> Result<tiltsim_studies::bench::ExchangeFloors, CliError> {
+    use cosim::ipc::pattern::Order;
+    let every = vec![1, 1, s.controller_period_ticks()];
+    let us = |order| -> Result<cosim::stats::Percentiles, CliError> {
+        let mut v: Vec<f64> = exchange_floor(exe, &every, order, EXCHANGE_TICKS)?
+            .into_iter()
+            .map(|ns| ns * 1e-3)
+            .collect();
+        Ok(cosim::stats::percentiles(&mut v))
+    };
+    Ok(tiltsim_studies::bench::ExchangeFloors {
+        in_turn_us: us(Order::InTurn)?,
+        all_at_once_us: us(Order::AllAtOnce)?,
+        every,
+        ticks: EXCHANGE_TICKS,
+    })
+}
+
+/// Ticks of each exchange-floor pattern.
+const EXCHANGE_TICKS: usize = 20_000;
+
 /// Runs the command.
 pub fn exec(a: BenchArgs) -> CliResult {
     let exe = std::env::current_exe().map_err(|_| {
@@ -244,6 +336,8 @@ pub fn exec(a: BenchArgs) -> CliResult {
     let mut report = report.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
     eprintln!("  measuring the machine's ping-pong floors ...");
     report.machine_floors = Some(machine_floors(&exe)?);
+    eprintln!("  measuring iceoryx2's floor for the scenario's ticks ...");
+    report.set_exchange_floors(exchange_floors(&exe, &s)?);
     println!("{}", tiltsim_studies::bench::table(&report));
     if let Some(dir) = a.out.parent() {
         let _ = std::fs::create_dir_all(dir);

@@ -1,0 +1,240 @@
+//! The floor of a lock-step tick's exchanges on this machine: iceoryx2 alone, in the pattern,
+//! placement and wait of an IPC run, with nothing of tiltsim's in between.
+//!
+//! One measuring process stands in for the orchestrator and one echo process for each
+//! participant. The measurer sits on the first allowed CPU and the echoes share the last, as an
+//! adaptive run pins them; the measurer spins [`SPIN_POLLS`](crate::wait::SPIN_POLLS) polls
+//! and then yields, the echoes yield at once and sleep through three quarters of the gap
+//! between requests that come far apart, exactly as the run's waits do
+//! ([`Backoff`], [`Cadence`]). A tick sends each due echo a 256-byte sample written whole
+//! into loaned memory and waits for its answer: one after the other ([`Order::InTurn`], a
+//! Gauss-Seidel tick) or all requests first, then every answer ([`Order::AllAtOnce`], a
+//! Jacobi tick). What an IPC run's coordination costs per tick beyond this is tiltsim's own:
+//! its bookkeeping, its relay and its checks.
+
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+
+use super::{config, iox, node, IpcError};
+use crate::msg::now_ns;
+use crate::wait::{sleep_until_ns, Backoff, Cadence, WaitStrategy};
+
+/// The order of a tick's exchanges.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Order {
+    /// Each request after the previous answer (Gauss-Seidel).
+    InTurn,
+    /// Every request, then every answer (Jacobi).
+    AllAtOnce,
+}
+
+/// A sample of an exchange: sequence number, send time and filler to 256 bytes (about the
+/// size of tiltsim's requests and replies).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, ZeroCopySend)]
+pub struct Exchange {
+    /// Sequence number (0: a handshake, [`DONE`]: the end).
+    pub seq: u64,
+    /// Monotonic send time (ns), for the echo's [`Cadence`].
+    pub sent_ns: u64,
+    /// Filler.
+    pub data: [u8; 240],
+}
+
+/// The sequence number that ends an echo.
+const DONE: u64 = u64::MAX;
+
+/// How long an echo waits for a request before it checks whether its parent is still there.
+const IDLE: std::time::Duration = std::time::Duration::from_secs(2);
+
+type Ports = (
+    Publisher<ipc::Service, Exchange, ()>,
+    Subscriber<ipc::Service, Exchange, ()>,
+);
+
+fn ports(node: &Node<ipc::Service>, index: usize, echo: bool) -> Result<Ports, IpcError> {
+    let open = |dir: &str| -> Result<_, IpcError> {
+        let name: ServiceName = format!("tiltsim/pattern/{index}/{dir}")
+            .as_str()
+            .try_into()
+            .map_err(iox("service name"))?;
+        node.service_builder(&name)
+            .publish_subscribe::<Exchange>()
+            .max_publishers(1)
+            .max_subscribers(1)
+            .history_size(0)
+            .subscriber_max_buffer_size(2)
+            .open_or_create()
+            .map_err(iox("open or create service"))
+    };
+    let (out, inp) = if echo {
+        ("reply", "request")
+    } else {
+        ("request", "reply")
+    };
+    let p = open(out)?
+        .publisher_builder()
+        .create()
+        .map_err(iox("create publisher"))?;
+    let s = open(inp)?
+        .subscriber_builder()
+        .create()
+        .map_err(iox("create subscriber"))?;
+    Ok((p, s))
+}
+
+fn send(p: &Publisher<ipc::Service, Exchange, ()>, seq: u64) -> Result<(), IpcError> {
+    let sample = p.loan_uninit().map_err(iox("loan"))?;
+    sample
+        .write_payload(Exchange {
+            seq,
+            sent_ns: now_ns(),
+            data: [0; 240],
+        })
+        .send()
+        .map_err(iox("send"))?;
+    Ok(())
+}
+
+/// The echo of participant `index` (`tiltsim bench-echo --pattern INDEX`): answers every
+/// request with its sequence number until [`DONE`], or until its parent has gone.
+pub fn echo(prefix: &str, index: usize) -> Result<(), IpcError> {
+    let cfg = config(prefix)?;
+    let node = node(&cfg, &format!("pattern-echo-{index}"))?;
+    let (publisher, subscriber) = ports(&node, index, true)?;
+    // SAFETY: getppid has no preconditions.
+    let parent = unsafe { libc::getppid() };
+    let mut cadence = Cadence::default();
+    loop {
+        let mut backoff = Backoff::with_spin(WaitStrategy::Adaptive, 0);
+        let mut sleep = cadence.sleep_until();
+        let (seq, sent_ns) = loop {
+            if let Some(s) = subscriber.receive().map_err(iox("receive"))? {
+                break (s.payload().seq, s.payload().sent_ns);
+            }
+            if let Some(until) = sleep.take() {
+                sleep_until_ns(until);
+                continue;
+            }
+            // SAFETY: as above.
+            if backoff.elapsed() > IDLE && unsafe { libc::getppid() } != parent {
+                return Ok(());
+            }
+            backoff.pause();
+        };
+        if seq != 0 && seq != DONE {
+            cadence.observe(sent_ns);
+        }
+        send(&publisher, seq)?;
+        if seq == DONE {
+            return Ok(());
+        }
+    }
+}
+
+/// How long the measurer waits for one answer before it takes the echo for dead.
+const SILENCE: std::time::Duration = std::time::Duration::from_secs(30);
+
+/// Waits for the answer `seq` on `s`, dropping late handshake answers (0).
+fn answer(s: &Subscriber<ipc::Service, Exchange, ()>, seq: u64) -> Result<(), IpcError> {
+    let mut backoff = Backoff::new(WaitStrategy::Adaptive);
+    loop {
+        if backoff.elapsed() > SILENCE {
+            return Err(IpcError::Iceoryx(format!(
+                "exchange floor: no answer to request {seq} in {} s",
+                SILENCE.as_secs()
+            )));
+        }
+        if let Some(got) = s.receive().map_err(iox("receive"))? {
+            let got = got.payload().seq;
+            if got == seq {
+                return Ok(());
+            }
+            if got != 0 {
+                return Err(IpcError::Iceoryx(format!(
+                    "exchange floor: answer {got} to request {seq}"
+                )));
+            }
+            continue;
+        }
+        backoff.pause();
+    }
+}
+
+/// Sends handshakes on every port until each echo has answered one (samples sent before an
+/// echo subscribes are lost), then drops the answers at hand.
+fn handshake(ports: &[Ports]) -> Result<(), IpcError> {
+    let started = std::time::Instant::now();
+    for (p, s) in ports {
+        'hand: loop {
+            send(p, 0)?;
+            let t = std::time::Instant::now();
+            while t.elapsed() < std::time::Duration::from_millis(1) {
+                if let Some(a) = s.receive().map_err(iox("receive"))? {
+                    if a.payload().seq == 0 {
+                        break 'hand;
+                    }
+                }
+                std::thread::yield_now();
+            }
+            if started.elapsed() > std::time::Duration::from_secs(10) {
+                return Err(IpcError::Iceoryx(
+                    "exchange floor: an echo process does not answer".into(),
+                ));
+            }
+        }
+    }
+    for (_, s) in ports {
+        while s.receive().map_err(iox("receive"))?.is_some() {}
+    }
+    Ok(())
+}
+
+/// The wall time (ns) of each of `ticks` ticks in `order`, after a tenth more to warm up;
+/// echo `i` is asked on the ticks that are multiples of `every[i]`. The echo processes must be
+/// running with the same `prefix`, one per entry of `every`.
+pub fn measure(
+    prefix: &str,
+    every: &[u64],
+    order: Order,
+    ticks: usize,
+) -> Result<Vec<f64>, IpcError> {
+    let cfg = config(prefix)?;
+    let node = node(&cfg, "pattern")?;
+    let ports = (0..every.len())
+        .map(|i| ports(&node, i, false))
+        .collect::<Result<Vec<_>, _>>()?;
+    handshake(&ports)?;
+    let warm = ticks / 10;
+    let mut out = Vec::with_capacity(ticks);
+    for k in 0..(ticks + warm) as u64 {
+        let seq = k + 1;
+        let due = |i: &usize| k % every[*i].max(1) == 0;
+        let t0 = std::time::Instant::now();
+        match order {
+            Order::InTurn => {
+                for i in (0..ports.len()).filter(due) {
+                    send(&ports[i].0, seq)?;
+                    answer(&ports[i].1, seq)?;
+                }
+            }
+            Order::AllAtOnce => {
+                for i in (0..ports.len()).filter(due) {
+                    send(&ports[i].0, seq)?;
+                }
+                for i in (0..ports.len()).filter(due) {
+                    answer(&ports[i].1, seq)?;
+                }
+            }
+        }
+        if k as usize >= warm {
+            out.push(t0.elapsed().as_nanos() as f64);
+        }
+    }
+    for (p, s) in &ports {
+        send(p, DONE)?;
+        let _ = answer(s, DONE);
+    }
+    Ok(out)
+}
