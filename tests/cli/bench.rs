@@ -206,3 +206,61 @@ fn ping_pong_measures_the_one_way_latency_of_every_payload_size() {
         }
     }
 }
+
+#[test]
+fn concurrent_runs_are_measured_per_count_and_hog_and_all_complete() {
+    let dir = temp_dir("bench-concurrent");
+    let out = dir.join("concurrent.json");
+    let (code, stdout, err) = run(&[
+        "bench",
+        scenario("paper-passive.toml").to_str().unwrap(),
+        "--concurrent",
+        "1,2",
+        "--hogs",
+        "0,1",
+        "--duration",
+        "0.05",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(stdout.contains("| runs | hogs |"), "{stdout}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let rows = r["concurrent"].as_array().unwrap();
+    // Every count of runs beside every count of hogs, hogs outermost.
+    let shape: Vec<(u64, u64)> = rows
+        .iter()
+        .map(|x| (x["runs"].as_u64().unwrap(), x["hogs"].as_u64().unwrap()))
+        .collect();
+    assert_eq!(shape, [(1, 0), (2, 0), (1, 1), (2, 1)]);
+    for x in rows {
+        let n = x["runs"].as_u64().unwrap() as usize;
+        // Every run completes (a slow machine makes them slow, not wrong), and each chose a
+        // placement its summary names.
+        assert_eq!(x["completed"].as_u64().unwrap() as usize, n, "{x}");
+        let placed: u64 = x["placements"]
+            .as_object()
+            .unwrap()
+            .values()
+            .map(|v| v.as_u64().unwrap())
+            .sum();
+        assert_eq!(placed as usize, n, "{x}");
+        assert!(!x["placements"]
+            .as_object()
+            .unwrap()
+            .contains_key("no summary"));
+        // A run's lock-step loop lies inside its process's life, and every process inside the
+        // row's total.
+        let walls = x["wall_s"].as_array().unwrap();
+        let loops = x["loop_s"].as_array().unwrap();
+        assert_eq!((walls.len(), loops.len()), (n, n), "{x}");
+        let total = x["total_s"].as_f64().unwrap();
+        for (w, l) in walls.iter().zip(loops) {
+            let (w, l) = (w.as_f64().unwrap(), l.as_f64().unwrap());
+            assert!(l > 0.0 && l <= w && w <= total, "{x}");
+        }
+    }
+    // The runs' directories were scratch.
+    assert!(!dir.join("concurrent.runs").exists());
+}

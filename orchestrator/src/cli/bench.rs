@@ -48,6 +48,17 @@ pub struct BenchArgs {
     /// With --network: where the bench listens (each run on the next port up).
     #[arg(long, default_value = "tcp/127.0.0.1:17447", requires = "network")]
     pub(super) listen: String,
+    /// Start this many IPC runs of the scenario at once, for each count given (for example
+    /// 1,2,4,16): wall time per run and in total, the placements the runs chose and the load
+    /// (docs/performance.md, "Many runs on one machine").
+    #[arg(long, value_delimiter = ',', num_args = 1..,
+          value_parser = bounds::int(1..=256usize, ""),
+          conflicts_with_all = ["ping_pong", "fmu", "network"])]
+    concurrent: Vec<usize>,
+    /// With --concurrent: CPU hogs (spinning threads) beside the runs, for each count given.
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_value = "0",
+          value_parser = bounds::int(0..=64usize, ""), requires = "concurrent")]
+    hogs: Vec<usize>,
     /// Runs of each with --fmu.
     #[arg(long, default_value_t = 5, value_parser = bounds::int(1..=100usize, ""))]
     fmu_runs: usize,
@@ -294,6 +305,17 @@ pub fn exec(a: BenchArgs) -> CliResult {
     }
     if a.network {
         return super::bench_network::network(&a, &s, &exe, &a.listen);
+    }
+    if !a.concurrent.is_empty() {
+        return super::bench_concurrent::concurrent(
+            &a.scenario,
+            &s.name,
+            d,
+            &a.concurrent,
+            &a.hogs,
+            &exe,
+            &a.out,
+        );
     }
     let scratch = tiltsim_studies::bench::scratch_dir(&a.out);
     if a.fmu {

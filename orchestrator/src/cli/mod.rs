@@ -5,6 +5,7 @@
 //! 2 invalid input (command line or scenario file); 130 interrupted (Ctrl-C, SIGTERM, SIGHUP).
 
 mod bench;
+mod bench_concurrent;
 mod bench_network;
 mod bounds;
 mod clean;
