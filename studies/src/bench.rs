@@ -51,6 +51,9 @@ pub struct Config {
     /// for the IPC rows with the adaptive wait that had a pair of CPUs of their own (the
     /// floor's placement), once the floors are measured.
     pub exchange_floor_us: Option<f64>,
+    /// The worst set's p50 of the same floor (µs): the cost of the same exchanges when the
+    /// kernel cycles the processes sharing a CPU in the least favourable order.
+    pub exchange_floor_worst_us: Option<f64>,
     /// `overhead_p50_us / exchange_floor_us`: how far tiltsim's coordination is from the
     /// transport's floor for the same pattern.
     pub overhead_over_floor: Option<f64>,
@@ -103,16 +106,37 @@ pub struct Report {
 /// The wall time of a tick's exchanges with iceoryx2 alone (`cosim::ipc::pattern`): one
 /// process in the orchestrator's place and an echo for each participant, placed and waiting
 /// as an adaptive IPC run, each echo asked as often as its participant, 256-byte samples.
+/// Measured in several sets of fresh processes: processes that yield one CPU are cycled in
+/// an order fixed when they start, and a tick costs a hand-over more for each request that
+/// finds another process at the front of that cycle.
 #[derive(Debug, Clone, Serialize)]
 pub struct ExchangeFloors {
     /// Every how many ticks each echo is asked (plant, actuator, controller).
     pub every: Vec<u64>,
-    /// Ticks measured per pattern.
+    /// Ticks measured per set.
     pub ticks: usize,
-    /// Per tick, one exchange after the other (Gauss-Seidel), µs.
-    pub in_turn_us: cosim::stats::Percentiles,
-    /// Per tick, every request and then every answer (Jacobi), µs.
-    pub all_at_once_us: cosim::stats::Percentiles,
+    /// Per tick, one exchange after the other (Gauss-Seidel), µs, each set.
+    pub in_turn_sets_us: Vec<cosim::stats::Percentiles>,
+    /// Per tick, every request and then every answer (Jacobi), µs, each set.
+    pub all_at_once_sets_us: Vec<cosim::stats::Percentiles>,
+}
+
+/// The least and the greatest p50 of `sets`.
+fn p50_range(sets: &[cosim::stats::Percentiles]) -> (f64, f64) {
+    sets.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), p| {
+        (lo.min(p.p50), hi.max(p.p50))
+    })
+}
+
+impl ExchangeFloors {
+    /// The floor under Gauss-Seidel, µs: the best set's p50, and the worst's.
+    pub fn in_turn_us(&self) -> (f64, f64) {
+        p50_range(&self.in_turn_sets_us)
+    }
+    /// The floor under Jacobi, µs: the best set's p50, and the worst's.
+    pub fn all_at_once_us(&self) -> (f64, f64) {
+        p50_range(&self.all_at_once_sets_us)
+    }
 }
 
 impl Report {
@@ -125,12 +149,13 @@ impl Report {
             if !comparable {
                 continue;
             }
-            let floor = if c.master == Master::Jacobi.name() {
-                f.all_at_once_us.p50
+            let (floor, worst) = if c.master == Master::Jacobi.name() {
+                f.all_at_once_us()
             } else {
-                f.in_turn_us.p50
+                f.in_turn_us()
             };
             c.exchange_floor_us = Some(floor);
+            c.exchange_floor_worst_us = Some(worst);
             c.overhead_over_floor = (floor > 0.0).then(|| c.overhead_p50_us / floor);
         }
         self.exchange_floors = Some(f);
@@ -411,6 +436,7 @@ impl Config {
             cpu_s: sum.timing.cpu_s.orchestrator + sum.timing.cpu_s.participants,
             placement: sum.timing.placement.as_ref().map(|p| p.reason),
             exchange_floor_us: None,
+            exchange_floor_worst_us: None,
             overhead_over_floor: None,
         }
     }
@@ -454,7 +480,7 @@ pub fn table(r: &Report) -> String {
     let mut s = format!(
         "tiltsim bench: {} for {} s simulated per configuration on {} CPUs\n\
          machine: {}, {} logical CPUs, Linux {}\n\n\
-         | transport | master | wait | placement | ticks | overhead p50 (µs) | p99 (µs) | iceoryx2 floor per tick (µs) | overhead / floor | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
+         | transport | master | wait | placement | ticks | overhead p50 (µs) | p99 (µs) | iceoryx2 floor per tick, best–worst set (µs) | overhead / best | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
          |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         r.scenario, r.duration_s, r.cpus, r.machine.cpu_model, r.machine.logical_cpus, r.machine.kernel
     );
@@ -470,7 +496,8 @@ pub fn table(r: &Report) -> String {
             c.overhead_p50_us,
             c.overhead_p99_us,
             c.exchange_floor_us
-                .map_or("-".into(), |f| format!("{f:.2}")),
+                .zip(c.exchange_floor_worst_us)
+                .map_or("-".into(), |(f, w)| format!("{f:.2}–{w:.2}")),
             c.overhead_over_floor
                 .map_or("-".into(), |f| format!("{f:.2}")),
             c.plant_round_trip_p50_us,
@@ -515,17 +542,16 @@ pub fn table(r: &Report) -> String {
     }
     if let Some(f) = &r.exchange_floors {
         let every: Vec<String> = f.every.iter().map(u64::to_string).collect();
+        let ((a, b), (c, d)) = (f.in_turn_us(), f.all_at_once_us());
         let _ = writeln!(
             s,
             "iceoryx2 floor per tick (an echo per participant, asked every {} ticks, placed and \
-             waiting as an adaptive run, {} ticks): p50 {:.2} µs, p99 {:.2} µs one exchange after \
-             the other (gauss-seidel); p50 {:.2} µs, p99 {:.2} µs all at once (jacobi)",
+             waiting as an adaptive run; {} sets of fresh processes, {} ticks each): p50 \
+             {a:.2}-{b:.2} µs one exchange after the other (gauss-seidel), {c:.2}-{d:.2} µs all \
+             at once (jacobi)",
             every.join("/"),
+            f.in_turn_sets_us.len(),
             f.ticks,
-            f.in_turn_us.p50,
-            f.in_turn_us.p99,
-            f.all_at_once_us.p50,
-            f.all_at_once_us.p99
         );
     }
     s

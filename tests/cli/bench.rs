@@ -65,29 +65,37 @@ fn exchange_floors_follow_the_pattern_and_set_the_ratios(
     let f = &r["exchange_floors"];
     assert_eq!(f["every"], serde_json::json!([1, 1, 1]), "{f}");
     let ticks = f["ticks"].as_u64().unwrap();
-    let in_turn = &f["in_turn_us"];
-    let at_once = &f["all_at_once_us"];
-    for p in [in_turn, at_once] {
-        assert_eq!(p["n"].as_u64().unwrap(), ticks, "{f}");
-        let (p50, p99) = (p["p50"].as_f64().unwrap(), p["p99"].as_f64().unwrap());
-        assert!(p50.is_finite() && p50 > 0.0 && p99 >= p50, "{f}");
-    }
+    // Each pattern in several sets of fresh processes; its floor is the best set's p50.
+    let range = |key: &str| -> (f64, f64) {
+        let sets = f[key].as_array().unwrap();
+        assert!(sets.len() >= 2, "{f}");
+        let mut lo = f64::INFINITY;
+        let mut hi = 0.0_f64;
+        for p in sets {
+            assert_eq!(p["n"].as_u64().unwrap(), ticks, "{f}");
+            let (p50, p99) = (p["p50"].as_f64().unwrap(), p["p99"].as_f64().unwrap());
+            assert!(p50.is_finite() && p50 > 0.0 && p99 >= p50, "{f}");
+            lo = lo.min(p50);
+            hi = hi.max(p50);
+        }
+        (lo, hi)
+    };
+    let (in_turn, at_once) = (range("in_turn_sets_us"), range("all_at_once_sets_us"));
     // Three round trips at the cross-CPU floor (one way p50, so two per round trip): a tick
     // with the echoes sharing one CPU cannot be faster. The two are measured a few seconds
     // apart on a shared machine, where such figures move by up to ±50 %: half of it is the
     // bound.
-    let one_way = r["machine_floors"]["one_way_cross_cpu_us"]
-        .as_f64()
-        .unwrap();
+    let one_way = r["machine_floors"]["one_way_cross_cpu_us"].as_f64().unwrap();
     assert!(
-        in_turn["p50"].as_f64().unwrap() >= 0.5 * 3.0 * 2.0 * one_way,
-        "in turn {in_turn} against a one-way floor of {one_way} µs"
+        in_turn.0 >= 0.5 * 3.0 * 2.0 * one_way,
+        "in turn {in_turn:?} against a one-way floor of {one_way} µs"
     );
     for c in configs {
         let comparable =
             c["transport"] == "ipc" && c["wait"] == "adaptive" && c["placement"] == "free-pair";
         if !comparable {
             assert!(c["exchange_floor_us"].is_null(), "{c}");
+            assert!(c["exchange_floor_worst_us"].is_null(), "{c}");
             assert!(c["overhead_over_floor"].is_null(), "{c}");
             continue;
         }
@@ -97,7 +105,8 @@ fn exchange_floors_follow_the_pattern_and_set_the_ratios(
             in_turn
         };
         let floor = c["exchange_floor_us"].as_f64().unwrap();
-        assert_eq!(floor, want["p50"].as_f64().unwrap(), "{c}");
+        assert_eq!(floor, want.0, "{c}");
+        assert_eq!(c["exchange_floor_worst_us"].as_f64().unwrap(), want.1, "{c}");
         let ratio = c["overhead_over_floor"].as_f64().unwrap();
         let overhead = c["overhead_p50_us"].as_f64().unwrap();
         assert!(

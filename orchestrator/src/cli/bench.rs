@@ -263,30 +263,41 @@ fn machine_floors(
 }
 
 /// iceoryx2's floor for `s`'s ticks under both masters: the plant and the actuator asked every
-/// tick, the controller every period, [`EXCHANGE_TICKS`] ticks each.
+/// tick, the controller every period; [`EXCHANGE_SETS`] sets of fresh processes of
+/// [`EXCHANGE_TICKS`] ticks each per master, alternating. Fresh processes because the order
+/// in which the kernel cycles processes that yield one CPU is set when they start and holds
+/// for their life, and a tick's cost depends on it (docs/performance.md, "The exchange
+/// against iceoryx2's floor").
 fn exchange_floors(
     exe: &std::path::Path,
     s: &tiltsim_master::scenario::Scenario,
 ) -> Result<tiltsim_studies::bench::ExchangeFloors, CliError> {
     use cosim::ipc::pattern::Order;
     let every = vec![1, 1, s.controller_period_ticks()];
-    let us = |order| -> Result<cosim::stats::Percentiles, CliError> {
-        let mut v: Vec<f64> = exchange_floor(exe, &every, order, EXCHANGE_TICKS)?
-            .into_iter()
-            .map(|ns| ns * 1e-3)
-            .collect();
-        Ok(cosim::stats::percentiles(&mut v))
-    };
+    let mut sets = [Vec::new(), Vec::new()];
+    for _ in 0..EXCHANGE_SETS {
+        for (i, order) in [Order::InTurn, Order::AllAtOnce].into_iter().enumerate() {
+            let mut v: Vec<f64> = exchange_floor(exe, &every, order, EXCHANGE_TICKS)?
+                .into_iter()
+                .map(|ns| ns * 1e-3)
+                .collect();
+            sets[i].push(cosim::stats::percentiles(&mut v));
+        }
+    }
+    let [in_turn_sets_us, all_at_once_sets_us] = sets;
     Ok(tiltsim_studies::bench::ExchangeFloors {
-        in_turn_us: us(Order::InTurn)?,
-        all_at_once_us: us(Order::AllAtOnce)?,
+        in_turn_sets_us,
+        all_at_once_sets_us,
         every,
         ticks: EXCHANGE_TICKS,
     })
 }
 
-/// Ticks of each exchange-floor pattern.
-const EXCHANGE_TICKS: usize = 20_000;
+/// Sets of processes per master for the exchange floor.
+const EXCHANGE_SETS: usize = 4;
+
+/// Ticks of each set.
+const EXCHANGE_TICKS: usize = 5_000;
 
 /// Runs the command.
 pub fn exec(a: BenchArgs) -> CliResult {
