@@ -85,7 +85,9 @@ fn exchange_floors_follow_the_pattern_and_set_the_ratios(
     // with the echoes sharing one CPU cannot be faster. The two are measured a few seconds
     // apart on a shared machine, where such figures move by up to ±50 %: half of it is the
     // bound.
-    let one_way = r["machine_floors"]["one_way_cross_cpu_us"].as_f64().unwrap();
+    let one_way = r["machine_floors"]["one_way_cross_cpu_us"]
+        .as_f64()
+        .unwrap();
     assert!(
         in_turn.0 >= 0.5 * 3.0 * 2.0 * one_way,
         "in turn {in_turn:?} against a one-way floor of {one_way} µs"
@@ -106,7 +108,11 @@ fn exchange_floors_follow_the_pattern_and_set_the_ratios(
         };
         let floor = c["exchange_floor_us"].as_f64().unwrap();
         assert_eq!(floor, want.0, "{c}");
-        assert_eq!(c["exchange_floor_worst_us"].as_f64().unwrap(), want.1, "{c}");
+        assert_eq!(
+            c["exchange_floor_worst_us"].as_f64().unwrap(),
+            want.1,
+            "{c}"
+        );
         let ratio = c["overhead_over_floor"].as_f64().unwrap();
         let overhead = c["overhead_p50_us"].as_f64().unwrap();
         assert!(

@@ -167,3 +167,42 @@ fn spin_falls_back_when_its_processes_outnumber_its_cpus() {
         "the run differs from the run in one process"
     );
 }
+
+#[test]
+fn a_free_run_pins_only_where_the_registry_placed_it() {
+    // Pinned only when the run got a pair of CPUs of its own, and then the controller alone on
+    // the participants' CPU and the plant and the actuator beside the orchestrator; left to the
+    // kernel when other runs of this machine hold the pairs, and when asked not to pin.
+    for pin in [true, false] {
+        let name = format!("placement-free-{pin}");
+        let out = temp_dir(&name).join("out");
+        let pfx = prefix(&name);
+        Tiltsim::run(scenario("pi-drive.toml"))
+            .free_run()
+            .out(&out)
+            .ipc_prefix(&pfx)
+            .set("run.pin_cpus", pin)
+            .duration(0.3)
+            .env(ASSUME_IDLE, "1")
+            .quiet()
+            .success();
+        assert!(leftovers(&pfx).is_empty(), "{name}: files left");
+        let s = summary(&out);
+        let f = &s["free_run"];
+        let p = &f["placement"];
+        let cpus = f["cpus"].as_object().unwrap();
+        if !pin {
+            assert_eq!(p["reason"], "not-asked", "{p}");
+        }
+        if p["reason"] == "free-pair" {
+            let own = p["orchestrator_cpu"].as_u64().unwrap();
+            let theirs = p["participant_cpus"][0].as_u64().unwrap();
+            assert_ne!(own, theirs, "{p}");
+            assert_eq!(cpus["plant"], own, "{f}");
+            assert_eq!(cpus["actuator"], own, "{f}");
+            assert_eq!(cpus["controller"], theirs, "{f}");
+        } else {
+            assert!(cpus.is_empty(), "pinned though placed as {p}: {f}");
+        }
+    }
+}

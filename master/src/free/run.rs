@@ -46,7 +46,8 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
     let guard = FilesGuard(prefix.clone());
     let cpus = cosim::ipc::allowed_cpus();
     let ps = launch::start(s, opts, &prefix).map_err(FreeError::Run)?;
-    let placement = place(s, &ps, &cpus);
+    let placement = place(s, &ps);
+    let placed_as = ps.placement.clone();
     let mut hub = Hub::new(s, opts, out, ps)?;
     let outcome = hub.run();
     let last_ns = now_ns();
@@ -116,6 +117,7 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
     };
     let mut timing = stats.report(s.run.dt_s);
     timing.cpus = placement;
+    timing.placement = placed_as;
     Ok(FreeReport {
         status,
         error,
@@ -134,19 +136,22 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
     })
 }
 
-/// The CPU of each participant in a free run, when pinned: the controller keeps the
-/// participants' CPU to itself, as a controller computer of its own, and the plant and the
-/// actuator (a few µs each per millisecond, woken by their timers) move to the orchestrator's,
-/// so the controller's compute, however long, never delays the vehicle or its drive, nor the
-/// hub's relays it (in lock-step all three share one CPU, since only one computes at a time).
-/// Empty when not pinned.
-fn place(s: &Scenario, ps: &Participants, cpus: &[usize]) -> BTreeMap<String, usize> {
-    let (Some(&first), Some(&last)) = (cpus.first(), cpus.last()) else {
+/// The CPU of each participant in a free run, when the run was given a pair of CPUs of its own
+/// (`cosim::ipc::placement`, the same registry as lock-step runs, whose claim the run holds
+/// until it ends): the controller keeps the participants' CPU to itself, as a controller
+/// computer of its own, and the plant and the actuator (a few µs each per millisecond, woken
+/// by their timers) move to the orchestrator's, so the controller's compute, however long,
+/// never delays the vehicle or its drive, nor the hub's relays it (in lock-step all three
+/// share one CPU, since only one computes at a time). Empty when the run is not pinned: asked
+/// not to be, or the CPUs are claimed by other runs or kept busy by other work, and then the
+/// kernel balances the processes.
+fn place(s: &Scenario, ps: &Participants) -> BTreeMap<String, usize> {
+    let Some(p) = ps.placement.as_ref().filter(|p| p.pinned()) else {
         return BTreeMap::new();
     };
-    if !s.run.pin_cpus || first == last {
+    let (Some(first), Some(&last)) = (p.orchestrator_cpu, p.participant_cpus.first()) else {
         return BTreeMap::new();
-    }
+    };
     let pids = ps.pids();
     let mut placed = BTreeMap::new();
     for (r, cpu) in [

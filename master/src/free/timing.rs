@@ -92,6 +92,10 @@ pub struct FreeTiming {
     pub input_age_ticks: BTreeMap<String, AgeDistribution>,
     /// The CPU each participant was pinned to (empty when not pinned).
     pub cpus: BTreeMap<String, usize>,
+    /// Where the run's processes ran among the other runs and work on the machine, and why
+    /// (`cosim::ipc::placement`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub placement: Option<cosim::ipc::placement::Placement>,
 }
 
 /// What a free run reports beyond its files.
@@ -209,6 +213,7 @@ impl Stats {
                 .map(|(l, h)| (l.to_string(), AgeDistribution::of(h)))
                 .collect(),
             cpus: BTreeMap::new(),
+            placement: None,
         }
     }
 }
