@@ -38,7 +38,8 @@ pub fn exec(a: FalsifyMergeArgs) -> CliResult {
         }
     }
     // Checked whole before the output directory is touched.
-    tiltsim_studies::falsify::shards::read_all(&a.shards).map_err(super::falsify::invalid)?;
+    let shards =
+        tiltsim_studies::falsify::shards::read_all(&a.shards).map_err(super::falsify::invalid)?;
     let _lock =
         tiltsim_master::outdir::claim(&a.out, tiltsim_master::outdir::Kind::Sweep, "falsify-merge")
             .map_err(|e| invalid(e.to_string()))?;
@@ -47,8 +48,8 @@ pub fn exec(a: FalsifyMergeArgs) -> CliResult {
         .map_err(super::falsify::invalid)?;
     if !a.quiet {
         let evals: Vec<_> = evals.into_iter().map(|(_, e)| e).collect();
-        let from = format!("{} shards", a.shards.len());
-        super::falsify::print_report(&from, &evals, &o, &a.out, None);
+        let from = &shards[0].info.bounds_from;
+        super::falsify::print_report(from, &evals, &o, &a.out, None);
     }
     Ok(())
 }

@@ -358,6 +358,13 @@ pub fn falsify_part(
         None => whole.clone(),
     };
     let spec = &part;
+    if shard.is_none() {
+        // The directory of an earlier shard is no longer one.
+        let path = ex.out.join(super::shards::SHARD_JSON);
+        if path.exists() {
+            std::fs::remove_file(&path).map_err(|e| files_error(&path, e))?;
+        }
+    }
     if let Some(sh) = shard {
         super::shards::write_info(
             &ex.out,
