@@ -43,9 +43,10 @@ fn deterministic(mut v: serde_json::Value) -> serde_json::Value {
     v
 }
 
-/// Two shards run apart (one evaluation at a time), merged with `falsify-merge`, give the
-/// files `--restarts 2` gives in one process with two evaluations in parallel: the progress,
-/// the worst trace and its replay's rows byte for byte, the same result. The merged worst is
+/// Two shards run apart (one evaluation at a time; the second as a Slurm array task with
+/// `--shard auto`), merged with `falsify-merge`, give the files `--restarts 2` gives in one
+/// process with two evaluations in parallel: the progress, the worst trace and its replay's
+/// rows byte for byte, the same result; run again, the restarts resume and change nothing. The merged worst is
 /// the larger of the two shards' worsts, every evaluation of both is in the progress (the
 /// budget of 7 split 4 + 3), and the merged worst trace replays to its rows.
 #[test]
@@ -53,13 +54,21 @@ fn sharded_and_merged_equals_the_restarts_in_one_process() {
     let dir = temp_dir("falsify-shards");
     let b = write(&dir, "b.toml", BOUNDS);
     let common = ["--budget", "7", "--seed", "3", "-q"];
-    for i in 0..2 {
-        let shard = format!("{i}/2");
-        let out = dir.join(format!("s{i}"));
-        falsify(&b, &out, &common)
-            .args(["--shard", &shard, "--jobs", "1"])
-            .success();
+    falsify(&b, &dir.join("s0"), &common)
+        .args(["--shard", "0/2", "--jobs", "1"])
+        .success();
+    // Shard 1 as the second task of a Slurm array of two.
+    let mut task = falsify(&b, &dir.join("s1"), &common).args(["--shard", "auto", "--jobs", "1"]);
+    for (k, v) in [
+        ("SLURM_ARRAY_TASK_ID", "1"),
+        ("SLURM_ARRAY_TASK_MIN", "0"),
+        ("SLURM_ARRAY_TASK_MAX", "1"),
+        ("SLURM_ARRAY_TASK_STEP", "1"),
+        ("SLURM_ARRAY_TASK_COUNT", "2"),
+    ] {
+        task = task.env(k, v);
     }
+    task.success();
     Tiltsim::command(["falsify-merge"])
         .arg(dir.join("s1"))
         .arg(dir.join("s0"))
@@ -78,6 +87,12 @@ fn sharded_and_merged_equals_the_restarts_in_one_process() {
         );
     }
     assert_eq!(deterministic(result(&merged)), deterministic(result(&one)));
+    // Run again, the restarts take every evaluation they kept and write the same files.
+    let err = falsify(&b, &one, &common)
+        .args(["--restarts", "2", "--jobs", "1"])
+        .failure(0);
+    assert_eq!(err.matches("resuming:").count(), 2, "{err}");
+    assert!(bytes(&merged.join("progress.csv")) == bytes(&one.join("progress.csv")));
     let (r0, r1, m) = (
         result(&dir.join("s0")),
         result(&dir.join("s1")),

@@ -119,16 +119,26 @@ pub struct ShardResult {
     pub dims: usize,
     /// CMA-ES population size.
     pub lambda: usize,
-    /// The metric with the lock-step timing.
+    /// The metric with the lock-step timing (`null`, NaN in `result.json`: not computed).
+    #[serde(deserialize_with = "nan_if_null")]
     pub nominal_metric: f64,
-    /// Mean CPU time of one evaluation (s).
+    /// Mean CPU time of one evaluation run by the shard's last invocation (s; NaN when it
+    /// took every evaluation from an earlier one).
+    #[serde(deserialize_with = "nan_if_null")]
     pub evaluation_cpu_s: f64,
     /// CPU time of a plain in-process run (s).
+    #[serde(deserialize_with = "nan_if_null")]
     pub plain_run_cpu_s: f64,
     /// Wall time of the search and the sampling (s).
+    #[serde(deserialize_with = "nan_if_null")]
     pub search_s: f64,
     /// Evaluations taken from an earlier invocation.
     pub resumed_evaluations: usize,
+}
+
+/// A number of `result.json`, where serde_json writes NaN as `null`.
+fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }
 
 /// Reads shard directory `dir`: `shard.json`, `result.json`, `progress.csv` (whole: its
@@ -345,12 +355,7 @@ pub fn merge(
         violated: requirement.then(|| spec.objective.violated(we.metric)),
         margin: requirement.then(|| spec.objective.margin(we.metric)),
         failed_evaluations: evals.iter().filter(|(_, e)| !e.error.is_empty()).count(),
-        // Each shard's mean over its own evaluations, weighted by their number.
-        evaluation_cpu_s: shards
-            .iter()
-            .map(|s| s.result.evaluation_cpu_s * s.evals.len() as f64)
-            .sum::<f64>()
-            / evals.len().max(1) as f64,
+        evaluation_cpu_s: mean_evaluation_cpu(&shards),
         plain_run_cpu_s: sum(&|r| r.plain_run_cpu_s) / n,
         search_s: sum(&|r| r.search_s),
         resumed_evaluations: shards.iter().map(|s| s.result.resumed_evaluations).sum(),
@@ -360,6 +365,24 @@ pub fn merge(
     };
     write_result(out, &spec, &o)?;
     Ok((evals, o))
+}
+
+/// The mean CPU time of the evaluations the shards' last invocations ran: each shard's mean
+/// weighted by the evaluations it ran (NaN when every evaluation was taken from earlier ones).
+fn mean_evaluation_cpu(shards: &[ShardDir]) -> f64 {
+    let (mut spent, mut ran) = (0.0, 0usize);
+    for s in shards {
+        let n = s.evals.len().saturating_sub(s.result.resumed_evaluations);
+        if n > 0 && s.result.evaluation_cpu_s.is_finite() {
+            spent += s.result.evaluation_cpu_s * n as f64;
+            ran += n;
+        }
+    }
+    if ran > 0 {
+        spent / ran as f64
+    } else {
+        f64::NAN
+    }
 }
 
 /// `--restarts N`: the search as `n` shards run one after the other in this process, each in
