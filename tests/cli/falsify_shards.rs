@@ -221,7 +221,10 @@ fn the_measurement_and_the_command_are_searched_at_once() {
     falsify(&b, &out, &["--budget", "4", "--jobs", "2", "-q"]).success();
     // Per link: 6 knots, the jitter's amplitude and half-period, two loss windows and two
     // stalls (a position and a share each).
-    assert_eq!(result(&out)["dims"], 2 * (6 + 2 + 4 + 4));
+    let r = result(&out);
+    assert_eq!(r["dims"], 2 * (6 + 2 + 4 + 4));
+    // Every candidate was admissible (within both budgets) and replayed.
+    assert_eq!(r["failed_evaluations"], 0);
     let text = std::fs::read_to_string(out.join("worst/timing.csv")).unwrap();
     let body: String = text
         .lines()
