@@ -90,7 +90,10 @@ pub fn replay_timing(
 
 /// [`replay_timing`] of a trace already in memory (`trace_path` names it in errors): a
 /// trace made by a program (`tiltsim falsify`) is replayed without a file written and read
-/// back. Its steps must be the scenario's, as [`trace::read`] checks them.
+/// back. Its steps must be the scenario's, as [`trace::read`] checks them. In process and with
+/// the rows kept in memory (`Outputs::rows_in_memory`) it writes nothing at all: no directory, no
+/// `scenario.toml`, `events.csv` or `columns.csv` (a search's evaluations, whose cost is the
+/// run's own).
 pub fn replay_trace(
     s: &Scenario,
     trace: trace::Trace,
@@ -100,10 +103,17 @@ pub fn replay_trace(
 ) -> Result<Replayed, FreeError> {
     let period = s.controller_period_ticks();
     let mut order = trace.steps;
-    order.sort_by_key(|t| (t.read_ns, col(t.role)));
+    // A made trace is in read order already: sorted only when it is not.
+    if !order.is_sorted_by_key(|t| (t.read_ns, col(t.role))) {
+        order.sort_by_key(|t| (t.read_ns, col(t.role)));
+    }
     check_causal(trace_path, &order, period)?;
     let dir = &opts.out_dir;
-    crate::engine::prepare(s, opts).map_err(FreeError::Run)?;
+    // Participants in other processes log to the directory: it is made for them.
+    let files = !(out.rows_in_memory && s.run.transport == Transport::InProcess);
+    if files {
+        crate::engine::prepare(s, opts).map_err(FreeError::Run)?;
+    }
     let prefix = crate::engine::ipc_prefix(s, opts);
     let guard = FilesGuard(prefix.clone());
     let cpus = cosim::ipc::allowed_cpus();
@@ -119,6 +129,7 @@ pub fn replay_trace(
     } else {
         Vec::new()
     };
+    let dir = files.then_some(dir.as_path());
     let (ticks, kept, error) = finish_files(s, dir, &store, rows, outcome.err());
     Ok(Replayed {
         steps_completed: ticks,
@@ -210,17 +221,24 @@ fn replay_step(
     Ok(())
 }
 
-/// Finishes `timeseries.csv` and writes `events.csv` and `columns.csv`; returns the ticks
-/// whose rows are complete, the rows when kept in memory, and the replay's error (`error`,
-/// or else the first file that could not be written).
+/// Finishes `timeseries.csv` and writes `events.csv` and `columns.csv` to `dir` (none: the
+/// rows are kept in memory and no file is written); returns the ticks whose rows are
+/// complete, the rows when kept in memory, and the replay's error (`error`, or else the first
+/// file that could not be written).
 fn finish_files(
     s: &Scenario,
-    dir: &Path,
+    dir: Option<&Path>,
     store: &Store,
     rows: RowStream,
     mut error: Option<String>,
 ) -> (u64, Option<Vec<crate::table::Row>>, Option<String>) {
     let (ticks, kept, row_error) = rows.finish();
+    let Some(dir) = dir else {
+        if let Some(e) = row_error {
+            error.get_or_insert(format!("cannot keep the rows: {e}"));
+        }
+        return (ticks, kept, error);
+    };
     let events_csv = dir.join("events.csv");
     if let Err(e) = super::run_events(s, store, ticks).write(&events_csv) {
         error.get_or_insert(format!("cannot write {}: {e}", events_csv.display()));

@@ -8,6 +8,7 @@ use super::common::{interrupt_and_exe, load};
 use super::error::{CliError, CliResult};
 use tiltsim_master::scenario::Scenario;
 use tiltsim_studies::falsify::{self, Bounds, Exec, FalsifyError, Objective, Spec};
+use tiltsim_studies::sweep::Shard;
 
 /// The most evaluations of a search (`--budget`).
 pub const MAX_BUDGET: usize = 100_000;
@@ -48,6 +49,19 @@ pub struct FalsifyArgs {
     /// Change a scenario setting before the search, KEY=VALUE as `tiltsim run --set`.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    /// Run one shard of the search, as sweeps are sharded: shard I of N is an independent
+    /// CMA-ES restart (its own seed) with its share of the budget, beside its share of the
+    /// random sampling; join the shards with falsify-merge. `auto`: I and N from the array
+    /// task's environment (Slurm, AWS Batch, or a Kubernetes indexed job with --shards N).
+    #[arg(long, value_name = "I/N|auto", conflicts_with = "restarts")]
+    shard: Option<String>,
+    /// With --shard auto in a Kubernetes indexed job: the number of completions.
+    #[arg(long, value_name = "N", value_parser = bounds::int(1..=MAX_BUDGET, ""))]
+    shards: Option<usize>,
+    /// Run the search as N shards one after the other (OUT/restarts/<i>) and merge them into
+    /// OUT: the same result as N shards run apart and merged with falsify-merge.
+    #[arg(long, value_name = "N", value_parser = bounds::int(1..=MAX_BUDGET, ""))]
+    restarts: Option<usize>,
     /// Output directory [default: out/falsify-<scenario name>].
     #[arg(long)]
     out: Option<PathBuf>,
@@ -56,7 +70,8 @@ pub struct FalsifyArgs {
     quiet: bool,
 }
 
-fn invalid(e: FalsifyError) -> CliError {
+/// The exit of a search's error: bad input exits 2.
+pub fn invalid(e: FalsifyError) -> CliError {
     match e {
         FalsifyError::Invalid(m) => CliError::Invalid(m),
         FalsifyError::Files(m) | FalsifyError::Run(m) => CliError::Failed(m),
@@ -128,6 +143,25 @@ pub fn exec(a: FalsifyArgs) -> CliResult {
         (None, None) => Objective::maximise("p_ct"),
     }
     .map_err(invalid)?;
+    let shard = match a.shard.as_deref() {
+        None => None,
+        Some("auto") => Some(Shard::auto(a.shards, |v| std::env::var(v).ok())),
+        Some(s) => Some(Shard::parse(s)),
+    }
+    .transpose()
+    .map_err(|e| CliError::Invalid(e.to_string()))?;
+    if let Some(sh) = shard.filter(|sh| sh.count > a.budget as usize) {
+        return Err(CliError::Invalid(format!(
+            "--shard {}/{}: {} shards for --budget {}; allowed: at most as many shards as evaluations",
+            sh.index, sh.count, sh.count, a.budget
+        )));
+    }
+    if let Some(n) = a.restarts.filter(|n| *n > a.budget as usize) {
+        return Err(CliError::Invalid(format!(
+            "--restarts {n}: more restarts than --budget {}; allowed: 1 to {}",
+            a.budget, a.budget
+        )));
+    }
     let s = scenario(&a)?;
     let (bounds, bounds_from) = bounds_of(&a, &s)?;
     // Checked before anything runs: every range holds a whole tick of this scenario.
@@ -158,7 +192,12 @@ pub fn exec(a: FalsifyArgs) -> CliResult {
         interrupt: interrupt.clone(),
         done: None,
     };
-    let (f, o) = falsify::falsify(&s, &spec, &ex).map_err(|e| {
+    let done = match a.restarts {
+        Some(n) if n > 1 => falsify::shards::restarts(&s, &spec, n, &ex)
+            .map(|(evals, o)| (evals.into_iter().map(|(_, e)| e).collect(), o)),
+        _ => falsify::falsify_part(&s, &spec, shard, &ex).map(|(f, o)| (f.evals, o)),
+    };
+    let (evals, o) = done.map_err(|e| {
         if interrupt.load(std::sync::atomic::Ordering::Relaxed) {
             CliError::Interrupted(e.to_string())
         } else {
@@ -166,25 +205,23 @@ pub fn exec(a: FalsifyArgs) -> CliResult {
         }
     })?;
     if !a.quiet {
-        print_report(&spec, &f, &o, &out, jobs);
+        print_report(&spec.bounds_from, &evals, &o, &out, Some(jobs));
     }
     Ok(())
 }
 
-fn print_report(
-    spec: &Spec,
-    f: &falsify::Falsified,
+/// The table of a search (or of merged shards) on standard output.
+pub fn print_report(
+    bounds_from: &str,
+    evals: &[falsify::search::Eval],
     o: &falsify::Outcome,
     out: &Path,
-    jobs: usize,
+    jobs: Option<usize>,
 ) {
-    println!(
-        "{}: {} within {}",
-        o.scenario, o.objective, spec.bounds_from
-    );
+    println!("{}: {} within {}", o.scenario, o.objective, bounds_from);
     println!("| evaluations | CMA-ES best so far | random sampling best so far |");
     println!("|---:|---:|---:|");
-    for (k, s, r) in falsify::outputs::checkpoints(&f.evals, spec.budget) {
+    for (k, s, r) in falsify::outputs::checkpoints(evals, o.budget) {
         println!("| {k} | {s:.4} | {r:.4} |");
     }
     println!(
@@ -201,9 +238,13 @@ fn print_report(
             );
         }
     }
+    let parallel = jobs.map_or_else(
+        || "summed over the shards".into(),
+        |j| format!("with {j} parallel"),
+    );
     println!(
-        "{} evaluations in {:.1} s wall with {jobs} parallel ({:.3} s CPU per evaluation; a plain in-process run: {:.3} s CPU){}",
-        f.evals.len(),
+        "{} evaluations in {:.1} s wall {parallel} ({:.3} s CPU per evaluation; a plain in-process run: {:.3} s CPU){}",
+        evals.len(),
         o.search_s,
         o.evaluation_cpu_s,
         o.plain_run_cpu_s,

@@ -17,6 +17,7 @@ mod export_fmu;
 mod export_mcap;
 mod export_ssp;
 mod falsify;
+mod falsify_merge;
 mod free_run;
 mod inspect;
 mod linearize;
@@ -76,6 +77,9 @@ enum Command {
     /// against uniform random sampling with the same budget; the worst timing is written as
     /// DIR/worst/timing.csv, which `replay-timing DIR/worst` replays exactly.
     Falsify(falsify::FalsifyArgs),
+    /// Merge the outputs of `tiltsim falsify --shard i/n` runs into one search's files: the
+    /// worst over the shards (replayed again in DIR/worst), the progress and the result.
+    FalsifyMerge(falsify_merge::FalsifyMergeArgs),
     /// Measure this machine: the iceoryx2 round-trip floor, the per-tick coordination
     /// overhead of every master algorithm and wait strategy, and in-process vs IPC wall time.
     Bench(bench::BenchArgs),
@@ -183,6 +187,7 @@ where
         Command::Sweep(a) => sweep::exec(a),
         Command::SweepMerge(a) => sweep_merge::exec(a),
         Command::Falsify(a) => falsify::exec(a),
+        Command::FalsifyMerge(a) => falsify_merge::exec(a),
         Command::Bench(a) => bench::exec(a),
         Command::Linearize(a) => linearize::exec(a),
         Command::Clean(a) => clean::exec(a),

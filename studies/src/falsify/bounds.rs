@@ -9,8 +9,11 @@
 //! * `jitter_ms`: how much two consecutively delivered samples' delays may differ (the
 //!   packet delay variation of RFC 3393); absent, only the range bounds it;
 //! * `loss_pct`: the share of the link's samples that may be lost;
-//! * `freeze_ms`: for how long in all the link may deliver nothing (the consumer holds its
-//!   last value; the samples sent meanwhile are not delivered).
+//! * `freeze_ms`: for how long in all the link may stall (a stalled sender, a link holding
+//!   its last value: the consumer holds the last sample delivered, and the samples sent
+//!   meanwhile are never delivered). A budget of its own, apart from the loss budget, counted
+//!   at the reading participant's period: whole periods of the consumer, each stall rounded up
+//!   to them.
 //!
 //! Samples are delivered in the order they were sent. A link not named keeps its lock-step
 //! timing (delay 0, nothing lost).
@@ -76,14 +79,19 @@ pub struct TickBound {
     pub d_max: i64,
     /// Largest change of delay between consecutively delivered samples (ticks).
     pub jitter: i64,
-    /// Samples that may be left undelivered (loss and freeze together).
+    /// Samples that may be lost (the loss budget).
+    pub losses: i64,
+    /// Ticks the link may stall in all (the freeze budget): whole periods of the consumer.
+    pub freeze: i64,
+    /// Samples that may be left undelivered, lost and frozen together (what a trace, which
+    /// does not say why a sample was not delivered, is checked against).
     pub drops: i64,
 }
 
 impl TickBound {
     /// Whether the search has anything to choose on this link.
     pub fn free(&self) -> bool {
-        self.d_max > self.d_min || self.drops > 0
+        self.d_max > self.d_min || self.losses > 0 || self.freeze > 0
     }
 }
 
@@ -172,6 +180,8 @@ impl Bounds {
             d_min: 0,
             d_max: 0,
             jitter: 0,
+            losses: 0,
+            freeze: 0,
             drops: 0,
         }; 4];
         for id in LinkId::ALL {
@@ -194,11 +204,29 @@ impl Bounds {
             let link = super::timing::LinkShape::of(id, s);
             let n = link.samples as f64;
             let lost = (l.loss_pct / 100.0 * n + 1e-9).floor() as i64;
-            let frozen = ((l.freeze_ms / dt_ms + 1e-9).floor() as i64) / link.spacing as i64;
+            let stall = (l.freeze_ms / dt_ms + 1e-9).floor() as i64;
+            if stall > link.steps as i64 {
+                return Err(err(
+                    file,
+                    format!("[{}] freeze_ms", id.name()),
+                    format!(
+                        "{} ms is longer than the run ({} s); allowed: 0 to {} ms",
+                        l.freeze_ms,
+                        s.duration(),
+                        link.steps as f64 * dt_ms
+                    ),
+                ));
+            }
+            // Checked at the reading participant's period: whole periods of the consumer.
+            let p = link.consumer_period as i64;
+            let freeze = stall / p * p;
+            let frozen = freeze / link.spacing as i64;
             out[id as usize] = TickBound {
                 d_min,
                 d_max,
                 jitter: jitter.min(d_max - d_min),
+                losses: lost.min(link.samples as i64),
+                freeze,
                 drops: (lost + frozen).min(link.samples as i64),
             };
         }

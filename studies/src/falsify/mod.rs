@@ -18,11 +18,12 @@ pub mod cmaes;
 pub mod objective;
 pub mod outputs;
 pub mod search;
+pub mod shards;
 pub mod timing;
 
 pub use bounds::{Bounds, LinkBound};
 pub use objective::Objective;
-pub use outputs::{falsify, Outcome};
+pub use outputs::{falsify, falsify_part, Outcome};
 pub use search::{run, Exec, Falsified, Spec};
 
 /// Makes `s` the system a search replays (lock-step, in process, as a timing replay) and

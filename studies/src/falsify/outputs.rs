@@ -18,6 +18,7 @@ use tiltsim_scenario::scenario::Scenario;
 use super::search::{Eval, Falsified, Method, Spec};
 use super::timing::Layout;
 use super::FalsifyError;
+use crate::sweep::Shard;
 
 /// The method's citation, as `result.json` and the figure give it.
 pub const CMA_ES_CITATION: &str =
@@ -74,6 +75,15 @@ pub struct Outcome {
     pub search_s: f64,
     /// Evaluations taken from an earlier invocation.
     pub resumed_evaluations: usize,
+    /// The shard this directory holds (`I/N`), when the search was split.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shard: Option<String>,
+    /// Shards merged here (`falsify-merge`, `--restarts`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub merged_shards: Option<usize>,
+    /// The shard whose worst timing is the worst found (merged).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub worst_shard: Option<usize>,
 }
 
 fn files_error(path: &Path, e: impl std::fmt::Display) -> FalsifyError {
@@ -114,16 +124,30 @@ pub fn write_worst(
     out: &Path,
     interrupt: &Arc<AtomicBool>,
 ) -> Result<f64, FalsifyError> {
+    let trace = Layout::new(s, &f.ticks).trace(s, &f.worst.0);
+    replay_worst(s, spec, out, interrupt, |path| {
+        let mut w = TraceWriter::create(path, &trace.head).map_err(|e| files_error(path, e))?;
+        for t in &trace.steps {
+            w.push(t).map_err(|e| files_error(path, e))?;
+        }
+        w.finish().map_err(|e| files_error(path, e))
+    })
+}
+
+/// Takes `out/worst`, has `write` put the worst timing's trace in `out/worst/timing.csv`,
+/// and replays it there (a run directory with its figures); returns the replay's metric.
+pub fn replay_worst(
+    s: &Scenario,
+    spec: &Spec,
+    out: &Path,
+    interrupt: &Arc<AtomicBool>,
+    write: impl FnOnce(&Path) -> Result<(), FalsifyError>,
+) -> Result<f64, FalsifyError> {
     let dir = out.join("worst");
     let lock = tiltsim_rundir::outdir::claim_run(&dir, "falsify")
         .map_err(|e| FalsifyError::Invalid(e.to_string()))?;
-    let trace = Layout::new(s, &f.ticks).trace(s, &f.worst.0);
     let path = dir.join(TIMING_CSV);
-    let mut w = TraceWriter::create(&path, &trace.head).map_err(|e| files_error(&path, e))?;
-    for t in &trace.steps {
-        w.push(t).map_err(|e| files_error(&path, e))?;
-    }
-    w.finish().map_err(|e| files_error(&path, e))?;
+    write(&path)?;
     let mut opts = RunOptions::new(dir.clone(), PathBuf::new());
     opts.interrupt = interrupt.clone();
     let mut job = tiltsim_report::pipeline::Job::new(s, s.name.clone(), opts);
@@ -157,6 +181,48 @@ pub fn write_progress(
         w.serialize(e).map_err(|e| files_error(&csv_path, e))?;
     }
     w.flush().map_err(|e| files_error(&csv_path, e))?;
+    write_chart(out, s, spec, evals)
+}
+
+/// `progress.csv` of merged shards: each evaluation with the shard it came from first.
+pub fn write_merged_progress(
+    out: &Path,
+    s: &Scenario,
+    spec: &Spec,
+    evals: &[(usize, Eval)],
+) -> Result<(), FalsifyError> {
+    let csv_path = out.join("progress.csv");
+    let mut w = csv::Writer::from_path(&csv_path).map_err(|e| files_error(&csv_path, e))?;
+    let io = |e: csv::Error| files_error(&csv_path, e);
+    w.write_record([
+        "shard",
+        "method",
+        "evaluation",
+        "metric",
+        "objective",
+        "best_so_far",
+        "error",
+    ])
+    .map_err(io)?;
+    for (shard, e) in evals {
+        w.serialize((
+            shard,
+            e.method,
+            e.evaluation,
+            e.metric,
+            e.objective,
+            e.best_so_far,
+            &e.error,
+        ))
+        .map_err(io)?;
+    }
+    w.flush().map_err(|e| files_error(&csv_path, e))?;
+    let plain: Vec<Eval> = evals.iter().map(|(_, e)| e.clone()).collect();
+    write_chart(out, s, spec, &plain)
+}
+
+/// The progress figure: each method's best so far, and each evaluation of the search.
+fn write_chart(out: &Path, s: &Scenario, spec: &Spec, evals: &[Eval]) -> Result<(), FalsifyError> {
     let series = |m: Method, best: bool| -> Vec<f64> {
         evals
             .iter()
@@ -274,7 +340,46 @@ pub fn falsify(
     spec: &Spec,
     ex: &super::Exec,
 ) -> Result<(Falsified, Outcome), FalsifyError> {
+    falsify_part(s, spec, None, ex)
+}
+
+/// [`falsify`] of shard `shard` of the search `spec` (`None`: all of it): the shard's share
+/// of the budget with its own seed, and `shard.json` saying which part of which search the
+/// directory holds.
+pub fn falsify_part(
+    s: &Scenario,
+    whole: &Spec,
+    shard: Option<Shard>,
+    ex: &super::Exec,
+) -> Result<(Falsified, Outcome), FalsifyError> {
     std::fs::create_dir_all(&ex.out).map_err(|e| files_error(&ex.out, e))?;
+    let part = match shard {
+        Some(sh) => super::shards::shard_spec(whole, sh, "--shard")?,
+        None => whole.clone(),
+    };
+    let spec = &part;
+    if shard.is_none() {
+        // The directory of an earlier shard is no longer one.
+        let path = ex.out.join(super::shards::SHARD_JSON);
+        if path.exists() {
+            std::fs::remove_file(&path).map_err(|e| files_error(&path, e))?;
+        }
+    }
+    if let Some(sh) = shard {
+        super::shards::write_info(
+            &ex.out,
+            &super::shards::ShardInfo {
+                index: sh.index,
+                count: sh.count,
+                search: super::search::fingerprint(s, whole),
+                budget: whole.budget,
+                seed: whole.seed,
+                shard_seed: spec.seed,
+                objective: spec.objective.describe(),
+                bounds_from: spec.bounds_from.clone(),
+            },
+        )?;
+    }
     let (nominal_metric, plain_run_s) = nominal(s, spec, &ex.out, &ex.interrupt);
     let f = super::run(s, spec, ex)?;
     let worst_run_metric = write_worst(s, spec, &f, &ex.out, &ex.interrupt)?;
@@ -313,6 +418,9 @@ pub fn falsify(
         plain_run_cpu_s: plain_run_s,
         search_s: f.wall_s,
         resumed_evaluations: f.resumed,
+        shard: shard.map(|sh| format!("{}/{}", sh.index, sh.count)),
+        merged_shards: None,
+        worst_shard: None,
     };
     write_result(&ex.out, spec, &o)?;
     Ok((f, o))

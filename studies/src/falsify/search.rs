@@ -200,7 +200,7 @@ impl Kept {
 
 /// What the search's files are checked against: scenario, bounds, objective, budget, seed
 /// and the program's build.
-fn fingerprint(s: &Scenario, spec: &Spec) -> String {
+pub fn fingerprint(s: &Scenario, spec: &Spec) -> String {
     let text = format!(
         "tiltsim falsify 1\n{}\n{:?}\n{}\n{} {}\n{}",
         crate::sweep::identity::build(),
@@ -213,8 +213,9 @@ fn fingerprint(s: &Scenario, spec: &Spec) -> String {
     crate::sweep::identity::sha256(text.as_bytes())
 }
 
-/// One evaluation of point `u`: its trace, checked, replayed in process.
-fn evaluate(
+/// One evaluation of point `u`: its trace, checked, replayed in process with its rows in
+/// memory. Nothing is written: `dir` only names the run in messages.
+pub(crate) fn evaluate(
     s: &Scenario,
     layout: &Layout,
     ticks: &[TickBound; 4],
@@ -223,12 +224,15 @@ fn evaluate(
     dir: PathBuf,
     interrupt: &Arc<AtomicBool>,
 ) -> (f64, f64, String) {
+    // Never expected to fail: the mapping gives admissible timings only (tested).
+    if let Err(e) = layout.check_budgets(u) {
+        return (f64::NAN, f64::NAN, format!("candidate not admissible: {e}"));
+    }
     let trace = layout.trace(s, u);
-    // Never expected to fail: the mapping gives admissible traces only (tested).
     if let Err(e) = super::timing::check(s, &trace, ticks) {
         return (f64::NAN, f64::NAN, format!("candidate not admissible: {e}"));
     }
-    let mut opts = RunOptions::new(dir.clone(), PathBuf::new());
+    let mut opts = RunOptions::new(dir, PathBuf::new());
     opts.interrupt = interrupt.clone();
     opts.plots = false;
     opts.timing = false;
@@ -236,9 +240,7 @@ fn evaluate(
     job.claim = false;
     job.outputs.rows_in_memory = true;
     job.replay_steps = Some(trace);
-    let done = tiltsim_report::pipeline::carry_out(job);
-    let _ = std::fs::remove_dir_all(&dir);
-    match done {
+    match tiltsim_report::pipeline::carry_out(job) {
         Ok(d) if d.summary.status == Status::Completed && d.summary.analysis_skipped.is_none() => {
             let c = &d.summary.comfort;
             let m = (tiltsim_assessment::comfort::METRICS[objective.metric()].get)(c);
@@ -333,7 +335,6 @@ impl Ctx<'_> {
                 });
             }
         });
-        let _ = std::fs::remove_dir(self.ex.out.join("evals"));
         out.into_inner().ok()?.into_iter().collect()
     }
 }

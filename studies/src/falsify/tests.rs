@@ -185,3 +185,176 @@ fn the_envelope_of_a_trace_admits_it() {
     timing::check(&s, &t, &et).unwrap();
     assert_eq!(env.links[1], LinkBound::LOCK_STEP);
 }
+
+/// Loss and freeze are budgets of their own: over 300 random points and the corners, on a
+/// controller of 1 tick and one of 50 ticks, with the command and the measurement searched at
+/// once, no link ever loses more samples than its loss budget or stalls longer than its
+/// freeze budget (stalls rounded up to the reading participant's period); and the budgets
+/// are used, each apart (some points lose samples, some stall).
+#[test]
+fn a_candidate_never_exceeds_either_budget() {
+    let text = "[actuator_command]\ndelay_ms = [0, 60]\njitter_ms = 10\nloss_pct = 10\nfreeze_ms = 120\n[measurement]\ndelay_ms = [0, 20]\nloss_pct = 1\nfreeze_ms = 230\n";
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    for scen in ["paper-lqg.toml", "paper-mpc.toml"] {
+        let s = shipped(scen, 1.5);
+        let ticks = bounds(text).ticks(&s, "t").unwrap();
+        let layout = Layout::new(&s, &ticks);
+        let mut points: Vec<Vec<f64>> = (0..300)
+            .map(|_| (0..layout.dims).map(|_| rng.random::<f64>()).collect())
+            .collect();
+        points.push(vec![1.0; layout.dims]);
+        points.push(vec![0.0; layout.dims]);
+        let mut used = [[0i64; 2]; 4];
+        for u in &points {
+            layout.check_budgets(u).unwrap();
+            for (i, (l, b, r)) in layout.links.iter().enumerate() {
+                let delays = if b.d_max > b.d_min {
+                    timing::KNOTS + 2
+                } else {
+                    0
+                };
+                let mut it = u[r.start + delays..r.end].iter().copied();
+                let marks = timing::undelivered(l, b, &mut it);
+                let (lost, stalled) = timing::budgets_used(l, &marks);
+                assert!(lost <= b.losses, "{scen} {i}: {lost} > {}", b.losses);
+                assert!(stalled <= b.freeze, "{scen} {i}: {stalled} > {}", b.freeze);
+                assert_eq!(stalled % l.consumer_period as i64, 0);
+                used[i][0] = used[i][0].max(lost);
+                used[i][1] = used[i][1].max(stalled);
+            }
+            timing::check(&s, &layout.trace(&s, u), &ticks).unwrap();
+        }
+        let p = s.controller_period_ticks() as i64;
+        // The freeze budgets in ticks, at the reader's period: the actuator reads every tick,
+        // the controller every p ticks.
+        assert_eq!(ticks[0].freeze, 120);
+        assert_eq!(ticks[2].freeze, 230 / p * p);
+        for (i, link) in [(0, "actuator_command"), (2, "measurement")] {
+            assert!(used[i][0] > 0, "{scen} {link}: no point loses a sample");
+            assert!(used[i][1] > 0, "{scen} {link}: no point stalls");
+        }
+    }
+}
+
+/// A stall is counted at the reading participant's period: frozen samples of the measurement
+/// read by a controller of 50 ticks are charged whole controller periods; a loss of one
+/// sample is a loss, not a stall.
+#[test]
+fn stalls_are_counted_in_whole_periods_of_the_reader() {
+    use timing::Undelivered::{Frozen, Lost, No};
+    let s = shipped("paper-mpc.toml", 1.0);
+    let l = timing::LinkShape::of(LinkId::Measurement, &s);
+    assert_eq!(l.consumer_period, 50);
+    let mut marks = vec![No; l.samples as usize];
+    marks[10] = Lost;
+    for m in &mut marks[100..151] {
+        *m = Frozen;
+    }
+    // 51 plant samples of 1 tick: two controller periods.
+    assert_eq!(timing::budgets_used(&l, &marks), (1, 100));
+    let b = super::bounds::TickBound {
+        d_min: 0,
+        d_max: 0,
+        jitter: 0,
+        losses: 1,
+        freeze: 50,
+        drops: 0,
+    };
+    let e = timing::check_budgets(&l, &b, &marks)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("measurement") && e.contains("freeze budget allows 50"),
+        "{e}"
+    );
+    let b = super::bounds::TickBound {
+        losses: 0,
+        freeze: 100,
+        ..b
+    };
+    let e = timing::check_budgets(&l, &b, &marks)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("1 samples lost; the loss budget allows 0"),
+        "{e}"
+    );
+}
+
+/// A freeze budget below zero, or longer than the run, is refused naming the link and field.
+#[test]
+fn a_freeze_budget_out_of_range_names_the_field() {
+    let s = shipped("paper-lqg.toml", 0.5);
+    let e = Bounds::parse(
+        "[measurement]\ndelay_ms = [0, 1]\nfreeze_ms = -1\n",
+        "b.toml",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("b.toml: [measurement] freeze_ms: -1; allowed: >= 0 ms"),
+        "{e}"
+    );
+    let e = bounds("[measurement]\ndelay_ms = [0, 1]\nfreeze_ms = 600\n")
+        .ticks(&s, "b.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("b.toml: [measurement] freeze_ms: 600 ms is longer than the run")
+            && e.contains("allowed: 0 to 500 ms"),
+        "{e}"
+    );
+}
+
+/// Shards share the budget whole, shard 0's seed is the search's and the others differ.
+#[test]
+fn shards_share_the_budget_with_seeds_of_their_own() {
+    use super::shards::{shard_seed, share};
+    use crate::sweep::Shard;
+    for (budget, count) in [(500, 4), (7, 3), (5, 5), (100, 1)] {
+        let shares: Vec<usize> = (0..count)
+            .map(|index| share(budget, Shard { index, count }))
+            .collect();
+        assert_eq!(shares.iter().sum::<usize>(), budget, "{shares:?}");
+        assert!(shares.iter().max().unwrap() - shares.iter().min().unwrap() <= 1);
+    }
+    assert_eq!(shard_seed(7, 0), 7);
+    let seeds: std::collections::BTreeSet<u64> = (0..64).map(|i| shard_seed(7, i)).collect();
+    assert_eq!(seeds.len(), 64);
+}
+
+/// An evaluation writes nothing: its run directory is never made, and the metric of the
+/// lock-step point (every delay the smallest, nothing lost) is the plain run's.
+#[test]
+fn an_evaluation_writes_nothing() {
+    let mut s = shipped("paper-lqg.toml", 0.5);
+    super::prepare(&mut s, "paper-lqg.toml").unwrap();
+    let b = bounds("[actuator_command]\ndelay_ms = [0, 60]\nloss_pct = 1\nfreeze_ms = 20\n");
+    let ticks = b.ticks(&s, "t").unwrap();
+    let layout = Layout::new(&s, &ticks);
+    let dir = std::env::temp_dir().join(format!("tiltsim-eval-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let o = Objective::maximise("p_ct").unwrap();
+    let interrupt = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let (m, _, e) = super::search::evaluate(
+        &s,
+        &layout,
+        &ticks,
+        &o,
+        &vec![0.0; layout.dims],
+        dir.clone(),
+        &interrupt,
+    );
+    assert!(e.is_empty() && m.is_finite(), "{e}");
+    assert!(!dir.exists(), "{} was made", dir.display());
+    let spec = super::Spec {
+        bounds: b,
+        bounds_from: "t".into(),
+        objective: o,
+        budget: 1,
+        seed: 1,
+    };
+    let (nominal, _) = super::outputs::nominal(&s, &spec, &dir, &interrupt);
+    assert_eq!(m, nominal);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -8,8 +8,14 @@
 //!   `[d_min, d_max]`;
 //! * a jitter amplitude (a share of the jitter bound) and a half-period (1 to
 //!   [`JITTER_HALF_PERIOD_MAX`] samples) of a square wave added to the base;
-//! * [`WINDOWS`] windows of undelivered samples, each a position and a share of the link's
-//!   drop budget (loss and freeze together).
+//! * [`WINDOWS`] windows of lost samples, each a position and a share of the link's loss
+//!   budget (when it has one);
+//! * [`WINDOWS`] stalls, each a position and a share of the link's freeze budget (when it has
+//!   one), a stall's samples never delivered, its length whole periods of the consumer.
+//!
+//! A sample in a stall and a loss window is frozen, not lost: the samples lost never exceed
+//! the loss budget, and the stalls, each rounded up to whole consumer periods, never exceed
+//! the freeze budget ([`check_budgets`]).
 //!
 //! Each sample's delay is then projected, in send order, onto what the bounds allow given the
 //! previous delivered sample: within `[d_min, d_max]`, within the jitter bound of the
@@ -102,7 +108,10 @@ pub fn dims(b: &TickBound) -> usize {
             n += 2;
         }
     }
-    if b.drops > 0 {
+    if b.losses > 0 {
+        n += 2 * WINDOWS;
+    }
+    if b.freeze > 0 {
         n += 2 * WINDOWS;
     }
     n
@@ -110,6 +119,98 @@ pub fn dims(b: &TickBound) -> usize {
 
 /// A link's timing: per sample, its delay in ticks, or `None` when not delivered.
 pub type Schedule = Vec<Option<i64>>;
+
+/// Why a sample is not delivered.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Undelivered {
+    /// It is delivered.
+    No,
+    /// Lost (the loss budget).
+    Lost,
+    /// Sent during a stall (the freeze budget).
+    Frozen,
+}
+
+/// Which samples of link `l` with bounds `b` are lost and which frozen, from the coordinates
+/// of its windows (`u`: the loss windows' then the stalls', each a position and a share).
+pub fn undelivered(
+    l: &LinkShape,
+    b: &TickBound,
+    u: &mut impl Iterator<Item = f64>,
+) -> Vec<Undelivered> {
+    let n = l.samples as usize;
+    let mut out = vec![Undelivered::No; n];
+    let mut mark = |len: usize, pos: f64, what: Undelivered| {
+        let len = len.min(n);
+        let start = (pos * (n - len) as f64).floor() as usize;
+        for d in &mut out[start..start + len] {
+            *d = what;
+        }
+    };
+    if b.losses > 0 {
+        for _ in 0..WINDOWS {
+            let (pos, share) = (u.next().unwrap_or(0.0), u.next().unwrap_or(0.0));
+            let len = (share * b.losses as f64 / WINDOWS as f64).floor() as usize;
+            mark(len, pos, Undelivered::Lost);
+        }
+    }
+    if b.freeze > 0 {
+        let p = l.consumer_period as f64;
+        for _ in 0..WINDOWS {
+            let (pos, share) = (u.next().unwrap_or(0.0), u.next().unwrap_or(0.0));
+            // Whole consumer periods, and as many samples as fit in them.
+            let periods = (share * (b.freeze as f64 / p) / WINDOWS as f64).floor();
+            let len = (periods * p / l.spacing as f64).floor() as usize;
+            mark(len, pos, Undelivered::Frozen);
+        }
+    }
+    out
+}
+
+/// The samples lost, and the ticks stalled (each run of frozen samples rounded up to whole
+/// periods of the consumer), of `marks`.
+pub fn budgets_used(l: &LinkShape, marks: &[Undelivered]) -> (i64, i64) {
+    let lost = marks.iter().filter(|m| **m == Undelivered::Lost).count() as i64;
+    let (s, p) = (l.spacing as i64, l.consumer_period as i64);
+    let mut stalled = 0;
+    let mut run = 0i64;
+    for m in marks.iter().chain(std::iter::once(&Undelivered::No)) {
+        if *m == Undelivered::Frozen {
+            run += 1;
+        } else if run > 0 {
+            stalled += (run * s + p - 1) / p * p;
+            run = 0;
+        }
+    }
+    (lost, stalled)
+}
+
+/// Checks the samples lost against the loss budget and the stalls against the freeze budget,
+/// each on its own.
+pub fn check_budgets(
+    l: &LinkShape,
+    b: &TickBound,
+    marks: &[Undelivered],
+) -> Result<(), OutOfBounds> {
+    let (lost, stalled) = budgets_used(l, marks);
+    let fail = |what: String| OutOfBounds {
+        link: l.id.name(),
+        what,
+    };
+    if lost > b.losses {
+        return Err(fail(format!(
+            "{lost} samples lost; the loss budget allows {}",
+            b.losses
+        )));
+    }
+    if stalled > b.freeze {
+        return Err(fail(format!(
+            "stalled {stalled} ticks (in whole periods of {} of {} ticks); the freeze budget allows {}",
+            l.consumer, l.consumer_period, b.freeze
+        )));
+    }
+    Ok(())
+}
 
 /// The schedule of a link of shape `l` with bounds `b` from its coordinates `u` (each in
 /// `[0, 1]`, [`dims`] of them).
@@ -127,23 +228,12 @@ pub fn schedule(l: &LinkShape, b: &TickBound, u: &[f64]) -> Schedule {
             half = 1 + (u.next().unwrap_or(0.0) * (JITTER_HALF_PERIOD_MAX - 1.0)).round() as usize;
         }
     }
-    let mut dropped = vec![false; n];
-    if b.drops > 0 {
-        for _ in 0..WINDOWS {
-            let pos = u.next().unwrap_or(0.0);
-            let share = u.next().unwrap_or(0.0);
-            let len = ((share * b.drops as f64 / WINDOWS as f64).floor() as usize).min(n);
-            let start = (pos * (n - len) as f64).floor() as usize;
-            for d in &mut dropped[start..start + len] {
-                *d = true;
-            }
-        }
-    }
+    let dropped = undelivered(l, b, &mut u);
     let width = (b.d_max - b.d_min) as f64;
     let mut prev: Option<(i64, i64)> = None; // (valid_from, delay) of the last delivered
     let mut out = Vec::with_capacity(n);
     for (i, drop) in dropped.iter().enumerate() {
-        if *drop {
+        if *drop != Undelivered::No {
             out.push(None);
             continue;
         }
@@ -272,6 +362,21 @@ impl Layout {
             at += n;
         }
         Layout { links, dims: at }
+    }
+
+    /// Checks each link's samples lost and stalls of point `u` against its loss and freeze
+    /// budgets, each on its own.
+    pub fn check_budgets(&self, u: &[f64]) -> Result<(), OutOfBounds> {
+        for (l, b, r) in &self.links {
+            let delays = dims(&TickBound {
+                losses: 0,
+                freeze: 0,
+                ..*b
+            });
+            let mut it = u[r.start + delays..r.end].iter().map(|x| x.clamp(0.0, 1.0));
+            check_budgets(l, b, &undelivered(l, b, &mut it))?;
+        }
+        Ok(())
     }
 
     /// The trace of point `u` (coordinates in `[0, 1]`).
@@ -408,7 +513,7 @@ pub fn observe(l: &LinkShape, r: &[i64], b: Option<&TickBound>) -> Result<LinkOb
     if let Some(b) = b {
         if dropped > b.drops {
             return Err(fail(format!(
-                "{dropped} samples are not delivered; the loss and freeze budgets allow {}",
+                "{dropped} samples are not delivered; the loss and freeze budgets together allow {}",
                 b.drops
             )));
         }
@@ -445,8 +550,15 @@ fn dropped(l: &LinkShape, first: &[(u64, i64)], d_min: i64, d_max: i64) -> i64 {
 /// delays, jitter and drops within bounds; and causal (each input computed before it is
 /// read, in the order the replay takes the steps).
 pub fn check(s: &Scenario, t: &Trace, b: &[TickBound; 4]) -> Result<[LinkObs; 4], String> {
-    let mut order = t.steps.clone();
-    order.sort_by_key(|x| (x.read_ns, col(x.role)));
+    let key = |x: &StepTrace| (x.read_ns, col(x.role));
+    // A made trace is in read order already: copied and sorted only when it is not.
+    let order = if t.steps.is_sorted_by_key(key) {
+        std::borrow::Cow::Borrowed(&t.steps)
+    } else {
+        let mut o = t.steps.clone();
+        o.sort_by_key(key);
+        std::borrow::Cow::Owned(o)
+    };
     tiltsim_master::free::timing_replay::check_causal(
         std::path::Path::new("(candidate)"),
         &order,

@@ -1,0 +1,55 @@
+//! `tiltsim falsify-merge SHARD_DIR... --out DIR`: join the shards of a search.
+
+use std::path::PathBuf;
+
+use super::error::{CliError, CliResult};
+
+/// Arguments.
+#[derive(clap::Args, Debug)]
+pub struct FalsifyMergeArgs {
+    /// Shard output directories (`tiltsim falsify --shard I/N`), every shard once.
+    #[arg(required = true)]
+    shards: Vec<PathBuf>,
+    /// Output directory.
+    #[arg(long)]
+    out: PathBuf,
+    /// No table on standard output.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// Runs the command.
+pub fn exec(a: FalsifyMergeArgs) -> CliResult {
+    let invalid = |m: String| CliError::Invalid(m);
+    let out_real = std::fs::canonicalize(&a.out).ok();
+    for d in &a.shards {
+        // A shard still running has not written its results.
+        if let Some(h) = tiltsim_master::outdir::live_holder(d) {
+            return Err(invalid(format!(
+                "{}: in use by {h}: a shard still running cannot be merged",
+                d.display()
+            )));
+        }
+        if out_real.is_some() && std::fs::canonicalize(d).ok() == out_real {
+            return Err(invalid(format!(
+                "--out {}: is one of the shards merged; give another directory",
+                a.out.display()
+            )));
+        }
+    }
+    // Checked whole before the output directory is touched.
+    let shards =
+        tiltsim_studies::falsify::shards::read_all(&a.shards).map_err(super::falsify::invalid)?;
+    let _lock =
+        tiltsim_master::outdir::claim(&a.out, tiltsim_master::outdir::Kind::Sweep, "falsify-merge")
+            .map_err(|e| invalid(e.to_string()))?;
+    let interrupt = tiltsim_master::signals::install();
+    let (evals, o) = tiltsim_studies::falsify::shards::merge(&a.shards, &a.out, &interrupt)
+        .map_err(super::falsify::invalid)?;
+    if !a.quiet {
+        let evals: Vec<_> = evals.into_iter().map(|(_, e)| e).collect();
+        let from = &shards[0].info.bounds_from;
+        super::falsify::print_report(from, &evals, &o, &a.out, None);
+    }
+    Ok(())
+}
