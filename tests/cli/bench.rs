@@ -53,11 +53,10 @@ fn walls_are_medians_and_floors_the_best_round_trip(
 }
 
 /// iceoryx2's floor for the scenario's ticks: the passive controller is stepped every tick, so
-/// an echo for each of three participants asked every tick; the Gauss-Seidel tick's three
-/// exchanges one after the other cost at least three round trips of two processes on their
-/// own CPUs busy-waiting (the machine's ping-pong floor, measured in the same report). Each
-/// adaptive IPC row that had a pair of CPUs of its own is set beside its master's floor; the
-/// others (in-process, spin, sleep, a run left to the kernel among other work) are not.
+/// an echo for each of three participants asked every tick, in several sets of fresh processes
+/// of the ticks named. Each adaptive IPC row that had a pair of CPUs of its own is set beside
+/// its master's floor; the others (in-process, spin, sleep, a run left to the kernel among
+/// other work) are not.
 fn exchange_floors_follow_the_pattern_and_set_the_ratios(
     r: &serde_json::Value,
     configs: &[serde_json::Value],
@@ -81,17 +80,6 @@ fn exchange_floors_follow_the_pattern_and_set_the_ratios(
         (lo, hi)
     };
     let (in_turn, at_once) = (range("in_turn_sets_us"), range("all_at_once_sets_us"));
-    // Three round trips at the cross-CPU floor (one way p50, so two per round trip): a tick
-    // with the echoes sharing one CPU cannot be faster. The two are measured a few seconds
-    // apart on a shared machine, where such figures move by up to ±50 %: half of it is the
-    // bound.
-    let one_way = r["machine_floors"]["one_way_cross_cpu_us"]
-        .as_f64()
-        .unwrap();
-    assert!(
-        in_turn.0 >= 0.5 * 3.0 * 2.0 * one_way,
-        "in turn {in_turn:?} against a one-way floor of {one_way} µs"
-    );
     for c in configs {
         let comparable =
             c["transport"] == "ipc" && c["wait"] == "adaptive" && c["placement"] == "free-pair";

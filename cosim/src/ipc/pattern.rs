@@ -2,8 +2,8 @@
 //! placement and wait of an IPC run, with nothing of tiltsim's in between.
 //!
 //! One measuring process stands in for the orchestrator and one echo process for each
-//! participant. The measurer sits on the first allowed CPU and the echoes share the last, as an
-//! adaptive run pins them; the measurer spins [`SPIN_POLLS`](crate::wait::SPIN_POLLS) polls
+//! participant. The measurer sits on one CPU and the echoes share another, as an adaptive run
+//! with a pair of CPUs of its own pins them; the measurer spins [`SPIN_POLLS`](crate::wait::SPIN_POLLS) polls
 //! and then yields, the echoes yield at once and sleep through three quarters of the gap
 //! between requests that come far apart, exactly as the run's waits do
 //! ([`Backoff`], [`Cadence`]). A tick sends each due echo a 256-byte sample written whole
@@ -234,7 +234,7 @@ pub fn measure(
     }
     for (p, s) in &ports {
         send(p, DONE)?;
-        let _ = answer(s, DONE);
+        answer(s, DONE)?;
     }
     Ok(out)
 }

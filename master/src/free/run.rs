@@ -146,7 +146,13 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
 /// not to be, or the CPUs are claimed by other runs or kept busy by other work, and then the
 /// kernel balances the processes.
 fn place(s: &Scenario, ps: &Participants) -> BTreeMap<String, usize> {
-    let Some(p) = ps.placement.as_ref().filter(|p| p.pinned()) else {
+    // A pair only: under `free-cpu-each` the participants keep the three CPUs the run claimed
+    // for them when they started, spread by the kernel, none pinned to one.
+    let Some(p) = ps
+        .placement
+        .as_ref()
+        .filter(|p| p.reason == cosim::ipc::placement::Reason::FreePair)
+    else {
         return BTreeMap::new();
     };
     let (Some(first), Some(&last)) = (p.orchestrator_cpu, p.participant_cpus.first()) else {

@@ -140,8 +140,9 @@ fn ping_pong_latencies(
 
 /// The wall time (ns) of each of `ticks` ticks of iceoryx2 exchanges alone in `order`, one echo
 /// process per entry of `every` (asked every that many ticks), placed as an adaptive IPC run
-/// places its processes: this one on the first CPU, the echoes together on the last
-/// (`cosim::ipc::pattern`).
+/// with a pair of CPUs places its processes: this one on the first allowed CPU, the echoes
+/// together on the second, the pair an unclaimed machine gives the first run
+/// (`cosim::ipc::pattern`, `cosim::ipc::placement`).
 pub(super) fn exchange_floor(
     exe: &std::path::Path,
     every: &[u64],
@@ -150,8 +151,8 @@ pub(super) fn exchange_floor(
 ) -> Result<Vec<f64>, CliError> {
     let cpus = cosim::ipc::allowed_cpus();
     let prefix = cosim::ipc::unique_prefix();
-    let pinned = match (cpus.first(), cpus.last()) {
-        (Some(first), Some(last)) if first != last => Some((*first, *last)),
+    let pinned = match cpus.as_slice() {
+        [first, second, ..] => Some((*first, *second)),
         _ => None,
     };
     let mut children = Vec::new();
@@ -165,8 +166,8 @@ pub(super) fn exchange_floor(
             "--pattern",
             &i.to_string(),
         ]);
-        if let Some((_, last)) = pinned {
-            cmd.args(["--cpu", &last.to_string()]);
+        if let Some((_, theirs)) = pinned {
+            cmd.args(["--cpu", &theirs.to_string()]);
         }
         match cmd.spawn() {
             Ok(c) => children.push(c),
@@ -179,22 +180,37 @@ pub(super) fn exchange_floor(
         }
     }
     let result = spawned.and_then(|()| {
-        if let Some((first, _)) = pinned {
-            cosim::ipc::pin_to_cpu(first);
+        if let Some((own, _)) = pinned {
+            cosim::ipc::pin_to_cpu(own);
         }
         cosim::ipc::pattern::measure(&prefix, every, order, ticks)
             .map_err(|e| CliError::Failed(format!("bench: {e}")))
     });
+    // An echo that answered the end leaves at once; one that did not is killed after a while
+    // (it would otherwise wait for this process to go).
+    let started = std::time::Instant::now();
     for mut c in children {
-        if result.is_err() {
-            let _ = c.kill();
+        loop {
+            match c.try_wait() {
+                Ok(None) if started.elapsed() < ECHO_EXIT => {
+                    std::thread::sleep(std::time::Duration::from_millis(5));
+                }
+                Ok(None) => {
+                    let _ = c.kill();
+                    let _ = c.wait();
+                    break;
+                }
+                _ => break,
+            }
         }
-        let _ = c.wait();
     }
     cosim::ipc::set_cpus(&cpus);
     cosim::ipc::remove_run_files(&prefix);
     result
 }
+
+/// How long the echo processes of the exchange floor have to leave after the measurement.
+const ECHO_EXIT: std::time::Duration = std::time::Duration::from_secs(5);
 
 /// `--ping-pong`: the echo process on the last CPU, this one on the first (`--same-cpu`: both
 /// on the first).

@@ -51,19 +51,24 @@ struct Hogs {
 }
 
 impl Hogs {
-    fn start(n: usize) -> Hogs {
-        let stop = Arc::new(AtomicBool::new(false));
-        let threads = (0..n)
-            .map(|_| {
-                let stop = stop.clone();
-                std::thread::spawn(move || {
+    fn start(n: usize) -> Result<Hogs, CliError> {
+        let mut hogs = Hogs {
+            stop: Arc::new(AtomicBool::new(false)),
+            threads: Vec::new(),
+        };
+        for _ in 0..n {
+            let stop = hogs.stop.clone();
+            let t = std::thread::Builder::new()
+                .name("hog".into())
+                .spawn(move || {
                     while !stop.load(Ordering::Relaxed) {
                         core::hint::spin_loop();
                     }
                 })
-            })
-            .collect();
-        Hogs { stop, threads }
+                .map_err(|e| CliError::Failed(format!("bench: cannot start a hog: {e}")))?;
+            hogs.threads.push(t);
+        }
+        Ok(hogs)
     }
 }
 
@@ -76,10 +81,11 @@ impl Drop for Hogs {
     }
 }
 
+/// The median (the lower of the middle two, as `tiltsim bench`'s), `None` when empty.
 fn median(v: &[f64]) -> Option<f64> {
     let mut v = v.to_vec();
     v.sort_by(f64::total_cmp);
-    (!v.is_empty()).then(|| v[v.len() / 2])
+    (!v.is_empty()).then(|| v[(v.len() - 1) / 2])
 }
 
 /// The loop's wall time and the placement from a run's summary.
@@ -105,7 +111,10 @@ fn row(
     dir: &Path,
 ) -> Result<Row, CliError> {
     let load_before = tiltsim_master::engine::machine::load_average();
-    let _hogs = Hogs::start(hogs);
+    let _hogs = Hogs::start(hogs)?;
+    // A run ends by itself (its own deadlines name a participant that stalls); one that has
+    // not after this long is killed and counted as not completed.
+    let limit = std::time::Duration::from_secs_f64(120.0 + 50.0 * duration * runs as f64);
     let t0 = Instant::now();
     let mut children = Vec::new();
     for k in 0..runs {
@@ -140,6 +149,12 @@ fn row(
                 continue;
             }
             match c.try_wait() {
+                Ok(None) if started.elapsed() > limit => {
+                    let _ = c.kill();
+                    let _ = c.wait();
+                    let late = std::io::Error::other("killed: did not end in time");
+                    ends[i] = Some((Err(late), started.elapsed().as_secs_f64()));
+                }
                 Ok(None) => {}
                 Ok(Some(st)) => ends[i] = Some((Ok(st), started.elapsed().as_secs_f64())),
                 Err(e) => ends[i] = Some((Err(e), started.elapsed().as_secs_f64())),
@@ -232,7 +247,13 @@ pub fn concurrent(
             let dir = scratch.join(format!("runs-{n}-hogs-{h}"));
             let r = row(exe, scenario, duration, n, h, &dir);
             let _ = std::fs::remove_dir_all(&dir);
-            rows.push(r?);
+            match r {
+                Ok(r) => rows.push(r),
+                Err(e) => {
+                    let _ = std::fs::remove_dir_all(&scratch);
+                    return Err(e);
+                }
+            }
         }
     }
     let _ = std::fs::remove_dir_all(&scratch);

@@ -56,7 +56,7 @@ pub struct FalsifyArgs {
     #[arg(long, value_name = "I/N|auto", conflicts_with = "restarts")]
     shard: Option<String>,
     /// With --shard auto in a Kubernetes indexed job: the number of completions.
-    #[arg(long, value_name = "N", value_parser = bounds::int(1..=MAX_BUDGET, ""))]
+    #[arg(long, value_name = "N", requires = "shard", value_parser = bounds::int(1..=MAX_BUDGET, ""))]
     shards: Option<usize>,
     /// Run the search as N shards one after the other (OUT/restarts/<i>) and merge them into
     /// OUT: the same result as N shards run apart and merged with falsify-merge.

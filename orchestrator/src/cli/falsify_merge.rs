@@ -45,7 +45,13 @@ pub fn exec(a: FalsifyMergeArgs) -> CliResult {
             .map_err(|e| invalid(e.to_string()))?;
     let interrupt = tiltsim_master::signals::install();
     let (evals, o) = tiltsim_studies::falsify::shards::merge(&a.shards, &a.out, &interrupt)
-        .map_err(super::falsify::invalid)?;
+        .map_err(|e| {
+            if interrupt.load(std::sync::atomic::Ordering::Relaxed) {
+                CliError::Interrupted(e.to_string())
+            } else {
+                super::falsify::invalid(e)
+            }
+        })?;
     if !a.quiet {
         let evals: Vec<_> = evals.into_iter().map(|(_, e)| e).collect();
         let from = &shards[0].info.bounds_from;

@@ -41,7 +41,7 @@ pub struct SweepArgs {
     #[arg(long, value_name = "I/N|auto")]
     shard: Option<String>,
     /// With --shard auto in a Kubernetes indexed job: the number of completions.
-    #[arg(long, value_name = "N", value_parser = bounds::int(1..=MAX_SAMPLES, ""))]
+    #[arg(long, value_name = "N", requires = "shard", value_parser = bounds::int(1..=MAX_SAMPLES, ""))]
     shards: Option<usize>,
     /// Print the plan as JSON lines (sample, seed, the settings it changes) and run nothing;
     /// `tiltsim run SCENARIO --set KEY=VALUE ...` with a line's settings runs that sample.

@@ -219,6 +219,19 @@ impl Bounds {
             }
             // Checked at the reading participant's period: whole periods of the consumer.
             let p = link.consumer_period as i64;
+            if stall > 0 && stall < p {
+                return Err(err(
+                    file,
+                    format!("[{}] freeze_ms", id.name()),
+                    format!(
+                        "{} ms is shorter than one period of the participant that reads the \
+                         link ({} ms), so no stall would fit; allowed: 0, or {} ms and more",
+                        l.freeze_ms,
+                        p as f64 * dt_ms,
+                        p as f64 * dt_ms
+                    ),
+                ));
+            }
             let freeze = stall / p * p;
             let frozen = freeze / link.spacing as i64;
             out[id as usize] = TickBound {

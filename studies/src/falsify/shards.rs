@@ -152,6 +152,16 @@ pub fn read_shard(dir: &Path) -> Result<ShardDir, FalsifyError> {
         )
     })?;
     let info: ShardInfo = serde_json::from_str(&text).map_err(|e| invalid(&path, e))?;
+    if info.count == 0 || info.index >= info.count || info.budget < info.count {
+        return Err(invalid(
+            &path,
+            format!(
+                "index {}, count {}, budget {}: allowed a count of 1 to the budget and an index \
+                 below the count",
+                info.index, info.count, info.budget
+            ),
+        ));
+    }
     let path = dir.join("result.json");
     let text = std::fs::read_to_string(&path).map_err(|e| {
         invalid(
@@ -317,6 +327,8 @@ pub fn merge(
     std::fs::create_dir_all(out).map_err(|e| files_error(out, e))?;
     // An unsharded search's kept evaluations are not this one's.
     let _ = std::fs::remove_dir_all(out.join("done"));
+    // A merged search is not a shard, whatever the directory held before.
+    let _ = std::fs::remove_file(out.join(SHARD_JSON));
     let trace = src.dir.join("worst").join(TIMING_CSV);
     let worst_run_metric = replay_worst(&s, &spec, out, interrupt, |p| {
         std::fs::copy(&trace, p)

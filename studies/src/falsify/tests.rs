@@ -304,6 +304,20 @@ fn a_freeze_budget_out_of_range_names_the_field() {
             && e.contains("allowed: 0 to 500 ms"),
         "{e}"
     );
+    // The MPC reads its measurement every 50 ms: a 30 ms budget holds no stall of it.
+    let mpc = shipped("paper-mpc.toml", 0.5);
+    let e = bounds("[measurement]\ndelay_ms = [0, 1]\nfreeze_ms = 30\n")
+        .ticks(&mpc, "b.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("b.toml: [measurement] freeze_ms: 30 ms is shorter than one period")
+            && e.contains("allowed: 0, or 50 ms and more"),
+        "{e}"
+    );
+    assert!(bounds("[measurement]\ndelay_ms = [0, 1]\nfreeze_ms = 50\n")
+        .ticks(&mpc, "b.toml")
+        .is_ok());
 }
 
 /// Shards share the budget whole, shard 0's seed is the search's and the others differ.
