@@ -1,0 +1,129 @@
+//! Tests of the bench report: withheld ratios and which rows are set beside which floor.
+use super::*;
+
+#[test]
+fn ratios_are_withheld_when_the_rounds_spread() {
+    let walls = |ipc: Vec<f64>| WallRounds {
+        in_process_s: vec![1.0, 1.1, 1.05],
+        ipc_gauss_seidel_s: ipc,
+        ipc_jacobi_s: vec![1.2, 1.25, 1.3],
+    };
+    // Rounds within a tenth of each other: drawn.
+    assert_eq!(withheld(&walls(vec![1.5, 1.6, 1.55])), None);
+    // One round 1.5 s, the next 30 s (a build started beside it): withheld, named.
+    let why = withheld(&walls(vec![1.5, 30.0, 1.6])).unwrap();
+    assert!(
+        why.contains("IPC gauss-seidel") && why.contains("1781 %"),
+        "{why}"
+    );
+    // Fewer than three rounds: no spread to judge.
+    assert_eq!(spread(&[1.0, 9.0]), None);
+    assert_eq!(withheld(&walls(vec![1.5, 9.0])), None);
+    assert_eq!(spread(&[1.0, 1.5, 2.0]), Some(1.0 / 1.5));
+}
+
+/// A row of `master` over `transport` with `wait`, placed for `reason`, overhead p50 10 µs.
+fn row(transport: Transport, master: Master, wait: WaitStrategy, reason: Option<Reason>) -> Config {
+    Config {
+        transport: transport.name(),
+        master: master.name(),
+        wait: wait.name(),
+        placement: reason,
+        ticks: 100,
+        overhead_p50_us: 10.0,
+        overhead_p99_us: 20.0,
+        plant_round_trip_p50_us: 3.0,
+        plant_round_trip_p99_us: 6.0,
+        wall_s: 0.1,
+        cpu_s: 0.2,
+        exchange_floor_us: None,
+        exchange_floor_worst_us: None,
+        overhead_over_floor: None,
+    }
+}
+
+#[test]
+fn only_adaptive_rows_with_a_pair_of_cpus_are_set_beside_their_masters_floor() {
+    let p50 = |p50: f64| cosim::stats::Percentiles {
+        n: 10,
+        p50,
+        p99: 2.0 * p50,
+        max: 3.0 * p50,
+        mean: p50,
+    };
+    let floors = ExchangeFloors {
+        every: vec![1, 1, 1],
+        ticks: 10,
+        in_turn_sets_us: vec![p50(8.0), p50(5.0), p50(6.0)],
+        all_at_once_sets_us: vec![p50(4.0), p50(2.5)],
+    };
+    // The floor of a pattern is its best set's p50, beside its worst.
+    assert_eq!(floors.in_turn_us(), (5.0, 8.0));
+    assert_eq!(floors.all_at_once_us(), (2.5, 4.0));
+    use Master::*;
+    use WaitStrategy::*;
+    let pair = Some(Reason::FreePair);
+    let mut r = run_report(vec![
+        row(Transport::InProcess, GaussSeidel, Adaptive, None),
+        row(Transport::Ipc, GaussSeidel, Adaptive, pair),
+        row(Transport::Ipc, Jacobi, Adaptive, pair),
+        row(
+            Transport::Ipc,
+            GaussSeidel,
+            Adaptive,
+            Some(Reason::Contended),
+        ),
+        row(Transport::Ipc, GaussSeidel, Sleep, pair),
+        row(Transport::Ipc, Jacobi, Spin, pair),
+    ]);
+    r.set_exchange_floors(floors);
+    let got: Vec<_> = r
+        .configs
+        .iter()
+        .map(|c| {
+            (
+                c.exchange_floor_us,
+                c.exchange_floor_worst_us,
+                c.overhead_over_floor,
+            )
+        })
+        .collect();
+    assert_eq!(
+        got,
+        [
+            (None, None, None),
+            (Some(5.0), Some(8.0), Some(2.0)),
+            (Some(2.5), Some(4.0), Some(4.0)),
+            (None, None, None),
+            (None, None, None),
+            (None, None, None),
+        ]
+    );
+    assert!(r.exchange_floors.is_some());
+}
+
+/// A report holding `configs` and nothing measured besides.
+fn run_report(configs: Vec<Config>) -> Report {
+    Report {
+        scenario: "s".into(),
+        duration_s: 1.0,
+        cpus: 2,
+        machine: Machine::this(),
+        ipc_round_trip_floor_us: 3.0,
+        configs,
+        wall_in_process_s: 0.1,
+        wall_ipc_s: 0.2,
+        ipc_over_in_process: None,
+        wall_ipc_jacobi_s: 0.2,
+        jacobi_ipc_over_in_process: None,
+        ratio_withheld: None,
+        load_average: LoadSpan {
+            before: None,
+            after: None,
+        },
+        wall_spread: [None; 3],
+        wall_rounds: WallRounds::default(),
+        machine_floors: None,
+        exchange_floors: None,
+    }
+}
