@@ -1,6 +1,6 @@
 //! `tiltsim bench`: every configuration measured, one JSON report.
 
-use tiltsim_suite::{run, scenario, temp_dir};
+use tiltsim_suite::{run, scenario, spawn, temp_dir, wait_for, wait_with_limit};
 
 /// The bench report `r`'s walls are the medians of their rounds (the first the
 /// configuration's own run), its ratio the two walls it names, its plant round trip the best
@@ -266,4 +266,40 @@ fn concurrent_runs_are_measured_per_count_and_hog_and_all_complete() {
     }
     // The runs' directories were scratch.
     assert!(!dir.join("concurrent.runs").exists());
+}
+
+#[test]
+fn an_interrupted_concurrent_bench_reports_the_rows_it_measured_and_starts_no_other() {
+    let dir = temp_dir("bench-concurrent-interrupted");
+    let out = dir.join("c.json");
+    let sc = scenario("paper-mpc.toml");
+    // Two rows of one long run each; Ctrl-C to the bench alone while the first row runs.
+    let child = spawn(&[
+        "bench",
+        sc.to_str().unwrap(),
+        "--concurrent",
+        "1,1",
+        "--duration",
+        "300",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let first = dir.join("c.runs").join("runs-1-hogs-0").join("r0");
+    let started = wait_for(std::time::Duration::from_secs(120), || {
+        first.exists().then_some(())
+    });
+    assert!(started.is_some(), "the first row did not start");
+    // SAFETY: signalling a child this test started.
+    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+    let (code, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
+    assert_eq!(code, 130, "{err}");
+    assert!(err.contains("1 of 2 rows measured"), "{err}");
+    // The run of the first row got no signal and completed; the second row never started.
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(r["interrupted"], true);
+    let rows = r["concurrent"].as_array().unwrap();
+    assert_eq!(rows.len(), 1, "{r}");
+    assert_eq!(rows[0]["completed"], 1, "{r}");
+    assert!(!dir.join("c.runs").exists(), "scratch runs removed");
 }

@@ -240,9 +240,15 @@ pub fn concurrent(
     out: &Path,
 ) -> CliResult {
     let scratch: PathBuf = tiltsim_studies::bench::scratch_dir(out);
+    // Ctrl-C reaches the runs too (they end as interrupted); the rows measured so far are
+    // reported and no further row starts.
+    let interrupt = tiltsim_master::signals::install();
     let mut rows = Vec::new();
-    for &h in hogs {
+    'rows: for &h in hogs {
         for &n in counts {
+            if interrupt.load(Ordering::Relaxed) {
+                break 'rows;
+            }
             eprintln!("  {n} run(s) at once beside {h} hog(s) ...");
             let dir = scratch.join(format!("runs-{n}-hogs-{h}"));
             let r = row(exe, scenario, duration, n, h, &dir);
@@ -269,8 +275,17 @@ pub fn concurrent(
             "scenario": name,
             "duration_s": duration,
             "machine": machine,
+            "interrupted": interrupt.load(Ordering::Relaxed),
         }),
     )?;
     println!("wrote {}", out.display());
+    if interrupt.load(Ordering::Relaxed) {
+        return Err(CliError::Interrupted(format!(
+            "interrupted by {}: {} of {} rows measured",
+            tiltsim_master::signals::describe(),
+            rows.len(),
+            counts.len() * hogs.len()
+        )));
+    }
     Ok(())
 }
