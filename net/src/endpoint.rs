@@ -99,20 +99,22 @@ impl<I: Message, O: Message> NetEndpoint<I, O> {
     }
 
     /// Moves the participant's clock readings onto the orchestrator's clock: by the offset
-    /// measured at joining, and never before the request read was sent (the offset is known
-    /// to within half a round trip; causality is known exactly).
-    fn stamps_to_local(&self, h: &mut cosim::msg::Header) {
+    /// measured at joining, never before the request read was sent and never after the reply
+    /// `arrived` here (the offset is known to within half a round trip; causality is known
+    /// exactly, and a participant here reads a remote output only after it arrived).
+    fn stamps_to_local(&self, h: &mut cosim::msg::Header, arrived: u64) {
         let sent_then = self
             .sent
             .iter()
             .rev()
             .find(|(relay, _)| *relay == h.relay)
             .map_or(0, |&(_, t)| t);
+        let arrived = arrived.max(sent_then);
         if h.recv_ns != 0 {
-            h.recv_ns = self.to_local(h.recv_ns).max(sent_then);
+            h.recv_ns = self.to_local(h.recv_ns).clamp(sent_then, arrived);
         }
         if h.sent_ns != 0 {
-            h.sent_ns = self.to_local(h.sent_ns).max(h.recv_ns);
+            h.sent_ns = self.to_local(h.sent_ns).clamp(h.recv_ns, arrived);
         }
     }
 
@@ -124,13 +126,14 @@ impl<I: Message, O: Message> NetEndpoint<I, O> {
     }
 
     fn decode(&self, sample: &zenoh::sample::Sample, step: u64) -> Result<O, LinkError> {
+        let arrived = cosim::msg::now_ns();
         let bytes = sample.payload().to_bytes();
         let mut o = O::from_wire(&bytes).map_err(|e| LinkError::Malformed {
             role: self.role_(),
             step,
             what: e.to_string(),
         })?;
-        self.stamps_to_local(o.header_mut());
+        self.stamps_to_local(o.header_mut(), arrived);
         Ok(o)
     }
 }
