@@ -48,40 +48,16 @@ const DONE: u64 = u64::MAX;
 /// How long an echo waits for a request before it checks whether its parent is still there.
 const IDLE: std::time::Duration = std::time::Duration::from_secs(2);
 
-type Ports = (
-    Publisher<ipc::Service, Exchange, ()>,
-    Subscriber<ipc::Service, Exchange, ()>,
-);
+type Ports = super::pingpong::Ports<Exchange>;
 
 fn ports(node: &Node<ipc::Service>, index: usize, echo: bool) -> Result<Ports, IpcError> {
-    let open = |dir: &str| -> Result<_, IpcError> {
-        let name: ServiceName = format!("tiltsim/pattern/{index}/{dir}")
-            .as_str()
-            .try_into()
-            .map_err(iox("service name"))?;
-        node.service_builder(&name)
-            .publish_subscribe::<Exchange>()
-            .max_publishers(1)
-            .max_subscribers(1)
-            .history_size(0)
-            .subscriber_max_buffer_size(2)
-            .open_or_create()
-            .map_err(iox("open or create service"))
-    };
+    let name = |dir: &str| format!("tiltsim/pattern/{index}/{dir}");
     let (out, inp) = if echo {
         ("reply", "request")
     } else {
         ("request", "reply")
     };
-    let p = open(out)?
-        .publisher_builder()
-        .create()
-        .map_err(iox("create publisher"))?;
-    let s = open(inp)?
-        .subscriber_builder()
-        .create()
-        .map_err(iox("create subscriber"))?;
-    Ok((p, s))
+    super::pingpong::pair(node, &name(out), &name(inp))
 }
 
 fn send(p: &Publisher<ipc::Service, Exchange, ()>, seq: u64) -> Result<(), IpcError> {

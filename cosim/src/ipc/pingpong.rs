@@ -60,17 +60,26 @@ pub const SIZES: [usize; 4] = [64, 256, 1024, 4096];
 /// The sequence number that tells the echo side to move to the next size.
 const DONE: u64 = u64::MAX;
 
-type Ports<T> = (
+pub(super) type Ports<T> = (
     Publisher<ipc::Service, T, ()>,
     Subscriber<ipc::Service, T, ()>,
 );
 
 fn ports<T: Sized_>(node: &Node<ipc::Service>, out: &str, inp: &str) -> Result<Ports<T>, IpcError> {
+    let name = |dir: &str| format!("tiltsim/pingpong/{}/{dir}", T::BYTES);
+    pair(node, &name(out), &name(inp))
+}
+
+/// A publisher on service `out` and a subscriber on service `inp`, each one-to-one with room
+/// for two samples and no history: the ports of a floor measurement (here and
+/// [`super::pattern`]).
+pub(super) fn pair<T: ZeroCopySend + core::fmt::Debug + 'static>(
+    node: &Node<ipc::Service>,
+    out: &str,
+    inp: &str,
+) -> Result<Ports<T>, IpcError> {
     let open = |name: &str| -> Result<_, IpcError> {
-        let name: ServiceName = format!("tiltsim/pingpong/{}/{name}", T::BYTES)
-            .as_str()
-            .try_into()
-            .map_err(iox("service name"))?;
+        let name: ServiceName = name.try_into().map_err(iox("service name"))?;
         node.service_builder(&name)
             .publish_subscribe::<T>()
             .max_publishers(1)

@@ -105,3 +105,39 @@ pub fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), CliError> {
     let text = serde_json::to_string_pretty(v).unwrap_or_default() + "\n";
     tiltsim_master::files::write_atomic(path, text).map_err(|e| CliError::Failed(e.to_string()))
 }
+
+/// The shard a `--shard I/N|auto [--shards N]` pair names, if any (sweeps and searches).
+pub fn shard_of(
+    shard: Option<&str>,
+    shards: Option<usize>,
+) -> Result<Option<tiltsim_studies::sweep::Shard>, CliError> {
+    use tiltsim_studies::sweep::Shard;
+    match shard {
+        None => None,
+        Some("auto") => Some(Shard::auto(shards, |v| std::env::var(v).ok())),
+        Some(s) => Some(Shard::parse(s)),
+    }
+    .transpose()
+    .map_err(|e| CliError::Invalid(e.to_string()))
+}
+
+/// Refuses to merge shards of which one is still running or one is the output directory.
+pub fn check_shards_to_merge(shards: &[PathBuf], out: &Path) -> Result<(), CliError> {
+    let out_real = std::fs::canonicalize(out).ok();
+    for d in shards {
+        // A shard still running has not written its results.
+        if let Some(h) = tiltsim_master::outdir::live_holder(d) {
+            return Err(CliError::Invalid(format!(
+                "{}: in use by {h}: a shard still running cannot be merged",
+                d.display()
+            )));
+        }
+        if out_real.is_some() && std::fs::canonicalize(d).ok() == out_real {
+            return Err(CliError::Invalid(format!(
+                "--out {}: is one of the shards merged; give another directory",
+                out.display()
+            )));
+        }
+    }
+    Ok(())
+}

@@ -8,7 +8,6 @@ use super::common::{interrupt_and_exe, load};
 use super::error::{CliError, CliResult};
 use tiltsim_master::scenario::Scenario;
 use tiltsim_studies::falsify::{self, Bounds, Exec, FalsifyError, Objective, Spec};
-use tiltsim_studies::sweep::Shard;
 
 /// The most evaluations of a search (`--budget`).
 pub const MAX_BUDGET: usize = 100_000;
@@ -143,13 +142,7 @@ pub fn exec(a: FalsifyArgs) -> CliResult {
         (None, None) => Objective::maximise("p_ct"),
     }
     .map_err(invalid)?;
-    let shard = match a.shard.as_deref() {
-        None => None,
-        Some("auto") => Some(Shard::auto(a.shards, |v| std::env::var(v).ok())),
-        Some(s) => Some(Shard::parse(s)),
-    }
-    .transpose()
-    .map_err(|e| CliError::Invalid(e.to_string()))?;
+    let shard = super::common::shard_of(a.shard.as_deref(), a.shards)?;
     if let Some(sh) = shard.filter(|sh| sh.count > a.budget as usize) {
         return Err(CliError::Invalid(format!(
             "--shard {}/{}: {} shards for --budget {}; allowed: at most as many shards as evaluations",

@@ -133,13 +133,7 @@ pub fn exec(a: SweepArgs) -> CliResult {
         )));
     }
     let plan = plan(&a, &s)?;
-    let shard = match a.shard.as_deref() {
-        None => None,
-        Some("auto") => Some(Shard::auto(a.shards, |v| std::env::var(v).ok())),
-        Some(s) => Some(Shard::parse(s)),
-    }
-    .transpose()
-    .map_err(|e| CliError::Invalid(e.to_string()))?;
+    let shard = super::common::shard_of(a.shard.as_deref(), a.shards)?;
     if a.plan_only {
         tiltsim_master::signals::end_quietly_on_closed_pipe();
         return print_plan(&s, &plan, shard);

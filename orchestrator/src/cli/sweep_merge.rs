@@ -18,22 +18,7 @@ pub struct SweepMergeArgs {
 /// Runs the command.
 pub fn exec(a: SweepMergeArgs) -> CliResult {
     let invalid = |m: String| CliError::Invalid(m);
-    let out_real = std::fs::canonicalize(&a.out).ok();
-    for d in &a.shards {
-        // A shard still running has not written its results.
-        if let Some(h) = tiltsim_master::outdir::live_holder(d) {
-            return Err(invalid(format!(
-                "{}: in use by {h}: a shard still running cannot be merged",
-                d.display()
-            )));
-        }
-        if out_real.is_some() && std::fs::canonicalize(d).ok() == out_real {
-            return Err(invalid(format!(
-                "--out {}: is one of the shards merged; give another directory",
-                a.out.display()
-            )));
-        }
-    }
+    super::common::check_shards_to_merge(&a.shards, &a.out)?;
     let (base, plan, build, rows) =
         tiltsim_studies::sweep::merge(&a.shards).map_err(|e| invalid(e.to_string()))?;
     // Checked whole before the output directory is touched.
