@@ -314,7 +314,7 @@ pub(crate) fn parse_grid(py: Python<'_>, spec: &str) -> PyResult<(String, Vec<f6
 /// (`result.json`'s fields), the progress (`progress.csv`'s columns) and the directory.
 #[pyfunction]
 #[pyo3(signature = (kind, value, origin, settings, bounds, bounds_origin, objective=None,
-                    requirement=None, budget=200, seed=1, jobs=None, out=None))]
+                    requirement=None, budget=None, seed=1, jobs=None, out=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn falsify<'py>(
     py: Python<'py>,
@@ -326,7 +326,7 @@ pub(crate) fn falsify<'py>(
     bounds_origin: &str,
     objective: Option<String>,
     requirement: Option<String>,
-    budget: i64,
+    budget: Option<i64>,
     seed: u64,
     jobs: Option<usize>,
     out: Option<PathBuf>,
@@ -336,11 +336,8 @@ pub(crate) fn falsify<'py>(
         FalsifyError::Invalid(m) => invalid(py, m),
         e => error(py, "ParticipantError", e.to_string()),
     };
-    if !(1..=100_000).contains(&budget) {
-        return Err(invalid(
-            py,
-            format!("budget = {budget}: allowed 1 to 100000"),
-        ));
+    if let Some(b) = budget.filter(|b| !(1..=100_000).contains(b)) {
+        return Err(invalid(py, format!("budget = {b}: allowed 1 to 100000")));
     }
     let objective = match (objective, requirement) {
         (Some(_), Some(_)) => {
@@ -355,11 +352,17 @@ pub(crate) fn falsify<'py>(
     fz::prepare(&mut s, origin).map_err(bad)?;
     let b = fz::Bounds::parse(bounds, bounds_origin).map_err(bad)?;
     b.ticks(&s, bounds_origin).map_err(bad)?;
+    let budget = match budget {
+        Some(n) => n as usize,
+        None => fz::search::default_budget(&s, &b, bounds_origin)
+            .map_err(bad)?
+            .min(100_000),
+    };
     let spec = fz::Spec {
         bounds: b,
         bounds_from: bounds_origin.to_string(),
         objective,
-        budget: budget as usize,
+        budget,
         seed,
     };
     let (dir, _scratch) = directory(py, out.as_deref(), "falsify")?;
@@ -419,8 +422,14 @@ fn progress_frame<'py>(
         "evaluation",
         PyArray1::from_iter(py, evals.iter().map(|e| e.evaluation as i64)),
     )?;
+    let phase: Vec<&str> = evals.iter().map(|e| e.phase.name()).collect();
+    progress.set_item("phase", PyList::new(py, phase)?)?;
     progress.set_item("metric", col(|e| e.metric))?;
     progress.set_item("objective", col(|e| e.objective))?;
     progress.set_item("best_so_far", col(|e| e.best_so_far))?;
+    let valid: Vec<bool> = evals.iter().map(|e| e.valid).collect();
+    progress.set_item("valid", PyList::new(py, valid)?)?;
+    let flags: Vec<&str> = evals.iter().map(|e| e.flags.as_str()).collect();
+    progress.set_item("flags", PyList::new(py, flags)?)?;
     Ok(progress)
 }

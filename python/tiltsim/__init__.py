@@ -474,14 +474,16 @@ def falsify(
     *,
     objective: Optional[str] = None,
     requirement: Optional[str] = None,
-    budget: int = 200,
+    budget: Optional[int] = None,
     seed: int = 1,
     set: Optional[Mapping[str, Any]] = None,
     jobs: Optional[int] = None,
     out: Union[None, str, "os.PathLike[str]"] = None,
 ) -> tuple[str, dict, Any]:
     """Searches the admissible timing for the one that hurts the ride most, as ``tiltsim
-    falsify`` does: CMA-ES against uniform random sampling with the same ``budget``.
+    falsify`` does: the obvious adversaries, CMA-ES from the best of them and an evolution of
+    the timing histories, against uniform random sampling with the same ``budget`` (default:
+    from the number of coordinates searched, as ``tiltsim falsify``).
 
     ``bounds``: a bounds file's path, or a dict per link
     (``{"actuator_command": {"delay_ms": [0, 60], "jitter_ms": 10, "loss_pct": 1}}``).
@@ -514,7 +516,7 @@ def falsify(
         bounds_origin,
         objective=objective,
         requirement=requirement,
-        budget=int(budget),
+        budget=None if budget is None else int(budget),
         seed=int(seed),
         jobs=jobs,
         out=_path(out),

@@ -66,7 +66,7 @@ fn the_worst_timing_replays_byte_for_byte_twice() {
         let best: Vec<f64> = rows[1..]
             .iter()
             .filter(|r| r[0] == m)
-            .map(|r| r[4].parse().unwrap())
+            .map(|r| r[5].parse().unwrap())
             .collect();
         assert_eq!(best.len(), 6);
         assert!(best.windows(2).all(|w| w[1] >= w[0]), "{m}: {best:?}");
@@ -205,4 +205,48 @@ fn the_result_does_not_depend_on_jobs_and_a_rerun_resumes() {
     assert!(err.contains("resuming: 10 of 10 evaluations"), "{err}");
     assert!(bytes(&one.join("progress.csv")) == bytes(&two.join("progress.csv")));
     assert_eq!(result(&two)["resumed_evaluations"], 10);
+}
+
+/// The obvious adversaries come first (the largest delay is evaluation 1 of the search), every
+/// evaluation's phase, validity and flags are in `progress.csv` and the worst's in
+/// `result.json`; a budget that leaves CMA-ES less than one generation is warned about.
+#[test]
+fn adversaries_come_first_and_a_budget_below_a_generation_is_warned_about() {
+    let dir = temp_dir("falsify-adversaries");
+    let b = write(
+        &dir,
+        "b.toml",
+        "[actuator_command]\ndelay_ms = [0, 60]\njitter_ms = 10\nloss_pct = 1\n",
+    );
+    let out = dir.join("out");
+    let err = falsify(&b, &out, &["--budget", "6", "--jobs", "2", "-q"]).failure(0);
+    assert!(
+        err.contains("warning: a budget of 6 evaluations") && err.contains("never adapts"),
+        "{err}"
+    );
+    let rows = csv_table(&std::fs::read_to_string(out.join("progress.csv")).unwrap());
+    let col = |name: &str| rows[0].iter().position(|c| c == name).unwrap();
+    let (phase, valid, flags) = (col("phase"), col("valid"), col("flags"));
+    assert_eq!(rows[1][phase], "adversary");
+    assert!(rows[2..].iter().all(|r| r[phase] != "adversary"));
+    for r in &rows[1..] {
+        assert!(r[valid] == "true" || r[valid] == "false", "{r:?}");
+    }
+    let r = result(&out);
+    assert_eq!(r["adversaries"], 1);
+    let worst = r["worst_evaluation"].as_u64().unwrap() as usize;
+    let m = col("method");
+    let row = rows[1..]
+        .iter()
+        .find(|x| x[m] == r["worst_found_by"] && x[col("evaluation")] == worst.to_string())
+        .unwrap();
+    assert_eq!(r["worst_valid"].as_bool().unwrap().to_string(), row[valid]);
+    assert_eq!(r["worst_phase"], row[phase].as_str());
+    let listed: Vec<&str> = r["worst_flags"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    assert_eq!(listed.join(";"), row[flags]);
 }

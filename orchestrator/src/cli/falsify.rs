@@ -36,9 +36,11 @@ pub struct FalsifyArgs {
     /// A requirement whose margin is minimised, `METRIC OP VALUE` (e.g. "p_ct < 35").
     #[arg(long)]
     requirement: Option<String>,
-    /// Evaluations of the search (and as many of the random sampling it is compared with).
-    #[arg(long, default_value_t = 200)]
-    budget: i64,
+    /// Evaluations of the search (and as many of the random sampling it is compared with)
+    /// [default: from the number of coordinates searched: the obvious adversaries, CMA-ES
+    /// for max(10, 5n/λ) generations and as many evaluations of the histories' evolution].
+    #[arg(long)]
+    budget: Option<i64>,
     /// Seed of the search and of the random sampling.
     #[arg(long, default_value_t = 1, value_parser = bounds::int(0..=u64::MAX, ""))]
     seed: u64,
@@ -130,10 +132,9 @@ fn envelope_of(dir: &Path, s: &Scenario) -> Result<[falsify::timing::LinkObs; 4]
 
 /// Runs the command.
 pub fn exec(a: FalsifyArgs) -> CliResult {
-    if a.budget < 1 || a.budget > MAX_BUDGET as i64 {
+    if let Some(b) = a.budget.filter(|b| *b < 1 || *b > MAX_BUDGET as i64) {
         return Err(CliError::Invalid(format!(
-            "--budget {}: allowed a whole number of evaluations from 1 to {MAX_BUDGET}",
-            a.budget
+            "--budget {b}: allowed a whole number of evaluations from 1 to {MAX_BUDGET}"
         )));
     }
     let objective = match (&a.objective, &a.requirement) {
@@ -143,27 +144,32 @@ pub fn exec(a: FalsifyArgs) -> CliResult {
     }
     .map_err(invalid)?;
     let shard = super::common::shard_of(a.shard.as_deref(), a.shards)?;
-    if let Some(sh) = shard.filter(|sh| sh.count > a.budget as usize) {
-        return Err(CliError::Invalid(format!(
-            "--shard {}/{}: {} shards for --budget {}; allowed: at most as many shards as evaluations",
-            sh.index, sh.count, sh.count, a.budget
-        )));
-    }
-    if let Some(n) = a.restarts.filter(|n| *n > a.budget as usize) {
-        return Err(CliError::Invalid(format!(
-            "--restarts {n}: more restarts than --budget {}; allowed: 1 to {}",
-            a.budget, a.budget
-        )));
-    }
     let s = scenario(&a)?;
     let (bounds, bounds_from) = bounds_of(&a, &s)?;
     // Checked before anything runs: every range holds a whole tick of this scenario.
     bounds.ticks(&s, &bounds_from).map_err(invalid)?;
+    let budget = match a.budget {
+        Some(b) => b as usize,
+        None => falsify::search::default_budget(&s, &bounds, &bounds_from)
+            .map_err(invalid)?
+            .min(MAX_BUDGET),
+    };
+    if let Some(sh) = shard.filter(|sh| sh.count > budget) {
+        return Err(CliError::Invalid(format!(
+            "--shard {}/{}: {} shards for --budget {budget}; allowed: at most as many shards as evaluations",
+            sh.index, sh.count, sh.count
+        )));
+    }
+    if let Some(n) = a.restarts.filter(|n| *n > budget) {
+        return Err(CliError::Invalid(format!(
+            "--restarts {n}: more restarts than --budget {budget}; allowed: 1 to {budget}"
+        )));
+    }
     let spec = Spec {
         bounds,
         bounds_from,
         objective,
-        budget: a.budget as usize,
+        budget,
         seed: a.seed,
     };
     let (interrupt, exe) = interrupt_and_exe()?;
@@ -218,8 +224,25 @@ pub fn print_report(
         println!("| {k} | {s:.4} | {r:.4} |");
     }
     println!(
-        "nominal (lock-step timing) {}: {:.4}; worst found ({} evaluation {}): {:.4}",
-        o.metric, o.nominal_metric, o.worst_found_by, o.worst_evaluation, o.worst_metric
+        "nominal (lock-step timing) {}: {:.4}; worst found ({} evaluation {}, {}): {:.4}{}",
+        o.metric,
+        o.nominal_metric,
+        o.worst_found_by,
+        o.worst_evaluation,
+        o.worst_phase,
+        o.worst_metric,
+        if o.worst_valid {
+            String::new()
+        } else {
+            format!(
+                " (NOT VALID: {})",
+                if o.worst_flags.is_empty() {
+                    "the replay failed".to_string()
+                } else {
+                    o.worst_flags.join(", ")
+                }
+            )
+        }
     );
     if let (Some(v), Some(m)) = (o.violated, o.margin) {
         if v {

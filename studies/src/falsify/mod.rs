@@ -3,18 +3,25 @@
 //!
 //! * [`bounds`]: the admissible timing of each link (a bounds file, or the envelope of
 //!   recorded free runs' `timing.csv`);
-//! * [`timing`]: a point of the unit cube mapped to a timing trace that is causal and within
-//!   its bounds by construction, and the check of any trace against bounds;
+//! * [`history`]: a timing history (each sample's delay, or its loss or stall), its
+//!   projection onto the bounds, and the coordinates CMA-ES searches mapped to histories;
+//! * [`timing`]: the trace (`timing.csv`) of a history, causal by construction, and the check
+//!   of any trace against bounds;
+//! * [`adversaries`]: the obvious adversaries, tried before the search and seeding it;
+//! * [`mutation`]: the search's evolution of the histories themselves;
 //! * [`objective`]: a summary metric to maximise, or a requirement whose margin is minimised;
 //! * [`cmaes`]: the search, CMA-ES (Hansen's tutorial);
 //! * [`search`]: the evaluations (the in-process lock-step replay of each candidate trace, a
-//!   generation in parallel), the search against uniform random sampling with the same
-//!   budget, resumable;
+//!   generation in parallel), the search (adversaries, CMA-ES, evolution of the histories)
+//!   against uniform random sampling with the same budget, resumable;
 //! * [`outputs`]: the worst trace and its run directory, the progress table and figure, the
 //!   result.
 
+pub mod adversaries;
 pub mod bounds;
 pub mod cmaes;
+pub mod history;
+pub mod mutation;
 pub mod objective;
 pub mod outputs;
 pub mod search;
@@ -73,5 +80,7 @@ pub enum FalsifyError {
     Run(String),
 }
 
+#[cfg(test)]
+mod reach_tests;
 #[cfg(test)]
 mod tests;

@@ -16,7 +16,7 @@ use tiltsim_report::plot::{Chart, Line};
 use tiltsim_scenario::scenario::Scenario;
 
 use super::search::{Eval, Falsified, Method, Spec};
-use super::timing::Layout;
+use super::history::Layout;
 use super::FalsifyError;
 use crate::sweep::Shard;
 
@@ -51,6 +51,14 @@ pub struct Outcome {
     pub random_best: f64,
     /// The worst timing: who found it, at which evaluation, its metric and objective.
     pub worst_found_by: String,
+    /// The phase of the method that found it (`adversary`, `cma-es`, `mutation`, `random`).
+    pub worst_phase: String,
+    /// Whether the worst timing's replay has valid comfort numbers (`comfort_valid`).
+    pub worst_valid: bool,
+    /// The validity flags the worst timing's replay raised.
+    pub worst_flags: Vec<String>,
+    /// Obvious adversaries the search evaluated first (each shard's, summed when merged).
+    pub adversaries: usize,
     /// See `worst_found_by`.
     pub worst_evaluation: usize,
     /// The metric of the worst timing.
@@ -194,24 +202,21 @@ pub fn write_merged_progress(
     let csv_path = out.join("progress.csv");
     let mut w = csv::Writer::from_path(&csv_path).map_err(|e| files_error(&csv_path, e))?;
     let io = |e: csv::Error| files_error(&csv_path, e);
-    w.write_record([
-        "shard",
-        "method",
-        "evaluation",
-        "metric",
-        "objective",
-        "best_so_far",
-        "error",
-    ])
-    .map_err(io)?;
+    let header: Vec<&str> = std::iter::once("shard")
+        .chain(super::search::EVAL_COLUMNS)
+        .collect();
+    w.write_record(&header).map_err(io)?;
     for (shard, e) in evals {
         w.serialize((
             shard,
             e.method,
             e.evaluation,
+            e.phase,
             e.metric,
             e.objective,
             e.best_so_far,
+            e.valid,
+            &e.flags,
             &e.error,
         ))
         .map_err(io)?;
@@ -319,6 +324,15 @@ pub fn checkpoints(evals: &[Eval], budget: usize) -> Vec<(usize, f64, f64)> {
         .collect()
 }
 
+/// The flags of an evaluation (`;`-separated) as a list.
+pub fn flag_list(flags: &str) -> Vec<String> {
+    flags
+        .split(';')
+        .filter(|f| !f.is_empty())
+        .map(str::to_string)
+        .collect()
+}
+
 /// `result.json` and `bounds.toml`.
 pub fn write_result(out: &Path, spec: &Spec, o: &Outcome) -> Result<(), FalsifyError> {
     let path = out.join("result.json");
@@ -407,6 +421,10 @@ pub fn falsify_part(
         search_best: best(Method::CmaEs),
         random_best: best(Method::Random),
         worst_found_by: w.method.name().to_string(),
+        worst_phase: w.phase.name().to_string(),
+        worst_valid: w.valid,
+        worst_flags: flag_list(&w.flags),
+        adversaries: f.adversaries,
         worst_evaluation: w.evaluation,
         worst_metric: w.metric,
         worst_objective: w.objective,

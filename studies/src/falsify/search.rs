@@ -1,11 +1,15 @@
-//! The search and its baseline: CMA-ES over the unit cube's preimage (a point x of ℝⁿ is the
-//! timing of `u = 1 / (1 + e^{−x})`, so every point is within bounds) against uniform random
-//! points of the cube, each with the same budget of evaluations. An evaluation is the
-//! in-process lock-step replay of the point's trace with the rows kept in memory. A generation
-//! (or a batch of random points) is evaluated in parallel and its values combined in the
-//! order of the points, so the result does not depend on `--jobs`. Every evaluation is kept
-//! in `OUT/done/evals.csv` as it ends: run again with the same arguments, an interrupted
-//! search takes the values it has and continues exactly as it would have.
+//! The search and its baseline, each with the same budget of evaluations. The search takes
+//! three phases: the obvious adversaries (`adversaries`), then CMA-ES from the best of them
+//! over the coordinates of `history` (a point x of ℝⁿ is the history at coordinates
+//! `a = sat(1 / (1 + e^{−x}))`, `sat` stretching [0.05, 0.95] onto [0, 1] so that a coordinate
+//! reaches its ends), then a (1 + λ) evolution of the histories themselves (`mutation`),
+//! which reaches every admissible history. The baseline is uniform random sampling of the
+//! coordinates. Every candidate is a projected history, so within bounds. An evaluation is
+//! the in-process lock-step replay of the candidate's trace with the rows kept in memory. A
+//! generation (or a batch of random points) is evaluated in parallel and its values combined
+//! in the order of the points, so the result does not depend on `--jobs`. Every evaluation
+//! is kept in `OUT/done/evals.csv` as it ends: run again with the same arguments, an
+//! interrupted search takes the values it has and continues exactly as it would have.
 
 use std::collections::HashMap;
 use std::io::Write as _;
@@ -21,8 +25,8 @@ use tiltsim_scenario::scenario::Scenario;
 
 use super::bounds::{Bounds, TickBound};
 use super::cmaes::CmaEs;
+use super::history::{History, Layout};
 use super::objective::Objective;
-use super::timing::Layout;
 use super::FalsifyError;
 
 /// What to search.
@@ -75,21 +79,105 @@ impl Method {
     }
 }
 
+/// Which phase of a method chose a candidate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Phase {
+    /// The obvious adversaries, before the search.
+    Adversary,
+    /// CMA-ES over the coordinates.
+    CmaEs,
+    /// The evolution of the histories themselves.
+    Mutation,
+    /// Uniform random sampling of the coordinates (the baseline).
+    Random,
+}
+
+impl Phase {
+    /// The name in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Phase::Adversary => "adversary",
+            Phase::CmaEs => "cma-es",
+            Phase::Mutation => "mutation",
+            Phase::Random => "random",
+        }
+    }
+}
+
 /// One evaluation, as `progress.csv` and `done/evals.csv` hold it.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct Eval {
-    /// Which method chose the point.
+    /// Which method chose the candidate: the search (`cma-es`, all its phases) or the
+    /// random sampling.
     pub method: Method,
     /// Its place in the method's sequence (from 1).
     pub evaluation: usize,
+    /// The phase of the method that chose it.
+    pub phase: Phase,
     /// The metric's value (NaN when the replay failed).
     pub metric: f64,
     /// What the search maximises (the metric, or a requirement's margin negated).
     pub objective: f64,
     /// Largest `objective` of the method so far.
     pub best_so_far: f64,
+    /// Whether the replay's comfort numbers are valid (`summary.json` `comfort_valid`: no
+    /// oscillation, P_CT within the formula's range); false when it failed.
+    pub valid: bool,
+    /// The validity flags the replay raised, `;`-separated (`summary.json` `flags`).
+    pub flags: String,
     /// Why the evaluation failed (empty: it did not).
     pub error: String,
+}
+
+/// The columns of `progress.csv` and `done/evals.csv`, in [`Eval`]'s order.
+pub const EVAL_COLUMNS: [&str; 9] = [
+    "method",
+    "evaluation",
+    "phase",
+    "metric",
+    "objective",
+    "best_so_far",
+    "valid",
+    "flags",
+    "error",
+];
+
+/// What one evaluation gave.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scored {
+    /// The metric (NaN when the replay failed).
+    pub metric: f64,
+    /// The objective (NaN when the replay failed).
+    pub objective: f64,
+    /// `comfort_valid` of the replay.
+    pub valid: bool,
+    /// The flags raised, `;`-separated.
+    pub flags: String,
+    /// Why it failed (empty: it did not).
+    pub error: String,
+}
+
+impl Scored {
+    fn failed(error: String) -> Scored {
+        Scored {
+            metric: f64::NAN,
+            objective: f64::NAN,
+            valid: false,
+            flags: String::new(),
+            error,
+        }
+    }
+
+    fn of(e: &Eval) -> Scored {
+        Scored {
+            metric: e.metric,
+            objective: e.objective,
+            valid: e.valid,
+            flags: e.flags.clone(),
+            error: e.error.clone(),
+        }
+    }
 }
 
 /// What a search found.
@@ -97,8 +185,10 @@ pub struct Eval {
 pub struct Falsified {
     /// Every evaluation, the search's then the random sampling's.
     pub evals: Vec<Eval>,
-    /// The worst point (its coordinates in the unit cube) and which evaluation it was.
-    pub worst: (Vec<f64>, Eval),
+    /// The worst history and which evaluation it was.
+    pub worst: (History, Eval),
+    /// Obvious adversaries evaluated first.
+    pub adversaries: usize,
     /// The bounds in ticks.
     pub ticks: [TickBound; 4],
     /// Coordinates of a point.
@@ -132,6 +222,28 @@ pub fn thread_cpu_s() -> f64 {
 /// `u = 1 / (1 + e^{−x})`, each coordinate.
 pub fn squash(x: &[f64]) -> Vec<f64> {
     x.iter().map(|v| 1.0 / (1.0 + (-v).exp())).collect()
+}
+
+/// Where the logistic `u` of a coordinate is cut: `[EDGE, 1 − EDGE]` is stretched onto the
+/// coordinate's whole `[0, 1]`, so that CMA-ES reaches its ends (x = ±2.94).
+const EDGE: f64 = 0.05;
+
+/// The coordinates of point `x` of ℝⁿ.
+pub fn coords(x: &[f64]) -> Vec<f64> {
+    squash(x)
+        .into_iter()
+        .map(|u| ((u - EDGE) / (1.0 - 2.0 * EDGE)).clamp(0.0, 1.0))
+        .collect()
+}
+
+/// A point of ℝⁿ whose coordinates are `a` (the inverse of [`coords`] inside the cube).
+pub fn point_of(a: &[f64]) -> Vec<f64> {
+    a.iter()
+        .map(|c| {
+            let u = EDGE + (1.0 - 2.0 * EDGE) * c.clamp(0.0, 1.0);
+            (u / (1.0 - u)).ln()
+        })
+        .collect()
 }
 
 /// Step size of the search's first generation (the cube's preimage: x = ±2 is u = 0.12, 0.88).
@@ -177,7 +289,7 @@ impl Kept {
             .open(&csv)
             .map_err(|e| files_error(&csv.display().to_string(), e))?;
         if fresh {
-            writeln!(file, "method,evaluation,metric,objective,best_so_far,error")
+            writeln!(file, "{}", EVAL_COLUMNS.join(","))
                 .map_err(|e| files_error(&csv.display().to_string(), e))?;
         }
         Ok(Kept {
@@ -202,7 +314,7 @@ impl Kept {
 /// and the program's build.
 pub fn fingerprint(s: &Scenario, spec: &Spec) -> String {
     let text = format!(
-        "tiltsim falsify 1\n{}\n{:?}\n{}\n{} {}\n{}",
+        "tiltsim falsify 2\n{}\n{:?}\n{}\n{} {}\n{}",
         crate::sweep::identity::build(),
         spec.bounds,
         spec.objective.describe(),
@@ -213,24 +325,29 @@ pub fn fingerprint(s: &Scenario, spec: &Spec) -> String {
     crate::sweep::identity::sha256(text.as_bytes())
 }
 
-/// One evaluation of point `u`: its trace, checked, replayed in process with its rows in
+/// The validity and flags of a completed replay's summary.
+fn validity(d: &tiltsim_master::Summary) -> (bool, String) {
+    (d.comfort_valid, d.flags.raised().join(";"))
+}
+
+/// One evaluation of history `h`: its trace, checked, replayed in process with its rows in
 /// memory. Nothing is written: `dir` only names the run in messages.
 pub(crate) fn evaluate(
     s: &Scenario,
     layout: &Layout,
     ticks: &[TickBound; 4],
     objective: &Objective,
-    u: &[f64],
+    h: &History,
     dir: PathBuf,
     interrupt: &Arc<AtomicBool>,
-) -> (f64, f64, String) {
-    // Never expected to fail: the mapping gives admissible timings only (tested).
-    if let Err(e) = layout.check_budgets(u) {
-        return (f64::NAN, f64::NAN, format!("candidate not admissible: {e}"));
+) -> Scored {
+    // Never expected to fail: every candidate is projected onto the bounds (tested).
+    if let Err(e) = layout.admissible(h) {
+        return Scored::failed(format!("candidate not admissible: {e}"));
     }
-    let trace = layout.trace(s, u);
+    let trace = layout.trace(s, h);
     if let Err(e) = super::timing::check(s, &trace, ticks) {
-        return (f64::NAN, f64::NAN, format!("candidate not admissible: {e}"));
+        return Scored::failed(format!("candidate not admissible: {e}"));
     }
     let mut opts = RunOptions::new(dir, PathBuf::new());
     opts.interrupt = interrupt.clone();
@@ -243,18 +360,22 @@ pub(crate) fn evaluate(
     match tiltsim_report::pipeline::carry_out(job) {
         Ok(d) if d.summary.status == Status::Completed && d.summary.analysis_skipped.is_none() => {
             let c = &d.summary.comfort;
-            let m = (tiltsim_assessment::comfort::METRICS[objective.metric()].get)(c);
-            (m, objective.value(c), String::new())
+            let (valid, flags) = validity(&d.summary);
+            Scored {
+                metric: (tiltsim_assessment::comfort::METRICS[objective.metric()].get)(c),
+                objective: objective.value(c),
+                valid,
+                flags,
+                error: String::new(),
+            }
         }
-        Ok(d) => (
-            f64::NAN,
-            f64::NAN,
+        Ok(d) => Scored::failed(
             d.summary
                 .error
                 .or(d.summary.analysis_skipped)
                 .unwrap_or_else(|| "the replay did not complete".into()),
         ),
-        Err(e) => (f64::NAN, f64::NAN, e.to_string()),
+        Err(e) => Scored::failed(e.to_string()),
     }
 }
 
@@ -271,60 +392,68 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// Evaluates `points` (unit-cube coordinates), numbered from `first` for `method`, on
-    /// `jobs` threads; those kept by an earlier invocation are taken as they are. Returns
-    /// (metric, objective, error) in the order of the points; `None` when interrupted.
+    /// Evaluates one candidate, numbered `n` for `method`, or takes it from an earlier
+    /// invocation. `None` when interrupted.
+    fn one(&self, method: Method, phase: Phase, n: usize, h: &History) -> Option<Scored> {
+        if let Some(e) = self.kept.values.get(&(method, n)) {
+            return Some(Scored::of(e));
+        }
+        let dir = self
+            .ex
+            .out
+            .join("evals")
+            .join(format!("{}-{n:05}", method.name()));
+        let t0 = thread_cpu_s();
+        let v = evaluate(
+            self.s,
+            &self.layout,
+            &self.ticks,
+            &self.spec.objective,
+            h,
+            dir,
+            &self.ex.interrupt,
+        );
+        if self.ex.interrupt.load(Ordering::Relaxed) {
+            return None;
+        }
+        if let Ok(mut t) = self.timed.lock() {
+            t.0 += thread_cpu_s() - t0;
+            t.1 += 1;
+        }
+        self.kept.put(&Eval {
+            method,
+            evaluation: n,
+            phase,
+            metric: v.metric,
+            objective: v.objective,
+            best_so_far: f64::NAN,
+            valid: v.valid,
+            flags: v.flags.clone(),
+            error: v.error.clone(),
+        });
+        Some(v)
+    }
+
+    /// Evaluates `hs`, numbered from `first` for `method`, on `jobs` threads. Returns the
+    /// scores in the order of the candidates; `None` when interrupted.
     fn batch(
         &self,
         method: Method,
+        phase: Phase,
         first: usize,
-        points: &[Vec<f64>],
-    ) -> Option<Vec<(f64, f64, String)>> {
+        hs: &[History],
+    ) -> Option<Vec<Scored>> {
         let next = AtomicUsize::new(0);
-        let out: Mutex<Vec<Option<(f64, f64, String)>>> = Mutex::new(vec![None; points.len()]);
+        let out: Mutex<Vec<Option<Scored>>> = Mutex::new(vec![None; hs.len()]);
         std::thread::scope(|sc| {
-            for _ in 0..self.ex.jobs.clamp(1, points.len().max(1)) {
+            for _ in 0..self.ex.jobs.clamp(1, hs.len().max(1)) {
                 sc.spawn(|| loop {
                     let i = next.fetch_add(1, Ordering::Relaxed);
-                    if i >= points.len() || self.ex.interrupt.load(Ordering::Relaxed) {
+                    if i >= hs.len() || self.ex.interrupt.load(Ordering::Relaxed) {
                         break;
                     }
-                    let n = first + i;
-                    let v = match self.kept.values.get(&(method, n)) {
-                        Some(e) => (e.metric, e.objective, e.error.clone()),
-                        None => {
-                            let dir = self
-                                .ex
-                                .out
-                                .join("evals")
-                                .join(format!("{}-{n:05}", method.name()));
-                            let t0 = thread_cpu_s();
-                            let v = evaluate(
-                                self.s,
-                                &self.layout,
-                                &self.ticks,
-                                &self.spec.objective,
-                                &points[i],
-                                dir,
-                                &self.ex.interrupt,
-                            );
-                            if self.ex.interrupt.load(Ordering::Relaxed) {
-                                break;
-                            }
-                            if let Ok(mut t) = self.timed.lock() {
-                                t.0 += thread_cpu_s() - t0;
-                                t.1 += 1;
-                            }
-                            self.kept.put(&Eval {
-                                method,
-                                evaluation: n,
-                                metric: v.0,
-                                objective: v.1,
-                                best_so_far: f64::NAN,
-                                error: v.2.clone(),
-                            });
-                            v
-                        }
+                    let Some(v) = self.one(method, phase, first + i, &hs[i]) else {
+                        break;
                     };
                     if let Some(d) = &self.ex.done {
                         d.fetch_add(1, Ordering::Relaxed);
@@ -337,6 +466,28 @@ impl Ctx<'_> {
         });
         out.into_inner().ok()?.into_iter().collect()
     }
+}
+
+/// Population size of CMA-ES in `n` dimensions (the tutorial's Table 1).
+pub fn lambda(n: usize) -> usize {
+    4 + (3.0 * (n.max(1) as f64).ln()).floor() as usize
+}
+
+/// Generations of CMA-ES the default budget gives it in `n` dimensions: 5n evaluations, at
+/// least 10 generations.
+fn default_generations(n: usize) -> usize {
+    (5 * n).div_ceil(lambda(n)).max(10)
+}
+
+/// The default budget for scenario `s` and bounds `bounds` (`from` names them in errors):
+/// the obvious adversaries, CMA-ES for [`default_generations`], and as many evaluations again
+/// for the evolution of the histories.
+pub fn default_budget(s: &Scenario, bounds: &Bounds, from: &str) -> Result<usize, FalsifyError> {
+    let ticks = bounds.ticks(s, from)?;
+    let layout = Layout::new(s, &ticks);
+    let n = layout.dims;
+    let a = super::adversaries::adversaries(s, &layout).len();
+    Ok(a + 2 * default_generations(n) * lambda(n))
 }
 
 /// Runs the search and the random sampling of `spec` on scenario `s` (validated, lock-step,
@@ -371,17 +522,16 @@ pub fn run(s: &Scenario, spec: &Spec, ex: &Exec) -> Result<Falsified, FalsifyErr
             ex.out.join("done").display()
         ))
     };
-    let (mut search, mut best_pt, lambda) = run_search(&ctx).ok_or_else(interrupted)?;
+    let (mut search, mut best, adversaries) = run_search(&ctx).ok_or_else(interrupted)?;
     let (random, random_best) = run_random(&ctx).ok_or_else(interrupted)?;
     let worst_random = random_best.filter(|(_, e)| {
-        best_pt
-            .as_ref()
-            .is_none_or(|(_, b): &(Vec<f64>, Eval)| e.objective > b.objective)
+        best.as_ref()
+            .is_none_or(|(_, b): &(History, Eval)| e.objective > b.objective)
     });
     if worst_random.is_some() {
-        best_pt = worst_random;
+        best = worst_random;
     }
-    let worst = best_pt.ok_or_else(|| {
+    let worst = best.ok_or_else(|| {
         FalsifyError::Run("no evaluation completed (each one's error is in done/evals.csv)".into())
     })?;
     search.extend(random);
@@ -389,69 +539,147 @@ pub fn run(s: &Scenario, spec: &Spec, ex: &Exec) -> Result<Falsified, FalsifyErr
     Ok(Falsified {
         evals: search,
         worst,
+        adversaries,
         ticks,
         dims: ctx.layout.dims,
-        lambda,
+        lambda: lambda(ctx.layout.dims),
         eval_s: if n > 0 { spent / n as f64 } else { f64::NAN },
         wall_s: t0.elapsed().as_secs_f64(),
         resumed,
     })
 }
 
-type Best = Option<(Vec<f64>, Eval)>;
+type Best = Option<(History, Eval)>;
 
-/// Appends the evaluations of `values` (for points `pts`) to `evals`, keeping the best.
+/// Appends the evaluations of `values` (for candidates `hs`) to `evals`, keeping the best.
 fn record(
     method: Method,
-    pts: &[Vec<f64>],
-    values: Vec<(f64, f64, String)>,
+    phase: Phase,
+    hs: &[History],
+    values: Vec<Scored>,
     evals: &mut Vec<Eval>,
     best: &mut Best,
 ) {
-    for (u, (metric, objective, error)) in pts.iter().zip(values) {
+    for (h, v) in hs.iter().zip(values) {
         let better =
-            !objective.is_nan() && best.as_ref().is_none_or(|(_, b)| objective > b.objective);
+            !v.objective.is_nan() && best.as_ref().is_none_or(|(_, b)| v.objective > b.objective);
         let prev = best.as_ref().map_or(f64::NAN, |(_, b)| b.objective);
         let e = Eval {
             method,
             evaluation: evals.len() + 1,
-            metric,
-            objective,
-            best_so_far: if better { objective } else { prev },
-            error,
+            phase,
+            metric: v.metric,
+            objective: v.objective,
+            best_so_far: if better { v.objective } else { prev },
+            valid: v.valid,
+            flags: v.flags,
+            error: v.error,
         };
         if better {
-            *best = Some((u.clone(), e.clone()));
+            *best = Some((h.clone(), e.clone()));
         }
         evals.push(e);
     }
 }
 
-/// The CMA-ES part: generations of λ points until the budget is spent (a last generation cut
-/// to what remains). `None` when interrupted.
+/// The search: the obvious adversaries, CMA-ES from the best of them for half of what
+/// remains (whole generations), then the evolution of the histories for the rest. Returns
+/// the evaluations, the best and the number of adversaries; `None` when interrupted.
 fn run_search(ctx: &Ctx) -> Option<(Vec<Eval>, Best, usize)> {
     let budget = ctx.spec.budget;
-    let mut es = CmaEs::new(vec![0.0; ctx.layout.dims], SIGMA0, ctx.spec.seed);
+    let layout = &ctx.layout;
     let mut evals = Vec::with_capacity(budget);
     let mut best: Best = None;
-    while evals.len() < budget {
+    let mut adv = super::adversaries::adversaries(ctx.s, layout);
+    adv.truncate(budget);
+    let hs: Vec<History> = adv.iter().map(|a| layout.history(&a.coords)).collect();
+    let values = ctx.batch(Method::CmaEs, Phase::Adversary, 1, &hs)?;
+    let start = values
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| !v.objective.is_nan())
+        .max_by(|a, b| a.1.objective.total_cmp(&b.1.objective).then(b.0.cmp(&a.0)))
+        .map_or_else(|| vec![0.0; layout.dims], |(i, _)| adv[i].coords.clone());
+    record(Method::CmaEs, Phase::Adversary, &hs, values, &mut evals, &mut best);
+    let n = layout.dims;
+    let remaining = budget - evals.len();
+    let lam = lambda(n);
+    let cma = if remaining >= 2 * lam {
+        remaining / 2 / lam * lam
+    } else {
+        remaining
+    };
+    if n > 0 && cma < lam && ctx.spec.budget > 0 {
+        eprintln!(
+            "warning: a budget of {budget} evaluations holds {} obvious adversaries and {cma} of a \
+             CMA-ES generation of {lam}: CMA-ES never adapts; a budget of {} or more gives it a \
+             generation and the histories' evolution as many evaluations",
+            adv.len(),
+            adv.len() + 2 * lam
+        );
+    }
+    run_cma_es(ctx, &point_of(&start), evals.len() + cma, &mut evals, &mut best)?;
+    run_mutation(ctx, budget, &mut evals, &mut best)?;
+    Some((evals, best, adv.len()))
+}
+
+/// CMA-ES from `mean`: generations of λ points until `until` evaluations (a last generation
+/// cut to what remains, without an update). `None` when interrupted.
+fn run_cma_es(
+    ctx: &Ctx,
+    mean: &[f64],
+    until: usize,
+    evals: &mut Vec<Eval>,
+    best: &mut Best,
+) -> Option<()> {
+    let mut es = CmaEs::new(mean.to_vec(), SIGMA0, ctx.spec.seed);
+    while evals.len() < until {
         let xs = es.ask();
-        let take = xs.len().min(budget - evals.len());
-        let pts: Vec<Vec<f64>> = xs[..take].iter().map(|x| squash(x)).collect();
-        let values = ctx.batch(Method::CmaEs, evals.len() + 1, &pts)?;
-        let objectives: Vec<f64> = values.iter().map(|v| v.1).collect();
-        record(Method::CmaEs, &pts, values, &mut evals, &mut best);
+        let take = xs.len().min(until - evals.len());
+        let hs: Vec<History> = xs[..take]
+            .iter()
+            .map(|x| ctx.layout.history(&coords(x)))
+            .collect();
+        let values = ctx.batch(Method::CmaEs, Phase::CmaEs, evals.len() + 1, &hs)?;
+        let objectives: Vec<f64> = values.iter().map(|v| v.objective).collect();
+        record(Method::CmaEs, Phase::CmaEs, &hs, values, evals, best);
         if take == xs.len() {
             es.tell(&objectives);
         }
     }
-    Some((evals, best, es.lambda))
+    Some(())
+}
+
+/// Seed of the evolution of the histories, apart from CMA-ES's.
+const MUTATION_STREAM: u64 = 0x6a09_e667_f3bc_c909;
+
+/// The (1 + λ) evolution of the histories from the best so far until `budget` evaluations.
+/// `None` when interrupted.
+fn run_mutation(
+    ctx: &Ctx,
+    budget: usize,
+    evals: &mut Vec<Eval>,
+    best: &mut Best,
+) -> Option<()> {
+    let mut m = super::mutation::Mutator::new(&ctx.layout, ctx.spec.seed ^ MUTATION_STREAM);
+    let lam = lambda(ctx.layout.dims);
+    while evals.len() < budget {
+        let parent = match best {
+            Some((h, _)) => h.clone(),
+            None => ctx.layout.earliest(),
+        };
+        let take = lam.min(budget - evals.len());
+        let hs: Vec<History> = (0..take).map(|_| m.child(&parent)).collect();
+        let values = ctx.batch(Method::CmaEs, Phase::Mutation, evals.len() + 1, &hs)?;
+        record(Method::CmaEs, Phase::Mutation, &hs, values, evals, best);
+    }
+    Some(())
 }
 
 /// Seed of the random sampling, apart from the search's.
 const RANDOM_STREAM: u64 = 0x9e37_79b9_7f4a_7c15;
 
-/// The uniform random sampling: `budget` points of the unit cube, in batches. `None` when
+/// The uniform random sampling: `budget` points of the coordinates, in batches. `None` when
 /// interrupted.
 fn run_random(ctx: &Ctx) -> Option<(Vec<Eval>, Best)> {
     let budget = ctx.spec.budget;
@@ -463,8 +691,9 @@ fn run_random(ctx: &Ctx) -> Option<(Vec<Eval>, Best)> {
     let mut best: Best = None;
     let chunk = (4 * ctx.ex.jobs).max(8);
     for c in pts.chunks(chunk) {
-        let values = ctx.batch(Method::Random, evals.len() + 1, c)?;
-        record(Method::Random, c, values, &mut evals, &mut best);
+        let hs: Vec<History> = c.iter().map(|a| ctx.layout.history(a)).collect();
+        let values = ctx.batch(Method::Random, Phase::Random, evals.len() + 1, &hs)?;
+        record(Method::Random, Phase::Random, &hs, values, &mut evals, &mut best);
     }
     Some((evals, best))
 }

@@ -134,6 +134,8 @@ pub struct ShardResult {
     pub search_s: f64,
     /// Evaluations taken from an earlier invocation.
     pub resumed_evaluations: usize,
+    /// Obvious adversaries the shard evaluated.
+    pub adversaries: usize,
 }
 
 /// A number of `result.json`, where serde_json writes NaN as `null`.
@@ -360,6 +362,10 @@ pub fn merge(
         search_best: best(Method::CmaEs),
         random_best: best(Method::Random),
         worst_found_by: we.method.name().to_string(),
+        worst_phase: we.phase.name().to_string(),
+        worst_valid: we.valid,
+        worst_flags: super::outputs::flag_list(&we.flags),
+        adversaries: shards.iter().map(|s| s.result.adversaries).sum(),
         worst_evaluation: we.evaluation,
         worst_metric: we.metric,
         worst_objective: we.objective,

@@ -8,7 +8,8 @@ use tiltsim_scenario::scenario::Scenario;
 
 use super::bounds::{Bounds, LinkBound};
 use super::objective::Objective;
-use super::timing::{self, Layout};
+use super::history::{self, Fate, Layout};
+use super::timing;
 
 fn shipped(name: &str, duration_s: f64) -> Scenario {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -48,7 +49,7 @@ fn every_candidate_is_causal_and_within_its_bounds() {
             points.push(vec![1.0; layout.dims]);
             points.push(vec![0.5; layout.dims]);
             for u in points {
-                let t = layout.trace(&s, &u);
+                let t = layout.trace(&s, &layout.history(&u));
                 let obs = timing::check(&s, &t, &ticks)
                     .unwrap_or_else(|e| panic!("{scen}, {text}: point {u:?}: {e}"));
                 // Where the consumer reads every tick the delays are seen exactly.
@@ -71,7 +72,7 @@ fn the_check_refuses_a_trace_out_of_bounds() {
     let wide = bounds("[actuator_command]\ndelay_ms = [0, 60]\n");
     let ticks = wide.ticks(&s, "t").unwrap();
     let layout = Layout::new(&s, &ticks);
-    let t = layout.trace(&s, &vec![1.0; layout.dims]);
+    let t = layout.trace(&s, &layout.history(&vec![1.0; layout.dims]));
     // All knots at the top: every command 60 ticks late.
     let narrow = Bounds::default().ticks(&s, "t").unwrap();
     let e = timing::check(&s, &t, &narrow).unwrap_err();
@@ -89,7 +90,8 @@ fn lock_step_bounds_give_the_lock_step_reads() {
     let s = shipped("paper-mpc.toml", 0.3);
     let p = s.controller_period_ticks() as i64;
     let ticks = Bounds::default().ticks(&s, "t").unwrap();
-    let t = Layout::new(&s, &ticks).trace(&s, &[]);
+    let layout = Layout::new(&s, &ticks);
+    let t = layout.trace(&s, &layout.history(&[]));
     for st in &t.steps {
         let k = st.step as i64;
         let want = match st.role {
@@ -176,7 +178,7 @@ fn the_envelope_of_a_trace_admits_it() {
     let b = bounds("[actuator_command]\ndelay_ms = [3, 7]\njitter_ms = 1\nloss_pct = 0.2\n");
     let ticks = b.ticks(&s, "t").unwrap();
     let layout = Layout::new(&s, &ticks);
-    let t = layout.trace(&s, &vec![0.7; layout.dims]);
+    let t = layout.trace(&s, &layout.history(&vec![0.7; layout.dims]));
     let seen = timing::observe_all(&s, &t).unwrap();
     let env = Bounds::envelope(&[seen], &s);
     let l = env.links[0];
@@ -206,23 +208,17 @@ fn a_candidate_never_exceeds_either_budget() {
         points.push(vec![0.0; layout.dims]);
         let mut used = [[0i64; 2]; 4];
         for u in &points {
-            layout.check_budgets(u).unwrap();
-            for (i, (l, b, r)) in layout.links.iter().enumerate() {
-                let delays = if b.d_max > b.d_min {
-                    timing::KNOTS + 2
-                } else {
-                    0
-                };
-                let mut it = u[r.start + delays..r.end].iter().copied();
-                let marks = timing::undelivered(l, b, &mut it);
-                let (lost, stalled) = timing::budgets_used(l, &marks);
+            let h = layout.history(u);
+            layout.admissible(&h).unwrap();
+            for (i, (l, b, _)) in layout.links.iter().enumerate() {
+                let (lost, stalled) = history::budgets_used(l, &h[i]);
                 assert!(lost <= b.losses, "{scen} {i}: {lost} > {}", b.losses);
                 assert!(stalled <= b.freeze, "{scen} {i}: {stalled} > {}", b.freeze);
                 assert_eq!(stalled % l.consumer_period as i64, 0);
                 used[i][0] = used[i][0].max(lost);
                 used[i][1] = used[i][1].max(stalled);
             }
-            timing::check(&s, &layout.trace(&s, u), &ticks).unwrap();
+            timing::check(&s, &layout.trace(&s, &h), &ticks).unwrap();
         }
         let p = s.controller_period_ticks() as i64;
         // The freeze budgets in ticks, at the reader's period: the actuator reads every tick,
@@ -241,17 +237,16 @@ fn a_candidate_never_exceeds_either_budget() {
 /// sample is a loss, not a stall.
 #[test]
 fn stalls_are_counted_in_whole_periods_of_the_reader() {
-    use timing::Undelivered::{Frozen, Lost, No};
     let s = shipped("paper-mpc.toml", 1.0);
     let l = timing::LinkShape::of(LinkId::Measurement, &s);
     assert_eq!(l.consumer_period, 50);
-    let mut marks = vec![No; l.samples as usize];
-    marks[10] = Lost;
-    for m in &mut marks[100..151] {
-        *m = Frozen;
+    let mut h = vec![Fate::Delivered(0); l.samples as usize];
+    h[10] = Fate::Lost;
+    for f in &mut h[100..151] {
+        *f = Fate::Frozen;
     }
     // 51 plant samples of 1 tick: two controller periods.
-    assert_eq!(timing::budgets_used(&l, &marks), (1, 100));
+    assert_eq!(history::budgets_used(&l, &h), (1, 100));
     let b = super::bounds::TickBound {
         d_min: 0,
         d_max: 0,
@@ -260,9 +255,7 @@ fn stalls_are_counted_in_whole_periods_of_the_reader() {
         freeze: 50,
         drops: 0,
     };
-    let e = timing::check_budgets(&l, &b, &marks)
-        .unwrap_err()
-        .to_string();
+    let e = history::admissible(&l, &b, &h).unwrap_err().to_string();
     assert!(
         e.contains("measurement") && e.contains("freeze budget allows 50"),
         "{e}"
@@ -272,9 +265,7 @@ fn stalls_are_counted_in_whole_periods_of_the_reader() {
         freeze: 100,
         ..b
     };
-    let e = timing::check_budgets(&l, &b, &marks)
-        .unwrap_err()
-        .to_string();
+    let e = history::admissible(&l, &b, &h).unwrap_err().to_string();
     assert!(
         e.contains("1 samples lost; the loss budget allows 0"),
         "{e}"
@@ -350,16 +341,17 @@ fn an_evaluation_writes_nothing() {
     let _ = std::fs::remove_dir_all(&dir);
     let o = Objective::maximise("p_ct").unwrap();
     let interrupt = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let (m, _, e) = super::search::evaluate(
+    let v = super::search::evaluate(
         &s,
         &layout,
         &ticks,
         &o,
-        &vec![0.0; layout.dims],
+        &layout.earliest(),
         dir.clone(),
         &interrupt,
     );
-    assert!(e.is_empty() && m.is_finite(), "{e}");
+    let m = v.metric;
+    assert!(v.error.is_empty() && m.is_finite(), "{}", v.error);
     assert!(!dir.exists(), "{} was made", dir.display());
     let spec = super::Spec {
         bounds: b,

@@ -1,31 +1,11 @@
-//! Timing histories that are causal and within their bounds by construction: a point of the
-//! unit cube is mapped to each link's sample delays and losses, then to the trace
-//! (`timing.csv`) the lock-step replay reads; and the check of any trace against bounds.
+//! Timing traces: a link's shape in a scenario (who sends, who reads, how often), the trace
+//! (`timing.csv`) the lock-step replay reads for given reads of each consumer step, and the
+//! check of any trace against bounds (what a trace shows of each link's timing).
 //!
-//! Per free link (one whose bounds leave a choice), the point holds:
-//!
-//! * [`KNOTS`] knots of a piecewise-linear base delay over the run, each scaled into
-//!   `[d_min, d_max]`;
-//! * a jitter amplitude (a share of the jitter bound) and a half-period (1 to
-//!   [`JITTER_HALF_PERIOD_MAX`] samples) of a square wave added to the base;
-//! * [`WINDOWS`] windows of lost samples, each a position and a share of the link's loss
-//!   budget (when it has one);
-//! * [`WINDOWS`] stalls, each a position and a share of the link's freeze budget (when it has
-//!   one), a stall's samples never delivered, its length whole periods of the consumer.
-//!
-//! A sample in a stall and a loss window is frozen, not lost: the samples lost never exceed
-//! the loss budget, and the stalls, each rounded up to whole consumer periods, never exceed
-//! the freeze budget ([`check_budgets`]).
-//!
-//! Each sample's delay is then projected, in send order, onto what the bounds allow given the
-//! previous delivered sample: within `[d_min, d_max]`, within the jitter bound of the
-//! previous delay, and late enough that it arrives after the previous one (delivery in send
-//! order). The projection always has a solution (the previous delay satisfies every bound),
-//! so every point gives an admissible timing. A consumer step reads the newest sample
-//! delivered at or before its tick (the output at t₀ before any), which is never a step not
-//! yet computed: a sample is delivered no earlier than the tick its value holds from in
-//! lock-step, and within a tick the controller steps before the actuator, the actuator before
-//! the plant, as in the lock-step coupling.
+//! A consumer step reads the newest sample delivered at or before its tick (the output at t₀
+//! before any), which is never a step not yet computed: a sample is delivered no earlier than
+//! the tick its value holds from in lock-step, and within a tick the controller steps before
+//! the actuator, the actuator before the plant, as in the lock-step coupling.
 
 use cosim::Role;
 use tiltsim_master::free::trace::{col, StepTrace, Trace, TraceHead};
@@ -33,13 +13,6 @@ use tiltsim_scenario::links::LinkId;
 use tiltsim_scenario::scenario::Scenario;
 
 use super::bounds::TickBound;
-
-/// Knots of a link's base delay.
-pub const KNOTS: usize = 6;
-/// Windows of undelivered samples per link.
-pub const WINDOWS: usize = 2;
-/// Longest half-period of the jitter square wave (samples).
-pub const JITTER_HALF_PERIOD_MAX: f64 = 50.0;
 
 /// Where a link's samples come from and go to in one scenario.
 #[derive(Debug, Clone, Copy)]
@@ -99,191 +72,6 @@ impl LinkShape {
     }
 }
 
-/// The coordinates of the unit cube a link with bounds `b` takes.
-pub fn dims(b: &TickBound) -> usize {
-    let mut n = 0;
-    if b.d_max > b.d_min {
-        n += KNOTS;
-        if b.jitter > 0 {
-            n += 2;
-        }
-    }
-    if b.losses > 0 {
-        n += 2 * WINDOWS;
-    }
-    if b.freeze > 0 {
-        n += 2 * WINDOWS;
-    }
-    n
-}
-
-/// A link's timing: per sample, its delay in ticks, or `None` when not delivered.
-pub type Schedule = Vec<Option<i64>>;
-
-/// Why a sample is not delivered.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Undelivered {
-    /// It is delivered.
-    No,
-    /// Lost (the loss budget).
-    Lost,
-    /// Sent during a stall (the freeze budget).
-    Frozen,
-}
-
-/// Which samples of link `l` with bounds `b` are lost and which frozen, from the coordinates
-/// of its windows (`u`: the loss windows' then the stalls', each a position and a share).
-pub fn undelivered(
-    l: &LinkShape,
-    b: &TickBound,
-    u: &mut impl Iterator<Item = f64>,
-) -> Vec<Undelivered> {
-    let n = l.samples as usize;
-    let mut out = vec![Undelivered::No; n];
-    let mut mark = |len: usize, pos: f64, what: Undelivered| {
-        let len = len.min(n);
-        let start = (pos * (n - len) as f64).floor() as usize;
-        for d in &mut out[start..start + len] {
-            *d = what;
-        }
-    };
-    if b.losses > 0 {
-        for _ in 0..WINDOWS {
-            let (pos, share) = (u.next().unwrap_or(0.0), u.next().unwrap_or(0.0));
-            let len = (share * b.losses as f64 / WINDOWS as f64).floor() as usize;
-            mark(len, pos, Undelivered::Lost);
-        }
-    }
-    if b.freeze > 0 {
-        let p = l.consumer_period as f64;
-        for _ in 0..WINDOWS {
-            let (pos, share) = (u.next().unwrap_or(0.0), u.next().unwrap_or(0.0));
-            // Whole consumer periods, and as many samples as fit in them.
-            let periods = (share * (b.freeze as f64 / p) / WINDOWS as f64).floor();
-            let len = (periods * p / l.spacing as f64).floor() as usize;
-            mark(len, pos, Undelivered::Frozen);
-        }
-    }
-    out
-}
-
-/// The samples lost, and the ticks stalled (each run of frozen samples rounded up to whole
-/// periods of the consumer), of `marks`.
-pub fn budgets_used(l: &LinkShape, marks: &[Undelivered]) -> (i64, i64) {
-    let lost = marks.iter().filter(|m| **m == Undelivered::Lost).count() as i64;
-    let (s, p) = (l.spacing as i64, l.consumer_period as i64);
-    let mut stalled = 0;
-    let mut run = 0i64;
-    for m in marks.iter().chain(std::iter::once(&Undelivered::No)) {
-        if *m == Undelivered::Frozen {
-            run += 1;
-        } else if run > 0 {
-            stalled += (run * s + p - 1) / p * p;
-            run = 0;
-        }
-    }
-    (lost, stalled)
-}
-
-/// Checks the samples lost against the loss budget and the stalls against the freeze budget,
-/// each on its own.
-pub fn check_budgets(
-    l: &LinkShape,
-    b: &TickBound,
-    marks: &[Undelivered],
-) -> Result<(), OutOfBounds> {
-    let (lost, stalled) = budgets_used(l, marks);
-    let fail = |what: String| OutOfBounds {
-        link: l.id.name(),
-        what,
-    };
-    if lost > b.losses {
-        return Err(fail(format!(
-            "{lost} samples lost; the loss budget allows {}",
-            b.losses
-        )));
-    }
-    if stalled > b.freeze {
-        return Err(fail(format!(
-            "stalled {stalled} ticks (in whole periods of {} of {} ticks); the freeze budget allows {}",
-            l.consumer, l.consumer_period, b.freeze
-        )));
-    }
-    Ok(())
-}
-
-/// The schedule of a link of shape `l` with bounds `b` from its coordinates `u` (each in
-/// `[0, 1]`, [`dims`] of them).
-pub fn schedule(l: &LinkShape, b: &TickBound, u: &[f64]) -> Schedule {
-    let n = l.samples as usize;
-    let mut u = u.iter().map(|x| x.clamp(0.0, 1.0));
-    let mut knots = [0.0; KNOTS];
-    let (mut amp, mut half) = (0.0, 1usize);
-    if b.d_max > b.d_min {
-        for k in &mut knots {
-            *k = u.next().unwrap_or(0.0);
-        }
-        if b.jitter > 0 {
-            amp = u.next().unwrap_or(0.0);
-            half = 1 + (u.next().unwrap_or(0.0) * (JITTER_HALF_PERIOD_MAX - 1.0)).round() as usize;
-        }
-    }
-    let dropped = undelivered(l, b, &mut u);
-    let width = (b.d_max - b.d_min) as f64;
-    let mut prev: Option<(i64, i64)> = None; // (valid_from, delay) of the last delivered
-    let mut out = Vec::with_capacity(n);
-    for (i, drop) in dropped.iter().enumerate() {
-        if *drop != Undelivered::No {
-            out.push(None);
-            continue;
-        }
-        let x = if n > 1 {
-            i as f64 / (n - 1) as f64 * (KNOTS - 1) as f64
-        } else {
-            0.0
-        };
-        let j = (x.floor() as usize).min(KNOTS - 2);
-        let base = knots[j] + (knots[j + 1] - knots[j]) * (x - j as f64);
-        let sign = if (i / half) % 2 == 0 { 0.5 } else { -0.5 };
-        let raw = b.d_min as f64 + width * base + sign * amp * b.jitter as f64;
-        let v = l.valid_from(i as u64);
-        let (lo, hi) = match prev {
-            None => (b.d_min, b.d_max),
-            Some((pv, pd)) => (
-                b.d_min.max(pd - b.jitter).max(pd - (v - pv) + 1),
-                b.d_max.min(pd + b.jitter),
-            ),
-        };
-        let d = (raw.round() as i64).clamp(lo, hi);
-        prev = Some((v, d));
-        out.push(Some(d));
-    }
-    out
-}
-
-/// Per consumer step of link `l`, the producer step read (−1: the output at t₀) when the
-/// samples are delivered as `sched` says.
-pub fn reads(l: &LinkShape, sched: &Schedule) -> Vec<i64> {
-    let arrivals: Vec<(i64, u64)> = sched
-        .iter()
-        .enumerate()
-        .filter_map(|(i, d)| d.map(|d| (l.valid_from(i as u64) + d, i as u64)))
-        .collect();
-    let mut out = Vec::with_capacity(l.steps.div_ceil(l.consumer_period) as usize);
-    let mut next = 0;
-    let mut held = -1i64;
-    let mut k = 0u64;
-    while k < l.steps {
-        while next < arrivals.len() && arrivals[next].0 <= k as i64 {
-            held = l.step_of(arrivals[next].1);
-            next += 1;
-        }
-        out.push(held);
-        k += l.consumer_period;
-    }
-    out
-}
-
 /// Instants of a made trace, within a tick of `dt_ns`: the controller reads first, then the
 /// actuator, then the plant, as the lock-step coupling orders them.
 fn offset(role: Role, dt_ns: u64) -> u64 {
@@ -338,54 +126,6 @@ pub fn trace(s: &Scenario, reads: &[Vec<i64>; 4]) -> Trace {
         },
         steps: out,
         partial: None,
-    }
-}
-
-/// The layout of a point over the links: each link's shape, bounds and coordinates.
-#[derive(Debug, Clone)]
-pub struct Layout {
-    /// Per link, in [`LinkId`] order: shape, bounds, and the range of its coordinates.
-    pub links: Vec<(LinkShape, TickBound, std::ops::Range<usize>)>,
-    /// Coordinates in all.
-    pub dims: usize,
-}
-
-impl Layout {
-    /// The layout of scenario `s` with bounds `b`.
-    pub fn new(s: &Scenario, b: &[TickBound; 4]) -> Layout {
-        let mut links = Vec::new();
-        let mut at = 0;
-        for id in LinkId::ALL {
-            let tb = b[id as usize];
-            let n = dims(&tb);
-            links.push((LinkShape::of(id, s), tb, at..at + n));
-            at += n;
-        }
-        Layout { links, dims: at }
-    }
-
-    /// Checks each link's samples lost and stalls of point `u` against its loss and freeze
-    /// budgets, each on its own.
-    pub fn check_budgets(&self, u: &[f64]) -> Result<(), OutOfBounds> {
-        for (l, b, r) in &self.links {
-            let delays = dims(&TickBound {
-                losses: 0,
-                freeze: 0,
-                ..*b
-            });
-            let mut it = u[r.start + delays..r.end].iter().map(|x| x.clamp(0.0, 1.0));
-            check_budgets(l, b, &undelivered(l, b, &mut it))?;
-        }
-        Ok(())
-    }
-
-    /// The trace of point `u` (coordinates in `[0, 1]`).
-    pub fn trace(&self, s: &Scenario, u: &[f64]) -> Trace {
-        let reads: [Vec<i64>; 4] = std::array::from_fn(|i| {
-            let (l, b, r) = &self.links[i];
-            reads(l, &schedule(l, b, &u[r.clone()]))
-        });
-        trace(s, &reads)
     }
 }
 
@@ -486,10 +226,16 @@ pub fn observe(l: &LinkShape, r: &[i64], b: Option<&TickBound>) -> Result<LinkOb
             }
         }
         if let Some((pi, ph)) = prev {
-            // A consumer that reads every p > 1 ticks may miss samples delivered between its
-            // steps: each of those changed the delay by at most the bound.
-            let between = if p > 1 { (i - pi).max(1) as i64 } else { 1 };
-            let change = (((hi - ph).abs() - (p - 1)).max(0) + between - 1) / between;
+            let change = if p > 1 {
+                // A consumer that reads every p > 1 ticks may miss samples delivered between
+                // its steps: each of those changed the delay by at most the bound.
+                let between = (i - pi).max(1) as i64;
+                (((hi - ph).abs() - (p - 1)).max(0) + between - 1) / between
+            } else if hi < ph {
+                fall_change(ph - hi, (i - pi - 1) as i64, l.spacing as i64)
+            } else {
+                hi - ph
+            };
             obs.jitter = obs.jitter.max(change);
             if let Some(b) = b {
                 if change > b.jitter {
@@ -519,6 +265,28 @@ pub fn observe(l: &LinkShape, r: &[i64], b: Option<&TickBound>) -> Result<LinkOb
         }
     }
     Ok(obs)
+}
+
+/// The smallest change of delay between consecutively delivered samples that explains a
+/// fall of `fall` ticks between two samples read by a consumer of every tick, `room` samples
+/// apart less one: the samples between were lost, or the last `m` of them were delivered
+/// unread at the tick the later one arrived (in send order, a burst: their delays fall by
+/// the sample spacing `s` one to the next, and the first of them changed the delay by
+/// `fall − m·s`).
+fn fall_change(fall: i64, room: i64, s: i64) -> i64 {
+    let m = if s > 0 { (fall / s).min(room) } else { 0 };
+    let with = |m: i64| {
+        if m == 0 {
+            fall
+        } else {
+            (fall - m * s).abs().max(s)
+        }
+    };
+    [0, m, (m + 1).min(room)]
+        .into_iter()
+        .map(with)
+        .min()
+        .unwrap_or(fall)
 }
 
 /// Of link `l`'s samples before the last one read (`first`: each delivered sample and the
