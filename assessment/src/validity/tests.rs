@@ -112,3 +112,31 @@ fn a_sinusoid_is_found_with_its_amplitude_and_frequency() {
     let o = oscillation(&fading, &r, dt);
     assert!(!o.raised && o.amplitude_ratio < 0.7, "{o:?}");
 }
+
+/// An oscillation that grows (an unstable loop's, 0.6 Hz from 1° to 8° over 14 s) is raised,
+/// though its windows' amplitudes differ by far more than a limit cycle's; one that decays as
+/// fast is not.
+#[test]
+fn a_growing_oscillation_is_raised_and_a_decaying_one_is_not() {
+    let dt = 1e-3;
+    let n = 14_000;
+    let r = vec![0.0; n];
+    let wave = |k: usize, amp_deg: f64| {
+        amp_deg.to_radians() * (std::f64::consts::TAU * 0.6 * k as f64 * dt).sin()
+    };
+    let growing: Vec<f64> = (0..n)
+        .map(|k| wave(k, 1.0 + 7.0 * k as f64 / n as f64))
+        .collect();
+    let o = oscillation(&growing, &r, dt);
+    assert!(o.raised, "{o:?}");
+    assert!(o.amplitude_ratio < 0.7 && o.decay_ratio >= 0.7, "{o:?}");
+    // The largest window is the last, 2 s ending at 14 s: 7 to 8°, the √2·RMS of 1.2 periods
+    // of a 0.6 Hz sine within 15 % of its amplitude.
+    assert!(o.amplitude_deg > 6.0 && o.amplitude_deg < 9.2, "{o:?}");
+    assert!((o.frequency_hz - 0.6).abs() < 0.3, "{o:?}");
+    let decaying: Vec<f64> = (0..n)
+        .map(|k| wave(k, 8.0 - 7.0 * k as f64 / n as f64))
+        .collect();
+    let o = oscillation(&decaying, &r, dt);
+    assert!(!o.raised && o.decay_ratio < 0.7, "{o:?}");
+}

@@ -38,7 +38,7 @@ pub struct FalsifyArgs {
     requirement: Option<String>,
     /// Evaluations of the search (and as many of the random sampling it is compared with)
     /// [default: from the number of coordinates searched: the obvious adversaries, CMA-ES
-    /// for max(10, 5n/λ) generations and as many evaluations of the histories' evolution].
+    /// for max(10, 5n/λ) generations of λ, and a third as many of the histories' evolution].
     #[arg(long)]
     budget: Option<i64>,
     /// Seed of the search and of the random sampling.

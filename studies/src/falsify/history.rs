@@ -277,11 +277,7 @@ pub fn raw_history(l: &LinkShape, b: &TickBound, a: &[f64]) -> LinkHistory {
     if b.losses > 0 {
         for _ in 0..WINDOWS {
             let (pos, share) = (u.next().unwrap_or(0.0), u.next().unwrap_or(0.0));
-            mark(
-                (share * b.losses as f64).round() as usize,
-                pos,
-                Fate::Lost,
-            );
+            mark((share * b.losses as f64).round() as usize, pos, Fate::Lost);
         }
     }
     if b.freeze > 0 {

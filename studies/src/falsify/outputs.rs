@@ -15,8 +15,8 @@ use tiltsim_master::free::trace::{TraceWriter, TIMING_CSV};
 use tiltsim_report::plot::{Chart, Line};
 use tiltsim_scenario::scenario::Scenario;
 
-use super::search::{Eval, Falsified, Method, Spec};
 use super::history::Layout;
+use super::search::{Eval, Falsified, Method, Spec};
 use super::FalsifyError;
 use crate::sweep::Shard;
 

@@ -25,7 +25,11 @@ fn shipped(name: &str, duration_s: f64) -> Scenario {
 
 /// Marks `len` samples from `start` as `what` where nothing is marked yet; false when any is.
 fn place(h: &mut [Fate], start: usize, len: usize, what: Fate) -> bool {
-    if start + len > h.len() || h[start..start + len].iter().any(|f| *f != Fate::Delivered(0)) {
+    if start + len > h.len()
+        || h[start..start + len]
+            .iter()
+            .any(|f| *f != Fate::Delivered(0))
+    {
         return false;
     }
     // A stall next to another would merge with it: keep a delivered sample between outages.
@@ -164,7 +168,10 @@ fn every_admissible_history_drawn_apart_is_reachable() {
     for scen in ["paper-lqg.toml", "paper-mpc.toml"] {
         let s = shipped(scen, 2.0);
         for text in cases {
-            let ticks = Bounds::parse(text, "t.toml").unwrap().ticks(&s, "t").unwrap();
+            let ticks = Bounds::parse(text, "t.toml")
+                .unwrap()
+                .ticks(&s, "t")
+                .unwrap();
             let layout = Layout::new(&s, &ticks);
             let (mut falls, mut rises, mut whole_outage) = (0, 0, 0);
             for draw in 0..25 {
@@ -206,7 +213,10 @@ fn every_admissible_history_drawn_apart_is_reachable() {
             }
             // The generator draws what the search used to miss: falls as well as rises, and
             // a whole loss budget spent as one outage.
-            assert!(falls > 0 && rises > 0, "{scen} {text}: {falls} falls, {rises} rises");
+            assert!(
+                falls > 0 && rises > 0,
+                "{scen} {text}: {falls} falls, {rises} rises"
+            );
             if text.contains("loss_pct = 10") {
                 assert!(whole_outage > 0, "{scen}: no whole-budget outage drawn");
             }
@@ -221,7 +231,10 @@ fn an_adversary_spends_the_whole_budget_as_one_outage() {
     let s = shipped("paper-lqg.toml", 6.0);
     let text = "[actuator_command]\ndelay_ms = [0, 200]\njitter_ms = 50\nloss_pct = 10\nfreeze_ms = 200\n\
                 [measurement]\ndelay_ms = [0, 200]\njitter_ms = 50\nloss_pct = 10\nfreeze_ms = 200\n";
-    let ticks = Bounds::parse(text, "t.toml").unwrap().ticks(&s, "t").unwrap();
+    let ticks = Bounds::parse(text, "t.toml")
+        .unwrap()
+        .ticks(&s, "t")
+        .unwrap();
     let layout = Layout::new(&s, &ticks);
     let adv = super::adversaries::adversaries(&s, &layout);
     // Largest delay, then per moment all links and each link alone.
@@ -233,13 +246,19 @@ fn an_adversary_spends_the_whole_budget_as_one_outage() {
         timing::check(&s, &layout.trace(&s, &h), &ticks).unwrap();
     }
     let t1 = moments[0].1;
-    assert!((t1 - 3.0).abs() < 1e-9, "the curve entry begins at 3 s: {t1}");
+    assert!(
+        (t1 - 3.0).abs() < 1e-9,
+        "the curve entry begins at 3 s: {t1}"
+    );
     let h = layout.history(&adv[1].coords);
     for i in [0, 2] {
         let (l, b, _) = &layout.links[i];
         assert_eq!(history::budgets_used(l, &h[i]), (b.losses, b.freeze));
         let first = h[i].iter().position(|f| *f != Fate::Delivered(b.d_max));
-        let out = h[i].iter().filter(|f| !matches!(f, Fate::Delivered(_))).count();
+        let out = h[i]
+            .iter()
+            .filter(|f| !matches!(f, Fate::Delivered(_)))
+            .count();
         let start = first.unwrap();
         // One outage: its samples all together, from the first sample sent at 3 s.
         assert!(h[i][start..start + out]

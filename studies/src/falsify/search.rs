@@ -1,5 +1,6 @@
 //! The search and its baseline, each with the same budget of evaluations. The search takes
 //! three phases: the obvious adversaries (`adversaries`), then CMA-ES from the best of them
+//! for three quarters of the rest
 //! over the coordinates of `history` (a point x of ℝⁿ is the history at coordinates
 //! `a = sat(1 / (1 + e^{−x}))`, `sat` stretching [0.05, 0.95] onto [0, 1] so that a coordinate
 //! reaches its ends), then a (1 + λ) evolution of the histories themselves (`mutation`),
@@ -474,20 +475,21 @@ pub fn lambda(n: usize) -> usize {
 }
 
 /// Generations of CMA-ES the default budget gives it in `n` dimensions: 5n evaluations, at
-/// least 10 generations.
+/// least 10 generations (three quarters of what follows the adversaries).
 fn default_generations(n: usize) -> usize {
     (5 * n).div_ceil(lambda(n)).max(10)
 }
 
 /// The default budget for scenario `s` and bounds `bounds` (`from` names them in errors):
-/// the obvious adversaries, CMA-ES for [`default_generations`], and as many evaluations again
-/// for the evolution of the histories.
+/// the obvious adversaries, CMA-ES for [`default_generations`], and a third as many
+/// evaluations again for the evolution of the histories.
 pub fn default_budget(s: &Scenario, bounds: &Bounds, from: &str) -> Result<usize, FalsifyError> {
     let ticks = bounds.ticks(s, from)?;
     let layout = Layout::new(s, &ticks);
     let n = layout.dims;
     let a = super::adversaries::adversaries(s, &layout).len();
-    Ok(a + 2 * default_generations(n) * lambda(n))
+    let cma = default_generations(n) * lambda(n);
+    Ok(a + cma + cma.div_ceil(3))
 }
 
 /// Runs the search and the random sampling of `spec` on scenario `s` (validated, lock-step,
@@ -582,8 +584,8 @@ fn record(
     }
 }
 
-/// The search: the obvious adversaries, CMA-ES from the best of them for half of what
-/// remains (whole generations), then the evolution of the histories for the rest. Returns
+/// The search: the obvious adversaries, CMA-ES from the best of them for three quarters of
+/// what remains (whole generations), then the evolution of the histories for the rest. Returns
 /// the evaluations, the best and the number of adversaries; `None` when interrupted.
 fn run_search(ctx: &Ctx) -> Option<(Vec<Eval>, Best, usize)> {
     let budget = ctx.spec.budget;
@@ -600,12 +602,21 @@ fn run_search(ctx: &Ctx) -> Option<(Vec<Eval>, Best, usize)> {
         .filter(|(_, v)| !v.objective.is_nan())
         .max_by(|a, b| a.1.objective.total_cmp(&b.1.objective).then(b.0.cmp(&a.0)))
         .map_or_else(|| vec![0.0; layout.dims], |(i, _)| adv[i].coords.clone());
-    record(Method::CmaEs, Phase::Adversary, &hs, values, &mut evals, &mut best);
+    record(
+        Method::CmaEs,
+        Phase::Adversary,
+        &hs,
+        values,
+        &mut evals,
+        &mut best,
+    );
     let n = layout.dims;
     let remaining = budget - evals.len();
     let lam = lambda(n);
+    // Three quarters of what remains in whole generations: CMA-ES learns the coordinates'
+    // shape; the evolution of the histories refines its best where the coordinates cannot.
     let cma = if remaining >= 2 * lam {
-        remaining / 2 / lam * lam
+        (3 * remaining / 4 / lam * lam).max(lam)
     } else {
         remaining
     };
@@ -613,12 +624,18 @@ fn run_search(ctx: &Ctx) -> Option<(Vec<Eval>, Best, usize)> {
         eprintln!(
             "warning: a budget of {budget} evaluations holds {} obvious adversaries and {cma} of a \
              CMA-ES generation of {lam}: CMA-ES never adapts; a budget of {} or more gives it a \
-             generation and the histories' evolution as many evaluations",
+             generation",
             adv.len(),
             adv.len() + 2 * lam
         );
     }
-    run_cma_es(ctx, &point_of(&start), evals.len() + cma, &mut evals, &mut best)?;
+    run_cma_es(
+        ctx,
+        &point_of(&start),
+        evals.len() + cma,
+        &mut evals,
+        &mut best,
+    )?;
     run_mutation(ctx, budget, &mut evals, &mut best)?;
     Some((evals, best, adv.len()))
 }
@@ -655,12 +672,7 @@ const MUTATION_STREAM: u64 = 0x6a09_e667_f3bc_c909;
 
 /// The (1 + λ) evolution of the histories from the best so far until `budget` evaluations.
 /// `None` when interrupted.
-fn run_mutation(
-    ctx: &Ctx,
-    budget: usize,
-    evals: &mut Vec<Eval>,
-    best: &mut Best,
-) -> Option<()> {
+fn run_mutation(ctx: &Ctx, budget: usize, evals: &mut Vec<Eval>, best: &mut Best) -> Option<()> {
     let mut m = super::mutation::Mutator::new(&ctx.layout, ctx.spec.seed ^ MUTATION_STREAM);
     let lam = lambda(ctx.layout.dims);
     while evals.len() < budget {
@@ -693,7 +705,14 @@ fn run_random(ctx: &Ctx) -> Option<(Vec<Eval>, Best)> {
     for c in pts.chunks(chunk) {
         let hs: Vec<History> = c.iter().map(|a| ctx.layout.history(a)).collect();
         let values = ctx.batch(Method::Random, Phase::Random, evals.len() + 1, &hs)?;
-        record(Method::Random, Phase::Random, &hs, values, &mut evals, &mut best);
+        record(
+            Method::Random,
+            Phase::Random,
+            &hs,
+            values,
+            &mut evals,
+            &mut best,
+        );
     }
     Some((evals, best))
 }

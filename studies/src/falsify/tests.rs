@@ -7,8 +7,8 @@ use tiltsim_scenario::links::LinkId;
 use tiltsim_scenario::scenario::Scenario;
 
 use super::bounds::{Bounds, LinkBound};
-use super::objective::Objective;
 use super::history::{self, Fate, Layout};
+use super::objective::Objective;
 use super::timing;
 
 fn shipped(name: &str, duration_s: f64) -> Scenario {
