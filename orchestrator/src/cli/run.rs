@@ -247,7 +247,7 @@ fn check_network(a: &RunArgs, s: &Scenario) -> Result<(), CliError> {
         return Ok(());
     }
     let where_from = if a.listen.is_some() {
-        "--listen".to_string()
+        "command line: --listen".to_string()
     } else {
         format!("{}: network.listen", a.scenario.display())
     };
