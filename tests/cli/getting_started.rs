@@ -217,3 +217,141 @@ fn a_run_from_a_terminal_draws_a_progress_bar_and_a_piped_or_quiet_one_does_not(
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!err.contains("% of"), "a piped run drew a bar: {err}");
 }
+
+/// The rows of docs/scenarios.md's key tables: (section as its heading names it, key,
+/// default cell, range cell).
+fn key_rows(doc: &str) -> Vec<(String, String, String, String)> {
+    let mut rows = Vec::new();
+    let mut section = String::new();
+    for l in doc.lines() {
+        if let Some(h) = l.strip_prefix("### `[").and_then(|h| h.strip_suffix("]`")) {
+            section = h.to_string();
+        } else if l.starts_with("| `") && !section.is_empty() {
+            let cells: Vec<&str> = l.trim_matches('|').split(" | ").map(str::trim).collect();
+            assert_eq!(
+                cells.len(),
+                5,
+                "docs/scenarios.md: a key row of five cells: {l}"
+            );
+            rows.push((
+                section.clone(),
+                cells[0].trim_matches('`').to_string(),
+                cells[1].to_string(),
+                cells[3].to_string(),
+            ));
+        }
+    }
+    rows
+}
+
+/// A range cell's numeric ends, `[0, 1e5]` or `(0, 3600] whole` → (lo, lo closed, hi).
+fn numeric_range(cell: &str) -> Option<(f64, bool, f64)> {
+    let closed_lo = cell.starts_with('[');
+    let inner = cell.strip_prefix(['[', '('])?;
+    let (inner, _) = inner.split_once([']', ')'])?;
+    let (lo, hi) = inner.split_once(", ")?;
+    Some((lo.parse().ok()?, closed_lo, hi.parse().ok()?))
+}
+
+#[test]
+fn docs_scenarios_gives_every_key_its_default_and_ranges_the_checks_hold_to() {
+    use tiltsim_master::scenario::Scenario;
+    let doc = std::fs::read_to_string(tiltsim_suite::root().join("docs/scenarios.md")).unwrap();
+    let rows = key_rows(&doc);
+    let defaults = toml::Value::try_from(Scenario::default()).unwrap();
+    let mut checked = 0;
+    for (path, value) in leaves(&defaults, "") {
+        let (section, key) = path.rsplit_once('.').unwrap();
+        let heading = if section.starts_with("links.") {
+            "links.<link>"
+        } else {
+            section
+        };
+        let Some((_, _, default, range)) = rows.iter().find(|(s, k, ..)| s == heading && k == key)
+        else {
+            panic!("docs/scenarios.md has no row for `{path}` under `[{heading}]`");
+        };
+        // The default as the code has it.
+        let first = default.split(' ').next().unwrap();
+        match &value {
+            toml::Value::Float(_) | toml::Value::Integer(_) => {
+                let want = value.as_float().or(value.as_integer().map(|i| i as f64));
+                assert_eq!(
+                    first.parse::<f64>().ok(),
+                    want,
+                    "`{path}`: default {default}"
+                );
+            }
+            toml::Value::String(s) => assert_eq!(default, &format!("`{s}`"), "`{path}`"),
+            toml::Value::Boolean(b) => assert_eq!(default, &b.to_string(), "`{path}`"),
+            toml::Value::Array(a) => {
+                let listed: Vec<f64> = default
+                    .trim_matches(['[', ']'])
+                    .split(", ")
+                    .map(|x| x.parse().unwrap())
+                    .collect();
+                let want: Vec<f64> = a.iter().map(|x| x.as_float().unwrap()).collect();
+                assert_eq!(listed, want, "`{path}`");
+            }
+            other => panic!("`{path}`: {other:?}"),
+        }
+        // A numeric range holds the default, and the checks refuse a value past either end.
+        if let Some((lo, lo_closed, hi)) = numeric_range(range) {
+            let whole = value.is_integer();
+            assert_eq!(whole, range.contains("] whole"), "`{path}`: {range}");
+            let d: f64 = first.parse().unwrap();
+            assert!(
+                d <= hi && (d > lo || (lo_closed && d == lo)),
+                "`{path}`: {d} outside {range}"
+            );
+            let past = |v: f64| {
+                if whole {
+                    format!("{}", v as i64)
+                } else {
+                    format!("{v:e}")
+                }
+            };
+            for beyond in [hi + hi.abs().max(1.0), lo - lo.abs().max(1.0)] {
+                if whole && beyond < 0.0 {
+                    continue; // an unsigned key cannot be written below zero at all
+                }
+                let refused = match Scenario::default().with_setting(&path, &past(beyond)) {
+                    Err(_) => true,
+                    Ok(s) => s
+                        .validate()
+                        .iter()
+                        .any(|e| e.to_string().contains(&format!("`{path}`"))),
+                };
+                assert!(
+                    refused,
+                    "`{path}` = {beyond} is accepted; docs/scenarios.md says {range}"
+                );
+            }
+            checked += 1;
+        }
+    }
+    // Most keys have a numeric range; a table that lost its ranges would check none.
+    assert!(checked > 80, "{checked} ranges checked");
+}
+
+/// Every scalar or list of numbers in `v` with its dotted path (lists of tables, the
+/// scenario's name and description left out).
+fn leaves(v: &toml::Value, prefix: &str) -> Vec<(String, toml::Value)> {
+    let mut out = Vec::new();
+    if let toml::Value::Table(t) = v {
+        for (k, x) in t {
+            let path = if prefix.is_empty() {
+                k.clone()
+            } else {
+                format!("{prefix}.{k}")
+            };
+            match x {
+                toml::Value::Table(_) => out.extend(leaves(x, &path)),
+                toml::Value::Array(a) if a.iter().any(|e| e.is_table()) || a.is_empty() => {}
+                _ if prefix.is_empty() => {}
+                _ => out.push((path, x.clone())),
+            }
+        }
+    }
+    out
+}
