@@ -304,29 +304,50 @@ fn docs_scenarios_gives_every_key_its_default_and_ranges_the_checks_hold_to() {
                 d <= hi && (d > lo || (lo_closed && d == lo)),
                 "`{path}`: {d} outside {range}"
             );
-            let past = |v: f64| {
-                if whole {
+            // Probed on a free run, where every key's own range applies (a lock-step run
+            // also wants `run.controller_busy_wait_s` = 0).
+            let mut base = Scenario::default();
+            base.run.execution = tiltsim_master::scenario::Execution::Free;
+            let names_key = |v: f64| {
+                let text = if whole {
                     format!("{}", v as i64)
                 } else {
                     format!("{v:e}")
-                }
-            };
-            for beyond in [hi + hi.abs().max(1.0), lo - lo.abs().max(1.0)] {
-                if whole && beyond < 0.0 {
-                    continue; // an unsigned key cannot be written below zero at all
-                }
-                let refused = match Scenario::default().with_setting(&path, &past(beyond)) {
+                };
+                match base.with_setting(&path, &text) {
                     Err(_) => true,
                     Ok(s) => s
                         .validate()
                         .iter()
                         .any(|e| e.to_string().contains(&format!("`{path}`"))),
-                };
-                assert!(
-                    refused,
-                    "`{path}` = {beyond} is accepted; docs/scenarios.md says {range}"
-                );
+                }
+            };
+            // Just past each end is refused, an open end too, and (where the cell says no
+            // more) a closed end is taken: the range is the checks' own, not a looser one.
+            let step = |x: f64| {
+                if whole {
+                    1.0
+                } else {
+                    x.abs().max(1e-300) * 1e-6
+                }
+            };
+            let exact = range.ends_with(']') || range.ends_with("] whole");
+            assert!(names_key(hi + step(hi)), "`{path}` above {range} is taken");
+            if !(whole && lo - step(lo) < 0.0) {
+                assert!(names_key(lo - step(lo)), "`{path}` below {range} is taken");
             }
+            if lo_closed {
+                assert!(
+                    !exact || !names_key(lo),
+                    "`{path}` = {lo} refused; docs: {range}"
+                );
+            } else {
+                assert!(names_key(lo), "`{path}` = {lo} taken; docs: {range}");
+            }
+            assert!(
+                !exact || !names_key(hi),
+                "`{path}` = {hi} refused; docs: {range}"
+            );
             checked += 1;
         }
     }
