@@ -207,7 +207,7 @@ pub fn layout(chart: &Chart, x: &[f64]) -> Scene {
     f.lines(&mut p, chart, x);
     let legend_h = footer(
         &mut p,
-        chart.lines.iter().map(|l| Entry::of(l)),
+        chart.lines.iter().map(Entry::of),
         &[chart.note, chart.caption],
     );
     // The white background covers the legend too.
