@@ -245,15 +245,14 @@ pub(super) fn key_label(key: &str) -> String {
     format!("{key} ({unit})")
 }
 
-/// The lateral acceleration for each swept value, and comfort against the value: P_CT and
-/// the peak lateral acceleration in panels of their own, a marker at each swept value.
-pub(super) fn grid_plots(
+/// `sweep_lateral_acceleration` of a grid: a line per value, titled `sweep`.
+fn grid_lateral_acceleration(
     dir: &Path,
-    (base, key): (&Scenario, &str),
+    sweep: &str,
     ok: &[&Row],
     t: &[f64],
     bands: Vec<(f64, f64, bool)>,
-) -> std::io::Result<Vec<PathBuf>> {
+) -> std::io::Result<[PathBuf; 2]> {
     // The key is in the title; each legend entry names its value and any flag it raised (its
     // line dashed).
     let labels: Vec<String> = ok
@@ -267,7 +266,6 @@ pub(super) fn grid_plots(
             }
         })
         .collect();
-    let sweep = format!("Sweep of {} over {key}", base.name);
     let lat_title = format!("{sweep}: passenger lateral acceleration for each value");
     let chart = Chart {
         title: &lat_title,
@@ -290,8 +288,20 @@ pub(super) fn grid_plots(
         note: tiltsim_report::plot::SECTION_NOTE,
         ..Default::default()
     };
-    let mut files =
-        tiltsim_report::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)?.to_vec();
+    tiltsim_report::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)
+}
+
+/// The lateral acceleration for each swept value, and comfort against the value: P_CT and
+/// the peak lateral acceleration in panels of their own, a marker at each swept value.
+pub(super) fn grid_plots(
+    dir: &Path,
+    (base, key): (&Scenario, &str),
+    ok: &[&Row],
+    t: &[f64],
+    bands: Vec<(f64, f64, bool)>,
+) -> std::io::Result<Vec<PathBuf>> {
+    let sweep = format!("Sweep of {} over {key}", base.name);
+    let mut files = grid_lateral_acceleration(dir, &sweep, ok, t, bands)?.to_vec();
     let x: Vec<f64> = ok
         .iter()
         .map(|r| r.params.first().copied().unwrap_or(f64::NAN))
