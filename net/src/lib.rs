@@ -118,7 +118,8 @@ pub fn clean(text: &str) -> String {
                 rest = &after[skip..];
             }
             None => {
-                out.push_str(" at /");
+                // Not a location: keep the text (`after` still starts with the slash).
+                out.push_str(" at ");
                 rest = after;
             }
         }
