@@ -310,8 +310,8 @@ pub fn network(a: &BenchArgs, base: &Scenario, exe: &Path, listen: &str) -> CliR
     let rounds = a.rounds.min(20_000);
     eprintln!("  measuring the raw TCP floor ({rounds} round trips) ...");
     let floors = floors(&sp, &listen, rounds)?;
-    let raw = floors[0].rtt.clone();
-    let run_floor = floors[1].rtt.clone();
+    let raw = floors[0].rtt;
+    let run_floor = floors[1].rtt;
     let mut s = base.clone();
     s.run.duration_s = Some(a.duration);
     s.run.transport = Transport::InProcess;

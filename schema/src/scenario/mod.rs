@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 use vehicle_model::{TrackParams, VehicleParams};
 
 mod load;
+pub mod suggest;
 mod validate;
 
 pub use load::*;
@@ -316,10 +317,12 @@ impl Scenario {
         let value = setting_value(key, text.trim(), table.get(last))?;
         table.insert(last.to_string(), value);
         let mut s = serde_path_to_error::deserialize::<_, Scenario>(doc).map_err(|e| {
+            let inner = e.inner().to_string();
             format!(
-                "key `{key}`: {} (at `{}`); keys are the scenario's settings as dotted paths, e.g. `vehicle.m_v`, `controller.rho`",
-                e.inner().to_string().trim_end(),
-                e.path()
+                "key `{key}`: {} (at `{}`){}; keys are the scenario's settings as dotted paths, e.g. `vehicle.m_v`, `controller.rho`",
+                inner.trim_end(),
+                e.path(),
+                load::did_you_mean(&inner, "; ")
             )
         })?;
         s.name.clone_from(&self.name);
