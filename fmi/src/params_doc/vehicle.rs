@@ -97,7 +97,12 @@ pub(super) const VEHICLE: &[Row] = &[
     (
         "track.transition_m",
         "m",
-        "Length of each linear transition",
+        "Length of each transition",
+    ),
+    (
+        "track.transition_shape",
+        "",
+        "Transition shape: clothoid (linear ramp, the paper's), cosine or bloss (smoothed ends)",
     ),
     ("track.curve_m", "m", "Length of the steady curve"),
     (
