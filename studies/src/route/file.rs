@@ -291,7 +291,7 @@ fn check_line(s: &[Section]) -> Result<(), (usize, &'static str, String)> {
     };
     let last = s[s.len() - 1];
     if first.curve.is_some() || last.curve.is_some() {
-        let bad = if first.curve.is_some() { first } else { last };
+        let bad = if first.curve.is_some() { *first } else { last };
         return Err((
             bad.line,
             "radius_m",
