@@ -49,6 +49,9 @@ pub enum EventKind {
     ChopperOn,
     /// A caller's manipulator acted (`engine::manipulate`; detail: in its own words).
     Manipulated,
+    /// Someone on the network tried to reach the run without the right to and was refused
+    /// (at the step the run was at when it was seen; detail: who and why).
+    NetworkRefused,
 }
 
 /// One line of `events.csv`.
@@ -115,6 +118,22 @@ impl EventLog {
             value,
             detail: detail.into(),
         });
+    }
+
+    /// Logs an event at tick `k` after every event logged so far at or before `k` (for events
+    /// seen outside the loop and logged when it ends).
+    pub fn insert(
+        &mut self,
+        k: u64,
+        source: &str,
+        kind: EventKind,
+        value: f64,
+        detail: impl Into<String>,
+    ) {
+        let at = self.events.partition_point(|e| e.step <= k);
+        self.push(k, source, kind, value, detail);
+        let e = self.events.pop().expect("just pushed");
+        self.events.insert(at, e);
     }
 
     /// Writes `events.csv`, whole or not at all.

@@ -154,6 +154,12 @@ impl<I: Message, O: Message> Endpoint<I, O> for NetEndpoint<I, O> {
             self.sent.pop_front();
         }
         self.sent.push_back((r.header().relay, r.header().sent_ns));
+        self.shared
+            .step
+            .store(r.header().step, std::sync::atomic::Ordering::Relaxed);
+        if crate::watch::tls_refusals_pending() {
+            self.shared.collect_tls_refusals();
+        }
         self.ports
             .request
             .put(r.to_wire())

@@ -2,7 +2,7 @@
 //! ports of every remote role, declared before anyone joins so that no reply can be published
 //! before the orchestrator listens for it.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -17,9 +17,11 @@ use zenoh::Wait;
 use cosim::msg::{now_ns, Message, PROTOCOL_VERSION};
 use cosim::Role;
 
+use crate::credentials::{self, Holder};
 use crate::endpoint::NetEndpoint;
-use crate::join::{judge, Hello, Judge, Offer, Welcome};
-use crate::{keys, new_secret, session, zenoh_error, NetError, NetSettings};
+use crate::join::{judge, welcome_proof, Hello, Judge, Offer, Welcome};
+use crate::watch::{take_tls_refusals, Attempt, AttemptKind};
+use crate::{acl, keys, new_secret, session, zenoh_error, NetError, NetSettings};
 
 /// A remote participant that joined.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -72,6 +74,14 @@ pub(crate) struct Shared {
     pub(crate) alive: [AtomicBool; 3],
     /// What each role said last outside the exchange.
     pub(crate) notes: Mutex<[Option<String>; 3]>,
+    /// The step of the newest request sent: when an attempt is seen, the run was there.
+    pub(crate) step: AtomicU64,
+    /// The run's authority, named in every common name of its certificates.
+    authority_id: String,
+    /// Attempts seen so far, in order.
+    attempts: Mutex<Vec<Attempt>>,
+    /// The links of remote roles open now: the certificate's common name and the peer.
+    links: Mutex<Vec<(String, String)>>,
 }
 
 impl Shared {
@@ -116,10 +126,18 @@ impl Shared {
                     hello.clock_offset_ns as f64 * 1e-6,
                     hello.clock_rtt_ns as f64 * 0.5e-6
                 );
+                let params = self.params[idx(role)].clone().unwrap_or_default();
                 Welcome {
                     accepted: true,
                     reason: String::new(),
-                    params: self.params[idx(role)].clone().unwrap_or_default(),
+                    proof: welcome_proof(
+                        &self.secret,
+                        &self.run,
+                        role,
+                        (&self.offer_nonce, &hello.nonce),
+                        &params,
+                    ),
+                    params,
                 }
             }
             Err(reason) => {
@@ -141,6 +159,7 @@ impl Shared {
                     accepted: false,
                     reason,
                     params: String::new(),
+                    proof: String::new(),
                 }
             }
         }
@@ -149,7 +168,86 @@ impl Shared {
     pub(crate) fn note(&self, role: Role) -> Option<String> {
         self.notes.lock().unwrap_or_else(|e| e.into_inner())[idx(role)].clone()
     }
+
+    fn attempt(&self, kind: AttemptKind, from: String, common_name: String, detail: String) {
+        let a = Attempt {
+            kind,
+            from,
+            common_name,
+            step: self.step.load(Ordering::Relaxed),
+            detail,
+        };
+        tracing::warn!(
+            "refused {}{}{} at step {}: {}",
+            kind.words(),
+            if a.from.is_empty() { "" } else { " from " },
+            a.from,
+            a.step,
+            a.detail
+        );
+        let mut v = self.attempts.lock().unwrap_or_else(|e| e.into_inner());
+        if v.len() < MAX_ATTEMPTS {
+            v.push(a);
+        }
+    }
+
+    /// A link opened or closed: a remote role's own, or someone else's, named.
+    fn link_event(&self, up: bool, common_name: Option<&str>, from: String) {
+        let name = common_name.unwrap_or("").to_string();
+        let mut links = self.links.lock().unwrap_or_else(|e| e.into_inner());
+        if !up {
+            links.retain(|(n, f)| !(n == &name && f == &from));
+            return;
+        }
+        let holder = Holder::of_common_name(&name, &self.authority_id);
+        let role = match holder {
+            Some(Holder::Role(r)) => Some(r).filter(|&r| self.params[idx(r)].is_some()),
+            _ => None,
+        };
+        match role {
+            None if holder.is_none() => {
+                drop(links);
+                self.attempt(
+                    AttemptKind::WrongCredentials,
+                    from,
+                    name.clone(),
+                    format!("certificate `{name}` is not of this run's authority: access control admits it to nothing"),
+                );
+            }
+            None => {
+                drop(links);
+                self.attempt(
+                    AttemptKind::OtherRole,
+                    from,
+                    name.clone(),
+                    format!(
+                        "certificate `{name}`: access control admits it to nothing of this run"
+                    ),
+                );
+            }
+            Some(r) if links.iter().any(|(n, _)| n == &name) => {
+                drop(links);
+                self.attempt(
+                    AttemptKind::SecondSession,
+                    from,
+                    name,
+                    format!("{r} is connected already; the second session gets no sample of the run's exchange with it"),
+                );
+            }
+            Some(_) => links.push((name, from)),
+        }
+    }
+
+    /// Moves the TLS refusals logged since the last look into the attempts.
+    pub(crate) fn collect_tls_refusals(&self) {
+        for (kind, detail) in take_tls_refusals() {
+            self.attempt(kind, String::new(), String::new(), format!("TLS: {detail}"));
+        }
+    }
 }
+
+/// At most this many attempts are named one by one (a flood is cut there).
+const MAX_ATTEMPTS: usize = 1000;
 
 /// One remote role's ports, declared when the hub opens.
 pub(crate) struct Ports {
@@ -183,6 +281,10 @@ impl NetHub {
         for (r, p) in remote {
             params[idx(r)] = Some(p);
         }
+        let roles: Vec<Role> = Role::ALL
+            .into_iter()
+            .filter(|&r| params[idx(r)].is_some())
+            .collect();
         let shared = Arc::new(Shared {
             run: run.clone(),
             offer_nonce,
@@ -192,11 +294,27 @@ impl NetHub {
             refusals: Mutex::default(),
             alive: Default::default(),
             notes: Mutex::default(),
+            step: AtomicU64::new(0),
+            authority_id: credentials::authority_id(&settings.secret)
+                .map_err(|e| NetError::Participant(e.to_string()))?,
+            attempts: Mutex::default(),
+            links: Mutex::default(),
         });
+        let credentials = credentials::issue(&settings.secret, Holder::Orchestrator)
+            .map_err(|e| NetError::Participant(e.to_string()))?;
+        let authority_id = credentials.authority_id.clone();
+        // Refusals logged before this run's session opened are not this run's.
+        let _ = take_tls_refusals();
         let session = session::open(
             &session::End::Listen(settings.listen.clone()),
             settings.lease,
+            &session::Security::Tls {
+                credentials,
+                acl: acl::orchestrator(&run, &roles, &authority_id),
+            },
+            session::Tuning::default(),
         )?;
+        watch_links(&session, &shared)?;
         let ports = declare_ports(&session, &shared)?;
         let queryables = answer_joins(&session, &shared)?;
         let subscribers = watch_participants(&session, &shared)?;
@@ -264,6 +382,9 @@ impl NetHub {
                     self.settings.deadline,
                 ));
             }
+            if crate::watch::tls_refusals_pending() {
+                self.shared.collect_tls_refusals();
+            }
             if interrupt.is_some_and(|f| f.load(Ordering::Relaxed)) {
                 return Err(NetError::Interrupted { role });
             }
@@ -276,7 +397,7 @@ impl NetHub {
                     .collect();
                 return Err(NetError::NeverJoined {
                     role,
-                    listen: self.settings.listen.clone(),
+                    listen: self.settings.listen.to_string(),
                     waited_s: start.elapsed().as_secs_f64(),
                     refused: if refused.is_empty() {
                         String::new()
@@ -299,6 +420,17 @@ impl NetHub {
             .flatten()
             .cloned()
             .collect()
+    }
+
+    /// The attempts by others seen so far, in order: connections refused by TLS, sessions
+    /// with another role's credentials, second sessions of a role.
+    pub fn attempts(&self) -> Vec<Attempt> {
+        self.shared.collect_tls_refusals();
+        self.shared
+            .attempts
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
     }
 
     /// The participants refused so far, in arrival order.
@@ -397,6 +529,7 @@ fn answer_joins(
                         accepted: false,
                         reason: "not a hello of this protocol".into(),
                         params: String::new(),
+                        proof: String::new(),
                     },
                 };
                 let body = serde_json::to_vec(&welcome).unwrap_or_default();
@@ -408,41 +541,65 @@ fn answer_joins(
     Ok(queryables)
 }
 
-/// The participants' liveliness tokens and notes, into `shared`.
+/// The remote roles' liveliness tokens and notes, into `shared` (each role's own keys only:
+/// nothing another role's holder says reaches them).
 fn watch_participants(
     session: &zenoh::Session,
     shared: &Arc<Shared>,
 ) -> Result<Vec<Subscriber<()>>, NetError> {
     let mut subscribers = Vec::new();
-    let s = shared.clone();
-    subscribers.push(
-        session
-            .liveliness()
-            .declare_subscriber(keys::alive_any(&shared.run))
-            .history(true)
-            .callback(move |sample: Sample| {
-                if let Some(r) = keys::role_of(sample.key_expr().as_str()) {
+    for r in Role::ALL {
+        if shared.params[idx(r)].is_none() {
+            continue;
+        }
+        let s = shared.clone();
+        subscribers.push(
+            session
+                .liveliness()
+                .declare_subscriber(keys::alive(&shared.run, r))
+                .history(true)
+                .callback(move |sample: Sample| {
                     let up = sample.kind() == SampleKind::Put;
                     s.alive[idx(r)].store(up, Ordering::Release);
-                }
-            })
-            .wait()
-            .map_err(zenoh_error("watching the participants' liveliness"))?,
-    );
-    let s = shared.clone();
-    subscribers.push(
-        session
-            .declare_subscriber(keys::note_any(&shared.run))
-            .callback(move |sample: Sample| {
-                if let Some(r) = keys::role_of(sample.key_expr().as_str()) {
+                })
+                .wait()
+                .map_err(zenoh_error("watching the participants' liveliness"))?,
+        );
+        let s = shared.clone();
+        subscribers.push(
+            session
+                .declare_subscriber(keys::note(&shared.run, r))
+                .callback(move |sample: Sample| {
                     let text = String::from_utf8_lossy(&sample.payload().to_bytes()).into_owned();
                     s.notes.lock().unwrap_or_else(|e| e.into_inner())[idx(r)] = Some(text);
-                }
-            })
-            .wait()
-            .map_err(zenoh_error("listening to the participants' notes"))?,
-    );
+                })
+                .wait()
+                .map_err(zenoh_error("listening to the participants' notes"))?,
+        );
+    }
     Ok(subscribers)
+}
+
+/// Zenoh's link events: every link that opens is a remote role's, or an attempt named.
+fn watch_links(session: &zenoh::Session, shared: &Arc<Shared>) -> Result<(), NetError> {
+    let s = shared.clone();
+    session
+        .info()
+        .link_events_listener()
+        .history(true)
+        .callback(move |e: zenoh::session::LinkEvent| {
+            let up = e.kind() == SampleKind::Put;
+            let link = e.link();
+            let dst = link.dst().to_string();
+            let from = dst
+                .split_once('/')
+                .map_or(dst.as_str(), |(_, a)| a)
+                .to_string();
+            s.link_event(up, link.auth_identifier(), from);
+        })
+        .background()
+        .wait()
+        .map_err(zenoh_error("watching the run's links"))
 }
 
 impl Drop for NetHub {

@@ -10,9 +10,15 @@
 //!    version, host, pid, a nonce of its own, the clock offset, and the **proof**, a SHA-256
 //!    of the run's secret with the run's key, the role and both nonces. The secret itself
 //!    never crosses the network, and a proof is good for one run and one role only.
-//! 4. The orchestrator answers with a **welcome** carrying the participant's settings, or a
-//!    refusal that says why: wrong credentials, another protocol version, a role the run does
-//!    not await, a role already joined. [`judge`] decides.
+//! 4. The orchestrator answers with a **welcome** carrying the participant's settings and its
+//!    own proof of the secret over them ([`welcome_proof`]), or a refusal that says why:
+//!    wrong credentials, another protocol version, a role the run does not await, a role
+//!    already joined. [`judge`] decides. The participant serves only after a welcome whose
+//!    proof holds.
+//!
+//! All of this travels inside the TLS session, which both ends opened with certificates of
+//! the run's authority ([`crate::credentials`]); the proofs bind the handshake to the run's
+//! key and nonces on top of that.
 
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -64,28 +70,68 @@ pub struct Welcome {
     pub reason: String,
     /// Its settings as JSON (what `--params` carries on one host); empty when refused.
     pub params: String,
+    /// [`welcome_proof`] of the secret over the settings: the orchestrator holds the secret
+    /// too, and the settings are the ones it sent. Empty when refused.
+    pub proof: String,
 }
 
 /// The proof that the sender of a hello holds `secret`, bound to one run, role and pair of
 /// nonces.
 pub fn proof(secret: &str, run: &str, role: Role, offer_nonce: &str, hello_nonce: &str) -> String {
-    let mut h = Sha256::new();
-    for part in [
+    digest(&[
         "tiltsim-join-v1",
         secret,
         run,
         role.name(),
         offer_nonce,
         hello_nonce,
-    ] {
+    ])
+}
+
+/// The orchestrator's proof that it holds `secret`, bound to the hello it answers (run, role,
+/// both nonces) and to the settings it sends.
+pub fn welcome_proof(
+    secret: &str,
+    run: &str,
+    role: Role,
+    nonces: (&str, &str),
+    params: &str,
+) -> String {
+    digest(&[
+        "tiltsim-welcome-v1",
+        secret,
+        run,
+        role.name(),
+        nonces.0,
+        nonces.1,
+        params,
+    ])
+}
+
+/// SHA-256 of the parts, each prefixed by its length, as hex.
+fn digest(parts: &[&str]) -> String {
+    let mut h = Sha256::new();
+    for part in parts {
         h.update((part.len() as u64).to_le_bytes());
         h.update(part.as_bytes());
     }
     h.finalize().iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// Whether `welcome` accepts `role` and proves the secret over its settings.
+pub fn welcome_is_genuine(
+    secret: &str,
+    run: &str,
+    role: Role,
+    nonces: (&str, &str),
+    welcome: &Welcome,
+) -> bool {
+    let want = welcome_proof(secret, run, role, nonces, &welcome.params);
+    welcome.accepted && same(&want, &welcome.proof)
+}
+
 /// Compares two strings in time independent of where they differ.
-fn same(a: &str, b: &str) -> bool {
+pub(crate) fn same(a: &str, b: &str) -> bool {
     a.len() == b.len()
         && a.bytes()
             .zip(b.bytes())
@@ -231,6 +277,34 @@ mod tests {
             proof("sr", "", Role::Plant, "a", "b"),
             proof("s", "r", Role::Plant, "a", "b")
         );
+    }
+
+    #[test]
+    fn a_welcome_proves_the_secret_over_its_settings() {
+        let n = ("n1", "n2");
+        let mut w = Welcome {
+            accepted: true,
+            reason: String::new(),
+            params: "{\"a\":1}".into(),
+            proof: welcome_proof("s3cret", "r1", Role::Controller, n, "{\"a\":1}"),
+        };
+        assert!(welcome_is_genuine("s3cret", "r1", Role::Controller, n, &w));
+        assert!(!welcome_is_genuine("guess", "r1", Role::Controller, n, &w));
+        assert!(!welcome_is_genuine("s3cret", "r1", Role::Plant, n, &w));
+        assert!(!welcome_is_genuine(
+            "s3cret",
+            "r1",
+            Role::Controller,
+            ("n1", "n3"),
+            &w
+        ));
+        // Settings changed on the way are not the ones proven.
+        w.params = "{\"a\":2}".into();
+        assert!(!welcome_is_genuine("s3cret", "r1", Role::Controller, n, &w));
+        // The participant's own proof does not pass for the orchestrator's.
+        w.params = "{\"a\":1}".into();
+        w.proof = proof("s3cret", "r1", Role::Controller, "n1", "n2");
+        assert!(!welcome_is_genuine("s3cret", "r1", Role::Controller, n, &w));
     }
 
     #[test]

@@ -9,14 +9,20 @@
 //! transports implement, so the master algorithms, link effects, faults and recording do not
 //! know which participant is remote.
 //!
-//! Files: [`keys`] (the run's key expressions), [`join`] (the handshake: offer, hello,
-//! welcome, the proof of the secret, the clock offset), [`session`] (Zenoh configuration),
-//! [`hub`] (the orchestrator's side), [`endpoint`] (one remote participant), [`serve`] (the
-//! participant's side).
+//! Files: [`keys`] (the run's key expressions), [`credentials`] (the run's TLS authority,
+//! derived from its secret, and each end's certificate), [`acl`] (Zenoh's access control:
+//! each role its own keys, deny by default), [`join`] (the handshake: offer, hello, welcome,
+//! the proofs of the secret, the clock offset), [`session`] (Zenoh configuration), [`hub`]
+//! (the orchestrator's side), [`endpoint`] (one remote participant), [`serve`] (the
+//! participant's side), [`watch`] (attempts by others, named in the run's outputs).
 //!
-//! Samples travel as [`tiltsim_protocol::wire`] bytes over a reliable, ordered TCP link
-//! (express: never batched), so a lock-step run gives the same bytes as on one host.
+//! Samples travel as [`tiltsim_protocol::wire`] bytes over a reliable, ordered link, TLS 1.3
+//! over TCP with certificates at both ends (express: never batched), so a lock-step run gives
+//! the same bytes as on one host and nobody without the run's credentials reads or sends any
+//! of them (docs/network.md, "Who can touch a run").
 
+pub mod acl;
+pub mod credentials;
 pub mod endpoint;
 pub mod hub;
 pub mod join;
@@ -24,19 +30,22 @@ pub mod keys;
 pub mod pingpong;
 pub mod serve;
 pub mod session;
+pub mod watch;
 
 pub use endpoint::NetEndpoint;
 pub use hub::{Joined, NetHub, Refusal};
+pub use watch::{Attempt, AttemptKind};
 
 use std::time::Duration;
 
 use cosim::Role;
+use tiltsim_protocol::address::Address;
 
 /// What a run's network side needs.
 #[derive(Debug, Clone)]
 pub struct NetSettings {
-    /// Where the orchestrator listens, as a Zenoh endpoint (`tcp/10.0.0.1:7447`).
-    pub listen: String,
+    /// Where the orchestrator listens.
+    pub listen: Address,
     /// The run's secret: a participant must prove it holds it to join.
     pub secret: String,
     /// How long a remote participant may take to answer one exchange.
@@ -85,7 +94,49 @@ pub enum NetError {
 pub(crate) fn zenoh_error<E: std::fmt::Display>(what: &str) -> impl FnOnce(E) -> NetError + '_ {
     move |e| NetError::Zenoh {
         what: what.to_string(),
-        why: e.to_string(),
+        why: clean(&e.to_string()),
+    }
+}
+
+/// Zenoh's error text without the source locations it appends (` at /path/file.rs:123.`),
+/// which say nothing to a user.
+pub fn clean(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(i) = rest.find(" at /") {
+        out.push_str(&rest[..i]);
+        let after = &rest[i + 4..];
+        // The location ends after `.rs:LINE` (and a full stop, if any).
+        match after.find(".rs:") {
+            Some(j) => {
+                let tail = &after[j + 4..];
+                let digits = tail.chars().take_while(char::is_ascii_digit).count();
+                let mut skip = j + 4 + digits;
+                if after[skip..].starts_with('.') {
+                    skip += 1;
+                }
+                rest = &after[skip..];
+            }
+            None => {
+                out.push_str(" at /");
+                rest = after;
+            }
+        }
+    }
+    out.push_str(rest);
+    out.trim_end().to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn zenoh_errors_lose_their_source_locations() {
+        let raw = "Can not create a new TLS listener bound to 10.0.0.1:7447: Address already in use (os error 98) at /root/.cargo/registry/src/index.crates.io-1949cf8c6b5b557f/zenoh-link-tls-1.10.2/src/unicast.rs:320.";
+        assert_eq!(
+            super::clean(raw),
+            "Can not create a new TLS listener bound to 10.0.0.1:7447: Address already in use (os error 98)"
+        );
+        assert_eq!(super::clean("meet at /x"), "meet at /x");
     }
 }
 

@@ -3,7 +3,14 @@
 //! an orchestrator does) and an echo process (connected, as a participant is), each reading
 //! from a FIFO channel as a [`NetEndpoint`](crate::NetEndpoint) and a participant do. The
 //! round trip of one exchange is the floor of a lock-step exchange with a remote participant.
+//!
+//! [`Floor`] says how: over TLS with the run's kind of credentials and access control (what a
+//! run uses), or over plain TCP without them (to measure what the security costs), and with
+//! which [`Tuning`]. [`raw_tcp_echo`] and [`raw_tcp_measure`] measure the same round trip
+//! over a bare TCP socket, the wire's own floor on that path.
 
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
 use std::time::{Duration, Instant};
 
 use zenoh::handlers::FifoChannel;
@@ -11,25 +18,59 @@ use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
 use cosim::msg::now_ns;
+use cosim::Role;
+use tiltsim_protocol::address::Address;
 
-use crate::{session, zenoh_error, NetError};
+use crate::credentials::{self, Holder};
+use crate::session::{self, Security, Tuning};
+use crate::{acl, zenoh_error, NetError};
 
 /// Bytes of each sample (the size of the largest request or reply is 216).
 pub const BYTES: usize = 256;
 
-fn ping_key(run: &str) -> String {
-    format!("tiltsim/bench/{run}/ping")
-}
-fn pong_key(run: &str) -> String {
-    format!("tiltsim/bench/{run}/pong")
+/// How the floor is measured.
+#[derive(Debug, Clone)]
+pub struct Floor {
+    /// Where the measuring side listens.
+    pub address: Address,
+    /// TLS with credentials from this secret (as a run), or plain TCP when `None`.
+    pub secret: Option<String>,
+    /// Zenoh's transport settings, the same at both ends.
+    pub tuning: Tuning,
 }
 
-/// The echo side: connects to `endpoint` and sends every ping of bench `run` back until a
-/// sample of one byte arrives or nothing comes for `idle`.
-pub fn echo(endpoint: &str, run: &str, idle: Duration) -> Result<(), NetError> {
+fn ping_key(run: &str) -> String {
+    format!("tiltsim/run/{run}/bench/ping")
+}
+fn pong_key(run: &str) -> String {
+    format!("tiltsim/run/{run}/bench/pong")
+}
+fn echo_token(run: &str) -> String {
+    format!("tiltsim/run/{run}/bench/echo")
+}
+
+fn security(f: &Floor, run: &str, holder: Holder) -> Result<Security, NetError> {
+    let Some(secret) = &f.secret else {
+        return Ok(Security::PlainForMeasurement);
+    };
+    let credentials = credentials::issue(secret, holder)
+        .map_err(|e| NetError::Participant(format!("bench: {e}")))?;
+    let id = &credentials.authority_id;
+    let acl = match holder {
+        Holder::Orchestrator => acl::bench(&ping_key(run), &pong_key(run), &echo_token(run), id),
+        Holder::Role(_) => acl::participant(id),
+    };
+    Ok(Security::Tls { credentials, acl })
+}
+
+/// The echo side: connects to the floor's address and sends every ping of bench `run` back
+/// until a sample of one byte arrives or nothing comes for `idle`.
+pub fn echo(f: &Floor, run: &str, idle: Duration) -> Result<(), NetError> {
     let s = session::open(
-        &session::End::Connect(endpoint.into()),
+        &session::End::Connect(f.address.clone()),
         Duration::from_secs(10),
+        &security(f, run, Holder::Role(Role::Plant))?,
+        f.tuning,
     )?;
     let pings = s
         .declare_subscriber(ping_key(run))
@@ -44,7 +85,7 @@ pub fn echo(endpoint: &str, run: &str, idle: Duration) -> Result<(), NetError> {
         .map_err(zenoh_error("declaring the pong publisher"))?;
     let _alive = s
         .liveliness()
-        .declare_token(format!("tiltsim/bench/{run}/echo"))
+        .declare_token(echo_token(run))
         .wait()
         .map_err(zenoh_error("declaring the echo's liveliness"))?;
     loop {
@@ -70,14 +111,16 @@ pub fn echo(endpoint: &str, run: &str, idle: Duration) -> Result<(), NetError> {
 /// The listening side: `rounds` round trips (ns each) with the echo of bench `run`, after
 /// waiting up to `startup` for it to connect.
 pub fn measure(
-    endpoint: &str,
+    f: &Floor,
     run: &str,
     rounds: usize,
     startup: Duration,
 ) -> Result<Vec<u64>, NetError> {
     let s = session::open(
-        &session::End::Listen(endpoint.into()),
+        &session::End::Listen(f.address.clone()),
         Duration::from_secs(10),
+        &security(f, run, Holder::Orchestrator)?,
+        f.tuning,
     )?;
     let pongs = s
         .declare_subscriber(pong_key(run))
@@ -95,7 +138,7 @@ pub fn measure(
     loop {
         let present = s
             .liveliness()
-            .get(format!("tiltsim/bench/{run}/echo"))
+            .get(echo_token(run))
             .timeout(Duration::from_millis(200))
             .wait()
             .map_err(zenoh_error("looking for the echo"))?
@@ -112,7 +155,8 @@ pub fn measure(
         }
         if start.elapsed() > startup {
             return Err(NetError::Participant(format!(
-                "bench: the echo did not connect to {endpoint} within {} s",
+                "bench: the echo did not connect to {} within {} s",
+                f.address,
                 startup.as_secs()
             )));
         }
@@ -147,5 +191,68 @@ pub fn measure(
     let _ = pings.put(vec![1u8]).wait();
     std::thread::sleep(Duration::from_millis(50));
     let _ = s.close().wait();
+    Ok(out)
+}
+
+fn io_error(what: &str) -> impl FnOnce(std::io::Error) -> NetError + '_ {
+    move |e| NetError::Participant(format!("bench raw TCP: {what}: {e}"))
+}
+
+/// The raw TCP echo: connects to `address` (retrying for `startup`), sets TCP_NODELAY and
+/// sends back every [`BYTES`]-byte message until the other side closes.
+pub fn raw_tcp_echo(address: &Address, startup: Duration) -> Result<(), NetError> {
+    let start = Instant::now();
+    let target = address.to_string();
+    let mut stream = loop {
+        match TcpStream::connect(&target) {
+            Ok(s) => break s,
+            Err(e) if start.elapsed() < startup => {
+                let _ = e;
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            Err(e) => return Err(io_error("connecting")(e)),
+        }
+    };
+    stream.set_nodelay(true).map_err(io_error("TCP_NODELAY"))?;
+    let mut buf = [0u8; BYTES];
+    loop {
+        match stream.read_exact(&mut buf) {
+            Ok(()) => stream.write_all(&buf).map_err(io_error("writing"))?,
+            Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(()),
+            Err(e) => return Err(io_error("reading")(e)),
+        }
+    }
+}
+
+/// The raw TCP floor: listens on `address`, starts the echo with `start_echo`, and measures
+/// `rounds` round trips of [`BYTES`] bytes (ns each), TCP_NODELAY at both ends.
+pub fn raw_tcp_measure(
+    address: &Address,
+    rounds: usize,
+    start_echo: impl FnOnce() -> Result<(), NetError>,
+) -> Result<Vec<u64>, NetError> {
+    let listener = TcpListener::bind(address.to_string()).map_err(io_error("listening"))?;
+    start_echo()?;
+    let (mut stream, _) = listener.accept().map_err(io_error("accepting"))?;
+    stream.set_nodelay(true).map_err(io_error("TCP_NODELAY"))?;
+    let mut buf = [0u8; BYTES];
+    let mut back = [0u8; BYTES];
+    let mut out = Vec::with_capacity(rounds);
+    // A few round trips first, as the Zenoh floor's connection check does.
+    for i in 0..(rounds + 16) as u64 {
+        buf[..8].copy_from_slice(&i.to_le_bytes());
+        let t0 = now_ns();
+        stream.write_all(&buf).map_err(io_error("writing"))?;
+        stream.read_exact(&mut back).map_err(io_error("reading"))?;
+        let t = now_ns() - t0;
+        if back[..8] != buf[..8] {
+            return Err(NetError::Participant(format!(
+                "bench raw TCP: round trip {i} came back with other bytes"
+            )));
+        }
+        if i >= 16 {
+            out.push(t);
+        }
+    }
     Ok(out)
 }

@@ -19,14 +19,17 @@ use cosim::msg::{now_ns, Kind, Message, FLAG_CRASH, FLAG_FREE_START, PROTOCOL_VE
 use cosim::participant::Served;
 use cosim::{Participant, Role};
 
-use crate::join::{clock_offset, proof, ClockSample, Hello, Offer, Welcome};
-use crate::{host_name, keys, new_secret, session, zenoh_error, NetError};
+use tiltsim_protocol::address::{Address, ADDRESS_FORM};
+
+use crate::credentials::{self, Holder};
+use crate::join::{clock_offset, proof, welcome_is_genuine, ClockSample, Hello, Offer, Welcome};
+use crate::{acl, host_name, keys, new_secret, session, zenoh_error, NetError};
 
 /// The participant's command line after `participant ROLE`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct JoinArgs {
     /// The run's address.
-    pub connect: String,
+    pub connect: Address,
     /// The run's key, when more than one run may answer at that address.
     pub run: Option<String>,
     /// The run's secret.
@@ -91,8 +94,10 @@ impl JoinArgs {
                 }
             }
         }
-        let connect =
-            connect.ok_or("missing --connect ENDPOINT (for example tcp/10.0.0.1:7447)")?;
+        let connect: String =
+            connect.ok_or("missing --connect ADDRESS (for example 10.0.0.1:7447)")?;
+        let connect = Address::parse(&connect)
+            .map_err(|why| format!("--connect {connect}: {why}; expected {ADDRESS_FORM}"))?;
         let secret = match secret_file {
             Some(path) => std::fs::read_to_string(&path)
                 .map_err(|e| format!("--secret-file {path}: {e}"))?
@@ -134,7 +139,15 @@ where
             P::ROLE
         )));
     }
-    let session = session::open(&session::End::Connect(a.connect.clone()), a.lease)?;
+    let credentials = credentials::issue(&a.secret, Holder::Role(role))
+        .map_err(|e| NetError::Participant(format!("{}: {e}", role.process_name())))?;
+    let acl = acl::participant(&credentials.authority_id);
+    let session = session::open(
+        &session::End::Connect(a.connect.clone()),
+        a.lease,
+        &session::Security::Tls { credentials, acl },
+        session::Tuning::default(),
+    )?;
     let result = join_and_serve(&session, role, &a, make);
     let _ = session.close().wait();
     result
@@ -191,7 +204,7 @@ fn find_offer(session: &zenoh::Session, role: Role, a: &JoinArgs) -> Result<Offe
         }
         if start.elapsed() >= a.join_timeout {
             let seen = if offers.is_empty() {
-                format!("no run answered at {}", a.connect)
+                why_no_answer(&a.connect)
             } else {
                 format!(
                     "the run{} at {} await{} no {role}",
@@ -209,6 +222,27 @@ fn find_offer(session: &zenoh::Session, role: Role, a: &JoinArgs) -> Result<Offe
             ));
         }
         std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// Why no run answered at `at`: nothing listens there, or something does but no TLS session
+/// with this secret's credentials opened (TLS does not say which end refused, or why).
+fn why_no_answer(at: &Address) -> String {
+    use std::net::ToSocketAddrs;
+    let listening = at
+        .to_string()
+        .to_socket_addrs()
+        .ok()
+        .and_then(|mut a| a.next())
+        .is_some_and(|sa| {
+            std::net::TcpStream::connect_timeout(&sa, Duration::from_secs(2)).is_ok()
+        });
+    if listening {
+        format!(
+            "something listens at {at}, but no TLS session with this secret's credentials opened: the run's secret does not match (or it is not a tiltsim run)"
+        )
+    } else {
+        format!("no run answered at {at}: nothing listens there (check the address, the port, and that the run has started)")
     }
 }
 
@@ -323,7 +357,7 @@ fn hello(
         host: host_name(),
         pid: std::process::id(),
         proof: proof(&a.secret, run, role, &offer.nonce, &nonce),
-        nonce,
+        nonce: nonce.clone(),
         clock_offset_ns: clock.0,
         clock_rtt_ns: clock.1,
     };
@@ -349,6 +383,15 @@ fn hello(
         return Err(fail(
             role,
             format!("refused by the run: {}", welcome.reason),
+        ));
+    }
+    if !welcome_is_genuine(&a.secret, run, role, (&offer.nonce, &nonce), &welcome) {
+        return Err(fail(
+            role,
+            format!(
+                "the answer from {} does not prove the run's secret: not the run's orchestrator",
+                a.connect
+            ),
         ));
     }
     Ok(welcome.params)
@@ -546,7 +589,13 @@ mod tests {
     fn the_join_arguments_need_an_address_and_credentials() {
         let a =
             JoinArgs::parse(&args(&["--connect", "tcp/10.0.0.1:7447"]), Some("s".into())).unwrap();
-        assert_eq!(a.connect, "tcp/10.0.0.1:7447");
+        assert_eq!(a.connect.to_string(), "10.0.0.1:7447");
+        let e =
+            JoinArgs::parse(&args(&["--connect", "10.0.0.1:99999"]), Some("s".into())).unwrap_err();
+        assert!(
+            e.starts_with("--connect 10.0.0.1:99999: port 99999 is outside 1-65535"),
+            "{e}"
+        );
         assert_eq!(a.secret, "s");
         assert_eq!(a.run, None);
         let e = JoinArgs::parse(&args(&["--connect", "tcp/10.0.0.1:7447"]), None).unwrap_err();
@@ -554,13 +603,13 @@ mod tests {
         let e = JoinArgs::parse(&args(&[]), Some("s".into())).unwrap_err();
         assert!(e.starts_with("missing --connect"), "{e}");
         let e = JoinArgs::parse(
-            &args(&["--connect", "x", "--lease-ms", "5"]),
+            &args(&["--connect", "x:1", "--lease-ms", "5"]),
             Some("s".into()),
         )
         .unwrap_err();
         assert_eq!(e, "--lease-ms 5: expected 100 to 600000");
         let e = JoinArgs::parse(
-            &args(&["--connect", "x", "--secret-file", "/nonexistent/s"]),
+            &args(&["--connect", "x:1", "--secret-file", "/nonexistent/s"]),
             None,
         )
         .unwrap_err();

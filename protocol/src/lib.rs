@@ -10,6 +10,8 @@
 //! * [`time`]: simulated time on the tick grid, computed one way everywhere.
 //! * [`settings`]: the field checker every crate's settings use, so that a rejected setting
 //!   names its field, its value and what is allowed.
+//! * [`address`]: where a participant on another host reaches the run, checked before any
+//!   transport sees it.
 //! * [`wire`]: the samples as bytes on a network (little-endian fields at their pinned
 //!   offsets, padding zero), for transports that cannot share memory.
 //!
@@ -18,6 +20,7 @@
 //! Transports live beside this crate (`cosim`: in-process and iceoryx2); model and
 //! assessment crates depend on this crate only.
 
+pub mod address;
 pub mod msg;
 pub mod participant;
 pub mod settings;

@@ -136,12 +136,14 @@ fn wrong_credentials_and_a_second_participant_for_a_role_are_refused_by_name() {
         .spawn();
     let step = watch_steps(&mut run);
     let (code, err) = finish(
-        participant(&pair.b, &pair.a, "controller", "not-the-secret").spawn(),
+        participant(&pair.b, &pair.a, "controller", "not-the-secret")
+            .args(["--join-timeout-s", "3"])
+            .spawn(),
         "wrong secret",
     );
     assert_eq!(code, 1, "{err}");
     assert!(
-        err.contains("refused by the run: wrong credentials"),
+        err.contains("the run's secret does not match"),
         "a participant with another secret is told why: {err}"
     );
     let right = participant(&pair.b, &pair.a, "controller", SECRET).spawn();
@@ -165,19 +167,147 @@ fn wrong_credentials_and_a_second_participant_for_a_role_are_refused_by_name() {
         "the run goes on with the participant that belongs: {err}"
     );
     assert_eq!(finish(right, "controller").0, 0);
-    let refused = summary(&dir)["network"]["refused"]
-        .as_array()
-        .unwrap()
-        .clone();
-    assert_eq!(refused.len(), 2, "{refused:?}");
+    let sm = summary(&dir);
+    let refused = sm["network"]["refused"].as_array().unwrap().clone();
+    assert_eq!(refused.len(), 1, "{refused:?}");
     assert!(refused[0]["reason"]
         .as_str()
         .unwrap()
-        .contains("wrong credentials"));
-    assert!(refused[1]["reason"]
-        .as_str()
-        .unwrap()
         .contains("already joined"));
+    // The wrong secret never got a TLS session: the run names the attempt.
+    let kinds = attempt_kinds(&sm);
+    assert!(
+        kinds.contains(&"wrong_credentials".to_string()),
+        "{kinds:?}"
+    );
+    assert!(kinds.contains(&"second_session".to_string()), "{kinds:?}");
+}
+
+/// The kinds of `summary.json` → `network.attempts`.
+fn attempt_kinds(sm: &serde_json::Value) -> Vec<String> {
+    sm["network"]["attempts"]
+        .as_array()
+        .unwrap_or_else(|| panic!("no network.attempts in {sm}"))
+        .iter()
+        .map(|a| a["kind"].as_str().unwrap().to_string())
+        .collect()
+}
+
+/// `rogue-peer` (tests/bin) on `host` attacking the run `key` on `to` as `mode`, until its
+/// standard input closes.
+fn rogue(host: &Host, to: &Host, key: &str, mode: &str) -> Child {
+    std::process::Command::new(tiltsim_suite::hosts::ip())
+        .args(["netns", "exec", host.netns()])
+        .arg(env!("CARGO_BIN_EXE_rogue-peer"))
+        .args(["--connect", &to.endpoint(PORT), "--run", key, "--as", mode])
+        .args(["--secret", SECRET])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("rogue-peer")
+}
+
+/// The run's key, from the join command a run prints while it waits (the rest of its
+/// standard error is read on a thread, so that the run never blocks on a full pipe).
+fn run_key(run: &mut Child) -> String {
+    let mut lines = BufReader::new(run.stderr.take().expect("stderr piped")).lines();
+    let key = loop {
+        let line = lines
+            .next()
+            .and_then(Result::ok)
+            .expect("the run ended before printing its join command");
+        if let Some(k) = line.split("--run ").nth(1) {
+            break k
+                .split(|c: char| !c.is_ascii_hexdigit())
+                .next()
+                .unwrap()
+                .to_string();
+        }
+    };
+    std::thread::spawn(move || for _ in lines {});
+    key
+}
+
+#[test]
+fn peers_without_the_runs_credentials_read_nothing_and_change_nothing() {
+    let pair = Pair::new("rogue");
+    let dir = temp_dir("net-rogue");
+    let (local, remote) = (dir.join("in-process"), dir.join("remote"));
+    Tiltsim::run("paper-lqg.toml")
+        .transport_in_process()
+        .duration(3)
+        .out(&local)
+        .quiet()
+        .success();
+    let mut run = orchestrator(&pair, "paper-lqg.toml", &["controller"], &remote)
+        .duration(3)
+        .deadline_ms(60_000)
+        .spawn();
+    let key = run_key(&mut run);
+    assert_eq!(key.len(), 32, "{key}");
+    // No credentials, another secret's, and valid certificates of two roles this run has on
+    // no other host; each reads everything it may, stops reading, floods forged samples on
+    // every role's keys and answers the run's queries itself, from before the participant
+    // joins until the run has ended.
+    let modes = ["plain", "wrong", "actuator", "plant"];
+    let mut rogues: Vec<Child> = modes
+        .iter()
+        .map(|m| rogue(&pair.b, &pair.a, &key, m))
+        .collect();
+    std::thread::sleep(Duration::from_secs(2));
+    let part = participant(&pair.b, &pair.a, "controller", SECRET).spawn();
+    let (code, _, _) = wait_with_limit(run, LIMIT);
+    let (pcode, perr) = finish(part, "controller");
+    for r in &mut rogues {
+        drop(r.stdin.take());
+    }
+    let reports: Vec<serde_json::Value> = rogues
+        .into_iter()
+        .map(|r| {
+            let (_, out, err) = wait_with_limit(r, LIMIT);
+            serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}\n{err}"))
+        })
+        .collect();
+    assert_eq!(code, 0, "the run completes whatever the others do");
+    assert_eq!(pcode, 0, "{perr}");
+    for r in &reports {
+        assert_eq!(r["samples_received"], 0, "{r}");
+        assert_eq!(r["query_answers"], 0, "{r}");
+        assert!(r["puts_sent"].as_u64().unwrap() > 0, "it did try: {r}");
+    }
+    assert!(
+        std::fs::read(local.join("timeseries.csv")).unwrap()
+            == std::fs::read(remote.join("timeseries.csv")).unwrap(),
+        "forged samples change nothing: the rows are those of one process"
+    );
+    let sm = summary(&remote);
+    let kinds = attempt_kinds(&sm);
+    for want in ["not_tls", "wrong_credentials", "other_role"] {
+        assert!(
+            kinds.iter().any(|k| k == want),
+            "{want} not named: {kinds:?}"
+        );
+    }
+    let names: Vec<&str> = sm["network"]["attempts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|a| a["common_name"].as_str())
+        .collect();
+    assert!(
+        names.contains(&"actuator") && names.contains(&"plant"),
+        "{names:?}"
+    );
+    let events = std::fs::read_to_string(remote.join("events.csv")).unwrap();
+    assert!(
+        events
+            .lines()
+            .filter(|l| l.contains("network-refused"))
+            .count()
+            >= 4,
+        "{events}"
+    );
 }
 
 #[test]

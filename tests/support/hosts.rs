@@ -77,9 +77,9 @@ impl Host {
         &self.address
     }
 
-    /// A Zenoh TCP endpoint on this host.
+    /// An address on this host, `HOST:PORT`.
     pub fn endpoint(&self, port: u16) -> String {
-        format!("tcp/{}:{port}", self.address)
+        format!("{}:{port}", self.address)
     }
 
     /// Takes its end of the link down (a cut cable) or up again.

@@ -205,9 +205,12 @@ fn open_network(
             (r, params)
         })
         .collect();
+    let listen = tiltsim_protocol::address::Address::parse(&s.network.listen).map_err(|why| {
+        tiltsim_net::NetError::Participant(format!("network.listen {}: {why}", s.network.listen))
+    })?;
     let hub = NetHub::open(
         NetSettings {
-            listen: s.network.listen.clone(),
+            listen,
             secret: secret.clone(),
             deadline: Duration::from_millis(s.run.deadline_ms),
             join_timeout: Duration::from_secs_f64(s.network.join_timeout_s),

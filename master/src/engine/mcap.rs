@@ -436,6 +436,7 @@ pub(crate) fn level(kind: crate::events::EventKind) -> u8 {
         K::Delay | K::JitterOn | K::DropOn | K::Bias | K::Noise | K::ChopperOn => 2,
         K::DropWindow | K::FreezeWindow | K::NanWindow | K::ValueWindow => 2,
         K::FaultInjected | K::Degraded | K::BadInputHeld | K::Manipulated => 3,
+        K::NetworkRefused => 3,
         K::ParticipantLost | K::OvercurrentTrip | K::OvervoltageTrip => 4,
         K::RunFailed => 5,
     }

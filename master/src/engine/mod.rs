@@ -563,6 +563,9 @@ fn simulate(run: Run<'_>) -> Result<Ran, RunError> {
     let mut events = EventLog::default();
     std::mem::swap(&mut events, &mut team.events);
     let ended = shut_down(team, &opts.out_dir, &prefix, &cpus, outcome, wall, cpu0);
+    if let Some(n) = &ended.network {
+        n.log_attempts(&mut events);
+    }
     if let Err(e) = events.write(&opts.out_dir.join("events.csv")) {
         write_errors.push(e);
     }

@@ -22,16 +22,41 @@ pub struct NetworkReport {
     pub joined: Vec<tiltsim_net::Joined>,
     /// The participants refused at joining, in arrival order.
     pub refused: Vec<tiltsim_net::Refusal>,
+    /// Others that tried to reach the run and were refused, in order: connections without
+    /// credentials or with wrong ones, sessions with another role's credentials, second
+    /// sessions of a role (docs/network.md, "Who can touch a run").
+    pub attempts: Vec<tiltsim_net::Attempt>,
 }
 
 impl NetworkReport {
     /// The report of a run's network hub.
     pub fn of(hub: &tiltsim_net::NetHub) -> Self {
         NetworkReport {
-            listen: hub.settings().listen.clone(),
+            listen: hub.settings().listen.to_string(),
             run_key: hub.run_key().to_string(),
             joined: hub.joined(),
             refused: hub.refusals(),
+            attempts: hub.attempts(),
+        }
+    }
+}
+
+impl NetworkReport {
+    /// Logs the attempts in `events`, each at the step the run was at when it was seen.
+    pub fn log_attempts(&self, events: &mut crate::events::EventLog) {
+        for a in &self.attempts {
+            let from = if a.from.is_empty() {
+                String::new()
+            } else {
+                format!(" from {}", a.from)
+            };
+            events.insert(
+                a.step,
+                "network",
+                crate::events::EventKind::NetworkRefused,
+                f64::NAN,
+                format!("{}{from}: {}", a.kind.words(), a.detail),
+            );
         }
     }
 }

@@ -80,7 +80,10 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
         .collect();
     let (ticks, kept_rows, rows_error) = rows.finish();
     write_errors.extend(rows_error);
-    let events = super::run_events(s, &store, ticks);
+    let mut events = super::run_events(s, &store, ticks);
+    if let Some(n) = &network {
+        n.log_attempts(&mut events);
+    }
     let events_csv = dir.join("events.csv");
     if let Err(e) = events.write(&events_csv) {
         write_errors.push(format!("{}: {e}", events_csv.display()));

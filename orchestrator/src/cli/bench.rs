@@ -45,9 +45,15 @@ pub struct BenchArgs {
     /// (docs/network.md).
     #[arg(long, conflicts_with_all = ["ping_pong", "fmu"])]
     pub(super) network: bool,
-    /// With --network: where the bench listens (each run on the next port up).
-    #[arg(long, default_value = "tcp/127.0.0.1:17447", requires = "network")]
+    /// With --network: where the bench listens, HOST:PORT (each measurement on the next
+    /// port up).
+    #[arg(long, default_value = "127.0.0.1:17447", requires = "network")]
     pub(super) listen: String,
+    /// With --network: start the echo and the remote participant through this command, e.g.
+    /// "ip netns exec hostb" or "ssh hostb" (split at spaces; the tiltsim executable must be at
+    /// the same path there), so that they run on another host or namespace.
+    #[arg(long, value_name = "COMMAND", requires = "network")]
+    pub(super) remote_via: Option<String>,
     /// Start this many IPC runs of the scenario at once, for each count given (for example
     /// 1,2,4,16): wall time per run and in total, the placements the runs chose and the load
     /// (docs/performance.md, "Many runs on one machine").

@@ -1,21 +1,27 @@
 //! `tiltsim bench SCENARIO --network`: the cost of a participant on another host, against the
-//! network's own floor measured the same way.
+//! wire's own floor measured on the same path.
 //!
-//! The floor: 256-byte round trips between this process (listening, as a run's orchestrator)
-//! and an echo process (connected, as a participant), over the same Zenoh settings and
-//! channels as a run's exchanges. The runs: the scenario in one process, and again with the
-//! plant (one exchange every tick) served from a `tiltsim participant plant --connect` process
-//! over the same kind of link, both masters, `--repeat` alternating rounds. The overhead per
-//! tick is the difference of the median walls over the ticks; it is set beside the floor's
-//! median round trip.
+//! Floors, each 256-byte round trips between this process (listening, as a run's
+//! orchestrator) and an echo process (connected, as a participant), started through
+//! `--remote-via` when given: a bare TCP socket (TCP_NODELAY, the wire's floor), then Zenoh
+//! with a run's settings (mutual TLS, access control) and, to show what each costs, Zenoh over
+//! plain TCP and both with Zenoh's low-latency transport. The runs: the scenario in one
+//! process, and again with the plant (one exchange every tick) served from a `tiltsim
+//! participant plant --connect` process over a run's link, both masters, `--repeat`
+//! alternating rounds. The overhead per tick is the difference of the median walls over the
+//! ticks, set beside the raw TCP round trip and the Zenoh floor.
 
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
+use cosim::stats::Percentiles;
 use cosim::Role;
 use tiltsim_master::engine::{self, RunOptions, Status};
 use tiltsim_master::scenario::{Master, Scenario, Transport};
+use tiltsim_net::pingpong::Floor;
+use tiltsim_net::session::Tuning;
+use tiltsim_protocol::address::{Address, ADDRESS_FORM};
 
 use super::bench::BenchArgs;
 use super::common::write_json;
@@ -30,52 +36,107 @@ pub struct NetEchoArgs {
     /// The bench's key.
     #[arg(long)]
     run: String,
+    /// Echo over a bare TCP socket instead of Zenoh.
+    #[arg(long)]
+    raw_tcp: bool,
+    /// Zenoh over plain TCP (no credentials) instead of a run's TLS.
+    #[arg(long)]
+    plain: bool,
+    /// Zenoh's low-latency transport.
+    #[arg(long)]
+    lowlatency: bool,
+}
+
+fn address(text: &str, flag: &str) -> Result<Address, CliError> {
+    Address::parse(text).map_err(|why| {
+        CliError::Invalid(format!(
+            "command line: {flag} {text}: {why}; expected {ADDRESS_FORM}"
+        ))
+    })
 }
 
 /// Runs the echo side.
 pub fn echo(a: NetEchoArgs) -> CliResult {
-    tiltsim_net::pingpong::echo(&a.connect, &a.run, Duration::from_secs(30))
-        .map_err(|e| CliError::Failed(format!("bench-net-echo: {e}")))
+    let at = address(&a.connect, "--connect")?;
+    let fail = |e: tiltsim_net::NetError| CliError::Failed(format!("bench-net-echo: {e}"));
+    if a.raw_tcp {
+        return tiltsim_net::pingpong::raw_tcp_echo(&at, Duration::from_secs(30)).map_err(fail);
+    }
+    let secret = if a.plain {
+        None
+    } else {
+        Some(std::env::var(tiltsim_net::serve::SECRET_VAR).map_err(|_| {
+            CliError::Invalid(format!(
+                "bench-net-echo: {} is not set",
+                tiltsim_net::serve::SECRET_VAR
+            ))
+        })?)
+    };
+    let floor = Floor {
+        address: at,
+        secret,
+        tuning: Tuning {
+            lowlatency: a.lowlatency,
+            ..Tuning::default()
+        },
+    };
+    tiltsim_net::pingpong::echo(&floor, &a.run, Duration::from_secs(30)).map_err(fail)
 }
 
 fn failed(e: impl std::fmt::Display) -> CliError {
     CliError::Failed(format!("bench --network: {e}"))
 }
 
-/// Endpoint `listen` with its port moved up by `n` (each run listens on a port of its own).
-fn port_plus(listen: &str, n: u16) -> Result<String, CliError> {
-    let (host, port) = listen
-        .rsplit_once(':')
-        .and_then(|(h, p)| p.parse::<u16>().ok().map(|p| (h, p)))
-        .filter(|(h, _)| h.starts_with("tcp/"))
-        .ok_or_else(|| {
-            CliError::Invalid(format!(
-                "command line: --listen {listen}: expected tcp/ADDRESS:PORT"
-            ))
-        })?;
-    let p = port.checked_add(n).ok_or_else(|| {
-        CliError::Invalid(format!("command line: --listen {listen}: port too high"))
+/// `listen` with its port moved up by `n` (each measurement listens on a port of its own).
+fn port_plus(listen: &Address, n: u16) -> Result<Address, CliError> {
+    let port = listen.port.checked_add(n).ok_or_else(|| {
+        CliError::Invalid(format!(
+            "command line: --listen {listen}: port too high for the bench's {n} ports above it"
+        ))
     })?;
-    Ok(format!("{host}:{p}"))
+    Ok(Address {
+        port,
+        ..listen.clone()
+    })
 }
 
-fn spawn(exe: &Path, args: &[&str], secret: Option<&str>) -> Result<Child, CliError> {
-    let mut c = Command::new(exe);
-    c.args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null());
-    if let Some(s) = secret {
-        c.env(tiltsim_net::serve::SECRET_VAR, s);
+/// Starts `exe args` here, or through the `--remote-via` command.
+struct Spawner<'a> {
+    exe: &'a Path,
+    via: Vec<String>,
+}
+
+impl Spawner<'_> {
+    fn spawn(&self, args: &[&str], secret: Option<&str>) -> Result<Child, CliError> {
+        let mut c = match self.via.split_first() {
+            Some((first, rest)) => {
+                let mut c = Command::new(first);
+                c.args(rest).arg(self.exe);
+                c
+            }
+            None => Command::new(self.exe),
+        };
+        c.args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null());
+        if let Some(s) = secret {
+            c.env(tiltsim_net::serve::SECRET_VAR, s);
+        }
+        c.spawn()
+            .map_err(|e| failed(format!("cannot start {}: {e}", self.exe.display())))
     }
-    c.spawn()
-        .map_err(|e| failed(format!("cannot start {}: {e}", exe.display())))
 }
 
 /// One run's wall time (s): in one process, or with the plant on the network at `listen`.
-fn wall(s: &Scenario, exe: &Path, dir: &Path, listen: Option<&str>) -> Result<f64, CliError> {
+fn wall(
+    s: &Scenario,
+    sp: &Spawner<'_>,
+    dir: &Path,
+    listen: Option<&Address>,
+) -> Result<f64, CliError> {
     let mut s = s.clone();
-    let mut opts = RunOptions::new(dir.to_path_buf(), exe.to_path_buf());
+    let mut opts = RunOptions::new(dir.to_path_buf(), sp.exe.to_path_buf());
     opts.plots = false;
     let mut child = None;
     if let Some(listen) = listen {
@@ -84,13 +145,13 @@ fn wall(s: &Scenario, exe: &Path, dir: &Path, listen: Option<&str>) -> Result<f6
         s.network.listen = listen.to_string();
         s.network.join_timeout_s = 30.0;
         opts.network_secret = Some(secret.clone());
-        child = Some(spawn(
-            exe,
+        let at = listen.to_string();
+        child = Some(sp.spawn(
             &[
                 "participant",
                 "plant",
                 "--connect",
-                listen,
+                &at,
                 "--join-timeout-s",
                 "30",
             ],
@@ -113,35 +174,151 @@ fn wall(s: &Scenario, exe: &Path, dir: &Path, listen: Option<&str>) -> Result<f6
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// One floor: how it was measured and its round trips.
+struct FloorRow {
+    name: &'static str,
+    words: &'static str,
+    rtt: Percentiles,
+}
+
+fn percentiles(v: Vec<u64>) -> Percentiles {
+    let mut v: Vec<f64> = v.into_iter().map(|n| n as f64).collect();
+    cosim::stats::percentiles(&mut v)
+}
+
+/// The raw TCP floor at `at`.
+fn raw_floor(sp: &Spawner<'_>, at: &Address, rounds: usize) -> Result<Percentiles, CliError> {
+    let target = at.to_string();
+    let mut echo = None;
+    let rtts = tiltsim_net::pingpong::raw_tcp_measure(at, rounds, || {
+        echo = Some(
+            sp.spawn(
+                &[
+                    "bench-net-echo",
+                    "--connect",
+                    &target,
+                    "--run",
+                    "raw",
+                    "--raw-tcp",
+                ],
+                None,
+            )
+            .map_err(|e| tiltsim_net::NetError::Participant(e.to_string()))?,
+        );
+        Ok(())
+    });
+    if let Some(mut e) = echo {
+        let _ = e.wait();
+    }
+    Ok(percentiles(rtts.map_err(failed)?))
+}
+
+/// A Zenoh floor at `at`: TLS with a run's credentials unless `plain`.
+fn zenoh_floor(
+    sp: &Spawner<'_>,
+    at: &Address,
+    rounds: usize,
+    plain: bool,
+    lowlatency: bool,
+) -> Result<Percentiles, CliError> {
+    let key = tiltsim_net::new_secret().map_err(failed)?;
+    let secret = (!plain)
+        .then(tiltsim_net::new_secret)
+        .transpose()
+        .map_err(failed)?;
+    let target = at.to_string();
+    let mut args = vec!["bench-net-echo", "--connect", &target, "--run", &key];
+    if plain {
+        args.push("--plain");
+    }
+    if lowlatency {
+        args.push("--lowlatency");
+    }
+    let mut echo = sp.spawn(&args, secret.as_deref())?;
+    let floor = Floor {
+        address: at.clone(),
+        secret,
+        tuning: Tuning {
+            lowlatency,
+            ..Tuning::default()
+        },
+    };
+    let rtts = tiltsim_net::pingpong::measure(&floor, &key, rounds, Duration::from_secs(30));
+    let _ = echo.wait();
+    Ok(percentiles(rtts.map_err(failed)?))
+}
+
+/// The floors, in the order they are printed: the wire's, then Zenoh's variants.
+fn floors(sp: &Spawner<'_>, listen: &Address, rounds: usize) -> Result<Vec<FloorRow>, CliError> {
+    let mut rows = vec![FloorRow {
+        name: "raw-tcp",
+        words: "bare TCP socket, TCP_NODELAY",
+        rtt: raw_floor(sp, &port_plus(listen, 0)?, rounds)?,
+    }];
+    let variants: [(&str, &str, bool, bool); 4] = [
+        (
+            "zenoh-tls",
+            "Zenoh, mutual TLS and access control (a run's link)",
+            false,
+            false,
+        ),
+        (
+            "zenoh-tls-lowlatency",
+            "the same, Zenoh's low-latency transport",
+            false,
+            true,
+        ),
+        (
+            "zenoh-tcp",
+            "Zenoh over plain TCP, no credentials",
+            true,
+            false,
+        ),
+        (
+            "zenoh-tcp-lowlatency",
+            "Zenoh over plain TCP, low-latency transport",
+            true,
+            true,
+        ),
+    ];
+    for (i, (name, words, plain, lowlatency)) in variants.into_iter().enumerate() {
+        eprintln!("  measuring the floor: {words} ...");
+        let at = port_plus(listen, 1 + i as u16)?;
+        rows.push(FloorRow {
+            name,
+            words,
+            rtt: zenoh_floor(sp, &at, rounds, plain, lowlatency)?,
+        });
+    }
+    Ok(rows)
 }
 
 /// Runs the network case.
 pub fn network(a: &BenchArgs, base: &Scenario, exe: &Path, listen: &str) -> CliResult {
-    let rounds = a.rounds.min(20_000);
-    eprintln!("  measuring the network's floor ({rounds} round trips) ...");
-    let key = tiltsim_net::new_secret().map_err(failed)?;
-    let floor_at = port_plus(listen, 0)?;
-    let mut echo = spawn(
+    let listen = address(listen, "--listen")?;
+    let sp = Spawner {
         exe,
-        &["bench-net-echo", "--connect", &floor_at, "--run", &key],
-        None,
-    )?;
-    let rtts = tiltsim_net::pingpong::measure(&floor_at, &key, rounds, Duration::from_secs(30));
-    let _ = echo.wait();
-    let mut rtts: Vec<f64> = rtts
-        .map_err(failed)?
-        .into_iter()
-        .map(|n| n as f64)
-        .collect();
-    let floor = cosim::stats::percentiles(&mut rtts);
+        via: a
+            .remote_via
+            .as_deref()
+            .map(|v| v.split_whitespace().map(String::from).collect())
+            .unwrap_or_default(),
+    };
+    let rounds = a.rounds.min(20_000);
+    eprintln!("  measuring the raw TCP floor ({rounds} round trips) ...");
+    let floors = floors(&sp, &listen, rounds)?;
+    let raw = floors[0].rtt.clone();
+    let run_floor = floors[1].rtt.clone();
     let mut s = base.clone();
     s.run.duration_s = Some(a.duration);
     s.run.transport = Transport::InProcess;
     let ticks = s.steps() as f64;
     let scratch = tiltsim_studies::bench::scratch_dir(&a.out).join("network");
     let mut rows = Vec::new();
-    let mut port = 1u16;
+    let mut port = 8u16;
     for master in [Master::GaussSeidel, Master::Jacobi] {
         s.run.master = master;
         let (mut local, mut remote) = (Vec::new(), Vec::new());
@@ -150,10 +327,10 @@ pub fn network(a: &BenchArgs, base: &Scenario, exe: &Path, listen: &str) -> CliR
                 "  measuring {} in one process and with a remote plant ...",
                 master.name()
             );
-            local.push(wall(&s, exe, &scratch, None)?);
-            let at = port_plus(listen, port)?;
+            local.push(wall(&s, &sp, &scratch, None)?);
+            let at = port_plus(&listen, port)?;
             port += 1;
-            remote.push(wall(&s, exe, &scratch, Some(&at))?);
+            remote.push(wall(&s, &sp, &scratch, Some(&at))?);
         }
         let (l, r) = (median(local.clone()), median(remote.clone()));
         let per_tick_us = (r - l).max(0.0) / ticks * 1e6;
@@ -162,50 +339,91 @@ pub fn network(a: &BenchArgs, base: &Scenario, exe: &Path, listen: &str) -> CliR
             "in_process_wall_s": local,
             "remote_plant_wall_s": remote,
             "overhead_per_tick_us": per_tick_us,
-            "overhead_over_floor": per_tick_us / (floor.p50 * 1e-3),
+            "overhead_over_raw_tcp": per_tick_us / (raw.p50 * 1e-3),
+            "overhead_over_floor": per_tick_us / (run_floor.p50 * 1e-3),
         }));
     }
-    let machine = tiltsim_studies::bench::Machine::this();
-    println!(
-        "network floor ({listen}, Zenoh over TCP, {} B, {rounds} round trips): round trip p50 {:.1} µs, p99 {:.1} µs\n",
-        tiltsim_net::pingpong::BYTES,
-        floor.p50 * 1e-3,
-        floor.p99 * 1e-3
-    );
-    println!(
-        "{}, {:.1} s, {} ticks, plant on the network, the others in one process (medians of {} rounds)\n",
-        s.name, a.duration, ticks, a.repeat
-    );
-    println!("| master | in-process wall (s) | remote plant wall (s) | overhead per tick (µs) | over the floor's round trip |");
-    println!("|---|---|---|---|---|");
-    for r in &rows {
-        println!(
-            "| {} | {:.3} | {:.3} | {:.1} | {:.2} |",
-            r["master"].as_str().unwrap_or("?"),
-            median(serde_json::from_value(r["in_process_wall_s"].clone()).unwrap_or_default()),
-            median(serde_json::from_value(r["remote_plant_wall_s"].clone()).unwrap_or_default()),
-            r["overhead_per_tick_us"].as_f64().unwrap_or(0.0),
-            r["overhead_over_floor"].as_f64().unwrap_or(0.0)
-        );
-    }
+    print_report(&listen, &floors, &s, a, ticks, &rows);
     if let Some(dir) = a.out.parent() {
         let _ = std::fs::create_dir_all(dir);
     }
+    let floor_json: Vec<serde_json::Value> = floors
+        .iter()
+        .map(|f| {
+            serde_json::json!({
+                "name": f.name,
+                "what": f.words,
+                "round_trip_ns": f.rtt,
+                "p50_over_raw_tcp": f.rtt.p50 / raw.p50,
+                "p99_over_raw_tcp": f.rtt.p99 / raw.p99,
+            })
+        })
+        .collect();
     write_json(
         &a.out,
         &serde_json::json!({
             "network": {
-                "listen": listen,
-                "floor_round_trip_ns": floor,
+                "listen": listen.to_string(),
+                "remote_via": a.remote_via,
+                "floors": floor_json,
+                "raw_tcp_round_trip_ns": raw,
+                "floor_round_trip_ns": run_floor,
                 "payload_bytes": tiltsim_net::pingpong::BYTES,
                 "rounds": rounds,
                 "scenario": s.name,
                 "duration_s": a.duration,
                 "runs": rows,
             },
-            "machine": machine,
+            "machine": tiltsim_studies::bench::Machine::this(),
         }),
     )?;
     println!("wrote {}", a.out.display());
     Ok(())
+}
+
+fn print_report(
+    listen: &Address,
+    floors: &[FloorRow],
+    s: &Scenario,
+    a: &BenchArgs,
+    ticks: f64,
+    rows: &[serde_json::Value],
+) {
+    let raw = &floors[0].rtt;
+    println!(
+        "round trips of {} B at {listen} ({} each):\n",
+        tiltsim_net::pingpong::BYTES,
+        a.rounds.min(20_000)
+    );
+    println!("| floor | p50 (µs) | p99 (µs) | p50 over raw TCP | p99 over raw TCP |");
+    println!("|---|---|---|---|---|");
+    for f in floors {
+        println!(
+            "| {} ({}) | {:.1} | {:.1} | {:.2} | {:.2} |",
+            f.name,
+            f.words,
+            f.rtt.p50 * 1e-3,
+            f.rtt.p99 * 1e-3,
+            f.rtt.p50 / raw.p50,
+            f.rtt.p99 / raw.p99
+        );
+    }
+    println!(
+        "\n{}, {:.1} s, {} ticks, plant on the network (a run's TLS link), the others in one process (medians of {} rounds)\n",
+        s.name, a.duration, ticks, a.repeat
+    );
+    println!("| master | in-process wall (s) | remote plant wall (s) | overhead per tick (µs) | over raw TCP | over the Zenoh floor |");
+    println!("|---|---|---|---|---|---|");
+    for r in rows {
+        let walls = |k: &str| median(serde_json::from_value(r[k].clone()).unwrap_or_default());
+        println!(
+            "| {} | {:.3} | {:.3} | {:.1} | {:.2} | {:.2} |",
+            r["master"].as_str().unwrap_or("?"),
+            walls("in_process_wall_s"),
+            walls("remote_plant_wall_s"),
+            r["overhead_per_tick_us"].as_f64().unwrap_or(0.0),
+            r["overhead_over_raw_tcp"].as_f64().unwrap_or(0.0),
+            r["overhead_over_floor"].as_f64().unwrap_or(0.0)
+        );
+    }
 }

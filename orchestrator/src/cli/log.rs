@@ -64,24 +64,38 @@ where
 
 /// Starts the log for this process.
 pub fn init(v: Verbosity) {
+    use tracing_subscriber::layer::SubscriberExt;
+    use tracing_subscriber::util::SubscriberInitExt;
+    use tracing_subscriber::Layer;
     // Zenoh's own notes on how its sessions are configured (no gossip, no multicast, by
-    // design here) are not the user's business below -vv; its errors are.
+    // design here) are not the user's business below -vv; its errors are. Its TLS link's
+    // refusals of other connections go to the run, which names them in its own words
+    // (`tiltsim_net::watch`), and to the log only with -vv.
     let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
         let level = v.level();
         let zenoh = if v.verbose >= 2 { level } else { "error" };
-        tracing_subscriber::EnvFilter::new(format!("{level},zenoh={zenoh},zenoh_transport={zenoh}"))
+        let tls = if v.verbose >= 2 { level } else { "off" };
+        tracing_subscriber::EnvFilter::new(format!(
+            "{level},zenoh={zenoh},zenoh_transport={zenoh},zenoh_link_tls={tls}"
+        ))
     });
-    let builder = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr);
-    let _ = if v.detailed || v.verbose >= 2 {
+    let fmt = tracing_subscriber::fmt::layer().with_writer(std::io::stderr);
+    let fmt = if v.detailed || v.verbose >= 2 {
         // Colours only where a person reads them.
-        builder
-            .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-            .try_init()
+        fmt.with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+            .with_filter(filter)
+            .boxed()
     } else {
-        builder.with_ansi(false).event_format(Plain).try_init()
+        fmt.with_ansi(false)
+            .event_format(Plain)
+            .with_filter(filter)
+            .boxed()
     };
+    let refusals = tiltsim_net::watch::TlsRefusals.with_filter(tiltsim_net::watch::OnlyTlsRefusals);
+    let _ = tracing_subscriber::registry()
+        .with(fmt)
+        .with(refusals)
+        .try_init();
 }
 
 #[cfg(test)]

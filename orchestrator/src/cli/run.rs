@@ -78,8 +78,8 @@ pub struct RunArgs {
     #[arg(long, value_enum, value_name = "ROLE")]
     remote: Vec<RoleArg>,
     /// Where the run listens for participants on other hosts, overriding network.listen
-    /// (`tcp/ADDRESS:PORT`).
-    #[arg(long, value_name = "ENDPOINT")]
+    /// (`HOST:PORT`, e.g. 10.0.0.1:7447; the link is TLS with the run's credentials).
+    #[arg(long, value_name = "HOST:PORT")]
     listen: Option<String>,
     /// File holding the secret participants on other hosts prove they hold [default: the
     /// TILTSIM_SECRET variable, or a secret drawn for the run and printed with the command
@@ -186,6 +186,12 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
         }
     }
     if let Some(l) = &a.listen {
+        tiltsim_protocol::address::Address::parse(l).map_err(|why| {
+            CliError::Invalid(format!(
+                "command line: --listen {l}: {why}; expected {}",
+                tiltsim_protocol::address::ADDRESS_FORM
+            ))
+        })?;
         s.network.listen = l.clone();
     }
     for kv in &a.set {
@@ -203,6 +209,7 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
             .collect();
         return Err(CliError::Invalid(lines.join("\nerror: ")));
     }
+    check_network(a, &s)?;
     if a.pace.is_some() {
         // Between paced ticks the participants nap instead of keeping the cores busy.
         if a.wait.is_none() && s.run.wait == cosim::wait::WaitStrategy::Adaptive {
@@ -226,6 +233,28 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
         ));
     }
     Ok(s)
+}
+
+/// `--listen` asks for participants on other hosts, so it needs one; the address must be one
+/// this host can listen on, said in words before the network transport tries.
+fn check_network(a: &RunArgs, s: &Scenario) -> Result<(), CliError> {
+    if s.network.is_local() {
+        if let Some(l) = &a.listen {
+            return Err(CliError::Invalid(format!(
+                "command line: --listen {l}: no participant runs on another host, so the run would not listen; add --remote ROLE (or network.remote in the scenario)"
+            )));
+        }
+        return Ok(());
+    }
+    let where_from = if a.listen.is_some() {
+        "--listen".to_string()
+    } else {
+        format!("{}: network.listen", a.scenario.display())
+    };
+    let address = tiltsim_protocol::address::Address::parse(&s.network.listen)
+        .map_err(|why| CliError::Invalid(format!("{where_from} {}: {why}", s.network.listen)))?;
+    tiltsim_net::session::check_listen(&address)
+        .map_err(|why| CliError::Invalid(format!("{where_from} {}: {why}", s.network.listen)))
 }
 
 /// `--participant-exe ROLE=PATH` overrides.
