@@ -55,9 +55,16 @@ pub(crate) fn route<'py>(
         },
     };
     grid.check().map_err(|e| invalid(py, e))?;
-    for (what, v, hi) in [("cd_conventional", cd_conventional, 400.0), ("accel", accel, 5.0), ("brake", brake, 5.0)] {
+    for (what, v, hi) in [
+        ("cd_conventional", cd_conventional, 400.0),
+        ("accel", accel, 5.0),
+        ("brake", brake, 5.0),
+    ] {
         if !(v.is_finite() && v > 0.0 && v <= hi) {
-            return Err(invalid(py, format!("{what} = {v}: allowed above 0 and up to {hi}")));
+            return Err(invalid(
+                py,
+                format!("{what} = {v}: allowed above 0 and up to {hi}"),
+            ));
         }
     }
     let limits = Limits {
@@ -70,7 +77,17 @@ pub(crate) fn route<'py>(
     let transport = transport.or(Some("in-process".into()));
     let mut loaded = Vec::new();
     for (kind, value, origin) in &scenarios {
-        loaded.push(scenario_with(py, kind, value, origin, Vec::new(), transport.clone(), None, None, None)?);
+        loaded.push(scenario_with(
+            py,
+            kind,
+            value,
+            origin,
+            Vec::new(),
+            transport.clone(),
+            None,
+            None,
+            None,
+        )?);
     }
     let exe = match loaded.first() {
         Some(s) => participant_exe(py, exe, s)?,
@@ -103,13 +120,21 @@ pub(crate) fn route<'py>(
         } else {
             Ok(())
         };
-        Some((results, tiltsim_studies::route::outputs::Journey::of(&line, &limits), written))
+        Some((
+            results,
+            tiltsim_studies::route::outputs::Journey::of(&line, &limits),
+            written,
+        ))
     });
     if let Some(e) = raised {
         return Err(e);
     }
     let Some((results, journey, written)) = done else {
-        return Err(error(py, "Interrupted", "interrupted: nothing written".into()));
+        return Err(error(
+            py,
+            "Interrupted",
+            "interrupted: nothing written".into(),
+        ));
     };
     written.map_err(|e| error(py, "ParticipantError", e))?;
     let table = PyDict::new(py);

@@ -43,7 +43,14 @@ fn a_route_gives_the_same_bytes_for_any_jobs_and_either_transport() {
     let s = scenario("tilting-pi-drive.toml");
     let go = |name: &str, extra: &[&str]| {
         let out = dir.join(name);
-        let mut args = vec!["route", f.to_str().unwrap(), s.to_str().unwrap(), "--out", out.to_str().unwrap(), "-q"];
+        let mut args = vec![
+            "route",
+            f.to_str().unwrap(),
+            s.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "-q",
+        ];
         args.extend(extra);
         let (code, _, err) = run(&args);
         assert_eq!(code, 0, "{err}");
@@ -52,14 +59,30 @@ fn a_route_gives_the_same_bytes_for_any_jobs_and_either_transport() {
     let one = go("one", &["--jobs", "1"]);
     let two = go("two", &["--jobs", "2"]);
     let ipc = go("ipc", &["--jobs", "2", "--transport", "ipc"]);
-    for file in ["transitions.csv", "straights.csv", "variants.csv", "profile.csv"] {
-        assert_eq!(read(&one.join(file)), read(&two.join(file)), "{file}: --jobs 1 and 2 differ");
-        assert_eq!(read(&two.join(file)), read(&ipc.join(file)), "{file}: in-process and IPC differ");
+    for file in [
+        "transitions.csv",
+        "straights.csv",
+        "variants.csv",
+        "profile.csv",
+    ] {
+        assert_eq!(
+            read(&one.join(file)),
+            read(&two.join(file)),
+            "{file}: --jobs 1 and 2 differ"
+        );
+        assert_eq!(
+            read(&two.join(file)),
+            read(&ipc.join(file)),
+            "{file}: in-process and IPC differ"
+        );
     }
     // Four transitions, each with a P_CT, at the file's chainages.
     let t = csv_table(&String::from_utf8(read(&two.join("transitions.csv"))).unwrap());
     let col = |name: &str| t[0].iter().position(|h| h == name).unwrap();
-    let chainages: Vec<&str> = t[1..].iter().map(|r| r[col("chainage_m")].as_str()).collect();
+    let chainages: Vec<&str> = t[1..]
+        .iter()
+        .map(|r| r[col("chainage_m")].as_str())
+        .collect();
     assert_eq!(chainages, ["3000", "3580", "5200", "5660"]);
     for r in &t[1..] {
         let p: f64 = r[col("p_ct_standing_pct")].parse().unwrap();
@@ -76,7 +99,8 @@ fn the_shipped_lines_are_long_and_tilting_saves_time_on_them() {
         assert_eq!(code, 0, "{err}");
         assert!(out.contains(&format!("{curves} curves")), "{out}");
         let j: serde_json::Value =
-            serde_json::from_str(&String::from_utf8(read(&dir.join("route.json"))).unwrap()).unwrap();
+            serde_json::from_str(&String::from_utf8(read(&dir.join("route.json"))).unwrap())
+                .unwrap();
         let (c, t) = (
             j["journey"]["conventional_s"].as_f64().unwrap(),
             j["journey"]["tilting_s"].as_f64().unwrap(),
@@ -86,7 +110,11 @@ fn the_shipped_lines_are_long_and_tilting_saves_time_on_them() {
         // is no faster than the line at its conventional line speed throughout.
         assert!(t < c, "{line}: tilting {t} s, conventional {c} s");
         let length = j["length_m"].as_f64().unwrap();
-        let line_speed = if line == "winding-valley" { 160.0 } else { 200.0 } / 3.6;
+        let line_speed = if line == "winding-valley" {
+            160.0
+        } else {
+            200.0
+        } / 3.6;
         assert!(c > length / line_speed, "{line}: {c} s for {length} m");
     }
 }

@@ -146,7 +146,10 @@ fn the_whole_line_docs_results_quotes_is_the_one_the_build_computes() {
     assert_eq!(code, 0, "{err}");
     let fresh = std::fs::read_to_string(dir.join("route.md")).unwrap();
     for name in names {
-        for header in ["| variant | controller |", "| variant | 0.3 Hz (EN 12299) |"] {
+        for header in [
+            "| variant | controller |",
+            "| variant | 0.3 Hz (EN 12299) |",
+        ] {
             assert_eq!(
                 table_row(&doc, header, name),
                 table_row(&fresh, header, name),
@@ -155,7 +158,12 @@ fn the_whole_line_docs_results_quotes_is_the_one_the_build_computes() {
         }
     }
     assert!(
-        doc.contains(fresh.lines().find(|l| l.starts_with("| tilting |")).unwrap()),
+        doc.contains(
+            fresh
+                .lines()
+                .find(|l| l.starts_with("| tilting |"))
+                .unwrap()
+        ),
         "docs/results.md, the whole line's journey times: regenerate it with scripts/results.sh"
     );
 }

@@ -233,7 +233,9 @@ impl TransitionShape {
                 0.5 * PI * (PI * u).sin(),
                 0.5 * PI * PI * (PI * u).cos(),
             ),
-            TransitionShape::Bloss => (u * u * (3.0 - 2.0 * u), 6.0 * u * (1.0 - u), 6.0 - 12.0 * u),
+            TransitionShape::Bloss => {
+                (u * u * (3.0 - 2.0 * u), 6.0 * u * (1.0 - u), 6.0 - 12.0 * u)
+            }
         }
     }
     /// The largest |dr/du| along the transition: the peak cant rate is this times the

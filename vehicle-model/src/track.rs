@@ -353,7 +353,10 @@ mod tests {
             // Half way along each transition the shape is at half its rise (both shapes are
             // point-symmetric about u = 1/2).
             for s in [(s1 + s2) / 2.0, (s3 + s4) / 2.0] {
-                assert!((t.at(s).cant - theta / 2.0).abs() < 1e-12, "{shape:?} at {s}");
+                assert!(
+                    (t.at(s).cant - theta / 2.0).abs() < 1e-12,
+                    "{shape:?} at {s}"
+                );
             }
             // The slope vanishes at the ends and peaks in the middle at peak_slope() times the
             // clothoid's θ/L_t (closed forms: π/2 for the cosine, 3/2 for Bloss).
@@ -362,7 +365,10 @@ mod tests {
             }
             let peak = t.at((s1 + s2) / 2.0).dcant_ds;
             let want = shape.peak_slope() * theta / p.transition_m;
-            assert!((peak - want).abs() < 1e-12 * want, "{shape:?}: {peak} vs {want}");
+            assert!(
+                (peak - want).abs() < 1e-12 * want,
+                "{shape:?}: {peak} vs {want}"
+            );
             // Derivatives match central differences of the value and of the slope (h = 1 mm:
             // truncation h²/6 times the next derivative, below 1e-12 here).
             let h = 1e-3;
@@ -372,7 +378,10 @@ mod tests {
                 let d1 = (c.cant - a.cant) / (2.0 * h);
                 let d2 = (c.dcant_ds - a.dcant_ds) / (2.0 * h);
                 assert!((d1 - b.dcant_ds).abs() < 1e-9, "{shape:?} slope at {s}");
-                assert!((d2 - b.d2cant_ds2).abs() < 1e-9, "{shape:?} cant curvature at {s}");
+                assert!(
+                    (d2 - b.d2cant_ds2).abs() < 1e-9,
+                    "{shape:?} cant curvature at {s}"
+                );
                 assert!((b.curvature * p.radius_m - b.cant / theta).abs() < 1e-12);
                 let rate = t.cant_rate_at_time(s / p.speed(), p.speed());
                 assert!((rate - p.speed() * b.dcant_ds).abs() < 1e-12);

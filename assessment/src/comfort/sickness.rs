@@ -125,8 +125,8 @@ impl Sickness {
         let (mut t, mut i) = (0.0, [0.0; 3]);
         for p in parts {
             t += p.duration_s;
-            for k in 0..3 {
-                i[k] += p.integrals[k];
+            for (a, b) in i.iter_mut().zip(p.integrals) {
+                *a += b;
             }
         }
         Sickness::from_integrals(t, i)
@@ -236,7 +236,11 @@ mod tests {
             }
             let want = a * WF.gain(f) * (t_end / 2.0).sqrt();
             let rel = (m.msdv() - want).abs() / want;
-            assert!(rel < 0.01, "{f} Hz: {} against {want} ({rel:.2e})", m.msdv());
+            assert!(
+                rel < 0.01,
+                "{f} Hz: {} against {want} ({rel:.2e})",
+                m.msdv()
+            );
         }
     }
 

@@ -94,11 +94,7 @@ pub(super) const VEHICLE: &[Row] = &[
         "m",
         "Length of the straight before the curve",
     ),
-    (
-        "track.transition_m",
-        "m",
-        "Length of each transition",
-    ),
+    ("track.transition_m", "m", "Length of each transition"),
     (
         "track.transition_shape",
         "",

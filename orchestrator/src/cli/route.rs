@@ -80,7 +80,8 @@ fn variants(a: &RouteArgs, base: &Limits) -> Result<Vec<Variant>, CliError> {
             RunningArg::Tilting => Some(Running::Tilting),
         },
     };
-    grid.check().map_err(|e| CliError::Invalid(format!("--{e}")))?;
+    grid.check()
+        .map_err(|e| CliError::Invalid(format!("--{e}")))?;
     let mut scenarios = Vec::new();
     for path in &a.scenarios {
         let mut s = load(path)?;
@@ -98,7 +99,8 @@ fn variants(a: &RouteArgs, base: &Limits) -> Result<Vec<Variant>, CliError> {
 
 /// Runs the command.
 pub fn exec(a: RouteArgs) -> CliResult {
-    let route = tiltsim_studies::route::load(&a.route).map_err(|e| CliError::Invalid(e.to_string()))?;
+    let route =
+        tiltsim_studies::route::load(&a.route).map_err(|e| CliError::Invalid(e.to_string()))?;
     let limits = Limits {
         cant_deficiency_conventional_mm: a.cd_conventional,
         cant_deficiency_tilting_mm: a.cd_tilting.first().copied().unwrap_or(275.0),
@@ -106,9 +108,16 @@ pub fn exec(a: RouteArgs) -> CliResult {
         brake_m_s2: a.brake,
     };
     let variants = variants(&a, &limits)?;
-    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("route-{}", route.name)));
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("out").join(format!("route-{}", route.name)));
     let (interrupt, exe) = interrupt_and_exe()?;
-    let jobs = a.jobs.unwrap_or_else(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1));
+    let jobs = a.jobs.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
     let _lock = tiltsim_master::outdir::claim(&out, tiltsim_master::outdir::Kind::Sweep, "route")
         .map_err(|e| CliError::Invalid(e.to_string()))?;
     let ex = RouteExec {
@@ -155,9 +164,16 @@ pub fn exec(a: RouteArgs) -> CliResult {
         }
         println!("wrote {0}/route.md, transitions.csv, straights.csv, variants.csv, profile.csv, route.json, plots/", out.display());
     }
-    let failed: Vec<String> = results.iter().flat_map(|r| r.failed.iter().map(move |f| format!("{}: {f}", r.label))).collect();
+    let failed: Vec<String> = results
+        .iter()
+        .flat_map(|r| r.failed.iter().map(move |f| format!("{}: {f}", r.label)))
+        .collect();
     if !failed.is_empty() {
-        return Err(CliError::Failed(format!("{} segments did not complete: {}", failed.len(), failed.join("; "))));
+        return Err(CliError::Failed(format!(
+            "{} segments did not complete: {}",
+            failed.len(),
+            failed.join("; ")
+        )));
     }
     Ok(())
 }

@@ -187,7 +187,12 @@ pub fn parse(text: &str, file: &Path) -> Result<Route, RouteError> {
             return Err(err(
                 line,
                 "",
-                format!("{} fields; expected {} ({})", rec.len(), COLUMNS.len(), COLUMNS.join(",")),
+                format!(
+                    "{} fields; expected {} ({})",
+                    rec.len(),
+                    COLUMNS.len(),
+                    COLUMNS.join(",")
+                ),
             ));
         }
         let fields: Vec<&str> = rec.iter().collect();
@@ -207,12 +212,24 @@ pub fn parse(text: &str, file: &Path) -> Result<Route, RouteError> {
 type FieldError = (&'static str, String);
 
 /// A number in `[lo, hi]`.
-fn number(text: &str, field: &'static str, lo: f64, hi: f64, unit: &str) -> Result<f64, FieldError> {
-    let v: f64 = text
-        .parse()
-        .map_err(|_| (field, format!("`{text}` is not a number; expected {lo} to {hi} {unit}")))?;
+fn number(
+    text: &str,
+    field: &'static str,
+    lo: f64,
+    hi: f64,
+    unit: &str,
+) -> Result<f64, FieldError> {
+    let v: f64 = text.parse().map_err(|_| {
+        (
+            field,
+            format!("`{text}` is not a number; expected {lo} to {hi} {unit}"),
+        )
+    })?;
     if !v.is_finite() || v < lo || v > hi {
-        return Err((field, format!("{text} is out of range; expected {lo} to {hi} {unit}")));
+        return Err((
+            field,
+            format!("{text} is out of range; expected {lo} to {hi} {unit}"),
+        ));
     }
     Ok(v)
 }
@@ -287,7 +304,11 @@ fn curve(f: &[&str], length_m: f64) -> Result<Curve, FieldError> {
 /// The checks across sections: contiguous chainage, straights at both ends and between curves.
 fn check_line(s: &[Section]) -> Result<(), (usize, &'static str, String)> {
     let Some(first) = s.first() else {
-        return Err((0, "", "no sections: a route has at least one curve between two straights".into()));
+        return Err((
+            0,
+            "",
+            "no sections: a route has at least one curve between two straights".into(),
+        ));
     };
     let last = s[s.len() - 1];
     if first.curve.is_some() || last.curve.is_some() {
@@ -324,7 +345,11 @@ fn check_line(s: &[Section]) -> Result<(), (usize, &'static str, String)> {
         }
     }
     if !s.iter().any(|x| x.curve.is_some()) {
-        return Err((0, "", "no curve: a route has at least one section with a radius_m".into()));
+        return Err((
+            0,
+            "",
+            "no curve: a route has at least one section with a radius_m".into(),
+        ));
     }
     Ok(())
 }
@@ -349,11 +374,17 @@ mod tests {
         assert_eq!(r.sections.len(), 3);
         assert_eq!(r.curves(), 1);
         let c = r.sections[1].curve.unwrap();
-        assert_eq!((c.radius_m, c.cant_mm, c.shape), (-1200.0, 120.0, TransitionShape::Cosine));
+        assert_eq!(
+            (c.radius_m, c.cant_mm, c.shape),
+            (-1200.0, 120.0, TransitionShape::Cosine)
+        );
         assert_eq!(r.sections[1].line, 4);
         assert_eq!(r.length_m(), 2200.0);
         // 150 mm of cant over 1500 mm is asin(0.1).
-        let c = Curve { cant_mm: 150.0, ..c };
+        let c = Curve {
+            cant_mm: 150.0,
+            ..c
+        };
         assert!((c.cant_rad() - 0.1f64.asin()).abs() < 1e-15);
     }
 
@@ -374,11 +405,17 @@ mod tests {
             let e = parse_text(body).unwrap_err();
             assert_eq!((e.line, e.field.as_str()), (line, field), "{e}");
             let shown = e.to_string();
-            assert!(shown.starts_with(&format!("line.csv:{line}: {field}: ")), "{shown}");
+            assert!(
+                shown.starts_with(&format!("line.csv:{line}: {field}: ")),
+                "{shown}"
+            );
         }
         let e = parse("a,b\n1,2\n", Path::new("x.csv")).unwrap_err();
         assert_eq!(e.line, 1);
-        assert!(e.to_string().contains("expected `chainage_m,length_m"), "{e}");
+        assert!(
+            e.to_string().contains("expected `chainage_m,length_m"),
+            "{e}"
+        );
         let e = parse_text("0,1000,,,,,160\n").unwrap_err();
         assert_eq!((e.line, e.field.as_str()), (2, ""));
     }

@@ -100,8 +100,17 @@ pub fn write(
     };
     let text = serde_json::to_string_pretty(&json).map_err(std::io::Error::other)?;
     files.push(put(out, "route.json", &(text + "\n"))?);
-    files.push(put(out, "route.md", &markdown(route, limits, &journey, results))?);
-    files.extend(super::plots::write(&out.join("plots"), route, limits, results)?);
+    files.push(put(
+        out,
+        "route.md",
+        &markdown(route, limits, &journey, results),
+    )?);
+    files.extend(super::plots::write(
+        &out.join("plots"),
+        route,
+        limits,
+        results,
+    )?);
     Ok(files)
 }
 
@@ -227,7 +236,9 @@ pub fn chainages(route: &Route) -> Vec<f64> {
     let start = route.sections[0].chainage_m;
     let end = start + route.length_m();
     let n = ((end - start) / 25.0).ceil() as usize;
-    (0..=n).map(|k| (start + 25.0 * k as f64).min(end)).collect()
+    (0..=n)
+        .map(|k| (start + 25.0 * k as f64).min(end))
+        .collect()
 }
 
 fn profile_csv(route: &Route, limits: &Limits) -> String {
@@ -267,7 +278,13 @@ pub fn markdown(route: &Route, limits: &Limits, j: &Journey, results: &[VariantR
     s.push_str(&variants_table(results));
     s.push_str(&sensitivity_table(results));
     for r in results {
-        let _ = writeln!(s, "\n## {} ({}, {} running): every transition\n", r.label, r.controller, r.running.name());
+        let _ = writeln!(
+            s,
+            "\n## {} ({}, {} running): every transition\n",
+            r.label,
+            r.controller,
+            r.running.name()
+        );
         s.push_str("| curve | transition | chainage (m) | R (m) | cant (mm) | shape | speed (km/h) | cant deficiency (mm) | P_CT standing (%) | P_CT seated (%) | binding |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
         for t in &r.transitions {
             let _ = writeln!(

@@ -3,8 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-use tiltsim_report::plot::{write_scatter, Series};
 use tiltsim_report::plot::{write_chart, Chart, Line, PALETTE};
+use tiltsim_report::plot::{write_scatter, Series};
 
 use super::file::Route;
 use super::outputs::chainages;
@@ -23,7 +23,10 @@ pub fn write(
     let x: Vec<f64> = chainages(route).iter().map(|s| s / 1000.0).collect();
     let speed = |r: Running| {
         let p = Profile::new(route, r, limits);
-        chainages(route).iter().map(|&s| p.speed_at(s) * 3.6).collect::<Vec<f64>>()
+        chainages(route)
+            .iter()
+            .map(|&s| p.speed_at(s) * 3.6)
+            .collect::<Vec<f64>>()
     };
     let title = format!("{}: speed profiles", route.name);
     let chart = Chart {
@@ -62,8 +65,18 @@ pub fn write(
             joined: true,
         })
         .collect();
-    let title = format!("{}: P_CT standing (EN 12299) at every transition", route.name);
-    files.extend(write_scatter(dir, "route_p_ct", &title, "chainage (km)", "P_CT standing (%)", &series)?);
+    let title = format!(
+        "{}: P_CT standing (EN 12299) at every transition",
+        route.name
+    );
+    files.extend(write_scatter(
+        dir,
+        "route_p_ct",
+        &title,
+        "chainage (km)",
+        "P_CT standing (%)",
+        &series,
+    )?);
     if let Some(f) = trade_off(dir, route, results)? {
         files.extend(f);
     }
@@ -72,10 +85,21 @@ pub fn write(
 
 /// P_CT (worst transition) against the roll-acceleration dose per hour at the window seat,
 /// one joined series per controller and running over ρ, each point labelled with its ρ.
-fn trade_off(dir: &Path, route: &Route, results: &[VariantResult]) -> std::io::Result<Option<[PathBuf; 2]>> {
+fn trade_off(
+    dir: &Path,
+    route: &Route,
+    results: &[VariantResult],
+) -> std::io::Result<Option<[PathBuf; 2]>> {
     let mut keys: Vec<(String, String)> = Vec::new();
     for r in results {
-        let k = (r.controller.clone(), format!("{} {:.0} mm", r.running.name(), r.limits.cant_deficiency_mm(r.running)));
+        let k = (
+            r.controller.clone(),
+            format!(
+                "{} {:.0} mm",
+                r.running.name(),
+                r.limits.cant_deficiency_mm(r.running)
+            ),
+        );
         if !keys.contains(&k) {
             keys.push(k);
         }
@@ -92,7 +116,11 @@ fn trade_off(dir: &Path, route: &Route, results: &[VariantResult]) -> std::io::R
                 .iter()
                 .filter(|r| {
                     r.controller == key.0
-                        && format!("{} {:.0} mm", r.running.name(), r.limits.cant_deficiency_mm(r.running)) == key.1
+                        && format!(
+                            "{} {:.0} mm",
+                            r.running.name(),
+                            r.limits.cant_deficiency_mm(r.running)
+                        ) == key.1
                 })
                 .collect();
             Series {
@@ -104,7 +132,10 @@ fn trade_off(dir: &Path, route: &Route, results: &[VariantResult]) -> std::io::R
             }
         })
         .collect();
-    let title = format!("{}: compensation trade-off, P_CT against the roll dose", route.name);
+    let title = format!(
+        "{}: compensation trade-off, P_CT against the roll dose",
+        route.name
+    );
     write_scatter(
         dir,
         "route_trade_off",

@@ -145,7 +145,12 @@ impl SectionSpeed {
 
     /// The time to run through it (s), in closed form.
     pub fn time(&self, a: f64, b: f64) -> f64 {
-        let (l, f, k, len) = (self.limit_m_s, self.forward_in, self.backward_out, self.length_m);
+        let (l, f, k, len) = (
+            self.limit_m_s,
+            self.forward_in,
+            self.backward_out,
+            self.length_m,
+        );
         // Where the accelerating branch reaches the limit and the braking one leaves it.
         let xa = (l * l - f * f) / (2.0 * a);
         let xb = len - (l * l - k * k) / (2.0 * b);
@@ -188,13 +193,17 @@ impl Profile {
         let mut v = 0.0f64;
         for (i, s) in route.sections.iter().enumerate() {
             forward_in[i] = v.min(lim[i].0);
-            v = lim[i].0.min((forward_in[i].powi(2) + 2.0 * a * s.length_m).sqrt());
+            v = lim[i]
+                .0
+                .min((forward_in[i].powi(2) + 2.0 * a * s.length_m).sqrt());
         }
         let mut backward_out = vec![0.0; n];
         let mut v = 0.0f64;
         for (i, s) in route.sections.iter().enumerate().rev() {
             backward_out[i] = v.min(lim[i].0);
-            v = lim[i].0.min((backward_out[i].powi(2) + 2.0 * b * s.length_m).sqrt());
+            v = lim[i]
+                .0
+                .min((backward_out[i].powi(2) + 2.0 * b * s.length_m).sqrt());
         }
         let sections = route
             .sections
@@ -250,7 +259,9 @@ impl Profile {
         let (a, b) = (self.accel_m_s2, self.brake_m_s2);
         let (x0, x1) = (from - x.chainage_m, to - x.chainage_m);
         let sub = SectionSpeed {
-            forward_in: x.limit_m_s.min((x.forward_in.powi(2) + 2.0 * a * x0).sqrt()),
+            forward_in: x
+                .limit_m_s
+                .min((x.forward_in.powi(2) + 2.0 * a * x0).sqrt()),
             backward_out: x
                 .limit_m_s
                 .min((x.backward_out.powi(2) + 2.0 * b * (x.length_m - x1)).sqrt()),
@@ -292,7 +303,9 @@ mod tests {
     #[test]
     fn a_straight_run_takes_the_closed_form_time() {
         // 10 km at 200 km/h from and to standstill: t = V/a + V/b + (L − V²/2a − V²/2b)/V.
-        let r = route("0,10000,,,,,200,200\n10000,1000,1000,100,100,clothoid,200,200\n11000,1,,,,,200,200\n");
+        let r = route(
+            "0,10000,,,,,200,200\n10000,1000,1000,100,100,clothoid,200,200\n11000,1,,,,,200,200\n",
+        );
         let mut r = r;
         r.sections.truncate(1);
         let lim = Limits::default();
@@ -300,7 +313,11 @@ mod tests {
         let v: f64 = 200.0 / 3.6;
         let (a, b) = (lim.accel_m_s2, lim.brake_m_s2);
         let want = v / a + v / b + (10000.0 - v * v / (2.0 * a) - v * v / (2.0 * b)) / v;
-        assert!((p.journey_time() - want).abs() < 1e-9, "{} vs {want}", p.journey_time());
+        assert!(
+            (p.journey_time() - want).abs() < 1e-9,
+            "{} vs {want}",
+            p.journey_time()
+        );
         // Too short to reach the limit: a triangle, peak √(2abL/(a+b)).
         r.sections[0].length_m = 500.0;
         let p = Profile::new(&r, Running::Tilting, &lim);
@@ -328,11 +345,19 @@ mod tests {
             // 1e-12 of the time where the profile is smooth; each kink of the profile, where
             // a branch meets the limit, costs O(h²) more).
             let num = numeric_time(&p, r.length_m());
-            assert!((p.journey_time() - num).abs() < 1e-3, "{running:?}: {} vs {num}", p.journey_time());
+            assert!(
+                (p.journey_time() - num).abs() < 1e-3,
+                "{running:?}: {} vs {num}",
+                p.journey_time()
+            );
             // The profile never exceeds a limit and runs the curves at most at theirs.
             for k in 0..7100 {
                 let s = k as f64;
-                let sec = r.sections.iter().position(|x| s >= x.chainage_m && s <= x.end_m()).unwrap();
+                let sec = r
+                    .sections
+                    .iter()
+                    .position(|x| s >= x.chainage_m && s <= x.end_m())
+                    .unwrap();
                 assert!(p.speed_at(s) <= p.sections[sec].limit_m_s + 1e-9);
             }
             // Time between two points adds up to the section's time.

@@ -79,7 +79,9 @@ pub fn plan(route: &Route, profile: &Profile) -> Vec<Segment> {
         if to - from < 1.0 {
             continue;
         }
-        let pieces = (profile.time_between(i, from, to) / STRAIGHT_CHUNK_S).ceil().max(1.0) as usize;
+        let pieces = (profile.time_between(i, from, to) / STRAIGHT_CHUNK_S)
+            .ceil()
+            .max(1.0) as usize;
         let step = (to - from) / pieces as f64;
         for k in 0..pieces {
             let (a, b) = (from + step * k as f64, from + step * (k + 1) as f64);
@@ -252,9 +254,18 @@ fn run_segment(s: &Scenario, g: &Segment, dir: &Path, ex: &RouteExec) -> Segment
     };
     result.status = match done.summary.status {
         Status::Completed => "completed".to_string(),
-        other => format!("{other}: {}", done.summary.error.clone().unwrap_or_default()),
+        other => format!(
+            "{other}: {}",
+            done.summary.error.clone().unwrap_or_default()
+        ),
     };
-    result.flags = done.summary.flags.raised().iter().map(|f| f.to_string()).collect();
+    result.flags = done
+        .summary
+        .flags
+        .raised()
+        .iter()
+        .map(|f| f.to_string())
+        .collect();
     result.simulated_s = done.summary.simulated_time_s;
     let assessed = if ex.keep_runs {
         assess(s, g, tiltsim_formats::table::Rows::File(dir))
@@ -281,7 +292,11 @@ type Assessed = (Vec<TransitionComfort>, Ride, Vec<(String, Sickness)>, Met);
 
 /// One pass over a segment's rows: every transition under every reading, the ride, the doses
 /// at each position and the limits met.
-fn assess(s: &Scenario, g: &Segment, rows: tiltsim_formats::table::Rows) -> std::io::Result<Assessed> {
+fn assess(
+    s: &Scenario,
+    g: &Segment,
+    rows: tiltsim_formats::table::Rows,
+) -> std::io::Result<Assessed> {
     let dt = s.run.dt_s;
     let v = s.track.speed();
     let body = Body {
@@ -305,12 +320,20 @@ fn assess(s: &Scenario, g: &Segment, rows: tiltsim_formats::table::Rows) -> std:
     // readings[w][k]: transition w under cut-off k.
     let mut readings: Vec<Vec<Assessor>> = windows
         .iter()
-        .map(|w| READINGS_HZ.iter().map(|&hz| Assessor::new(dt, &[*w], &at(hz), body)).collect())
+        .map(|w| {
+            READINGS_HZ
+                .iter()
+                .map(|&hz| Assessor::new(dt, &[*w], &at(hz), body))
+                .collect()
+        })
         .collect();
     let mut raw_roll = vec![0.0f64; windows.len()];
     let mut ride = Assessor::new(dt, &[], &at(s.comfort.filter_hz), body);
     let positions: Vec<Position> = s.comfort.positions.clone();
-    let mut doses: Vec<SicknessAssessor> = positions.iter().map(|_| SicknessAssessor::new(dt)).collect();
+    let mut doses: Vec<SicknessAssessor> = positions
+        .iter()
+        .map(|_| SicknessAssessor::new(dt))
+        .collect();
     let mut last_roll: Option<f64> = None;
     let mut met = Met::default();
     let u_max = s.controller.u_max_deg.to_radians();
@@ -334,7 +357,9 @@ fn assess(s: &Scenario, g: &Segment, rows: tiltsim_formats::table::Rows) -> std:
         if r.actuator_limits != 0 {
             met.drive_limited_s += dt;
         }
-        met.bump_stop_pct = met.bump_stop_pct.max(100.0 * x.deflection.abs() / body.bump_stop_m);
+        met.bump_stop_pct = met
+            .bump_stop_pct
+            .max(100.0 * x.deflection.abs() / body.bump_stop_m);
         met.bar_peak_deg = met.bar_peak_deg.max(r.delta_a.abs().to_degrees());
     })?;
     let transitions = readings
@@ -345,7 +370,12 @@ fn assess(s: &Scenario, g: &Segment, rows: tiltsim_formats::table::Rows) -> std:
             TransitionComfort {
                 p_ct: c[0],
                 standing_at_cutoffs: [c[1].standing, c[2].standing],
-                standing_unfiltered_roll: p_ct(&STANDING, c[0].lat_acc_m_s2, c[0].jerk_m_s3, raw.to_degrees()),
+                standing_unfiltered_roll: p_ct(
+                    &STANDING,
+                    c[0].lat_acc_m_s2,
+                    c[0].jerk_m_s3,
+                    raw.to_degrees(),
+                ),
             }
         })
         .collect();

@@ -168,8 +168,8 @@ fn gather(route: &Route, v: &Variant, profile: &Profile, segs: &[SegmentResult])
         let sec = &route.sections[g.section];
         let Some(c) = sec.curve else { continue };
         let binding = run::binding(profile, g.section, &r.met);
-        let cd = g.speed_m_s.powi(2) / (9.81 * c.radius_m.abs()) * super::file::CANT_BASE_MM
-            - c.cant_mm;
+        let cd =
+            g.speed_m_s.powi(2) / (9.81 * c.radius_m.abs()) * super::file::CANT_BASE_MM - c.cant_mm;
         for (k, t) in r.transitions.iter().enumerate() {
             transitions.push(TransitionRow {
                 curve: curve_no,
@@ -193,15 +193,24 @@ fn gather(route: &Route, v: &Variant, profile: &Profile, segs: &[SegmentResult])
     let mut worst = [0.0f64; 4];
     let mut sum = [0.0f64; 4];
     for t in &transitions {
-        let r = readings(&t.comfort);
-        for k in 0..4 {
-            worst[k] = worst[k].max(r[k]);
-            sum[k] += r[k];
+        for ((w, s), x) in worst
+            .iter_mut()
+            .zip(sum.iter_mut())
+            .zip(readings(&t.comfort))
+        {
+            *w = w.max(x);
+            *s += x;
         }
     }
     let n = transitions.len().max(1) as f64;
     let nmv: Vec<f64> = straights.iter().map(|s| s.n_mv_lateral).collect();
-    let names: Vec<String> = v.scenario.comfort.positions.iter().map(|p| p.name.clone()).collect();
+    let names: Vec<String> = v
+        .scenario
+        .comfort
+        .positions
+        .iter()
+        .map(|p| p.name.clone())
+        .collect();
     let sickness = names
         .iter()
         .map(|name| {
@@ -256,8 +265,14 @@ impl Grid {
         if let Some(r) = self.rho.iter().find(|r| !(0.0..=1.0).contains(*r)) {
             return Err(format!("rho {r}: each compensation factor is in [0, 1]"));
         }
-        if let Some(c) = self.cd_tilting_mm.iter().find(|c| !(0.0..=400.0).contains(*c)) {
-            return Err(format!("cd_tilting {c}: each cant deficiency is 0 to 400 mm"));
+        if let Some(c) = self
+            .cd_tilting_mm
+            .iter()
+            .find(|c| !(0.0..=400.0).contains(*c))
+        {
+            return Err(format!(
+                "cd_tilting {c}: each cant deficiency is 0 to 400 mm"
+            ));
         }
         Ok(())
     }
@@ -349,10 +364,22 @@ pub fn transition_columns(results: &[VariantResult]) -> Vec<(&'static str, Colum
         ("p_ct_seated_pct", num(&|_, t| t.comfort.p_ct.seated)),
         ("lat_acc_m_s2", num(&|_, t| t.comfort.p_ct.lat_acc_m_s2)),
         ("jerk_m_s3", num(&|_, t| t.comfort.p_ct.jerk_m_s3)),
-        ("roll_speed_deg_s", num(&|_, t| t.comfort.p_ct.roll_speed_deg_s)),
-        ("p_ct_standing_025hz_pct", num(&|_, t| t.comfort.standing_at_cutoffs[0])),
-        ("p_ct_standing_04hz_pct", num(&|_, t| t.comfort.standing_at_cutoffs[1])),
-        ("p_ct_standing_unfiltered_roll_pct", num(&|_, t| t.comfort.standing_unfiltered_roll)),
+        (
+            "roll_speed_deg_s",
+            num(&|_, t| t.comfort.p_ct.roll_speed_deg_s),
+        ),
+        (
+            "p_ct_standing_025hz_pct",
+            num(&|_, t| t.comfort.standing_at_cutoffs[0]),
+        ),
+        (
+            "p_ct_standing_04hz_pct",
+            num(&|_, t| t.comfort.standing_at_cutoffs[1]),
+        ),
+        (
+            "p_ct_standing_unfiltered_roll_pct",
+            num(&|_, t| t.comfort.standing_unfiltered_roll),
+        ),
         ("binding", text(&|_, t| t.binding.clone())),
     ]
 }
