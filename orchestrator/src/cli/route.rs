@@ -35,8 +35,8 @@ pub struct RouteArgs {
     /// Cant deficiency of conventional running (mm).
     #[arg(long, default_value_t = 150.0, value_parser = bounds::real((0.0, End::Closed), (400.0, End::Closed), "mm"))]
     cd_conventional: f64,
-    /// Cant deficiency of tilting running (mm); several, comma-separated, run each tilting
-    /// scenario at each (a speed sweep).
+    /// Cant deficiency of tilting running (mm) [default: 275]; several, comma-separated, run
+    /// each tilting scenario at each (a speed sweep).
     #[arg(long, value_delimiter = ',')]
     cd_tilting: Vec<f64>,
     /// Acceleration between sections (m/s²).
