@@ -39,40 +39,8 @@ pub(crate) fn route<'py>(
     exe: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let line = tiltsim_studies::route::load(&route).map_err(|e| invalid(py, e.to_string()))?;
-    let grid = Grid {
-        rho: rho.unwrap_or_default(),
-        cd_tilting_mm: cd_tilting.unwrap_or_default(),
-        running: match running.as_deref() {
-            None | Some("auto") => None,
-            Some("conventional") => Some(Running::Conventional),
-            Some("tilting") => Some(Running::Tilting),
-            Some(o) => {
-                return Err(invalid(
-                    py,
-                    format!("running = {o:?}: allowed \"auto\", \"conventional\", \"tilting\""),
-                ))
-            }
-        },
-    };
-    grid.check().map_err(|e| invalid(py, e))?;
-    for (what, v, hi) in [
-        ("cd_conventional", cd_conventional, 400.0),
-        ("accel", accel, 5.0),
-        ("brake", brake, 5.0),
-    ] {
-        if !(v.is_finite() && v > 0.0 && v <= hi) {
-            return Err(invalid(
-                py,
-                format!("{what} = {v}: allowed above 0 and up to {hi}"),
-            ));
-        }
-    }
-    let limits = Limits {
-        cant_deficiency_conventional_mm: cd_conventional,
-        cant_deficiency_tilting_mm: grid.cd_tilting_mm.first().copied().unwrap_or(275.0),
-        accel_m_s2: accel,
-        brake_m_s2: brake,
-    };
+    let (grid, limits) =
+        grid_and_limits(py, rho, cd_tilting, cd_conventional, accel, brake, running)?;
     // In-process by default, as `tiltsim route`.
     let transport = transport.or(Some("in-process".into()));
     let mut loaded = Vec::new();
@@ -154,6 +122,53 @@ pub(crate) fn route<'py>(
     result.set_item("journey", json(&journey)?)?;
     result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
     Ok(result)
+}
+
+/// The variants' grid and the profiles' limits the call asks for, checked.
+fn grid_and_limits(
+    py: Python<'_>,
+    rho: Option<Vec<f64>>,
+    cd_tilting: Option<Vec<f64>>,
+    cd_conventional: f64,
+    accel: f64,
+    brake: f64,
+    running: Option<String>,
+) -> PyResult<(Grid, Limits)> {
+    let grid = Grid {
+        rho: rho.unwrap_or_default(),
+        cd_tilting_mm: cd_tilting.unwrap_or_default(),
+        running: match running.as_deref() {
+            None | Some("auto") => None,
+            Some("conventional") => Some(Running::Conventional),
+            Some("tilting") => Some(Running::Tilting),
+            Some(o) => {
+                return Err(invalid(
+                    py,
+                    format!("running = {o:?}: allowed \"auto\", \"conventional\", \"tilting\""),
+                ))
+            }
+        },
+    };
+    grid.check().map_err(|e| invalid(py, e))?;
+    for (what, v, hi) in [
+        ("cd_conventional", cd_conventional, 400.0),
+        ("accel", accel, 5.0),
+        ("brake", brake, 5.0),
+    ] {
+        if !(v.is_finite() && v > 0.0 && v <= hi) {
+            return Err(invalid(
+                py,
+                format!("{what} = {v}: allowed above 0 and up to {hi}"),
+            ));
+        }
+    }
+    let limits = Limits {
+        cant_deficiency_conventional_mm: cd_conventional,
+        cant_deficiency_tilting_mm: grid.cd_tilting_mm.first().copied().unwrap_or(275.0),
+        accel_m_s2: accel,
+        brake_m_s2: brake,
+    };
+    Ok((grid, limits))
 }
 
 /// Serialising the results to JSON text behind one object-safe trait.

@@ -115,6 +115,27 @@ pub fn readings(c: &TransitionComfort) -> [f64; 4] {
     ]
 }
 
+/// The trip's doses at each of `v`'s passenger positions: its segments' doses combined.
+fn trip_doses(v: &Variant, segs: &[SegmentResult]) -> Vec<(String, Sickness)> {
+    let names: Vec<String> = v
+        .scenario
+        .comfort
+        .positions
+        .iter()
+        .map(|p| p.name.clone())
+        .collect();
+    names
+        .iter()
+        .map(|name| {
+            let parts: Vec<&Sickness> = segs
+                .iter()
+                .flat_map(|r| r.sickness.iter().filter(|(n, _)| n == name).map(|(_, d)| d))
+                .collect();
+            (name.clone(), Sickness::combine(parts))
+        })
+        .collect()
+}
+
 /// Runs every variant over `route`: all their segments in one pool of `ex.jobs` threads.
 /// `None` when interrupted.
 pub fn study(route: &Route, variants: &[Variant], ex: &RouteExec) -> Option<Vec<VariantResult>> {
@@ -204,23 +225,7 @@ fn gather(route: &Route, v: &Variant, profile: &Profile, segs: &[SegmentResult])
     }
     let n = transitions.len().max(1) as f64;
     let nmv: Vec<f64> = straights.iter().map(|s| s.n_mv_lateral).collect();
-    let names: Vec<String> = v
-        .scenario
-        .comfort
-        .positions
-        .iter()
-        .map(|p| p.name.clone())
-        .collect();
-    let sickness = names
-        .iter()
-        .map(|name| {
-            let parts: Vec<&Sickness> = segs
-                .iter()
-                .flat_map(|r| r.sickness.iter().filter(|(n, _)| n == name).map(|(_, d)| d))
-                .collect();
-            (name.clone(), Sickness::combine(parts))
-        })
-        .collect();
+    let sickness = trip_doses(v, segs);
     VariantResult {
         label: v.label.clone(),
         controller: tiltsim_report::table4::controller_name(&v.scenario),
