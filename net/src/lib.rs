@@ -118,26 +118,14 @@ pub fn clean(text: &str) -> String {
                 rest = &after[skip..];
             }
             None => {
-                out.push_str(" at /");
+                // Not a location: keep the text (`after` still starts with the slash).
+                out.push_str(" at ");
                 rest = after;
             }
         }
     }
     out.push_str(rest);
     out.trim_end().to_string()
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn zenoh_errors_lose_their_source_locations() {
-        let raw = "Can not create a new TLS listener bound to 10.0.0.1:7447: Address already in use (os error 98) at /root/.cargo/registry/src/index.crates.io-1949cf8c6b5b557f/zenoh-link-tls-1.10.2/src/unicast.rs:320.";
-        assert_eq!(
-            super::clean(raw),
-            "Can not create a new TLS listener bound to 10.0.0.1:7447: Address already in use (os error 98)"
-        );
-        assert_eq!(super::clean("meet at /x"), "meet at /x");
-    }
 }
 
 /// A new secret for a run: 128 random bits as hex, from the kernel's random source.
@@ -163,4 +151,17 @@ pub fn host_name() -> String {
         .map(|&c| c as u8)
         .collect();
     String::from_utf8_lossy(&bytes).into_owned()
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn zenoh_errors_lose_their_source_locations() {
+        let raw = "Can not create a new TLS listener bound to 10.0.0.1:7447: Address already in use (os error 98) at /root/.cargo/registry/src/index.crates.io-1949cf8c6b5b557f/zenoh-link-tls-1.10.2/src/unicast.rs:320.";
+        assert_eq!(
+            super::clean(raw),
+            "Can not create a new TLS listener bound to 10.0.0.1:7447: Address already in use (os error 98)"
+        );
+        assert_eq!(super::clean("meet at /x"), "meet at /x");
+    }
 }

@@ -4,8 +4,8 @@
 //! from a FIFO channel as a [`NetEndpoint`](crate::NetEndpoint) and a participant do. The
 //! round trip of one exchange is the floor of a lock-step exchange with a remote participant.
 //!
-//! [`Floor`] says how: over TLS with the run's kind of credentials and access control (what a
-//! run uses), or over plain TCP without them (to measure what the security costs), and with
+//! [`Floor`] says how: over QUIC with the run's kind of credentials and access control (what
+//! a run uses), or over plain TCP without them (to measure what the security costs), and with
 //! which [`Tuning`]. [`raw_tcp_echo`] and [`raw_tcp_measure`] measure the same round trip
 //! over a bare TCP socket, the wire's own floor on that path.
 
@@ -33,7 +33,7 @@ pub const BYTES: usize = 256;
 pub struct Floor {
     /// Where the measuring side listens.
     pub address: Address,
-    /// TLS with credentials from this secret (as a run), or plain TCP when `None`.
+    /// QUIC with credentials from this secret (as a run), or plain TCP when `None`.
     pub secret: Option<String>,
     /// Zenoh's transport settings, the same at both ends.
     pub tuning: Tuning,

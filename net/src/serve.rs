@@ -225,24 +225,32 @@ fn find_offer(session: &zenoh::Session, role: Role, a: &JoinArgs) -> Result<Offe
     }
 }
 
-/// Why no run answered at `at`: nothing listens there, or something does but no TLS session
-/// with this secret's credentials opened (TLS does not say which end refused, or why).
+/// Why no run answered at `at`: nothing listens there (the host answers a datagram to the
+/// port with "port unreachable"), or something does but no QUIC session with this secret's
+/// credentials opened (TLS does not say which end refused, or why).
 fn why_no_answer(at: &Address) -> String {
-    use std::net::ToSocketAddrs;
-    let listening = at
+    use std::net::{ToSocketAddrs, UdpSocket};
+    let closed = at
         .to_string()
         .to_socket_addrs()
         .ok()
         .and_then(|mut a| a.next())
-        .is_some_and(|sa| {
-            std::net::TcpStream::connect_timeout(&sa, Duration::from_secs(2)).is_ok()
-        });
-    if listening {
-        format!(
-            "something listens at {at}, but no TLS session with this secret's credentials opened: the run's secret does not match (or it is not a tiltsim run)"
-        )
-    } else {
+        .and_then(|sa| {
+            let any = if sa.is_ipv4() { "0.0.0.0:0" } else { "[::]:0" };
+            let s = UdpSocket::bind(any).ok()?;
+            s.connect(sa).ok()?;
+            s.set_read_timeout(Some(Duration::from_millis(500))).ok()?;
+            s.send(&[0u8]).ok()?;
+            let mut b = [0u8; 1];
+            Some(matches!(s.recv(&mut b), Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused))
+        })
+        .unwrap_or(false);
+    if closed {
         format!("no run answered at {at}: nothing listens there (check the address, the port, and that the run has started)")
+    } else {
+        format!(
+            "no run answered at {at}: nothing there opened a session with this secret's credentials (the run's secret does not match, the run has not started, or a firewall drops UDP to the port)"
+        )
     }
 }
 

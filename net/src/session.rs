@@ -1,7 +1,13 @@
 //! Zenoh configuration of both sides: peers that talk only to the endpoints they are given
 //! (no multicast or gossip scouting, so a run never meets a session it was not pointed at),
-//! over mutual TLS with the run's credentials ([`crate::credentials`]) and with access
-//! control denying everything the role does not need ([`crate::acl`]), with the run's lease.
+//! over QUIC with mutual TLS 1.3 and the run's credentials ([`crate::credentials`]) and with
+//! access control denying everything the role does not need ([`crate::acl`]), with the run's
+//! lease.
+//!
+//! Why QUIC and not Zenoh's TLS-over-TCP link: that link reads and writes one rustls stream
+//! from two tasks at once through an `UnsafeCell`, which rustls does not support (Zenoh issue
+//! 2557); here a free run's two-way traffic crashed a participant with a corrupted allocation
+//! within a second. QUIC's library (quinn) owns its TLS state behind its own lock.
 
 use std::time::Duration;
 
@@ -25,7 +31,7 @@ pub enum End {
 /// What a session proves and admits.
 #[derive(Debug, Clone)]
 pub enum Security {
-    /// Mutual TLS with these credentials, and this access control (Zenoh's
+    /// QUIC, mutual TLS 1.3 with these credentials, and this access control (Zenoh's
     /// `access_control` section). Every run's session.
     Tls {
         /// This end's credentials.
@@ -75,7 +81,7 @@ pub fn config(
     set(&mut c, "scouting/multicast/enabled", "false".into())?;
     set(&mut c, "scouting/gossip/enabled", "false".into())?;
     let endpoint = |a: &Address| match security {
-        Security::Tls { .. } => a.tls_endpoint(),
+        Security::Tls { .. } => a.quic_endpoint(),
         Security::PlainForMeasurement => a.tcp_endpoint(),
     };
     match end {
@@ -158,8 +164,8 @@ pub fn open(
         .map_err(zenoh_error(&what))
 }
 
-/// Checks that this host can listen on `a` before Zenoh tries, so that a wrong address or a
-/// port in use is said in words.
+/// Checks that this host can listen on `a` (a UDP port, QUIC's) before Zenoh tries, so that
+/// a wrong address or a port in use is said in words.
 pub fn check_listen(a: &Address) -> Result<(), String> {
     use std::net::ToSocketAddrs;
     let addrs: Vec<std::net::SocketAddr> = match a.socket_addr() {
@@ -172,11 +178,11 @@ pub fn check_listen(a: &Address) -> Result<(), String> {
     let Some(sa) = addrs.first() else {
         return Err(format!("{a} resolves to no address"));
     };
-    match std::net::TcpListener::bind(sa) {
+    match std::net::UdpSocket::bind(sa) {
         Ok(_) => Ok(()),
         Err(e) => Err(match e.kind() {
             std::io::ErrorKind::AddrInUse => format!(
-                "port {} is in use on {} (another run, or another program, listens there)",
+                "UDP port {} is in use on {} (another run, or another program, listens there)",
                 a.port,
                 sa.ip()
             ),

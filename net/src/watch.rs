@@ -3,7 +3,7 @@
 //!
 //! Three kinds are seen:
 //! - a connection whose TLS handshake failed (no certificate, a certificate the run's
-//!   authority did not sign, not TLS at all): Zenoh's TLS link reports it only in its log, so
+//!   authority did not sign, not QUIC at all): Zenoh's QUIC link reports it only in its log, so
 //!   [`layer`] takes those log events, out of the user's sight, and [`take_tls_refusals`]
 //!   hands them over;
 //! - a session with a valid certificate for a role the run does not have on another host, or
@@ -114,9 +114,21 @@ pub fn take_tls_refusals() -> Vec<(AttemptKind, String)> {
     std::mem::take(&mut *v)
 }
 
-/// Whether a log event is Zenoh's TLS link refusing a connection.
+/// The TLS reason inside a QUIC accept error (`... reason: b"invalid peer certificate: ..."`),
+/// or the message without Zenoh's source location.
+fn reason(text: &str) -> String {
+    text.split_once("reason: b\"")
+        .and_then(|(_, r)| r.split_once('"'))
+        .map(|(r, _)| r.to_string())
+        .unwrap_or_else(|| crate::clean(text))
+}
+
+/// Whether a log event is Zenoh's QUIC link refusing a connection (its accept loop, in
+/// `zenoh_link_commons::quic`, or the link itself).
 fn is_tls_refusal(meta: &tracing::Metadata<'_>) -> bool {
-    meta.target().starts_with("zenoh_link_tls") && *meta.level() <= Level::WARN
+    let t = meta.target();
+    (t.starts_with("zenoh_link_quic") || t.starts_with("zenoh_link_commons::quic"))
+        && *meta.level() <= Level::WARN
 }
 
 struct Message(String);
@@ -153,6 +165,7 @@ impl<S: Subscriber> Layer<S> for TlsRefusals {
         if text.starts_with("Skipping name verification") {
             return;
         }
+        let text = reason(&text);
         let mut v = TLS_REFUSALS.lock().unwrap_or_else(|e| e.into_inner());
         if v.len() < KEPT {
             v.push((classify(&text), text));
@@ -173,6 +186,17 @@ impl<S> Filter<S> for OnlyTlsRefusals {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_quic_accept_error_is_told_by_its_tls_reason() {
+        let raw = "QUIC acceptor failed: ConnectionClosed(ConnectionClose { error_code: Code::crypto(33), frame_type: None, reason: b\"invalid peer certificate: BadSignature\" }) at /x/zenoh-link-commons-1.10.2/src/quic/unicast.rs:686";
+        assert_eq!(reason(raw), "invalid peer certificate: BadSignature");
+        assert_eq!(classify(&reason(raw)), AttemptKind::WrongCredentials);
+        assert_eq!(
+            reason("QUIC acceptor failed: TimedOut at /x/y.rs:1"),
+            "QUIC acceptor failed: TimedOut"
+        );
+    }
 
     #[test]
     fn tls_failures_are_told_apart_by_rustls_words() {

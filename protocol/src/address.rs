@@ -1,8 +1,8 @@
 //! Where a participant on another host reaches the run: `HOST:PORT`.
 //!
 //! Users write an address as `10.0.0.1:7447`, `[fd00::1]:7447` or `host.example:7447`; a
-//! leading `tls/` or `tcp/` (Zenoh's endpoint syntax, and what earlier versions asked for) is
-//! accepted and means the same: every run's link is TLS over TCP. An address is checked here,
+//! leading `quic/`, `tls/` or `tcp/` (Zenoh's endpoint syntax, and what earlier versions asked
+//! for) is accepted and means the same: every run's link is QUIC (TLS 1.3) on that port. An address is checked here,
 //! before any transport sees it, so that a typo is refused naming what is allowed.
 
 use std::fmt;
@@ -28,19 +28,19 @@ pub enum Host {
 
 /// What an address may look like, for error messages.
 pub const ADDRESS_FORM: &str =
-    "HOST:PORT, for example 10.0.0.1:7447, [fd00::1]:7447 or host.example:7447 (port 1-65535; a leading tls/ or tcp/ is allowed)";
+    "HOST:PORT, for example 10.0.0.1:7447, [fd00::1]:7447 or host.example:7447 (port 1-65535; a leading quic/, tls/ or tcp/ is allowed)";
 
 impl Address {
     /// Parses what a user wrote, or says what is wrong with it.
     pub fn parse(text: &str) -> Result<Address, String> {
         let t = text.trim();
-        let rest = t
-            .strip_prefix("tls/")
-            .or_else(|| t.strip_prefix("tcp/"))
+        let rest = ["quic/", "tls/", "tcp/"]
+            .iter()
+            .find_map(|p| t.strip_prefix(p))
             .unwrap_or(t);
         if let Some((scheme, _)) = rest.split_once('/') {
             return Err(format!(
-                "`{scheme}/` is not a transport of tiltsim (its links are TLS over TCP)"
+                "`{scheme}/` is not a transport of tiltsim (its links are QUIC)"
             ));
         }
         let (host, port) = split_host_port(rest)?;
@@ -51,13 +51,13 @@ impl Address {
         })
     }
 
-    /// Zenoh's endpoint for this address over TLS.
-    pub fn tls_endpoint(&self) -> String {
-        format!("tls/{self}")
+    /// Zenoh's endpoint for this address over QUIC (TLS 1.3 on UDP): a run's link.
+    pub fn quic_endpoint(&self) -> String {
+        format!("quic/{self}")
     }
 
     /// Zenoh's endpoint for this address over plain TCP (measurements only: a run's link is
-    /// always TLS).
+    /// always QUIC).
     pub fn tcp_endpoint(&self) -> String {
         format!("tcp/{self}")
     }
@@ -148,13 +148,14 @@ mod tests {
             ("10.0.0.1:7447", "10.0.0.1:7447"),
             ("tcp/10.0.0.1:7447", "10.0.0.1:7447"),
             ("tls/10.0.0.1:7447", "10.0.0.1:7447"),
+            ("quic/10.0.0.1:7447", "10.0.0.1:7447"),
             ("[::1]:7447", "[::1]:7447"),
             ("tcp/[fd00::1]:1", "[fd00::1]:1"),
             ("host.example:65535", "host.example:65535"),
         ] {
             let a = Address::parse(text).unwrap_or_else(|e| panic!("{text}: {e}"));
             assert_eq!(a.to_string(), shown);
-            assert_eq!(a.tls_endpoint(), format!("tls/{shown}"));
+            assert_eq!(a.quic_endpoint(), format!("quic/{shown}"));
         }
     }
 

@@ -248,6 +248,11 @@ pub fn write_plots(s: &Scenario, dir: &std::path::Path) -> std::io::Result<Vec<P
         scenario: &s.name,
         controller: &controller,
         tilts: s.controller.mode != controller_proc::Mode::Passive,
+        estimates: s.participants.get(cosim::Role::Controller).is_none()
+            && matches!(
+                s.controller.mode,
+                controller_proc::Mode::Lqg | controller_proc::Mode::Mpc
+            ),
         cite: &|q| crate::plot::cite::run_figure(s, q),
     };
     crate::plot::write_run_plots(dir, &rows, &bands(s), s.controller.u_max_deg, &who)

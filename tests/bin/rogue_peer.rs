@@ -34,74 +34,77 @@ fn arg(args: &[String], name: &str) -> Option<String> {
         .and_then(|i| args.get(i + 1).cloned())
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let connect = Address::parse(&arg(&args, "--connect").expect("--connect")).expect("address");
-    let run = arg(&args, "--run").expect("--run");
-    let mode = arg(&args, "--as").expect("--as");
-    let security = match mode.as_str() {
+/// What `--as` says the peer holds.
+fn security_of(args: &[String], mode: &str) -> Security {
+    let none = || serde_json::json!({ "enabled": false });
+    match mode {
         "plain" => Security::PlainForMeasurement,
         "wrong" => Security::Tls {
             credentials: credentials::issue("not-the-run's-secret", Holder::Role(Role::Plant))
                 .expect("credentials"),
-            acl: serde_json::json!({ "enabled": false }),
+            acl: none(),
         },
         role => {
             let r = Role::parse(role).expect("--as plain|wrong|ROLE");
-            let secret = arg(&args, "--secret").expect("--secret");
+            let secret = arg(args, "--secret").expect("--secret");
             Security::Tls {
                 credentials: credentials::issue(&secret, Holder::Role(r)).expect("credentials"),
-                acl: serde_json::json!({ "enabled": false }),
+                acl: none(),
             }
         }
-    };
-    let s = session::open(
-        &session::End::Connect(connect),
-        Duration::from_secs(10),
-        &security,
-        Tuning::default(),
-    )
-    .expect("a Zenoh session (the link may still fail; the session retries)");
-    let got = Arc::new(AtomicU64::new(0));
+    }
+}
+
+/// Everything the peer holds open while it attacks.
+struct Held {
+    _subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
+    _queryables: Vec<zenoh::query::Queryable<()>>,
+    _tokens: Vec<zenoh::liveliness::LivelinessToken>,
+    publishers: Vec<zenoh::pubsub::Publisher<'static>>,
+}
+
+/// Subscribes to everything (stopping at the first sample from others), watches every
+/// liveliness token, answers the run's offer and joins, shows itself alive as every role and
+/// declares a publisher on every role's keys of run `run`.
+fn declare(s: &zenoh::Session, run: &str, got: &Arc<AtomicU64>) -> Held {
+    let mut subscribers = Vec::new();
     let seen = got.clone();
-    // Stops reading at its first sample: the callback never returns.
     // Only what comes from others counts (its own samples and queries stay out of its sight).
-    let _everything = s
-        .declare_subscriber("tiltsim/**")
-        .allowed_origin(Locality::Remote)
-        .callback(move |_| {
-            seen.fetch_add(1, Ordering::SeqCst);
-            loop {
-                std::thread::sleep(Duration::from_secs(3600));
-            }
-        })
-        .wait();
+    subscribers.extend(
+        s.declare_subscriber("tiltsim/**")
+            .allowed_origin(Locality::Remote)
+            .callback(move |_| {
+                seen.fetch_add(1, Ordering::SeqCst);
+                loop {
+                    std::thread::sleep(Duration::from_secs(3600));
+                }
+            })
+            .wait(),
+    );
     // Its own tokens (declared below) are not news.
     let own_token = format!("tiltsim/run/{run}/");
-    let _watch = s
-        .liveliness()
-        .declare_subscriber("tiltsim/**")
-        .callback({
-            let got = got.clone();
-            move |sample: zenoh::sample::Sample| {
+    let seen = got.clone();
+    subscribers.extend(
+        s.liveliness()
+            .declare_subscriber("tiltsim/**")
+            .callback(move |sample: zenoh::sample::Sample| {
                 let k = sample.key_expr().as_str();
                 let own = k.starts_with(&own_token)
                     && Role::ALL
                         .iter()
                         .any(|r| k.ends_with(&format!("/{}/alive", r.name())));
                 if !own {
-                    got.fetch_add(1, Ordering::SeqCst);
+                    seen.fetch_add(1, Ordering::SeqCst);
                 }
-            }
-        })
-        .wait();
-    let answered = Arc::new(AtomicU64::new(0));
+            })
+            .wait(),
+    );
     let mut queryables = Vec::new();
     for key in [
         format!("tiltsim/run/{run}/offer"),
         format!("tiltsim/run/{run}/join/*"),
     ] {
-        queryables.push(
+        queryables.extend(
             s.declare_queryable(key)
                 .allowed_origin(Locality::Remote)
                 .callback(|q| {
@@ -114,33 +117,40 @@ fn main() {
     let mut publishers = Vec::new();
     for r in Role::ALL {
         let n = r.name();
-        tokens.push(
+        tokens.extend(
             s.liveliness()
                 .declare_token(format!("tiltsim/run/{run}/{n}/alive"))
                 .wait(),
         );
         for what in ["reply", "note", "request", "control"] {
-            if let Ok(p) = s
-                .declare_publisher(format!("tiltsim/run/{run}/{n}/{what}"))
-                .allowed_destination(Locality::Remote)
-                .congestion_control(CongestionControl::Drop)
-                .wait()
-            {
-                publishers.push(p);
-            }
+            publishers.extend(
+                s.declare_publisher(format!("tiltsim/run/{run}/{n}/{what}"))
+                    .allowed_destination(Locality::Remote)
+                    .congestion_control(CongestionControl::Drop)
+                    .wait(),
+            );
         }
     }
-    // Standard input closing ends the attack.
-    let (tx, rx) = std::sync::mpsc::channel::<()>();
-    std::thread::spawn(move || {
-        let mut sink = Vec::new();
-        let _ = std::io::stdin().read_to_end(&mut sink);
-        let _ = tx.send(());
-    });
+    Held {
+        _subscribers: subscribers,
+        _queryables: queryables,
+        _tokens: tokens,
+        publishers,
+    }
+}
+
+/// Floods forged samples and asks for offers and joins until `stop` says so; the puts sent.
+fn flood(
+    s: &zenoh::Session,
+    run: &str,
+    held: &Held,
+    answered: &AtomicU64,
+    stop: &std::sync::mpsc::Receiver<()>,
+) -> u64 {
     let forged = vec![0xA5u8; 216];
     let mut sent = 0u64;
     loop {
-        for p in &publishers {
+        for p in &held.publishers {
             if p.put(forged.clone()).wait().is_ok() {
                 sent += 1;
             }
@@ -163,10 +173,35 @@ fn main() {
                 }
             }
         }
-        if rx.recv_timeout(Duration::from_millis(1)).is_ok() {
-            break;
+        if stop.recv_timeout(Duration::from_millis(1)).is_ok() {
+            return sent;
         }
     }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let connect = Address::parse(&arg(&args, "--connect").expect("--connect")).expect("address");
+    let run = arg(&args, "--run").expect("--run");
+    let mode = arg(&args, "--as").expect("--as");
+    let s = session::open(
+        &session::End::Connect(connect),
+        Duration::from_secs(10),
+        &security_of(&args, &mode),
+        Tuning::default(),
+    )
+    .expect("a Zenoh session (the link may still fail; the session retries)");
+    let got = Arc::new(AtomicU64::new(0));
+    let held = declare(&s, &run, &got);
+    let answered = AtomicU64::new(0);
+    // Standard input closing ends the attack.
+    let (tx, rx) = std::sync::mpsc::channel::<()>();
+    std::thread::spawn(move || {
+        let mut sink = Vec::new();
+        let _ = std::io::stdin().read_to_end(&mut sink);
+        let _ = tx.send(());
+    });
+    let sent = flood(&s, &run, &held, &answered, &rx);
     println!(
         "{}",
         serde_json::json!({

@@ -217,3 +217,162 @@ fn a_run_from_a_terminal_draws_a_progress_bar_and_a_piped_or_quiet_one_does_not(
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!err.contains("% of"), "a piped run drew a bar: {err}");
 }
+
+/// The rows of docs/scenarios.md's key tables: (section as its heading names it, key,
+/// default cell, range cell).
+fn key_rows(doc: &str) -> Vec<(String, String, String, String)> {
+    let mut rows = Vec::new();
+    let mut section = String::new();
+    for l in doc.lines() {
+        if let Some(h) = l.strip_prefix("### `[").and_then(|h| h.strip_suffix("]`")) {
+            section = h.to_string();
+        } else if l.starts_with("| `") && !section.is_empty() {
+            let cells: Vec<&str> = l.trim_matches('|').split(" | ").map(str::trim).collect();
+            assert_eq!(
+                cells.len(),
+                5,
+                "docs/scenarios.md: a key row of five cells: {l}"
+            );
+            rows.push((
+                section.clone(),
+                cells[0].trim_matches('`').to_string(),
+                cells[1].to_string(),
+                cells[3].to_string(),
+            ));
+        }
+    }
+    rows
+}
+
+/// A range cell's numeric ends, `[0, 1e5]` or `(0, 3600] whole` → (lo, lo closed, hi).
+fn numeric_range(cell: &str) -> Option<(f64, bool, f64)> {
+    let closed_lo = cell.starts_with('[');
+    let inner = cell.strip_prefix(['[', '('])?;
+    let (inner, _) = inner.split_once([']', ')'])?;
+    let (lo, hi) = inner.split_once(", ")?;
+    Some((lo.parse().ok()?, closed_lo, hi.parse().ok()?))
+}
+
+#[test]
+fn docs_scenarios_gives_every_key_its_default_and_ranges_the_checks_hold_to() {
+    use tiltsim_master::scenario::Scenario;
+    let doc = std::fs::read_to_string(tiltsim_suite::root().join("docs/scenarios.md")).unwrap();
+    let rows = key_rows(&doc);
+    let defaults = toml::Value::try_from(Scenario::default()).unwrap();
+    let mut checked = 0;
+    for (path, value) in leaves(&defaults, "") {
+        let (section, key) = path.rsplit_once('.').unwrap();
+        let heading = if section.starts_with("links.") {
+            "links.<link>"
+        } else {
+            section
+        };
+        let Some((_, _, default, range)) = rows.iter().find(|(s, k, ..)| s == heading && k == key)
+        else {
+            panic!("docs/scenarios.md has no row for `{path}` under `[{heading}]`");
+        };
+        // The default as the code has it.
+        let first = default.split(' ').next().unwrap();
+        match &value {
+            toml::Value::Float(_) | toml::Value::Integer(_) => {
+                let want = value.as_float().or(value.as_integer().map(|i| i as f64));
+                assert_eq!(
+                    first.parse::<f64>().ok(),
+                    want,
+                    "`{path}`: default {default}"
+                );
+            }
+            toml::Value::String(s) => assert_eq!(default, &format!("`{s}`"), "`{path}`"),
+            toml::Value::Boolean(b) => assert_eq!(default, &b.to_string(), "`{path}`"),
+            toml::Value::Array(a) => {
+                let listed: Vec<f64> = default
+                    .trim_matches(['[', ']'])
+                    .split(", ")
+                    .map(|x| x.parse().unwrap())
+                    .collect();
+                let want: Vec<f64> = a.iter().map(|x| x.as_float().unwrap()).collect();
+                assert_eq!(listed, want, "`{path}`");
+            }
+            other => panic!("`{path}`: {other:?}"),
+        }
+        // A numeric range holds the default, and the checks refuse a value past either end.
+        if let Some((lo, lo_closed, hi)) = numeric_range(range) {
+            let whole = value.is_integer();
+            assert_eq!(whole, range.contains("] whole"), "`{path}`: {range}");
+            let d: f64 = first.parse().unwrap();
+            assert!(
+                d <= hi && (d > lo || (lo_closed && d == lo)),
+                "`{path}`: {d} outside {range}"
+            );
+            // Probed on a free run, where every key's own range applies (a lock-step run
+            // also wants `run.controller_busy_wait_s` = 0).
+            let mut base = Scenario::default();
+            base.run.execution = tiltsim_master::scenario::Execution::Free;
+            let names_key = |v: f64| {
+                let text = if whole {
+                    format!("{}", v as i64)
+                } else {
+                    format!("{v:e}")
+                };
+                match base.with_setting(&path, &text) {
+                    Err(_) => true,
+                    Ok(s) => s
+                        .validate()
+                        .iter()
+                        .any(|e| e.to_string().contains(&format!("`{path}`"))),
+                }
+            };
+            // Just past each end is refused, an open end too, and (where the cell says no
+            // more) a closed end is taken: the range is the checks' own, not a looser one.
+            let step = |x: f64| {
+                if whole {
+                    1.0
+                } else {
+                    x.abs().max(1e-300) * 1e-6
+                }
+            };
+            let exact = range.ends_with(']') || range.ends_with("] whole");
+            assert!(names_key(hi + step(hi)), "`{path}` above {range} is taken");
+            if !(whole && lo - step(lo) < 0.0) {
+                assert!(names_key(lo - step(lo)), "`{path}` below {range} is taken");
+            }
+            if lo_closed {
+                assert!(
+                    !exact || !names_key(lo),
+                    "`{path}` = {lo} refused; docs: {range}"
+                );
+            } else {
+                assert!(names_key(lo), "`{path}` = {lo} taken; docs: {range}");
+            }
+            assert!(
+                !exact || !names_key(hi),
+                "`{path}` = {hi} refused; docs: {range}"
+            );
+            checked += 1;
+        }
+    }
+    // Most keys have a numeric range; a table that lost its ranges would check none.
+    assert!(checked > 80, "{checked} ranges checked");
+}
+
+/// Every scalar or list of numbers in `v` with its dotted path (lists of tables, the
+/// scenario's name and description left out).
+fn leaves(v: &toml::Value, prefix: &str) -> Vec<(String, toml::Value)> {
+    let mut out = Vec::new();
+    if let toml::Value::Table(t) = v {
+        for (k, x) in t {
+            let path = if prefix.is_empty() {
+                k.clone()
+            } else {
+                format!("{prefix}.{k}")
+            };
+            match x {
+                toml::Value::Table(_) => out.extend(leaves(x, &path)),
+                toml::Value::Array(a) if a.iter().any(|e| e.is_table()) || a.is_empty() => {}
+                _ if prefix.is_empty() => {}
+                _ => out.push((path, x.clone())),
+            }
+        }
+    }
+    out
+}

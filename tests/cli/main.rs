@@ -15,6 +15,7 @@ mod network;
 mod outputs;
 mod pinned;
 mod record;
+mod report;
 mod route;
 mod sweep;
 mod sweep_merge;

@@ -548,3 +548,86 @@ fn slurm_stepped_arrays_give_their_shards_and_a_resubmitted_task_is_refused_sayi
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("--shard 2/8"), "{err}");
 }
+
+/// The median of `col` over the rows of samples.csv that `keep` accepts by their flags.
+fn median_where(csv: &str, col: &str, keep: impl Fn(&str) -> bool) -> f64 {
+    let t = csv_table(csv);
+    let i = t[0].iter().position(|h| h == col).unwrap();
+    let f = t[0].iter().position(|h| h == "validity_flags").unwrap();
+    let mut v: Vec<f64> = t[1..]
+        .iter()
+        .filter(|r| keep(&r[f]))
+        .map(|r| r[i].parse().unwrap())
+        .collect();
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    assert!(n > 0, "no sample kept");
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
+}
+
+#[test]
+fn a_sweep_marks_its_flagged_samples_and_gives_the_statistics_without_them() {
+    // paper-mpc's perturbed vehicles dump braking energy in the chopper in some samples and
+    // not in others (seed 3: samples 0, 1 and 3 of 4), so both kinds are there.
+    let dir = temp_dir("sweep-flagged");
+    let out = dir.join("mc");
+    let sc = scenario("paper-mpc.toml");
+    let (code, _, err) = run_strings(&mc_args(sc.to_str().unwrap(), &out, "4", None));
+    assert_eq!(code, 0, "{err}");
+    let samples = std::fs::read_to_string(out.join("samples.csv")).unwrap();
+    let rows = csv_table(&samples);
+    let f = rows[0].iter().position(|h| h == "validity_flags").unwrap();
+    let flagged: Vec<(&str, String)> = rows[1..]
+        .iter()
+        .filter(|r| !r[f].is_empty())
+        .map(|r| (r[0].as_str(), r[f].replace("; ", ", ")))
+        .collect();
+    assert!(
+        !flagged.is_empty() && flagged.len() < 4,
+        "the sweep should hold flagged and unflagged samples: {samples}"
+    );
+    // table.csv: the statistics over every sample, then over the unflagged ones, each the
+    // median of samples.csv's own values.
+    let table = csv_table(&std::fs::read_to_string(out.join("table.csv")).unwrap());
+    let col = |name: &str| table[0].iter().position(|h| h == name).unwrap();
+    let key = "p_ct_en12299_standing_pct";
+    let row = table.iter().find(|r| r[0] == key).unwrap();
+    assert_eq!(row[col("n")], "4");
+    assert_eq!(row[col("n_unflagged")], (4 - flagged.len()).to_string());
+    let all: f64 = row[col("p50")].parse().unwrap();
+    let clean: f64 = row[col("p50_unflagged")].parse().unwrap();
+    assert_eq!(all, median_where(&samples, key, |_| true));
+    assert_eq!(clean, median_where(&samples, key, str::is_empty));
+    // table.md names each flagged sample with its flag.
+    let md = std::fs::read_to_string(out.join("table.md")).unwrap();
+    let named = md
+        .split_once("Flagged samples: ")
+        .expect("the flagged samples named")
+        .1;
+    for (s, flags) in &flagged {
+        assert!(
+            named.contains(&format!("{s} ({flags})")),
+            "sample {s} not named: {md}"
+        );
+    }
+    assert!(md.contains("median, unflagged"), "{md}");
+    // sweep_p_ct rings each flagged sample (and its legend entry) and draws the unflagged
+    // distribution beside the whole one.
+    let svg = std::fs::read_to_string(out.join("plots/sweep_p_ct.svg")).unwrap();
+    let rings = svg
+        .lines()
+        .filter(|l| l.starts_with("<path") && l.contains(r##"stroke="#000000""##))
+        .filter(|l| {
+            let d = l.split("d=\"").nth(1).unwrap().split('"').next().unwrap();
+            let pts: Vec<&str> = d.split(' ').collect();
+            pts.len() == 5 && pts[0][1..] == pts[4][1..]
+        })
+        .count();
+    assert_eq!(rings, flagged.len() + 1, "{svg}");
+    assert!(svg.contains("unflagged samples"), "{svg}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

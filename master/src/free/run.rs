@@ -80,17 +80,7 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
         .collect();
     let (ticks, kept_rows, rows_error) = rows.finish();
     write_errors.extend(rows_error);
-    let mut events = super::run_events(s, &store, ticks);
-    if let Some(n) = &network {
-        n.log_attempts(&mut events);
-    }
-    let events_csv = dir.join("events.csv");
-    if let Err(e) = events.write(&events_csv) {
-        write_errors.push(format!("{}: {e}", events_csv.display()));
-    }
-    if let Err(e) = crate::columns::write_run(dir) {
-        write_errors.push(format!("{}: {e}", dir.join("columns.csv").display()));
-    }
+    let events = write_events(s, dir, &store, ticks, network.as_ref(), &mut write_errors);
     let recording = match kept {
         Some(kept) => {
             let path = dir.join("run.mcap");
@@ -137,6 +127,30 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
         participant_logs,
         network,
     })
+}
+
+/// Writes the run's `events.csv` (the schedule's events and the network's attempts) and
+/// `columns.csv`, keeping each failure in `write_errors`; the events.
+fn write_events(
+    s: &Scenario,
+    dir: &std::path::Path,
+    store: &Store,
+    ticks: u64,
+    network: Option<&crate::engine::summary::NetworkReport>,
+    write_errors: &mut Vec<String>,
+) -> crate::events::EventLog {
+    let mut events = super::run_events(s, store, ticks);
+    if let Some(n) = network {
+        n.log_attempts(&mut events);
+    }
+    let events_csv = dir.join("events.csv");
+    if let Err(e) = events.write(&events_csv) {
+        write_errors.push(format!("{}: {e}", events_csv.display()));
+    }
+    if let Err(e) = crate::columns::write_run(dir) {
+        write_errors.push(format!("{}: {e}", dir.join("columns.csv").display()));
+    }
+    events
 }
 
 /// The CPU of each participant in a free run, when the run was given a pair of CPUs of its own

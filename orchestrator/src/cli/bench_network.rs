@@ -4,8 +4,8 @@
 //! Floors, each 256-byte round trips between this process (listening, as a run's
 //! orchestrator) and an echo process (connected, as a participant), started through
 //! `--remote-via` when given: a bare TCP socket (TCP_NODELAY, the wire's floor), then Zenoh
-//! with a run's settings (mutual TLS, access control) and, to show what each costs, Zenoh over
-//! plain TCP and both with Zenoh's low-latency transport. The runs: the scenario in one
+//! with a run's settings (QUIC, mutual TLS 1.3, access control) and, to show what each costs,
+//! Zenoh over plain TCP and both with Zenoh's low-latency transport. The runs: the scenario in one
 //! process, and again with the plant (one exchange every tick) served from a `tiltsim
 //! participant plant --connect` process over a run's link, both masters, `--repeat`
 //! alternating rounds. The overhead per tick is the difference of the median walls over the
@@ -39,7 +39,7 @@ pub struct NetEchoArgs {
     /// Echo over a bare TCP socket instead of Zenoh.
     #[arg(long)]
     raw_tcp: bool,
-    /// Zenoh over plain TCP (no credentials) instead of a run's TLS.
+    /// Zenoh over plain TCP (no credentials) instead of a run's QUIC link.
     #[arg(long)]
     plain: bool,
     /// Zenoh's low-latency transport.
@@ -216,7 +216,7 @@ fn raw_floor(sp: &Spawner<'_>, at: &Address, rounds: usize) -> Result<Percentile
     Ok(percentiles(rtts.map_err(failed)?))
 }
 
-/// A Zenoh floor at `at`: TLS with a run's credentials unless `plain`.
+/// A Zenoh floor at `at`: QUIC with a run's credentials unless `plain`.
 fn zenoh_floor(
     sp: &Spawner<'_>,
     at: &Address,
@@ -260,13 +260,13 @@ fn floors(sp: &Spawner<'_>, listen: &Address, rounds: usize) -> Result<Vec<Floor
     }];
     let variants: [(&str, &str, bool, bool); 4] = [
         (
-            "zenoh-tls",
-            "Zenoh, mutual TLS and access control (a run's link)",
+            "zenoh-quic",
+            "Zenoh over QUIC, mutual TLS 1.3 and access control (a run's link)",
             false,
             false,
         ),
         (
-            "zenoh-tls-lowlatency",
+            "zenoh-quic-lowlatency",
             "the same, Zenoh's low-latency transport",
             false,
             true,
@@ -310,8 +310,8 @@ pub fn network(a: &BenchArgs, base: &Scenario, exe: &Path, listen: &str) -> CliR
     let rounds = a.rounds.min(20_000);
     eprintln!("  measuring the raw TCP floor ({rounds} round trips) ...");
     let floors = floors(&sp, &listen, rounds)?;
-    let raw = floors[0].rtt.clone();
-    let run_floor = floors[1].rtt.clone();
+    let raw = floors[0].rtt;
+    let run_floor = floors[1].rtt;
     let mut s = base.clone();
     s.run.duration_s = Some(a.duration);
     s.run.transport = Transport::InProcess;
@@ -409,7 +409,7 @@ fn print_report(
         );
     }
     println!(
-        "\n{}, {:.1} s, {} ticks, plant on the network (a run's TLS link), the others in one process (medians of {} rounds)\n",
+        "\n{}, {:.1} s, {} ticks, plant on the network (a run's QUIC link), the others in one process (medians of {} rounds)\n",
         s.name, a.duration, ticks, a.repeat
     );
     println!("| master | in-process wall (s) | remote plant wall (s) | overhead per tick (µs) | over raw TCP | over the Zenoh floor |");

@@ -39,8 +39,8 @@ impl ReplayTimingArgs {
     }
 }
 
-/// Runs `replay-timing`.
-pub fn replay_timing(a: ReplayTimingArgs) -> CliResult {
+/// Runs `replay-timing`; `verbose` (`-v`) as for `run`.
+pub fn replay_timing(a: ReplayTimingArgs, verbose: bool) -> CliResult {
     let file = a
         .scenario
         .clone()
@@ -71,5 +71,5 @@ pub fn replay_timing(a: ReplayTimingArgs) -> CliResult {
     let mut job = Job::new(&s, file.display().to_string(), opts);
     job.replay_trace = Some(trace);
     let done = carry_out(job).map_err(CliError::of_job)?;
-    super::run::report(&done, &s, &out, a.quiet)
+    super::run::report(&done, &s, &out, a.quiet, verbose)
 }

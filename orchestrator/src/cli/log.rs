@@ -68,7 +68,7 @@ pub fn init(v: Verbosity) {
     use tracing_subscriber::util::SubscriberInitExt;
     use tracing_subscriber::Layer;
     // Zenoh's own notes on how its sessions are configured (no gossip, no multicast, by
-    // design here) are not the user's business below -vv; its errors are. Its TLS link's
+    // design here) are not the user's business below -vv; its errors are. Its QUIC link's
     // refusals of other connections go to the run, which names them in its own words
     // (`tiltsim_net::watch`), and to the log only with -vv.
     let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
@@ -76,7 +76,7 @@ pub fn init(v: Verbosity) {
         let zenoh = if v.verbose >= 2 { level } else { "error" };
         let tls = if v.verbose >= 2 { level } else { "off" };
         tracing_subscriber::EnvFilter::new(format!(
-            "{level},zenoh={zenoh},zenoh_transport={zenoh},zenoh_link_tls={tls}"
+            "{level},zenoh={zenoh},zenoh_transport={zenoh},zenoh_link_quic={tls},zenoh_link_commons={tls}"
         ))
     });
     let fmt = tracing_subscriber::fmt::layer().with_writer(std::io::stderr);

@@ -49,7 +49,8 @@ pub use error::{CliError, CliResult, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_INVALID
 struct Cli {
     #[command(subcommand)]
     command: Command,
-    /// More log output (repeat for more).
+    /// More log output (repeat for more); `run` and `replay-timing` also print every timing
+    /// figure of the run (processes, coordination overhead, compute, link latency).
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     verbose: u8,
 }
@@ -155,6 +156,28 @@ impl Command {
     }
 }
 
+/// Adds the closest allowed value to an error about a value an option does not take when clap
+/// found none (its Jaro similarity misses a swap in a short name: `--controller mcp`), so
+/// that the message ends "tip: a similar value exists: 'mpc'".
+fn suggest_value(e: &mut clap::Error) {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    if e.kind() != ErrorKind::InvalidValue || e.get(ContextKind::SuggestedValue).is_some() {
+        return;
+    }
+    let (Some(ContextValue::String(given)), Some(ContextValue::Strings(allowed))) = (
+        e.get(ContextKind::InvalidValue),
+        e.get(ContextKind::ValidValue),
+    ) else {
+        return;
+    };
+    let near =
+        tiltsim_master::scenario::suggest::closest(given, allowed.iter().map(String::as_str))
+            .map(str::to_string);
+    if let Some(near) = near {
+        e.insert(ContextKind::SuggestedValue, ContextValue::String(near));
+    }
+}
+
 /// Runs the program with the process's arguments; returns the exit code.
 pub fn main() -> i32 {
     main_from(std::env::args_os())
@@ -168,12 +191,14 @@ where
 {
     let cli = match Cli::try_parse_from(args) {
         Ok(c) => c,
-        Err(e) => {
+        Err(mut e) => {
+            suggest_value(&mut e);
             let _ = e.print();
             return if e.use_stderr() { EXIT_INVALID } else { 0 };
         }
     };
     log::init(cli.command.verbosity(cli.verbose));
+    let verbose = cli.verbose > 0;
     if matches!(
         cli.command,
         Command::Validate(_) | Command::New(_) | Command::Inspect(_) | Command::Completions(_)
@@ -181,14 +206,14 @@ where
         tiltsim_master::signals::end_quietly_on_closed_pipe();
     }
     let result = match cli.command {
-        Command::Run(a) => run::exec(a),
+        Command::Run(a) => run::exec(a, verbose),
         Command::Validate(a) => validate::exec(a),
         Command::New(a) => new::exec(a),
         Command::Inspect(a) => inspect::exec(a),
         Command::Completions(a) => completions::exec(a, &mut Cli::command()),
         Command::Compare(a) => compare::exec(a),
         Command::Plot(a) => plot::exec(a),
-        Command::ReplayTiming(a) => free_run::replay_timing(a),
+        Command::ReplayTiming(a) => free_run::replay_timing(a, verbose),
         Command::Sweep(a) => sweep::exec(a),
         Command::SweepMerge(a) => sweep_merge::exec(a),
         Command::Route(a) => route::exec(a),

@@ -247,7 +247,7 @@ fn check_network(a: &RunArgs, s: &Scenario) -> Result<(), CliError> {
         return Ok(());
     }
     let where_from = if a.listen.is_some() {
-        "--listen".to_string()
+        "command line: --listen".to_string()
     } else {
         format!("{}: network.listen", a.scenario.display())
     };
@@ -273,8 +273,8 @@ fn overrides(a: &RunArgs) -> Result<Vec<(cosim::Role, PathBuf)>, CliError> {
         .collect()
 }
 
-/// Runs the command.
-pub fn exec(a: RunArgs) -> CliResult {
+/// Runs the command; `verbose` (`-v`) prints every timing figure in the report.
+pub fn exec(a: RunArgs, verbose: bool) -> CliResult {
     let s = scenario(&a)?;
     let out = a
         .out
@@ -313,21 +313,23 @@ pub fn exec(a: RunArgs) -> CliResult {
         ..Outputs::default()
     };
     let done = carry_out(job).map_err(CliError::of_job)?;
-    report(&done, &s, &out, a.quiet)
+    report(&done, &s, &out, a.quiet, verbose)
 }
 
-/// Prints a finished run's warnings and report (neither when `quiet`) and gives its exit.
+/// Prints a finished run's warnings and report (neither when `quiet`; every timing figure
+/// when `verbose`) and gives its exit.
 pub(super) fn report(
     done: &tiltsim_report::pipeline::Done,
     s: &Scenario,
     out: &std::path::Path,
     quiet: bool,
+    verbose: bool,
 ) -> CliResult {
     if !quiet {
         for w in &done.warnings {
             eprintln!("warning: {w}");
         }
-        super::report::print(&done.summary, s, out, done.replaced_earlier_run);
+        super::report::print(&done.summary, s, out, done.replaced_earlier_run, verbose);
     }
     outcome(&done.summary, out, quiet)
 }

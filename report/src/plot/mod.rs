@@ -38,6 +38,9 @@ pub struct Line<'a> {
     /// Drawn as steps: each value held until the next sample's abscissa, where the line
     /// jumps vertically (an empirical distribution function).
     pub steps: bool,
+    /// No line: an open square around each finite sample, picking out points of another
+    /// line (the samples of a sweep that raised a validity flag); NaN elsewhere.
+    pub outline: bool,
 }
 
 /// One chart. Its text may hold subscripts and superscripts ([`markup`]).
@@ -204,10 +207,7 @@ pub fn layout(chart: &Chart, x: &[f64]) -> Scene {
     f.lines(&mut p, chart, x);
     let legend_h = footer(
         &mut p,
-        chart
-            .lines
-            .iter()
-            .map(|l| (l.label, l.colour, l.dashed, l.markers)),
+        chart.lines.iter().map(Entry::of),
         &[chart.note, chart.caption],
     );
     // The white background covers the legend too.
@@ -249,17 +249,66 @@ fn marker(x: f64, y: f64, colour: Rgb) -> Prim {
     }
 }
 
-/// Draws the footer under the chart, clear of the data: the legend's entries (label, colour,
-/// dashed, marker) left to right, wrapped into rows across the canvas, then each non-empty
-/// line of `notes` in grey, wrapped at words. Returns the height it adds to the scene.
+/// Side of the open square around a picked-out sample (px).
+const OUTLINE: f64 = 13.0;
+
+/// An open square of side [`OUTLINE`] centred on (x, y), drawn as a closed path.
+fn outline(x: f64, y: f64, colour: Rgb) -> Prim {
+    let h = OUTLINE / 2.0;
+    Prim::Path {
+        pts: vec![
+            (x - h, y - h),
+            (x + h, y - h),
+            (x + h, y + h),
+            (x - h, y + h),
+            (x - h, y - h),
+        ],
+        colour,
+        width: 2.0,
+        dash: None,
+    }
+}
+
+/// A legend entry: how a line is drawn.
+pub(crate) struct Entry<'a> {
+    pub label: &'a str,
+    pub colour: &'a str,
+    pub dashed: bool,
+    pub marker: bool,
+    /// An open square and no line ([`Line::outline`]).
+    pub outline: bool,
+}
+
+impl<'a> Entry<'a> {
+    fn of(l: &Line<'a>) -> Self {
+        Entry {
+            label: l.label,
+            colour: l.colour,
+            dashed: l.dashed,
+            marker: l.markers,
+            outline: l.outline,
+        }
+    }
+}
+
+/// Draws the footer under the chart, clear of the data: the legend's entries left to right,
+/// wrapped into rows across the canvas, then each non-empty line of `notes` in grey, wrapped
+/// at words. Returns the height it adds to the scene.
 pub(crate) fn footer<'a>(
     p: &mut Vec<Prim>,
-    entries: impl Iterator<Item = (&'a str, &'a str, bool, bool)>,
+    entries: impl Iterator<Item = Entry<'a>>,
     notes: &[&str],
 ) -> f64 {
     let mut x = L;
     let mut rows = 0.0;
-    for (label, colour, dashed, with_marker) in entries {
+    for e in entries {
+        let Entry {
+            label,
+            colour,
+            dashed,
+            marker: with_marker,
+            outline: open,
+        } = e;
         let w = LEGEND_LINE + 5.0 + text_width(label);
         if rows == 0.0 {
             rows = 1.0;
@@ -269,12 +318,16 @@ pub(crate) fn footer<'a>(
         }
         let y = H + 2.0 + LEGEND_ROW * (rows - 1.0);
         let colour = Rgb::hex(colour);
-        p.push(Prim::Path {
-            pts: vec![(x, y), (x + LEGEND_LINE, y)],
-            colour,
-            width: 2.0,
-            dash: dashed.then_some((6.0, 4.0)),
-        });
+        if open {
+            p.push(outline(x + LEGEND_LINE / 2.0, y, colour));
+        } else {
+            p.push(Prim::Path {
+                pts: vec![(x, y), (x + LEGEND_LINE, y)],
+                colour,
+                width: 2.0,
+                dash: dashed.then_some((6.0, 4.0)),
+            });
+        }
         if with_marker {
             p.push(marker(x + LEGEND_LINE / 2.0, y, colour));
         }
@@ -338,7 +391,7 @@ impl Frame {
         if x0 > x1 {
             (x0, x1) = (0.0, 1.0);
         }
-        if chart.lines.iter().any(|l| l.markers) {
+        if chart.lines.iter().any(|l| l.markers || l.outline) {
             // Markers at the ends stand clear of the frame.
             let pad = 0.03 * (x1 - x0).max(1e-9);
             (x0, x1) = (x0 - pad, x1 + pad);
@@ -470,10 +523,14 @@ impl Frame {
                     }
                     pts.push((px, py));
                     marks.push((px, py));
-                } else if pts.len() > 1 {
-                    // A gap in the data breaks the line.
+                } else if !pts.is_empty() && !l.outline {
+                    // A gap in the data breaks the line (a point alone draws none).
                     p.push(path(std::mem::take(&mut pts)));
                 }
+            }
+            if l.outline {
+                p.extend(marks.into_iter().map(|(x, y)| outline(x, y, colour)));
+                continue;
             }
             p.push(path(pts));
             if l.markers {

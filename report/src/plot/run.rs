@@ -25,6 +25,9 @@ type RunChart = (
     Vec<RowLine>,
 );
 
+/// The legend of the controller's estimate of the body roll.
+const ESTIMATE: &str = "θ̂_{v} estimate";
+
 /// The run's charts (angles in degrees).
 fn run_charts(u_max: f64) -> Vec<RunChart> {
     let d = 1f64.to_degrees();
@@ -55,7 +58,7 @@ fn run_charts(u_max: f64) -> Vec<RunChart> {
                 ),
                 ("θ_{v}", Box::new(move |r| r.theta_v * d), "#1f77b4", false),
                 (
-                    "θ̂_{v} estimate",
+                    ESTIMATE,
                     Box::new(move |r| r.theta_v_hat * d),
                     "#2ca02c",
                     false,
@@ -129,6 +132,10 @@ pub struct RunTitle<'a> {
     /// Whether the run commands the bar (false for the passive vehicle: its bar and motor
     /// figures would be empty and are not drawn).
     pub tilts: bool,
+    /// Whether the controller estimates the body roll (the LQG's and the MPC's Kalman
+    /// filters). Without an estimator the recorded estimate is the measurement as received,
+    /// which would be drawn over the measured trace as a signal the run does not have.
+    pub estimates: bool,
     /// The paper's figure of the same quantity for this run, if any ([`super::cite`]).
     pub cite: &'a dyn Fn(Quantity) -> Option<&'static str>,
 }
@@ -177,6 +184,7 @@ pub fn write_run_plots(
                 y_label,
                 lines: lines
                     .iter()
+                    .filter(|(label, ..)| who.estimates || *label != ESTIMATE)
                     .map(|(label, f, colour, dashed)| Line {
                         label,
                         y: rows.iter().map(f).collect(),

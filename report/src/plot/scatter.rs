@@ -61,7 +61,13 @@ pub fn write_scatter(
     }
     let legend_h = footer(
         &mut p,
-        series.iter().map(|s| (s.label, s.colour, false, true)),
+        series.iter().map(|s| super::Entry {
+            label: s.label,
+            colour: s.colour,
+            dashed: false,
+            marker: true,
+            outline: false,
+        }),
         &[],
     );
     // The white background covers the legend too.

@@ -289,3 +289,81 @@ fn a_compare_is_named_by_its_runs_within_a_title() {
         format!("Compare of {one} and 1 more")
     );
 }
+
+#[test]
+fn an_outlined_line_rings_its_finite_points_and_draws_no_line() {
+    let x = [0.1, 0.3, 0.5, 0.7, 0.9];
+    let ring = Rgb(0, 0, 0x80);
+    let chart = Chart {
+        title: "t",
+        lines: vec![
+            Line {
+                label: "all",
+                y: vec![3.0, 2.0, 1.8, 1.5, 1.0],
+                colour: "#00ff00",
+                ..Default::default()
+            },
+            Line {
+                label: "picked",
+                y: vec![f64::NAN, 2.0, f64::NAN, 1.5, f64::NAN],
+                colour: "#000080",
+                outline: true,
+                ..Default::default()
+            },
+        ],
+        ..Default::default()
+    };
+    let sc = layout(&chart, &x);
+    let f = Frame::new(&chart, &x);
+    let rings = paths_in(&sc, ring);
+    // A closed square centred on each picked point, one in the legend, and no polyline
+    // joining the two picked points across the gap.
+    assert_eq!(rings.len(), 3, "{rings:?}");
+    for (k, i) in [1, 3].into_iter().enumerate() {
+        let square = &rings[k];
+        assert_eq!(square.len(), 5);
+        assert_eq!(square[0], square[4]);
+        let centre = (
+            (square[0].0 + square[2].0) / 2.0,
+            (square[0].1 + square[2].1) / 2.0,
+        );
+        assert_eq!(centre, (f.xs(x[i]), f.ys(chart.lines[1].y[i])));
+        assert_eq!(square[2].0 - square[0].0, OUTLINE);
+    }
+    let legend_centre = (rings[2][0].1 + rings[2][2].1) / 2.0;
+    assert!(legend_centre > H, "the legend's square is under the canvas");
+}
+
+#[test]
+fn a_lone_point_before_a_gap_is_not_joined_across_it() {
+    let x = [0.1, 0.3, 0.5, 0.7];
+    let chart = Chart {
+        title: "t",
+        lines: vec![Line {
+            label: "gappy",
+            y: vec![1.0, f64::NAN, 2.0, 3.0],
+            colour: "#00ff00",
+            ..Default::default()
+        }],
+        ..Default::default()
+    };
+    let sc = layout(&chart, &x);
+    let f = Frame::new(&chart, &x);
+    let drawn: Vec<Vec<(f64, f64)>> = sc
+        .prims
+        .iter()
+        .filter_map(|p| match p {
+            Prim::Path { pts, colour, .. }
+                if *colour == Rgb(0, 255, 0) && pts.len() > 1 && pts[0].1 <= H =>
+            {
+                Some(pts.clone())
+            }
+            _ => None,
+        })
+        .collect();
+    // Only the run of points after the gap is a line.
+    assert_eq!(
+        drawn,
+        vec![vec![(f.xs(0.5), f.ys(2.0)), (f.xs(0.7), f.ys(3.0))]]
+    );
+}

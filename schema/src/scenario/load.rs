@@ -53,13 +53,22 @@ pub(super) fn typed(text: &str) -> Result<Scenario, String> {
     };
     let path = e.path().to_string();
     let inner = e.inner().to_string();
+    let guess = did_you_mean(&inner, "\n");
     if path.is_empty() || path == "?" {
-        return Err(inner);
+        return Err(format!("{}{guess}", inner.trim_end()));
     }
     let hint = hint(text, &path, &inner)
         .map(|h| format!("\n{h}"))
         .unwrap_or_default();
-    Err(format!("field `{path}`: {}{hint}", inner.trim_end()))
+    Err(format!("field `{path}`: {}{hint}{guess}", inner.trim_end()))
+}
+
+/// `did you mean `NAME`?` after `sep`, for a parser message about an unknown choice or key
+/// that is near an expected one ([`super::suggest`]); empty otherwise.
+pub(super) fn did_you_mean(message: &str, sep: &str) -> String {
+    super::suggest::in_message(message)
+        .map(|name| format!("{sep}did you mean `{name}`?"))
+        .unwrap_or_default()
 }
 
 /// What to write instead, for the type errors whose own message misleads: a table written as

@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 use vehicle_model::{TrackParams, VehicleParams};
 
 mod load;
+pub mod suggest;
 mod validate;
 
 pub use load::*;
@@ -316,10 +317,12 @@ impl Scenario {
         let value = setting_value(key, text.trim(), table.get(last))?;
         table.insert(last.to_string(), value);
         let mut s = serde_path_to_error::deserialize::<_, Scenario>(doc).map_err(|e| {
+            let inner = e.inner().to_string();
             format!(
-                "key `{key}`: {} (at `{}`); keys are the scenario's settings as dotted paths, e.g. `vehicle.m_v`, `controller.rho`",
-                e.inner().to_string().trim_end(),
-                e.path()
+                "key `{key}`: {} (at `{}`){}; keys are the scenario's settings as dotted paths, e.g. `vehicle.m_v`, `controller.rho`",
+                inner.trim_end(),
+                e.path(),
+                load::did_you_mean(&inner, "; ")
             )
         })?;
         s.name.clone_from(&self.name);
@@ -408,9 +411,18 @@ fn setting_value(
                 .map(Value::Number)
                 .ok_or_else(|| format!("key `{key}` = {text}: allowed a finite number"))
         }
-        // A key with no value yet (an option, `design_vehicle.*`): an integer as written
-        // (which a decimal setting takes as well), a number, true or false, or else a word;
-        // the scenario's own types then judge it.
+        // A key with no value yet (an option, `design_vehicle.*`, a key of a table the file
+        // does not have, such as `network.remote`): a list or table as in a scenario file, an
+        // integer as written (which a decimal setting takes as well), a number, true or
+        // false, or else a word; the scenario's own types then judge it.
+        Some(Value::Null) | None if text.starts_with('[') || text.starts_with('{') => {
+            let doc: toml::Table = toml::from_str(&format!("v = {text}")).map_err(|_| {
+                format!(
+                    "key `{key}`: `{text}` is not a list or table written as in a scenario file (for example `[\"controller\"]`)"
+                )
+            })?;
+            serde_json::to_value(&doc["v"]).map_err(|e| format!("key `{key}`: {e}"))
+        }
         Some(Value::Null) | None => Ok(whole(text)
             .or_else(|| {
                 text.parse::<f64>()
@@ -489,6 +501,11 @@ mod tests {
         );
         let e = s.with_setting("controller.nonsense", "1").unwrap_err();
         assert!(e.contains("nonsense"), "{e}");
+        // A table the file does not have takes its keys too.
+        let remote = s
+            .with_setting("network.remote", "[\"controller\"]")
+            .unwrap();
+        assert_eq!(remote.network.remote, [cosim::Role::Controller]);
     }
 
     #[test]

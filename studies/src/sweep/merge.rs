@@ -218,7 +218,7 @@ fn read_series(
 pub fn redraw(dir: &Path) -> Result<Vec<PathBuf>, SweepError> {
     let o = read_outputs(dir)?;
     let rows: Vec<Row> = o.rows.into_iter().map(|(_, r)| r).collect();
-    super::outputs::write_plots(dir, &o.base, &o.meta.plan, &rows)
+    super::figures::write_plots(dir, &o.base, &o.meta.plan, &rows)
         .map_err(|e| SweepError::Files(format!("{}: {e}", dir.join("plots").display())))
 }
 

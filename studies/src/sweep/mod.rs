@@ -21,6 +21,7 @@
 //! round-trip form, so reading a shard back loses nothing.
 
 mod exec;
+mod figures;
 pub mod identity;
 mod merge;
 mod outputs;

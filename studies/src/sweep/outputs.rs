@@ -7,7 +7,6 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use tiltsim_assessment::comfort::{metric, METRICS};
-use tiltsim_report::plot::{Chart, Line, PALETTE};
 use tiltsim_report::table4::fmt;
 use tiltsim_scenario::scenario::Scenario;
 
@@ -190,7 +189,30 @@ pub(super) fn columns_csv(plan: &Plan) -> String {
     tiltsim_formats::columns::csv_text(&all)
 }
 
-/// `table.md` and `table.csv` of a Monte Carlo sweep: each metric's distribution.
+/// The statistics `table.md` and `table.csv` give of a metric over samples: their number,
+/// then the median, 5th and 95th percentiles, lowest and highest (NaN for no samples).
+fn distribution(rows: &[&Row], m: usize) -> (usize, [f64; 5]) {
+    let mut v: Vec<f64> = rows
+        .iter()
+        .filter_map(|r| r.metrics.get(m).copied())
+        .collect();
+    v.sort_by(|a, b| a.total_cmp(b));
+    (
+        v.len(),
+        [0.5, 0.05, 0.95, 0.0, 1.0].map(|p| percentile(&v, p)),
+    )
+}
+
+/// The suffix of `table.csv`'s columns over the samples that raised no validity flag.
+pub const UNFLAGGED_SUFFIX: &str = "_unflagged";
+
+/// How many flagged samples `table.md` names one by one (`samples.csv` names them all).
+const FLAGGED_LISTED: usize = 20;
+
+/// `table.md` and `table.csv` of a Monte Carlo sweep: each metric's distribution over the
+/// completed samples, and again over those that raised no validity flag (a flagged sample's
+/// comfort may not describe a working tilt system, so a reader sees whether the flagged ones
+/// move the distribution); the flagged samples are named with their flags.
 pub(super) fn monte_carlo_tables(
     base: &Scenario,
     spread: f64,
@@ -198,67 +220,100 @@ pub(super) fn monte_carlo_tables(
     rows: &[Row],
 ) -> (String, String) {
     let ok: Vec<&Row> = rows.iter().filter(|r| r.status.completed()).collect();
+    let clean: Vec<&Row> = ok.iter().copied().filter(|r| r.flags.is_empty()).collect();
     let mut md = format!(
         "# Robustness sweep of `{}`\n\nMonte Carlo over the true vehicle: {} masses, \
          inertias and suspension parameters each scaled by U(1 − {s}, 1 + {s}) (seed \
-         {seed}); the controller keeps the nominal design. {} of {} samples completed.\n\n\
-         | metric | median | p5 | p95 | min | max |\n|---|---|---|---|---|---|\n",
+         {seed}); the controller keeps the nominal design. {} of {} samples completed; \
+         {} of them raised no validity flag.\n\n\
+         | metric | median | p5 | p95 | min | max | median, unflagged | p5, unflagged | p95, unflagged |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
         base.name,
         PERTURBED.len(),
         ok.len(),
         rows.len(),
+        clean.len(),
         s = spread
     );
-    let mut records = vec![["metric", "n", "p50", "p5", "p95", "lowest", "highest"]
-        .map(String::from)
-        .to_vec()];
+    let stats = ["n", "p50", "p5", "p95", "lowest", "highest"];
+    let head = stats
+        .iter()
+        .map(|s| s.to_string())
+        .chain(stats.iter().map(|s| format!("{s}{UNFLAGGED_SUFFIX}")));
+    let mut records = vec![std::iter::once("metric".to_string()).chain(head).collect()];
     for (m, metric) in METRICS.iter().enumerate() {
-        let mut v: Vec<f64> = ok
-            .iter()
-            .filter_map(|r| r.metrics.get(m).copied())
-            .collect();
-        v.sort_by(|a, b| a.total_cmp(b));
-        let q = [0.5, 0.05, 0.95, 0.0, 1.0].map(|p| percentile(&v, p));
+        let (n, q) = distribution(&ok, m);
+        let (n_clean, c) = distribution(&clean, m);
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             metric.label,
             fmt(q[0]),
             fmt(q[1]),
             fmt(q[2]),
             fmt(q[3]),
-            fmt(q[4])
+            fmt(q[4]),
+            fmt(c[0]),
+            fmt(c[1]),
+            fmt(c[2])
         );
-        let mut rec = vec![metric.key.to_string(), v.len().to_string()];
+        let mut rec = vec![metric.key.to_string(), n.to_string()];
         rec.extend(numbers(&q));
+        rec.push(n_clean.to_string());
+        rec.extend(numbers(&c));
         records.push(rec);
     }
-    let flagged = rows.iter().filter(|r| !r.flags.is_empty()).count();
-    if flagged > 0 {
-        let mut kinds: Vec<&str> = rows
-            .iter()
-            .flat_map(|r| r.flags.iter().map(String::as_str))
-            .collect();
-        kinds.sort_unstable();
-        kinds.dedup();
-        let counts: Vec<String> = kinds
-            .iter()
-            .map(|k| {
-                let n = rows
-                    .iter()
-                    .filter(|r| r.flags.iter().any(|f| f == k))
-                    .count();
-                format!("{k} {n}")
-            })
-            .collect();
-        let _ = writeln!(
-            md,
-            "\n{flagged} of {} samples raised a validity flag ({}; samples.csv names them).\n",
-            rows.len(),
-            counts.join(", ")
-        );
-    }
+    md.push_str(&flagged_note(rows, true));
     (md, csv_text(records))
+}
+
+/// What `table.md` says of the flagged samples: how many raised each flag, and which they
+/// are (the first [`FLAGGED_LISTED`]); that none did otherwise. `unflagged`: the table has
+/// columns without them.
+fn flagged_note(rows: &[Row], unflagged: bool) -> String {
+    let flagged: Vec<&Row> = rows.iter().filter(|r| !r.flags.is_empty()).collect();
+    if flagged.is_empty() {
+        return "\nNo sample raised a validity flag.\n".into();
+    }
+    let left_out = if unflagged {
+        ": the \"unflagged\" columns leave them out"
+    } else {
+        ""
+    };
+    let mut kinds: Vec<&str> = flagged
+        .iter()
+        .flat_map(|r| r.flags.iter().map(String::as_str))
+        .collect();
+    kinds.sort_unstable();
+    kinds.dedup();
+    let counts: Vec<String> = kinds
+        .iter()
+        .map(|k| {
+            let n = flagged
+                .iter()
+                .filter(|r| r.flags.iter().any(|f| f == k))
+                .count();
+            format!("{k} {n}")
+        })
+        .collect();
+    let named: Vec<String> = flagged
+        .iter()
+        .take(FLAGGED_LISTED)
+        .map(|r| format!("{} ({})", r.sample, r.flags.join(", ")))
+        .collect();
+    let more = if flagged.len() > FLAGGED_LISTED {
+        format!(", and {} more", flagged.len() - FLAGGED_LISTED)
+    } else {
+        String::new()
+    };
+    format!(
+        "\n{} of {} samples raised a validity flag ({}; samples.csv names them){left_out}. \
+         Flagged samples: {}{more}.\n\n",
+        flagged.len(),
+        rows.len(),
+        counts.join(", "),
+        named.join(", ")
+    )
 }
 
 /// `table.md` and `table.csv` of a grid sweep: the metrics at each value.
@@ -266,7 +321,8 @@ pub(super) fn grid_tables(base: &Scenario, key: &str, rows: &[Row]) -> (String, 
     let mut md = format!(
         "# Sweep of `{}` over `{key}`\n\n| {key} | status | lat. acc. peak (%g) | \
          P_CT EN 12299 standing (%) | P_CT EN 12299 seated (%) | P_CT standing, paper's form (%) \
-         | roll speed peak (rad/s) | jerk peak (%g/s) |\n|---|---|---|---|---|---|---|---|\n",
+         | roll speed peak (rad/s) | jerk peak (%g/s) | validity flags |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
         base.name
     );
     let shown = [
@@ -280,6 +336,7 @@ pub(super) fn grid_tables(base: &Scenario, key: &str, rows: &[Row]) -> (String, 
     let head = [key.to_string(), "status".to_string()]
         .into_iter()
         .chain(METRICS.iter().map(|m| m.key.to_string()))
+        .chain(std::iter::once(FLAGS_COLUMN.to_string()))
         .collect();
     let mut records = vec![head];
     for r in rows {
@@ -289,11 +346,18 @@ pub(super) fn grid_tables(base: &Scenario, key: &str, rows: &[Row]) -> (String, 
             let v = r.metrics.get(metric(k)).copied().unwrap_or(f64::NAN);
             let _ = write!(md, " {} |", fmt(v));
         }
-        md.push('\n');
+        let flags = if r.flags.is_empty() {
+            "none".to_string()
+        } else {
+            format!("**{}**", r.flags.join(", "))
+        };
+        let _ = writeln!(md, " {flags} |");
         let mut rec = vec![value.to_string(), r.status.to_string()];
         rec.extend(numbers(&r.metrics));
+        rec.push(r.flags.join("; "));
         records.push(rec);
     }
+    md.push_str(&flagged_note(rows, false));
     (md, csv_text(records))
 }
 
@@ -352,244 +416,6 @@ pub fn write_outputs(
         "sweep.json",
         &(serde_json::to_string_pretty(&meta).unwrap_or_default() + "\n"),
     )?;
-    files.extend(write_plots(out, base, plan, rows)?);
+    files.extend(super::figures::write_plots(out, base, plan, rows)?);
     Ok(files)
-}
-
-pub(super) fn line<'a>(
-    label: &'a str,
-    y: Vec<f64>,
-    colour: &'static str,
-    dashed: bool,
-) -> Line<'a> {
-    Line {
-        label,
-        y,
-        colour,
-        dashed,
-        ..Default::default()
-    }
-}
-
-pub(super) fn column(ok: &[&Row], key: &str) -> Vec<f64> {
-    let m = metric(key);
-    ok.iter()
-        .map(|r| r.metrics.get(m).copied().unwrap_or(f64::NAN))
-        .collect()
-}
-
-/// The empirical distribution function of `values` for a step line: the sorted values with
-/// a point 5 % of their range beyond each end (so that the first and last jumps show), and
-/// the share of values at or below each (%), 0 before the smallest and 100 after the largest.
-pub(super) fn ecdf(values: &[f64]) -> (Vec<f64>, Vec<f64>) {
-    let mut x: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
-    x.sort_by(|a, b| a.total_cmp(b));
-    let (Some(&lo), Some(&hi)) = (x.first(), x.last()) else {
-        return (Vec::new(), Vec::new());
-    };
-    let n = x.len();
-    let pad = if hi > lo {
-        0.05 * (hi - lo)
-    } else {
-        0.05 * lo.abs().max(1.0)
-    };
-    x.insert(0, lo - pad);
-    x.push(hi + pad);
-    let mut share: Vec<f64> = (0..=n).map(|i| 100.0 * i as f64 / n as f64).collect();
-    share.push(100.0);
-    (x, share)
-}
-
-/// The lateral-acceleration envelope (5th, 50th, 95th percentile at each time) and the
-/// empirical distribution of P_CT, titled with the base scenario and the spread.
-pub(super) fn monte_carlo_plots(
-    dir: &Path,
-    (base, spread): (&Scenario, f64),
-    ok: &[&Row],
-    t: &[f64],
-    bands: Vec<(f64, f64, bool)>,
-) -> std::io::Result<Vec<PathBuf>> {
-    let mut env = [Vec::new(), Vec::new(), Vec::new()];
-    for i in 0..t.len() {
-        let mut v: Vec<f64> = ok.iter().map(|r| r.series[i]).collect();
-        v.sort_by(|a, b| a.total_cmp(b));
-        for (k, p) in [0.05, 0.5, 0.95].iter().enumerate() {
-            env[k].push(percentile(&v, *p));
-        }
-    }
-    let [p5, p50, p95] = env;
-    let sweep = format!(
-        "Sweep of {} (±{} %, {} samples)",
-        base.name,
-        (spread * 100.0 * 1e6).round() / 1e6,
-        ok.len()
-    );
-    let title = format!("{sweep}: passenger lateral acceleration across the perturbed vehicles");
-    let fig = tiltsim_report::plot::cite::robustness_figure(base, spread);
-    let caption = tiltsim_report::plot::cite::caption(&[(&base.name, fig)]);
-    let chart = Chart {
-        title: &title,
-        x_label: "time (s)",
-        y_label: "lateral acceleration (m/s²)",
-        lines: vec![
-            line("95th percentile", p95, "#d62728", true),
-            line("median", p50, "#1f77b4", false),
-            line("5th percentile", p5, "#2ca02c", true),
-        ],
-        bands,
-        note: tiltsim_report::plot::SECTION_NOTE,
-        caption: &caption,
-    };
-    let mut files =
-        tiltsim_report::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)?.to_vec();
-    let (p, share) = ecdf(&column(ok, "p_ct_en12299_standing_pct"));
-    let title = format!("{sweep}: distribution of P_{{CT}} standing over the samples");
-    let chart = Chart {
-        title: &title,
-        x_label: "P_{CT} standing, EN 12299 per transition (%)",
-        y_label: "samples at or below this P_{CT} (%)",
-        lines: vec![Line {
-            steps: true,
-            ..line("empirical CDF", share, "#1f77b4", false)
-        }],
-        ..Default::default()
-    };
-    files.extend(tiltsim_report::plot::write_chart(
-        dir,
-        "sweep_p_ct",
-        &chart,
-        &p,
-    )?);
-    Ok(files)
-}
-
-/// A swept key as an axis label with its unit: the unit of the participant parameter it sets,
-/// else the one its name ends with.
-pub(super) fn key_label(key: &str) -> String {
-    let unit = match tiltsim_fmi::units::param_unit(key) {
-        Some("1") => "dimensionless".to_string(),
-        Some("") => "weight".to_string(),
-        Some(u) => u
-            .replace("m2", "m²")
-            .replace("m3", "m³")
-            .replace("s2", "s²")
-            .replace('.', "·"),
-        None => {
-            const SUFFIXES: [(&str, &str); 12] = [
-                ("_ticks", "ticks"),
-                ("_probability", "dimensionless"),
-                ("_kmh", "km/h"),
-                ("_deg", "deg"),
-                ("_rad", "rad"),
-                ("_pct", "%"),
-                ("_hz", "Hz"),
-                ("_mm", "mm"),
-                ("_ms", "ms"),
-                ("_us", "µs"),
-                ("_s", "s"),
-                ("_m", "m"),
-            ];
-            let found = SUFFIXES.iter().find(|(s, _)| key.ends_with(s));
-            found
-                .map_or("as in the scenario file", |(_, u)| u)
-                .to_string()
-        }
-    };
-    format!("{key} ({unit})")
-}
-
-/// The lateral acceleration for each swept value, and comfort against the value: P_CT and
-/// the peak lateral acceleration in panels of their own, a marker at each swept value.
-pub(super) fn grid_plots(
-    dir: &Path,
-    (base, key): (&Scenario, &str),
-    ok: &[&Row],
-    t: &[f64],
-    bands: Vec<(f64, f64, bool)>,
-) -> std::io::Result<Vec<PathBuf>> {
-    // The key is in the title; each legend entry names its value.
-    let labels: Vec<String> = ok
-        .iter()
-        .map(|r| format!("{}", r.params.first().copied().unwrap_or(f64::NAN)))
-        .collect();
-    let sweep = format!("Sweep of {} over {key}", base.name);
-    let lat_title = format!("{sweep}: passenger lateral acceleration for each value");
-    let chart = Chart {
-        title: &lat_title,
-        x_label: "time (s)",
-        y_label: "lateral acceleration (m/s²)",
-        lines: ok
-            .iter()
-            .zip(&labels)
-            .enumerate()
-            .map(|(k, (r, label))| {
-                line(
-                    label,
-                    r.series[..t.len()].to_vec(),
-                    PALETTE[k % PALETTE.len()],
-                    false,
-                )
-            })
-            .collect(),
-        bands,
-        note: tiltsim_report::plot::SECTION_NOTE,
-        ..Default::default()
-    };
-    let mut files =
-        tiltsim_report::plot::write_chart(dir, "sweep_lateral_acceleration", &chart, t)?.to_vec();
-    let x: Vec<f64> = ok
-        .iter()
-        .map(|r| r.params.first().copied().unwrap_or(f64::NAN))
-        .collect();
-    let x_label = key_label(key);
-    let marked = |label, key, colour| Line {
-        markers: true,
-        ..line(label, column(ok, key), colour, false)
-    };
-    let p_ct_title = format!("{sweep}: comfort P_{{CT}}, EN 12299 per transition");
-    let peak_title = format!("{sweep}: peak passenger lateral acceleration");
-    let panels = [
-        Chart {
-            title: &p_ct_title,
-            x_label: &x_label,
-            y_label: "P_{CT} (%)",
-            lines: vec![
-                marked("standing", "p_ct_en12299_standing_pct", "#1f77b4"),
-                marked("seated", "p_ct_en12299_seated_pct", "#2ca02c"),
-            ],
-            ..Default::default()
-        },
-        Chart {
-            title: &peak_title,
-            x_label: &x_label,
-            y_label: "peak lateral acceleration (%g)",
-            lines: vec![marked("peak", "lat_acc_peak_pct_g", "#d62728")],
-            ..Default::default()
-        },
-    ];
-    files.extend(tiltsim_report::plot::write_panels(
-        dir,
-        "sweep_comfort",
-        &panels,
-        &x,
-    )?);
-    Ok(files)
-}
-
-pub(super) fn write_plots(
-    out: &Path,
-    base: &Scenario,
-    plan: &Plan,
-    rows: &[Row],
-) -> std::io::Result<Vec<PathBuf>> {
-    let dir = out.join("plots");
-    std::fs::create_dir_all(&dir)?;
-    let ok: Vec<&Row> = rows.iter().filter(|r| r.status.completed()).collect();
-    let n = ok.iter().map(|r| r.series.len()).min().unwrap_or(0);
-    let t: Vec<f64> = (0..n).map(series_time).collect();
-    let bands = tiltsim_report::analysis::bands(base);
-    match plan {
-        Plan::MonteCarlo { spread, .. } => monte_carlo_plots(&dir, (base, *spread), &ok, &t, bands),
-        Plan::Grid { key, .. } => grid_plots(&dir, (base, key), &ok, &t, bands),
-    }
 }

@@ -191,6 +191,17 @@ fn run_and_compare_figures_read_as_labelled() {
     // The reference roll is θ_v with a subscript v and a superscript d.
     let roll = &svgs[0].1;
     assert!(roll.contains(r#"<tspan baseline-shift="super" font-size="9">d</tspan> reference"#));
+    // The passive vehicle has no estimator: no estimate is drawn (it would be the measurement
+    // as received, drawn over it), and the measured trace is there.
+    assert!(!roll.contains("estimate"), "passive: an estimate drawn");
+    assert!(
+        paths(roll, "#2ca02c").is_empty(),
+        "passive: an estimate line"
+    );
+    assert!(
+        paths(roll, "#bbbbbb").iter().any(|p| p.len() > 100),
+        "no measured trace"
+    );
 
     // A run of our own tuning names no paper figure; its latency histogram names the run.
     let drive = dir.join("drive");
@@ -201,6 +212,8 @@ fn run_and_compare_figures_read_as_labelled() {
     );
     let svgs = check_figures(&drive, "pi-drive");
     assert!(svgs.iter().any(|(n, _)| n == "latency_histogram.svg"));
+    let roll = &svgs.iter().find(|(n, _)| n == "body_roll.svg").unwrap().1;
+    assert!(!roll.contains("estimate"), "the PI has no estimator");
     for (name, svg) in svgs {
         assert!(!svg.contains("Fig"), "{name}");
     }
@@ -228,7 +241,10 @@ fn run_and_compare_figures_read_as_labelled() {
         caption(&svgs, "compare_body_roll.svg"),
         "cf. the paper's Fig. 16 for paper-lqg"
     );
-    check_figures(&cmp.join("paper-lqg"), "paper-lqg (LQG)");
+    let svgs = check_figures(&cmp.join("paper-lqg"), "paper-lqg (LQG)");
+    // The LQG's Kalman filter estimates the roll: its estimate is drawn.
+    let roll = &svgs.iter().find(|(n, _)| n == "body_roll.svg").unwrap().1;
+    assert!(roll.contains("estimate") && !paths(roll, "#2ca02c").is_empty());
     let _ = std::fs::remove_dir_all(&dir);
 }
 
