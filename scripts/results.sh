@@ -254,6 +254,13 @@ for sc in ["paper-mpc", "pi-drive"]:
               f"| {pl['late_starts']} | {pl['start_lateness_us']['max'] / 1000:.1f} "
               f"| {'yes' if s['flags']['not_real_time']['raised'] else 'no'} | {open(f'{d}/replay.txt').read().strip()} | {', '.join(delays)} | {eq:.2f} |")
 PY
+# A whole line: the synthetic winding-valley line with each vehicle on its speed profile
+# (the passive one conventional, the tilt controllers tilting), and the compensation trade-off.
+"$t" route routes/winding-valley.csv scenarios/line-passive.toml scenarios/line-pi-drive.toml \
+    scenarios/line-lqg.toml scenarios/line-mpc.toml --out "$o/route" -q
+"$t" route routes/winding-valley.csv scenarios/line-pi-drive.toml scenarios/line-lqg.toml \
+    scenarios/line-mpc.toml --rho 0.3,0.55,0.7,1.0 --out "$o/route-rho" -q
+python3 scripts/route_tables.py "$o/route" "$o/route-rho"
 mkdir -p docs/figures
 cp "$f/paper-mpc-hogs/plots/timing_input_age.svg" docs/figures/free-run-input-age.svg
 cp "$f/paper-mpc-hogs/plots/timing_lateness.svg" docs/figures/free-run-lateness.svg
@@ -261,6 +268,9 @@ cp "$o/front/front.svg" docs/figures/pi-front.svg
 cp "$o/trade-off/plots/trade_off.svg" docs/figures/trade-off.svg
 cp "$o/paper/rankings.svg" docs/figures/rankings-roll-speed.svg
 cp "$o/speed/speed-limit.svg" docs/figures/speed-limit.svg
+cp "$o/route/plots/route_p_ct.svg" docs/figures/route-p-ct.svg
+cp "$o/route/plots/route_speed.svg" docs/figures/route-speed.svg
+cp "$o/route-rho/plots/route_trade_off.svg" docs/figures/route-trade-off.svg
 while IFS= read -r line; do
     if [[ $line == "@include "* ]]; then
         cat "${line#@include }"

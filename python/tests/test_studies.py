@@ -151,3 +151,46 @@ def test_falsify_gives_the_command_lines_worst_trace_and_progress(tmp_path: Path
     with pytest.raises(tiltsim.ScenarioError, match="delay_ms"):
         tiltsim.falsify("scenarios/paper-lqg.toml",
                         {"actuator_command": {"delay_ms": [9, 1]}}, budget=2)
+
+
+SMALL_LINE = """# two curves between three straights
+chainage_m,length_m,radius_m,cant_mm,transition_m,shape,vmax_conventional_kmh,vmax_tilting_kmh
+0,3000,,,,,160,200
+3000,700,1100,130,120,clothoid,160,200
+3700,1500,,,,,160,200
+5200,600,-800,150,140,cosine,130,150
+5800,2500,,,,,160,200
+"""
+
+
+def test_a_route_gives_the_per_transition_table_of_the_command_line(tmp_path: Path) -> None:
+    line = tmp_path / "small.csv"
+    line.write_text(SMALL_LINE)
+    scenario = "scenarios/tilting-pi-drive.toml"
+    tiltsim_cli("route", str(line), scenario, "--jobs", "2", "--out", str(tmp_path / "cli"),
+                "--quiet")
+    df, details = tiltsim.route(line, [scenario], jobs=2, out=tmp_path / "py", details=True)
+    assert (tmp_path / "py" / "transitions.csv").read_bytes() == \
+        (tmp_path / "cli" / "transitions.csv").read_bytes()
+    cli = read(tmp_path / "cli" / "transitions.csv")
+    assert list(df.columns) == list(cli.columns)
+    pd.testing.assert_frame_equal(df, cli, check_dtype=False)
+    # Two curves, an entry and an exit each, at the chainages the file gives.
+    assert list(df["chainage_m"]) == [3000.0, 3580.0, 5200.0, 5660.0]
+    assert list(df["transition"]) == ["entry", "exit", "entry", "exit"]
+    # The first curve runs at its cant deficiency limit, √(g·R·(h + 275 mm)/1500 mm); the
+    # second's local limit binds (150 km/h is under its cant deficiency speed, 169.8 km/h).
+    assert df["binding"][0].startswith("cant deficiency")
+    assert df["speed_kmh"][0] == pytest.approx(3.6 * (9.81 * 1100 * 405 / 1500) ** 0.5)
+    assert df["binding"][2].startswith("speed limit")
+    assert df["speed_kmh"][2] == pytest.approx(150.0)
+    journey = details["journey"]
+    assert journey["tilting_s"] < journey["conventional_s"]
+    assert details["variants"][0]["segments"] > 2
+
+
+def test_a_bad_route_names_its_line_and_field(tmp_path: Path) -> None:
+    line = tmp_path / "bad.csv"
+    line.write_text(SMALL_LINE.replace("cosine", "spiral"))
+    with pytest.raises(tiltsim.ScenarioError, match=r"bad.csv:6: shape: `spiral`"):
+        tiltsim.route(line, ["scenarios/tilting-pi-drive.toml"])

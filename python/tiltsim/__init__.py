@@ -34,6 +34,7 @@ __all__ = [
     "replay_timing",
     "sweep",
     "falsify",
+    "route",
     "compare",
     "linearize",
     "signals",
@@ -466,6 +467,55 @@ def sweep(
         n = len(raw["samples"]["sample_id"])
         raise Interrupted(f"interrupted: {n} samples had finished", result)
     return result
+
+
+def route(
+    route_file: Union[str, "os.PathLike[str]"],
+    scenarios: Sequence[Scenario] = (),
+    *,
+    rho: Optional[Sequence[float]] = None,
+    cd_tilting: Optional[Sequence[float]] = None,
+    cd_conventional: float = 150.0,
+    accel: float = 0.5,
+    brake: float = 0.6,
+    running: Optional[str] = None,
+    jobs: Optional[int] = None,
+    transport: Optional[str] = None,
+    out: Union[None, str, "os.PathLike[str]"] = None,
+    details: bool = False,
+) -> Any:
+    """Runs scenarios over a whole line, as ``tiltsim route`` does; returns the table of every
+    transition of every variant (the columns of ``transitions.csv``: ``variant``,
+    ``controller``, ``rho``, ``running``, ``curve``, ``transition``, ``chainage_m``,
+    ``radius_m``, ``cant_mm``, ``shape``, ``speed_kmh``, ``cant_deficiency_mm``,
+    ``p_ct_standing_pct``, ..., ``binding``) as a DataFrame (a dict of arrays without pandas).
+
+    ``route_file`` is a route CSV (docs/scenarios.md, "Routes"); each scenario (a path, TOML
+    text or a dict) runs on the conventional profile if passive, else on the tilting one
+    (``running`` = ``"conventional"`` or ``"tilting"`` for all); ``rho`` and ``cd_tilting``
+    (mm) are lists each tilting scenario runs at. With ``out`` the study writes its files
+    there. With ``details=True`` returns ``(transitions, details)``, ``details`` holding
+    ``variants`` (each variant's summary: journey time, P_CT under each reading, N_MV, the
+    motion-sickness doses) and ``journey`` (the two profiles' journey times).
+    """
+    raw = _tiltsim.route(
+        os.fspath(route_file),
+        [_scenario(s) for s in scenarios],
+        rho=None if rho is None else [float(r) for r in rho],
+        cd_tilting=None if cd_tilting is None else [float(c) for c in cd_tilting],
+        cd_conventional=float(cd_conventional),
+        accel=float(accel),
+        brake=float(brake),
+        running=running,
+        jobs=jobs,
+        transport=transport,
+        out=_path(out),
+        exe=_participant_exe(),
+    )
+    table = _frame(raw["transitions"])
+    if details:
+        return table, {"variants": raw["variants"], "journey": raw["journey"]}
+    return table
 
 
 def falsify(

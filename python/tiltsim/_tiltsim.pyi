@@ -84,3 +84,18 @@ def falsify(
     jobs: Optional[int] = None,
     out: Optional[str] = None,
 ) -> dict[str, Any]: ...
+
+def route(
+    route: str,
+    scenarios: list[tuple[str, str, str]],
+    rho: Optional[list[float]] = None,
+    cd_tilting: Optional[list[float]] = None,
+    cd_conventional: float = 150.0,
+    accel: float = 0.5,
+    brake: float = 0.6,
+    running: Optional[str] = None,
+    jobs: Optional[int] = None,
+    transport: Optional[str] = None,
+    out: Optional[str] = None,
+    exe: Optional[str] = None,
+) -> dict[str, Any]: ...

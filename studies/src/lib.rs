@@ -10,4 +10,5 @@
 pub mod bench;
 pub use tiltsim_rundir::budget;
 pub mod falsify;
+pub mod route;
 pub mod sweep;

@@ -16,6 +16,7 @@ mod outputs;
 mod pinned;
 mod record;
 mod report;
+mod route;
 mod sweep;
 mod sweep_merge;
 mod transport;

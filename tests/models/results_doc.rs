@@ -125,3 +125,45 @@ fn the_numbers_docs_results_quotes_are_those_the_build_computes() {
         );
     }
 }
+
+/// docs/results.md's whole line: each vehicle's line summary and its P_CT under each reading
+/// of EN 12299 are those a fresh `tiltsim route` of the same line and scenarios computes
+/// (deterministic: every segment's seed is its own).
+#[test]
+fn the_whole_line_docs_results_quotes_is_the_one_the_build_computes() {
+    let doc = std::fs::read_to_string(root().join("docs/results.md")).unwrap();
+    let dir = temp_dir("results-doc-route");
+    let line = root().join("routes/winding-valley.csv");
+    let names = ["line-passive", "line-pi-drive", "line-lqg", "line-mpc"];
+    let files: Vec<String> = names
+        .iter()
+        .map(|r| scenario(&format!("{r}.toml")).display().to_string())
+        .collect();
+    let mut args = vec!["route", line.to_str().unwrap()];
+    args.extend(files.iter().map(String::as_str));
+    args.extend(["--out", dir.to_str().unwrap(), "-q"]);
+    let (code, _, err) = run(&args);
+    assert_eq!(code, 0, "{err}");
+    let fresh = std::fs::read_to_string(dir.join("route.md")).unwrap();
+    for name in names {
+        for header in [
+            "| variant | controller |",
+            "| variant | 0.3 Hz (EN 12299) |",
+        ] {
+            assert_eq!(
+                table_row(&doc, header, name),
+                table_row(&fresh, header, name),
+                "docs/results.md, the whole line, {name}: regenerate it with scripts/results.sh"
+            );
+        }
+    }
+    assert!(
+        doc.contains(
+            fresh
+                .lines()
+                .find(|l| l.starts_with("| tilting |"))
+                .unwrap()
+        ),
+        "docs/results.md, the whole line's journey times: regenerate it with scripts/results.sh"
+    );
+}

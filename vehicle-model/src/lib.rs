@@ -13,7 +13,9 @@ pub mod spectrum;
 pub mod track;
 pub mod vehicle;
 
-pub use params::{IrregularityModel, IrregularityParams, TrackParams, VehicleParams};
+pub use params::{
+    IrregularityModel, IrregularityParams, TrackParams, TransitionShape, VehicleParams,
+};
 pub use track::Track;
 pub use vehicle::{TrackInput, Vehicle};
 

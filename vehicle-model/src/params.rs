@@ -164,8 +164,12 @@ pub struct TrackParams {
     pub cant_deg: f64,
     /// Straight before the curve (m).
     pub straight_before_m: f64,
-    /// Length of each linear transition (m).
+    /// Length of each transition (m).
     pub transition_m: f64,
+    /// How curvature and cant run along a transition: `clothoid` (linear, the paper's and the
+    /// default), `cosine` or `bloss` (smoothed: no jump of the cant rate at the ends).
+    #[serde(skip_serializing_if = "TransitionShape::is_clothoid")]
+    pub transition_shape: TransitionShape,
     /// Steady curve length (m).
     pub curve_m: f64,
     /// Straight after the curve (m).
@@ -183,9 +187,64 @@ impl Default for TrackParams {
             // 3 s straight, 2.4 s transition, 6 s curve, 2.4 s transition, 3 s straight = 16.8 s
             straight_before_m: 135.0,
             transition_m: 108.0,
+            transition_shape: TransitionShape::Clothoid,
             curve_m: 270.0,
             straight_after_m: 135.0,
             irregularity: IrregularityParams::default(),
+        }
+    }
+}
+
+/// The shape of a transition curve (`[track] transition_shape`): curvature and cant run from
+/// the straight's to the curve's as r(u), u ∈ [0, 1] along the transition.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum TransitionShape {
+    /// r = u: the clothoid with a linear cant ramp (the paper's); the cant rate jumps at
+    /// both ends.
+    #[default]
+    Clothoid,
+    /// r = (1 − cos πu)/2: the cosine (half-sine) transition; r' = 0 at both ends.
+    Cosine,
+    /// r = 3u² − 2u³: Bloss's transition; r' = 0 at both ends.
+    Bloss,
+}
+
+impl TransitionShape {
+    /// Kebab-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            TransitionShape::Clothoid => "clothoid",
+            TransitionShape::Cosine => "cosine",
+            TransitionShape::Bloss => "bloss",
+        }
+    }
+    /// Whether it is the clothoid (the default, left out of a written scenario).
+    pub fn is_clothoid(&self) -> bool {
+        *self == TransitionShape::Clothoid
+    }
+    /// r(u), dr/du and d²r/du² for u in [0, 1].
+    pub fn ramp(self, u: f64) -> (f64, f64, f64) {
+        use std::f64::consts::PI;
+        match self {
+            TransitionShape::Clothoid => (u, 1.0, 0.0),
+            TransitionShape::Cosine => (
+                0.5 * (1.0 - (PI * u).cos()),
+                0.5 * PI * (PI * u).sin(),
+                0.5 * PI * PI * (PI * u).cos(),
+            ),
+            TransitionShape::Bloss => {
+                (u * u * (3.0 - 2.0 * u), 6.0 * u * (1.0 - u), 6.0 - 12.0 * u)
+            }
+        }
+    }
+    /// The largest |dr/du| along the transition: the peak cant rate is this times the
+    /// clothoid's (1 for the clothoid, π/2 for the cosine, 3/2 for Bloss).
+    pub fn peak_slope(self) -> f64 {
+        match self {
+            TransitionShape::Clothoid => 1.0,
+            TransitionShape::Cosine => std::f64::consts::FRAC_PI_2,
+            TransitionShape::Bloss => 1.5,
         }
     }
 }

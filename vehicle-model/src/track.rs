@@ -2,15 +2,17 @@
 //! cant on knots, or lateral alignment and cross-level drawn from the ERRI B176 spectra
 //! ([`crate::spectrum`]).
 //!
-//! Curvature κ = 1/R and cant θ_o ramp linearly in the transitions (paper section 2.3), so the
-//! cant rate θ̇_o jumps at the four corners of the ramps and θ̈_o is a Dirac impulse there.
-//! [`Track::corners`] lists those jumps so the plant can apply them exactly as velocity jumps
-//! (model-notes 6); between corners the deterministic θ̈_o is zero.
+//! Curvature κ = 1/R and cant θ_o follow the transition's shape r(u) (`TransitionShape`). On
+//! the clothoid (the paper's, section 2.3) they ramp linearly, so the cant rate θ̇_o jumps at
+//! the four corners of the ramps and θ̈_o is a Dirac impulse there. [`Track::corners`] lists
+//! those jumps so the plant can apply them exactly as velocity jumps (model-notes 6); between
+//! corners the deterministic θ̈_o is zero. The smoothed shapes (cosine, Bloss) have r' = 0 at
+//! both ends: no corners, and a deterministic θ̈_o = θ_o·r''/L_t² that the plant integrates.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::params::{IrregularityModel, TrackParams};
+use crate::params::{IrregularityModel, TrackParams, TransitionShape};
 
 /// Track values at one position.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -50,6 +52,8 @@ pub struct Track {
     s4: f64,
     kappa: f64,
     cant: f64,
+    shape: TransitionShape,
+    corners: Vec<Corner>,
     knots: Vec<f64>,
     /// Spectrum model: alignment y_o (m) and cross-level angle (rad).
     alignment: Option<crate::spectrum::Profile>,
@@ -115,6 +119,19 @@ impl Track {
                 cross_level = Some(draw(4, cross_level_psd));
             }
         }
+        let cant = p.cant_deg.to_radians();
+        let shape = p.transition_shape;
+        let corners = if shape == TransitionShape::Clothoid {
+            let k = cant / p.transition_m;
+            vec![
+                Corner { s: s1, dslope: k },
+                Corner { s: s2, dslope: -k },
+                Corner { s: s3, dslope: -k },
+                Corner { s: s4, dslope: k },
+            ]
+        } else {
+            Vec::new()
+        };
         Track {
             p: p.clone(),
             s1,
@@ -122,7 +139,9 @@ impl Track {
             s3,
             s4,
             kappa: 1.0 / p.radius_m,
-            cant: p.cant_deg.to_radians(),
+            cant,
+            shape,
+            corners,
             knots,
             alignment,
             cross_level,
@@ -136,15 +155,30 @@ impl Track {
 
     /// Design ramp r(s) in [0, 1] and its slope dr/ds.
     fn ramp(&self, s: f64) -> (f64, f64) {
+        let (r, dr, _) = self.ramp2(s);
+        (r, dr)
+    }
+
+    /// Design ramp r(s), dr/ds and d²r/ds² (the last 0 on the clothoid, whose corners are
+    /// impulses).
+    fn ramp2(&self, s: f64) -> (f64, f64, f64) {
         let lt = self.p.transition_m;
         if s <= self.s1 || s >= self.s4 {
-            (0.0, 0.0)
+            (0.0, 0.0, 0.0)
         } else if s < self.s2 {
-            ((s - self.s1) / lt, 1.0 / lt)
+            if self.shape == TransitionShape::Clothoid {
+                return ((s - self.s1) / lt, 1.0 / lt, 0.0);
+            }
+            let (r, d, dd) = self.shape.ramp((s - self.s1) / lt);
+            (r, d / lt, dd / (lt * lt))
         } else if s <= self.s3 {
-            (1.0, 0.0)
+            (1.0, 0.0, 0.0)
         } else {
-            ((self.s4 - s) / lt, -1.0 / lt)
+            if self.shape == TransitionShape::Clothoid {
+                return ((self.s4 - s) / lt, -1.0 / lt, 0.0);
+            }
+            let (r, d, dd) = self.shape.ramp((self.s4 - s) / lt);
+            (r, -d / lt, dd / (lt * lt))
         }
     }
 
@@ -173,7 +207,7 @@ impl Track {
 
     /// Everything at position `s`.
     pub fn at(&self, s: f64) -> TrackPoint {
-        let (r, dr) = self.ramp(s);
+        let (r, dr, ddr) = self.ramp2(s);
         let (e, de, d2e) = self.irregularity(s);
         let (y_o, dy_o_ds, _) = self.alignment.as_ref().map_or((0.0, 0.0, 0.0), |a| a.at(s));
         TrackPoint {
@@ -181,7 +215,13 @@ impl Track {
             cant_design: self.cant * r,
             cant: self.cant * r + e,
             dcant_ds: self.cant * dr + de,
-            d2cant_ds2: d2e,
+            // The clothoid's r'' is zero between its corners: left out, so its values are
+            // those of the straight ramp exactly.
+            d2cant_ds2: if self.shape == TransitionShape::Clothoid {
+                d2e
+            } else {
+                self.cant * ddr + d2e
+            },
             y_o,
             dy_o_ds,
         }
@@ -194,6 +234,10 @@ impl Track {
     /// the one after the jump. θ̇_v + this value is then the body's absolute roll rate,
     /// continuous across every corner. Between corners it equals `v·at(v·t).dcant_ds`.
     pub fn cant_rate_at_time(&self, t: f64, v: f64) -> f64 {
+        if self.shape != TransitionShape::Clothoid {
+            // No corners: the rate is continuous.
+            return v * self.at(v * t).dcant_ds;
+        }
         let slope: f64 = self
             .corners()
             .iter()
@@ -204,27 +248,10 @@ impl Track {
         v * (slope + de)
     }
 
-    /// The four ramp corners with their slope jumps.
-    pub fn corners(&self) -> [Corner; 4] {
-        let k = self.cant / self.p.transition_m;
-        [
-            Corner {
-                s: self.s1,
-                dslope: k,
-            },
-            Corner {
-                s: self.s2,
-                dslope: -k,
-            },
-            Corner {
-                s: self.s3,
-                dslope: -k,
-            },
-            Corner {
-                s: self.s4,
-                dslope: k,
-            },
-        ]
+    /// The ramp corners with their slope jumps: the four of a clothoid's ramps, none on a
+    /// smoothed transition.
+    pub fn corners(&self) -> &[Corner] {
+        &self.corners
     }
 
     /// Section name at `s`, for plots and reports.
@@ -309,6 +336,56 @@ mod tests {
             assert!((flat.cant_rate_at_time(tc, v) - after).abs() < 1e-15);
             let before = after - v * c.dslope;
             assert!((flat.cant_rate_at_time(tc - 1e-9, v) - before).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn smoothed_transitions_have_consistent_derivatives_and_no_corners() {
+        for shape in [TransitionShape::Cosine, TransitionShape::Bloss] {
+            let p = TrackParams {
+                transition_shape: shape,
+                ..TrackParams::default()
+            };
+            let t = Track::new(&p, 1);
+            assert!(t.corners().is_empty());
+            let [s1, s2, s3, s4] = t.boundaries();
+            let theta = p.cant_deg.to_radians();
+            // Half way along each transition the shape is at half its rise (both shapes are
+            // point-symmetric about u = 1/2).
+            for s in [(s1 + s2) / 2.0, (s3 + s4) / 2.0] {
+                assert!(
+                    (t.at(s).cant - theta / 2.0).abs() < 1e-12,
+                    "{shape:?} at {s}"
+                );
+            }
+            // The slope vanishes at the ends and peaks in the middle at peak_slope() times the
+            // clothoid's θ/L_t (closed forms: π/2 for the cosine, 3/2 for Bloss).
+            for s in [s1 + 1e-9, s2 - 1e-9, s3 + 1e-9, s4 - 1e-9] {
+                assert!(t.at(s).dcant_ds.abs() < 1e-9, "{shape:?}: slope at an end");
+            }
+            let peak = t.at((s1 + s2) / 2.0).dcant_ds;
+            let want = shape.peak_slope() * theta / p.transition_m;
+            assert!(
+                (peak - want).abs() < 1e-12 * want,
+                "{shape:?}: {peak} vs {want}"
+            );
+            // Derivatives match central differences of the value and of the slope (h = 1 mm:
+            // truncation h²/6 times the next derivative, below 1e-12 here).
+            let h = 1e-3;
+            for k in 1..40 {
+                let s = s1 + (s4 - s1) * k as f64 / 40.0;
+                let (a, b, c) = (t.at(s - h), t.at(s), t.at(s + h));
+                let d1 = (c.cant - a.cant) / (2.0 * h);
+                let d2 = (c.dcant_ds - a.dcant_ds) / (2.0 * h);
+                assert!((d1 - b.dcant_ds).abs() < 1e-9, "{shape:?} slope at {s}");
+                assert!(
+                    (d2 - b.d2cant_ds2).abs() < 1e-9,
+                    "{shape:?} cant curvature at {s}"
+                );
+                assert!((b.curvature * p.radius_m - b.cant / theta).abs() < 1e-12);
+                let rate = t.cant_rate_at_time(s / p.speed(), p.speed());
+                assert!((rate - p.speed() * b.dcant_ds).abs() < 1e-12);
+            }
         }
     }
 

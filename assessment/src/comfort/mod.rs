@@ -18,7 +18,7 @@
 //! The carbody roll speed is the absolute one, φ̇ = θ̇_v + θ̇_o (θ_v is relative to the track).
 //!
 //! Parts: `sample` (the signals at one instant), `assessor` (P_CT and the peaks, one sample at
-//! a time), `ride` (the ride indices beside P_CT), `position` (the signals where a passenger
+//! a time), `ride` (the ride indices beside P_CT), `sickness` (the motion-sickness doses), `position` (the signals where a passenger
 //! sits), `filters` (the low-pass and slope filters they share); this file holds the settings,
 //! the results and [`assess`] on whole signals.
 
@@ -31,12 +31,14 @@ mod filters;
 mod position;
 mod ride;
 mod sample;
+mod sickness;
 
 pub use assessor::*;
 pub use filters::*;
 pub use position::*;
 pub use ride::*;
 pub use sample::Sample;
+pub use sickness::*;
 
 /// Gravity for %g (m/s²).
 pub const G: f64 = 9.81;

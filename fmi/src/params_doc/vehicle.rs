@@ -94,10 +94,11 @@ pub(super) const VEHICLE: &[Row] = &[
         "m",
         "Length of the straight before the curve",
     ),
+    ("track.transition_m", "m", "Length of each transition"),
     (
-        "track.transition_m",
-        "m",
-        "Length of each linear transition",
+        "track.transition_shape",
+        "",
+        "Transition shape: clothoid (linear ramp, the paper's), cosine or bloss (smoothed ends)",
     ),
     ("track.curve_m", "m", "Length of the steady curve"),
     (

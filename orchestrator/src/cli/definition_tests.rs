@@ -23,6 +23,7 @@ fn the_commands_of_the_readme_parse() {
         "tiltsim linearize scenarios/pi-drive.toml --design-pi",
         "tiltsim replay-timing out/free",
         "tiltsim bench",
+        "tiltsim route routes/winding-valley.csv scenarios/line-mpc.toml --rho 0.3,0.55,0.7,1.0 --cd-tilting 200,275",
     ] {
         let args: Vec<&str> = line.split_whitespace().collect();
         if let Err(e) = Cli::try_parse_from(&args) {

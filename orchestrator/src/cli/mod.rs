@@ -27,6 +27,7 @@ mod participant;
 mod plot;
 mod replay;
 mod report;
+mod route;
 mod run;
 mod sweep;
 mod sweep_merge;
@@ -73,6 +74,10 @@ enum Command {
     Sweep(sweep::SweepArgs),
     /// Merge the outputs of `tiltsim sweep --shard i/n` runs into the whole sweep's files.
     SweepMerge(sweep_merge::SweepMergeArgs),
+    /// Run scenarios over a whole line (a route file): speed profiles and journey times,
+    /// P_CT at every transition, N_MV on the straights, motion-sickness doses, the limit that
+    /// binds at each curve; with --rho and --cd-tilting, the compensation trade-off.
+    Route(route::RouteArgs),
     /// Search the admissible timing (per-link delay range, jitter, loss and freeze budgets,
     /// or the envelope of recorded free runs) for the one that hurts the ride most: CMA-ES
     /// against uniform random sampling with the same budget; the worst timing is written as
@@ -211,6 +216,7 @@ where
         Command::ReplayTiming(a) => free_run::replay_timing(a, verbose),
         Command::Sweep(a) => sweep::exec(a),
         Command::SweepMerge(a) => sweep_merge::exec(a),
+        Command::Route(a) => route::exec(a),
         Command::Falsify(a) => falsify::exec(a),
         Command::FalsifyMerge(a) => falsify_merge::exec(a),
         Command::Bench(a) => bench::exec(a),

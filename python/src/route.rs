@@ -1,0 +1,184 @@
+//! The route study of the extension module: a line's per-transition table and its variants'
+//! summary, as `tiltsim route` computes them.
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use numpy::PyArray1;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use tiltsim_studies::route::run::{process_cpu_s, RouteExec};
+use tiltsim_studies::route::study::{transition_columns, Column};
+use tiltsim_studies::route::{Grid, Limits, Running};
+
+use crate::{directory, error, invalid, participant_exe, scenario_with, supervise};
+
+/// Runs `scenarios` (each `(kind, value, origin)`) over the route file `route`; returns
+/// `transitions` (the columns of `transitions.csv`), `variants` (one dict per variant, as
+/// `route.json` has them), the journey times and the output directory (when written).
+#[pyfunction]
+#[pyo3(signature = (route, scenarios, rho=None, cd_tilting=None, cd_conventional=150.0,
+                    accel=0.5, brake=0.6, running=None, jobs=None, transport=None, out=None,
+                    exe=None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn route<'py>(
+    py: Python<'py>,
+    route: PathBuf,
+    scenarios: Vec<(String, String, String)>,
+    rho: Option<Vec<f64>>,
+    cd_tilting: Option<Vec<f64>>,
+    cd_conventional: f64,
+    accel: f64,
+    brake: f64,
+    running: Option<String>,
+    jobs: Option<usize>,
+    transport: Option<String>,
+    out: Option<PathBuf>,
+    exe: Option<String>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let line = tiltsim_studies::route::load(&route).map_err(|e| invalid(py, e.to_string()))?;
+    let (grid, limits) =
+        grid_and_limits(py, rho, cd_tilting, cd_conventional, accel, brake, running)?;
+    // In-process by default, as `tiltsim route`.
+    let transport = transport.or(Some("in-process".into()));
+    let mut loaded = Vec::new();
+    for (kind, value, origin) in &scenarios {
+        loaded.push(scenario_with(
+            py,
+            kind,
+            value,
+            origin,
+            Vec::new(),
+            transport.clone(),
+            None,
+            None,
+            None,
+        )?);
+    }
+    let exe = match loaded.first() {
+        Some(s) => participant_exe(py, exe, s)?,
+        None => PathBuf::from("tiltsim"),
+    };
+    let variants = tiltsim_studies::route::variants(&loaded, &limits, &grid);
+    let (dir, _scratch) = directory(py, out.as_deref(), "route")?;
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let jobs = jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let ex = RouteExec {
+        out: dir.clone(),
+        jobs,
+        keep_runs: false,
+        exe,
+        interrupt: interrupt.clone(),
+    };
+    let write = out.is_some();
+    let (done, raised) = supervise(py, &interrupt, (&|| 0u64, 0), None, move || {
+        let (t0, c0) = (std::time::Instant::now(), process_cpu_s());
+        let results = tiltsim_studies::route::study(&line, &variants, &ex)?;
+        let cost = tiltsim_studies::route::outputs::Cost {
+            wall_s: t0.elapsed().as_secs_f64(),
+            cpu_s: process_cpu_s() - c0,
+            jobs: ex.jobs,
+        };
+        let written = if write {
+            tiltsim_studies::route::outputs::write(&ex.out, &line, &limits, &results, cost)
+                .map(|_| ())
+                .map_err(|e| format!("{}: {e}", ex.out.display()))
+        } else {
+            Ok(())
+        };
+        Some((
+            results,
+            tiltsim_studies::route::outputs::Journey::of(&line, &limits),
+            written,
+        ))
+    });
+    if let Some(e) = raised {
+        return Err(e);
+    }
+    let Some((results, journey, written)) = done else {
+        return Err(error(
+            py,
+            "Interrupted",
+            "interrupted: nothing written".into(),
+        ));
+    };
+    written.map_err(|e| error(py, "ParticipantError", e))?;
+    let table = PyDict::new(py);
+    for (name, col) in transition_columns(&results) {
+        match col {
+            Column::Num(v) => table.set_item(name, PyArray1::from_vec(py, v))?,
+            Column::Text(v) => table.set_item(name, PyList::new(py, v)?)?,
+        }
+    }
+    let json = |v: &dyn erased::Ser| -> PyResult<Bound<'py, PyAny>> {
+        let text = v.json().map_err(|e| error(py, "TiltsimError", e))?;
+        py.import("json")?.call_method1("loads", (text,))
+    };
+    let result = PyDict::new(py);
+    result.set_item("transitions", table)?;
+    result.set_item("variants", json(&results)?)?;
+    result.set_item("journey", json(&journey)?)?;
+    result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
+    Ok(result)
+}
+
+/// The variants' grid and the profiles' limits the call asks for, checked.
+fn grid_and_limits(
+    py: Python<'_>,
+    rho: Option<Vec<f64>>,
+    cd_tilting: Option<Vec<f64>>,
+    cd_conventional: f64,
+    accel: f64,
+    brake: f64,
+    running: Option<String>,
+) -> PyResult<(Grid, Limits)> {
+    let grid = Grid {
+        rho: rho.unwrap_or_default(),
+        cd_tilting_mm: cd_tilting.unwrap_or_default(),
+        running: match running.as_deref() {
+            None | Some("auto") => None,
+            Some("conventional") => Some(Running::Conventional),
+            Some("tilting") => Some(Running::Tilting),
+            Some(o) => {
+                return Err(invalid(
+                    py,
+                    format!("running = {o:?}: allowed \"auto\", \"conventional\", \"tilting\""),
+                ))
+            }
+        },
+    };
+    grid.check().map_err(|e| invalid(py, e))?;
+    for (what, v, hi) in [
+        ("cd_conventional", cd_conventional, 400.0),
+        ("accel", accel, 5.0),
+        ("brake", brake, 5.0),
+    ] {
+        if !(v.is_finite() && v > 0.0 && v <= hi) {
+            return Err(invalid(
+                py,
+                format!("{what} = {v}: allowed above 0 and up to {hi}"),
+            ));
+        }
+    }
+    let limits = Limits {
+        cant_deficiency_conventional_mm: cd_conventional,
+        cant_deficiency_tilting_mm: grid.cd_tilting_mm.first().copied().unwrap_or(275.0),
+        accel_m_s2: accel,
+        brake_m_s2: brake,
+    };
+    Ok((grid, limits))
+}
+
+/// Serialising the results to JSON text behind one object-safe trait.
+mod erased {
+    pub trait Ser {
+        fn json(&self) -> Result<String, String>;
+    }
+    impl<T: serde::Serialize> Ser for T {
+        fn json(&self) -> Result<String, String> {
+            serde_json::to_string(self).map_err(|e| e.to_string())
+        }
+    }
+}
