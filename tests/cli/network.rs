@@ -574,3 +574,75 @@ fn a_scheduled_kill_of_a_remote_participant_degrades_the_run_as_in_one_process()
         "the kill reaches the remote participant at the tick it reaches one in process"
     );
 }
+
+/// `tiltsim bench --network` across two hosts: the wire's floor and every Zenoh floor measured
+/// on the same path, the run's link first, and the per-tick overhead of a remote plant set
+/// beside them. The ratios in `bench.json` are recomputed here from the figures beside them.
+#[test]
+fn bench_network_measures_the_wire_and_each_zenoh_floor_across_two_hosts() {
+    let pair = Pair::new("bench");
+    let dir = temp_dir("net-bench");
+    let json = dir.join("bench.json");
+    let via = format!(
+        "{} netns exec {}",
+        tiltsim_suite::hosts::ip().display(),
+        pair.b.netns()
+    );
+    let out = Tiltsim::command(["bench"])
+        .arg(tiltsim_suite::scenario("paper-passive.toml"))
+        .args(["--network", "--listen"])
+        .arg(pair.a.endpoint(PORT))
+        .args([
+            "--remote-via",
+            &via,
+            "--rounds",
+            "300",
+            "--duration",
+            "0.2",
+            "--repeat",
+            "1",
+        ])
+        .arg("--out")
+        .arg(&json)
+        .on(&pair.a)
+        .success();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("(a run's link)"), "{stdout}");
+    let b: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let n = &b["network"];
+    let floors = n["floors"].as_array().unwrap();
+    let names: Vec<&str> = floors.iter().map(|f| f["name"].as_str().unwrap()).collect();
+    assert_eq!(
+        names,
+        [
+            "raw-tcp",
+            "zenoh-quic-lowlatency",
+            "zenoh-quic",
+            "zenoh-tcp-lowlatency",
+            "zenoh-tcp"
+        ]
+    );
+    let p = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
+    let raw = &floors[0]["round_trip_ns"];
+    for f in floors {
+        let rtt = &f["round_trip_ns"];
+        assert_eq!(rtt["n"], 300, "{f}");
+        assert!(p(rtt, "p50") > 0.0 && p(rtt, "p99") >= p(rtt, "p50"), "{f}");
+        let ratio = p(rtt, "p50") / p(raw, "p50");
+        assert!(
+            (p(f, "p50_over_raw_tcp") - ratio).abs() <= 1e-9 * ratio,
+            "{f}"
+        );
+    }
+    assert_eq!(n["floor_round_trip_ns"], floors[1]["round_trip_ns"]);
+    let runs = n["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2);
+    for r in runs {
+        // Every tick of the remote run waits for a round trip the in-process one does not.
+        let per_tick = p(r, "overhead_per_tick_us");
+        assert!(per_tick > 0.0, "{r}");
+        let over_floor = per_tick / (p(&n["floor_round_trip_ns"], "p50") * 1e-3);
+        assert!((p(r, "overhead_over_floor") - over_floor).abs() <= 1e-9 * over_floor);
+    }
+}
