@@ -26,7 +26,6 @@ use tiltsim_master::table::{Row, COLUMNS, OFFSETS, TYPES};
 mod route;
 mod studies;
 
-use route::route;
 use studies::{compare, falsify, linearize, parse_grid, sweep};
 
 /// How often the waiting thread looks for Ctrl-C and reports progress.
@@ -511,7 +510,7 @@ fn _tiltsim(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(sweep, m)?)?;
     m.add_function(wrap_pyfunction!(falsify, m)?)?;
-    m.add_function(wrap_pyfunction!(route, m)?)?;
+    m.add_function(wrap_pyfunction!(route::route, m)?)?;
     m.add_function(wrap_pyfunction!(compare, m)?)?;
     m.add_function(wrap_pyfunction!(linearize, m)?)?;
     m.add_function(wrap_pyfunction!(signals, m)?)?;

@@ -39,7 +39,9 @@ def test_a_free_run_from_python_replays_bit_for_bit_and_as_the_command_line_does
     replayed = tiltsim.replay_timing(free_dir, out=tmp_path / "py-replay")
     assert replayed.summary["execution"] == "replay-timing"
     assert replayed.summary.get("trace_partial") is None
-    assert "not_real_time" not in replayed.flags
+    # The replay keeps the free run's judgement on real time, made from the same trace.
+    assert replayed.flags["not_real_time"]["raised"] == r.flags["not_real_time"]["raised"]
+    assert replayed.valid == r.valid
     # The replay in lock-step computes the free run's rows exactly.
     assert len(replayed) == len(r) == 2001
     for name in r.signals:

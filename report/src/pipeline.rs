@@ -297,9 +297,12 @@ fn analyse(job: &Job, summary: &mut Summary, rows: &[Row]) {
         };
         match crate::analysis::assess(s, source) {
             Ok(a) => {
+                // The run's own verdict on its timing (a replay's, from the free run's trace).
+                let not_real_time = summary.flags.not_real_time.take();
                 summary.results = a.results;
                 summary.comfort = a.comfort;
                 summary.flags = a.flags;
+                summary.flags.not_real_time = not_real_time;
             }
             // Results from part of a series would read as the run's: none are given.
             Err(e) => {

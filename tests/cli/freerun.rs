@@ -85,7 +85,19 @@ fn a_free_run_is_replayed_byte_for_byte_in_process_and_over_ipc_and_with_another
     let (code, err) = replay(&dir, &root.join("ipc"), &["--transport", "ipc"]);
     assert_eq!(code, 0, "{err}");
     assert_eq!(bytes(&root.join("ipc/timeseries.csv")), free);
+    // The replay keeps the free run's verdict on real time, judged from the same trace.
+    let again = summary(&root.join("in-process"));
+    let (a, b) = (
+        &sm["flags"]["not_real_time"],
+        &again["flags"]["not_real_time"],
+    );
+    assert_eq!(a["raised"], b["raised"], "{a} {b}");
+    assert_eq!(a["margin_s"], b["margin_s"]);
+    let late = |v: &serde_json::Value| v["plant_max_lateness_s"].as_f64().unwrap();
+    assert!((late(a) - late(b)).abs() < 1e-9, "{a} {b}");
+    assert_eq!(sm["comfort_valid"], again["comfort_valid"]);
 
+    replayed::a_late_plant_step_makes_the_replay_not_real_time(&dir, &root);
     replayed::an_edited_trace_changes_the_rows_from_its_step(&dir, &root, &free);
     replayed::another_system_is_replayed_under_the_same_timing(&dir, &root);
     replayed::a_foreign_or_gapped_trace_is_refused(&dir, &root);
@@ -238,6 +250,15 @@ fn a_participant_killed_in_a_free_run_is_named_and_the_rows_before_are_kept() {
     let sm = summary(&out);
     assert_eq!(sm["status"], "failed");
     let rows = sm["steps_completed"].as_u64().unwrap();
+    // The message names the step the actuator was at: after its last sample, which it
+    // published on its own clock before the kill at 0.5 s of a 2 s run (2000 steps).
+    let at: u64 = err
+        .split("while step ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no step named: {err}"));
+    assert!(at > 0 && at <= 2000, "{err}");
     // The world went on until the loss was seen: at least the 500 steps before it (how many
     // after depends on how soon the hub saw the process gone).
     assert!(rows >= 500, "{rows} rows");
@@ -401,8 +422,8 @@ fn four_free_runs_beside_two_cpu_hogs_complete_and_replay_byte_for_byte() {
     });
 }
 
-/// An orchestrator killed with SIGKILL in the middle of a free run leaves whole rows and a
-/// prefix of its trace; `replay-timing` replays that prefix, says it is partial, and gives
+/// A free run's trace is refused while the run goes on. An orchestrator killed with SIGKILL
+/// in the middle of a free run leaves whole rows and a prefix of its trace; `replay-timing` replays that prefix, says it is partial, and gives
 /// the rows the free run had written, byte for byte.
 #[test]
 fn a_killed_free_run_leaves_a_trace_prefix_that_replays_its_rows() {
@@ -423,6 +444,14 @@ fn a_killed_free_run_leaves_a_trace_prefix_that_replays_its_rows() {
             .filter(|t| t.lines().count() > 3000)
     })
     .expect("the rows never reached 3000");
+    // While it runs, its trace is refused and nothing is written into its directory.
+    let (code, _, err) = run(&["replay-timing", s(&out), "-q"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("timing.csv") && err.contains("still running"),
+        "{err}"
+    );
+    assert!(!out.join("replay-timing").exists());
     child.kill().unwrap();
     child.wait().unwrap();
     // The participants see their orchestrator gone and end; its files are removed by `clean`.

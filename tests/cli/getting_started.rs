@@ -226,6 +226,9 @@ fn key_rows(doc: &str) -> Vec<(String, String, String, String)> {
     for l in doc.lines() {
         if let Some(h) = l.strip_prefix("### `[").and_then(|h| h.strip_suffix("]`")) {
             section = h.to_string();
+        } else if l.starts_with('#') {
+            // Another heading (the route files' columns): no longer a key table.
+            section.clear();
         } else if l.starts_with("| `") && !section.is_empty() {
             let cells: Vec<&str> = l.trim_matches('|').split(" | ").map(str::trim).collect();
             assert_eq!(

@@ -258,6 +258,7 @@ pub fn summary_of_replay(
     sm.timing_trace = Some(trace_path.display().to_string());
     sm.trace_partial = r.partial.clone();
     sm.replayed_exchanges = Some(r.exchanges);
+    sm.flags.not_real_time = r.not_real_time.clone();
     sm
 }
 

@@ -41,6 +41,10 @@ pub struct Replayed {
     pub ipc_prefix: String,
     /// Participant logs that are not empty (`logs/<role>.log`).
     pub participant_logs: Vec<String>,
+    /// The free run's real-time verdict, as its trace file tells it (`None` for a trace made
+    /// by a program, whose instants are not a run's): a replay of a run that did not keep
+    /// real time is no more valid than the run.
+    pub not_real_time: Option<tiltsim_assessment::validity::NotRealTime>,
 }
 
 /// Per step of `order`, the oldest producer steps (by [`col`]) named by it or any later step.
@@ -85,7 +89,29 @@ pub fn replay_timing(
 ) -> Result<Replayed, FreeError> {
     let period = s.controller_period_ticks();
     let trace = trace::read(trace_path, s.run.dt_s, s.steps(), period)?;
-    replay_trace(s, trace, trace_path, opts, out)
+    let verdict = real_time_verdict(&trace.steps, s.run.dt_s);
+    let mut r = replay_trace(s, trace, trace_path, opts, out)?;
+    r.not_real_time = Some(verdict);
+    Ok(r)
+}
+
+/// The free run's verdict from its trace, as the free run judged it (`timing::Stats`): not
+/// real time when a plant step started more than [`super::NOT_REAL_TIME_TICKS`] ticks after it
+/// was due.
+fn real_time_verdict(steps: &[StepTrace], dt_s: f64) -> tiltsim_assessment::validity::NotRealTime {
+    let latest_ns = steps
+        .iter()
+        .filter(|t| t.role == Role::Plant)
+        .map(|t| t.read_ns.saturating_sub(t.due_ns))
+        .max()
+        .unwrap_or(0);
+    let plant_max_lateness_s = latest_ns as f64 * 1e-9;
+    let margin_s = super::timing::NOT_REAL_TIME_TICKS as f64 * dt_s;
+    tiltsim_assessment::validity::NotRealTime {
+        raised: plant_max_lateness_s > margin_s,
+        plant_max_lateness_s,
+        margin_s,
+    }
 }
 
 /// [`replay_timing`] of a trace already in memory (`trace_path` names it in errors): a
@@ -141,6 +167,7 @@ pub fn replay_trace(
         error,
         ipc_prefix: prefix,
         participant_logs,
+        not_real_time: None,
     })
 }
 

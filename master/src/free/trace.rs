@@ -115,9 +115,17 @@ fn opt(v: Option<i64>) -> String {
 }
 
 impl TraceWriter {
-    /// Creates the file with its head line and column names.
+    /// Creates the file with its head line and column names, and holds its lock while it
+    /// writes (released when the writer is dropped, or the process ends however it ends):
+    /// [`read`] refuses a trace a live run is still writing.
     pub fn create(path: &Path, head: &TraceHead) -> std::io::Result<Self> {
         let mut out = std::fs::File::create(path)?;
+        out.try_lock().map_err(|e| match e {
+            std::fs::TryLockError::WouldBlock => {
+                std::io::Error::other("another process is writing this trace")
+            }
+            std::fs::TryLockError::Error(e) => e,
+        })?;
         writeln!(
             out,
             "# tiltsim timing trace: dt_s={} steps={} controller_period_ticks={} start_ns={}",
@@ -216,8 +224,7 @@ pub fn read(
     controller_period_ticks: u64,
 ) -> Result<Trace, TraceError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| trace_error(&file, "file".into(), e.to_string()))?;
+    let text = read_unlocked(path).map_err(|what| trace_error(&file, "file".into(), what))?;
     // A last line without its newline was cut short by a kill: it is not part of the trace.
     let whole = match text.rfind('\n') {
         Some(i) if i + 1 < text.len() => &text[..=i],
@@ -240,11 +247,78 @@ pub fn read(
         out.push(body.step(i + 3, line)?);
     }
     let partial = body.partial(cut_short)?;
+    check_never_older(&file, &out)?;
     Ok(Trace {
         head,
         steps: out,
         partial,
     })
+}
+
+/// A consumer holds the newest sample of each producer that has reached it (samples of a link
+/// arrive in order and an older one is never taken after a newer one), so over a consumer's
+/// steps the producer step it reads never falls. A trace in which it does (edited, or of
+/// another run) cannot have happened: refused, naming the line (the `n`-th step line is line
+/// `n + 3`) and the field.
+fn check_never_older(file: &str, steps: &[StepTrace]) -> Result<(), TraceError> {
+    let mut by_role: [Vec<(u64, usize)>; 3] = Default::default();
+    for (i, t) in steps.iter().enumerate() {
+        by_role[col(t.role)].push((t.step, i));
+    }
+    for order in &mut by_role {
+        order.sort_unstable();
+        for w in order.windows(2) {
+            let (before, now) = (&steps[w[0].1], &steps[w[1].1]);
+            for &p in inputs_of(now.role) {
+                let (a, b) = (before.from[col(p)], now.from[col(p)]);
+                if let (Some(a), Some(b)) = (a, b) {
+                    if b < a {
+                        return Err(trace_error(
+                            file,
+                            format!("line {}: from_{}", w[1].1 + 3, p.name()),
+                            format!(
+                                "{} step {} reads {p} step {b}, older than step {a} its step {} \
+                                 read: a consumer never takes an older sample after a newer one",
+                                now.role, now.step, before.step
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a trace a live run is still writing (its writer holds the file's lock for the
+/// run's life, [`TraceWriter::create`]); a trace that cannot be opened is left to [`read`].
+pub fn refuse_if_live(path: &Path) -> Result<(), TraceError> {
+    match std::fs::File::open(path) {
+        Ok(f) => unlocked(&f)
+            .map_err(|what| trace_error(&path.display().to_string(), "file".into(), what)),
+        Err(_) => Ok(()),
+    }
+}
+
+/// Takes a shared lock on the open trace `f`, or says why not.
+fn unlocked(f: &std::fs::File) -> Result<(), String> {
+    match f.try_lock_shared() {
+        Ok(()) => Ok(()),
+        Err(std::fs::TryLockError::WouldBlock) => Err("the free run that writes it is still \
+                                                       running: replay it once the run has ended"
+            .into()),
+        Err(std::fs::TryLockError::Error(e)) => Err(e.to_string()),
+    }
+}
+
+/// The text of a trace no live run is writing.
+fn read_unlocked(path: &Path) -> Result<String, String> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path).map_err(|e| e.to_string())?;
+    unlocked(&f)?;
+    let mut text = String::new();
+    f.read_to_string(&mut text).map_err(|e| e.to_string())?;
+    Ok(text)
 }
 
 /// The error of a trace `file`: `field` and what is wrong with it.

@@ -68,6 +68,9 @@ pub fn replay_timing(a: ReplayTimingArgs, verbose: bool) -> CliResult {
     opts.interrupt = interrupt;
     opts.plots = !a.no_plots;
     let trace = a.run_dir.join(tiltsim_master::free::trace::TIMING_CSV);
+    // Nothing is written for a run still going on, its directory included.
+    tiltsim_master::free::trace::refuse_if_live(&trace)
+        .map_err(|e| CliError::Invalid(e.to_string()))?;
     let mut job = Job::new(&s, file.display().to_string(), opts);
     job.replay_trace = Some(trace);
     let done = carry_out(job).map_err(CliError::of_job)?;

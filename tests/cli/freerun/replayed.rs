@@ -4,20 +4,34 @@
 use std::path::Path;
 
 use super::{bytes, replay, s};
+use tiltsim_suite::summary;
 
-/// The replay follows the trace: plant step 1000 told it read the bar angle at t₀ instead
-/// gives other rows from there on, and the same rows before (`free`: the free run's rows).
+/// The replay follows the trace: plant step 1000 told it read the bar angle of the actuator
+/// step plant step 999 read (one that could have happened: a late sample) gives other rows from
+/// there on, and the same rows before (`free`: the free run's rows).
 pub fn an_edited_trace_changes_the_rows_from_its_step(dir: &Path, root: &Path, free: &[u8]) {
     let edited = root.join("edited");
     std::fs::create_dir_all(&edited).unwrap();
     std::fs::copy(dir.join("scenario.toml"), edited.join("scenario.toml")).unwrap();
     let text = std::fs::read_to_string(dir.join("timing.csv")).unwrap();
+    let from_actuator = |step: &str| {
+        let l = text
+            .lines()
+            .find(|l| l.starts_with(&format!("plant,{step},")))
+            .unwrap();
+        l.split(',').nth(3).unwrap().to_string()
+    };
+    let (before, own) = (from_actuator("999"), from_actuator("1000"));
+    assert_ne!(
+        before, own,
+        "plant steps 999 and 1000 read the same actuator step"
+    );
     let changed: Vec<String> = text
         .lines()
         .map(|l| {
             if l.starts_with("plant,1000,") {
                 let mut c: Vec<&str> = l.split(',').collect();
-                c[3] = "-1";
+                c[3] = before.as_str();
                 c.join(",")
             } else {
                 l.to_string()
@@ -94,4 +108,65 @@ pub fn a_foreign_or_gapped_trace_is_refused(dir: &Path, root: &Path) {
         err.contains("timing.csv") && err.contains("step") && err.contains("actuator step 500"),
         "{err}"
     );
+    // A step that reads an older sample than the step before it read cannot have happened
+    // (a consumer keeps the newest sample that reached it): plant step 1000 told it read the
+    // bar angle at t₀, a thousand ticks old.
+    let older = root.join("older");
+    std::fs::create_dir_all(&older).unwrap();
+    std::fs::copy(dir.join("scenario.toml"), older.join("scenario.toml")).unwrap();
+    let mut line = 0;
+    let changed: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if l.starts_with("plant,1000,") {
+                line = i + 1;
+                let mut c: Vec<&str> = l.split(',').collect();
+                c[3] = "-1";
+                c.join(",")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect();
+    std::fs::write(older.join("timing.csv"), changed.join("\n") + "\n").unwrap();
+    let (code, err) = replay(&older, &root.join("older-out"), &[]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("timing.csv")
+            && err.contains(&format!("line {line}: from_actuator"))
+            && err.contains("plant step 1000 reads actuator step -1"),
+        "{err}"
+    );
+}
+
+/// A free run whose plant started a step 20 ms after it was due did not keep real time (the
+/// margin is 10 ticks, 10 ms): its replay says so and its comfort is not valid, whatever the
+/// rows. The trace is the run's with that one step's due instant moved 20 ms earlier.
+pub fn a_late_plant_step_makes_the_replay_not_real_time(dir: &Path, root: &Path) {
+    let late = root.join("late");
+    std::fs::create_dir_all(&late).unwrap();
+    std::fs::copy(dir.join("scenario.toml"), late.join("scenario.toml")).unwrap();
+    let text = std::fs::read_to_string(dir.join("timing.csv")).unwrap();
+    let changed: Vec<String> = text
+        .lines()
+        .map(|l| {
+            if l.starts_with("plant,1500,") {
+                let mut c: Vec<String> = l.split(',').map(String::from).collect();
+                let read: u64 = c[9].parse().unwrap();
+                c[8] = (read - 20_000_000).to_string();
+                c.join(",")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect();
+    std::fs::write(late.join("timing.csv"), changed.join("\n") + "\n").unwrap();
+    let (code, err) = replay(&late, &root.join("late-out"), &[]);
+    assert_eq!(code, 0, "{err}");
+    let sm = summary(&root.join("late-out"));
+    let n = &sm["flags"]["not_real_time"];
+    assert_eq!(n["raised"], true, "{n}");
+    assert!(n["plant_max_lateness_s"].as_f64().unwrap() >= 0.020, "{n}");
+    assert_eq!(sm["comfort_valid"], false, "{sm}");
 }

@@ -47,6 +47,9 @@ pub struct IpcEndpoint<I: Message, O: Message> {
     pub(super) drops: DropPlan,
     /// The participant's standard error (`None` for one served in this process).
     pub(super) log: Option<std::path::PathBuf>,
+    /// In a free run, the step after the newest sample taken from the participant: the one it
+    /// was at when it is found gone (0 before its first).
+    pub(super) free_pending: u64,
 }
 
 /// Silence after which a pending exchange is looked into (the participant's status read) and
@@ -396,12 +399,15 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
     fn take_arrived(&mut self, out: &mut Vec<O>) -> Result<(), LinkError> {
         let before = out.len();
         crate::ipc::free::take_arrived(self.role, &self.subscriber, out)?;
+        if let Some(newest) = out[before..].iter().map(|o| o.header().step).max() {
+            self.free_pending = self.free_pending.max(newest + 1);
+        }
         if out.len() == before {
             if let Some(status) = self.exited() {
                 return Err(LinkError::Exited {
                     role: self.role,
                     pid: self.pid,
-                    step: 0,
+                    step: self.free_pending,
                     status,
                 });
             }

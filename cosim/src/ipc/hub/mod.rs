@@ -171,6 +171,7 @@ impl IpcHub {
             resent: None,
             drops: DropPlan::from_env(role),
             log: Some(log),
+            free_pending: 0,
         };
         let connected = ep.await_connection(startup, self.interrupt.as_deref())?;
         if !connected {
@@ -211,6 +212,7 @@ impl IpcHub {
             resent: None,
             drops: DropPlan::default(),
             log: None,
+            free_pending: 0,
         })
     }
 
