@@ -250,3 +250,43 @@ fn adversaries_come_first_and_a_budget_below_a_generation_is_warned_about() {
         .collect();
     assert_eq!(listed.join(";"), row[flags]);
 }
+
+/// A requirement's verdict is evidence, not "met": one no run can keep (P_CT, a share of
+/// passengers, is never negative) is violated, exit 3, naming the counterexample written to
+/// `worst/`; one no admissible timing comes near (P_CT under 1000 %, ten times the whole
+/// population) is "not falsified within N evaluations", exit 0.
+#[test]
+fn a_requirement_is_violated_with_its_counterexample_or_not_falsified_within_the_budget() {
+    let dir = temp_dir("falsify-requirement");
+    let b = write(
+        &dir,
+        "b.toml",
+        "[actuator_command]\ndelay_ms = [0, 60]\njitter_ms = 10\n",
+    );
+    let broken = dir.join("broken");
+    let args = |req: &'static str| ["--requirement", req, "--budget", "4", "--jobs", "2"];
+    let err = falsify(&b, &broken, &args("p_ct < 0")).failure(3);
+    assert!(
+        err.contains("falsified: requirement") && err.contains("worst/timing.csv"),
+        "{err}"
+    );
+    let r = result(&broken);
+    assert_eq!(r["verdict"], "violated", "{r}");
+    assert_eq!(r["violated"], true);
+    let worst = r["worst_metric"].as_f64().unwrap();
+    assert!(worst >= 0.0, "{r}");
+    assert_eq!(r["margin"].as_f64().unwrap(), -worst);
+    assert!(broken.join("worst/timing.csv").is_file());
+
+    let kept = dir.join("kept");
+    let out = falsify(&b, &kept, &args("p_ct < 1000")).success();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let r = result(&kept);
+    assert_eq!(r["verdict"], "not-falsified", "{r}");
+    let n = csv_table(&std::fs::read_to_string(kept.join("progress.csv")).unwrap()).len() - 1;
+    assert!(
+        stdout.contains(&format!("not falsified within {n} evaluations")),
+        "{stdout}"
+    );
+    assert!(!stdout.contains(" met "), "{stdout}");
+}

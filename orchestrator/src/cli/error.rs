@@ -4,6 +4,9 @@
 pub const EXIT_FAILED: i32 = 1;
 /// Exit code: invalid input.
 pub const EXIT_INVALID: i32 = 2;
+/// Exit code: a requirement was falsified (`tiltsim falsify --requirement`: a timing that
+/// breaks it was found).
+pub const EXIT_FALSIFIED: i32 = 3;
 /// Exit code: interrupted.
 pub const EXIT_INTERRUPTED: i32 = 130;
 
@@ -23,6 +26,10 @@ pub enum CliError {
     /// Ctrl-C; the message says what was kept.
     #[error("{0}")]
     Interrupted(String),
+    /// A requirement falsified: the search completed and found a timing that breaks it (the
+    /// message names the counterexample).
+    #[error("{0}")]
+    Falsified(String),
 }
 
 impl CliError {
@@ -32,6 +39,7 @@ impl CliError {
             CliError::Invalid(_) => EXIT_INVALID,
             CliError::Failed(_) | CliError::Participant(_) => EXIT_FAILED,
             CliError::Interrupted(_) => EXIT_INTERRUPTED,
+            CliError::Falsified(_) => EXIT_FALSIFIED,
         }
     }
 }

@@ -206,7 +206,22 @@ pub fn exec(a: FalsifyArgs) -> CliResult {
     if !a.quiet {
         print_report(&spec.bounds_from, &evals, &o, &out, Some(jobs));
     }
-    Ok(())
+    verdict(&o, &out)
+}
+
+/// Exit 3 for a requirement the search falsified, naming the counterexample.
+pub fn verdict(o: &falsify::Outcome, out: &Path) -> CliResult {
+    match (o.violated, o.margin) {
+        (Some(true), Some(m)) => Err(CliError::Falsified(format!(
+            "falsified: requirement {} broken by {:.4} at the timing in {}/worst/timing.csv \
+             (`tiltsim replay-timing {}/worst`)",
+            o.objective,
+            -m,
+            out.display(),
+            out.display()
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// The table of a search (or of merged shards) on standard output.
@@ -249,8 +264,11 @@ pub fn print_report(
             println!("requirement {} VIOLATED by {:.4}", o.objective, -m);
         } else {
             println!(
-                "requirement {} met at the worst timing found, margin {m:.4}",
-                o.objective
+                "requirement {} not falsified within {} evaluations: margin {m:.4} at the worst \
+                 timing found (the timings evaluated keep it; that is not a proof that every \
+                 admissible one does)",
+                o.objective,
+                evals.len()
             );
         }
     }

@@ -42,5 +42,5 @@ pub fn exec(a: FalsifyMergeArgs) -> CliResult {
         let from = &shards[0].info.bounds_from;
         super::falsify::print_report(from, &evals, &o, &a.out, None);
     }
-    Ok(())
+    super::falsify::verdict(&o, &a.out)
 }

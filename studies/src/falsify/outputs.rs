@@ -24,6 +24,12 @@ use crate::sweep::Shard;
 pub const CMA_ES_CITATION: &str =
     "CMA-ES: N. Hansen, The CMA Evolution Strategy: A Tutorial, arXiv:1604.00772 (2016)";
 
+/// The verdict on a requirement from whether the worst timing breaks it (`None`: no
+/// requirement).
+pub fn verdict(violated: Option<bool>) -> Option<&'static str> {
+    violated.map(|v| if v { "violated" } else { "not-falsified" })
+}
+
 /// `result.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Outcome {
@@ -73,6 +79,11 @@ pub struct Outcome {
     /// For a requirement: its margin at the worst timing (negative: broken by that much).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub margin: Option<f64>,
+    /// For a requirement: `violated` (the worst timing found breaks it: `worst/timing.csv` is
+    /// the counterexample) or `not-falsified` (no timing evaluated breaks it, which is not a
+    /// proof that none does). `tiltsim falsify` exits 3 when violated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub verdict: Option<&'static str>,
     /// Evaluations that failed.
     pub failed_evaluations: usize,
     /// Mean CPU time of one evaluation (s).
@@ -431,6 +442,7 @@ pub fn falsify_part(
         worst_run_metric,
         violated: requirement.then(|| spec.objective.violated(w.metric)),
         margin: requirement.then(|| spec.objective.margin(w.metric)),
+        verdict: verdict(requirement.then(|| spec.objective.violated(w.metric))),
         failed_evaluations: f.evals.iter().filter(|e| !e.error.is_empty()).count(),
         evaluation_cpu_s: f.eval_s,
         plain_run_cpu_s: plain_run_s,

@@ -372,6 +372,7 @@ pub fn merge(
         worst_run_metric,
         violated: requirement.then(|| spec.objective.violated(we.metric)),
         margin: requirement.then(|| spec.objective.margin(we.metric)),
+        verdict: super::outputs::verdict(requirement.then(|| spec.objective.violated(we.metric))),
         failed_evaluations: evals.iter().filter(|(_, e)| !e.error.is_empty()).count(),
         evaluation_cpu_s: mean_evaluation_cpu(&shards),
         plain_run_cpu_s: sum(&|r| r.plain_run_cpu_s) / n,
