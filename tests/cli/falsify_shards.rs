@@ -257,3 +257,94 @@ fn the_measurement_and_the_command_are_searched_at_once() {
         .success();
     assert!(bytes(&dir.join("r/timeseries.csv")) == bytes(&out.join("worst/timeseries.csv")));
 }
+
+/// `cp -r from to`, `sha256sum` and the like, run in `dir`; panics naming the command.
+fn sh(dir: &Path, script: &str) -> String {
+    let out = std::process::Command::new("sh")
+        .args(["-c", script])
+        .current_dir(dir)
+        .output()
+        .unwrap_or_else(|e| panic!("{script}: {e}"));
+    assert!(out.status.success(), "{script}: {out:?}");
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// A copy of shard `from` as `dir/name`, with `edit` applied to its file `file`.
+fn tampered(dir: &Path, from: &Path, name: &str, file: &str, edit: impl Fn(&str) -> String) {
+    sh(dir, &format!("cp -r '{}' '{name}'", from.display()));
+    let p = dir.join(name).join(file);
+    let text = std::fs::read_to_string(&p).unwrap();
+    let changed = edit(&text);
+    assert_ne!(changed, text, "{file}: the edit changed nothing");
+    std::fs::write(&p, changed).unwrap();
+}
+
+/// The first evaluation's `objective` in a `progress.csv` set to 99999.
+fn objective_99999(text: &str) -> String {
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let head: Vec<&str> = lines[0].split(',').collect();
+    let col = head.iter().position(|c| *c == "objective").unwrap();
+    let mut cells: Vec<String> = lines[1].split(',').map(String::from).collect();
+    cells[col] = "99999".into();
+    lines[1] = cells.join(",");
+    lines.join("\n") + "\n"
+}
+
+/// A merge verifies what it merges. Each finished shard writes `sha256.txt` (the form
+/// `sha256sum -c` checks, and it does); a shard whose `progress.csv` or `shard.json` was
+/// changed afterwards is refused naming the file; one whose digests were written again over
+/// an edited objective is refused because its worst trace, replayed, does not give what it
+/// claims.
+#[test]
+fn a_merge_refuses_shards_changed_after_they_finished() {
+    let dir = temp_dir("falsify-tampered");
+    let b = write(&dir, "b.toml", BOUNDS);
+    let (s0, s1) = (dir.join("s0"), dir.join("s1"));
+    for (d, shard) in [(&s0, "0/2"), (&s1, "1/2")] {
+        falsify(
+            &b,
+            d,
+            &["--budget", "2", "--shard", shard, "--jobs", "1", "-q"],
+        )
+        .success();
+    }
+    sh(&s0, "sha256sum -c sha256.txt");
+    let merge = |first: &Path| {
+        Tiltsim::command(["falsify-merge"])
+            .arg(first)
+            .arg(&s1)
+            .out(dir.join("m"))
+    };
+    merge(&s0).success();
+
+    tampered(&dir, &s0, "t-progress", "progress.csv", objective_99999);
+    let err = merge(&dir.join("t-progress")).failure(2);
+    assert!(
+        err.contains("t-progress/progress.csv") && err.contains("SHA-256"),
+        "{err}"
+    );
+    tampered(&dir, &s0, "t-seed", "shard.json", |t| {
+        let v: serde_json::Value = serde_json::from_str(t).unwrap();
+        let seed = v["shard_seed"].as_u64().unwrap();
+        t.replace(
+            &format!("\"shard_seed\": {seed}"),
+            &format!("\"shard_seed\": {}", seed + 1),
+        )
+    });
+    let err = merge(&dir.join("t-seed")).failure(2);
+    assert!(
+        err.contains("t-seed/shard.json") && err.contains("SHA-256"),
+        "{err}"
+    );
+    tampered(&dir, &s0, "t-redigested", "progress.csv", objective_99999);
+    let t = dir.join("t-redigested");
+    sh(
+        &t,
+        "sha256sum shard.json result.json progress.csv bounds.toml worst/timing.csv > sha256.txt",
+    );
+    let err = merge(&t).failure(2);
+    assert!(
+        err.contains("t-redigested/progress.csv") && err.contains("replays to"),
+        "{err}"
+    );
+}

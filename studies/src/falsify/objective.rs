@@ -134,6 +134,14 @@ impl Objective {
         }
     }
 
+    /// The value the search maximises for metric value `v` (as [`Objective::value`]).
+    pub fn of_metric(&self, v: f64) -> f64 {
+        match self {
+            Objective::Maximise(_) => v,
+            Objective::Requirement { .. } => -self.margin(v),
+        }
+    }
+
     /// A requirement's margin for metric value `v` (positive: met with room to spare).
     pub fn margin(&self, v: f64) -> f64 {
         match self {

@@ -453,5 +453,11 @@ pub fn falsify_part(
         worst_shard: None,
     };
     write_result(&ex.out, spec, &o)?;
+    if shard.is_some() {
+        super::shards::write_digests(&ex.out)?;
+    } else {
+        // A directory that held a shard before holds a whole search now.
+        let _ = std::fs::remove_file(ex.out.join(super::shards::DIGESTS));
+    }
     Ok((f, o))
 }

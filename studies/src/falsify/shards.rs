@@ -60,6 +60,72 @@ pub fn shard_spec(spec: &Spec, shard: Shard, flag: &str) -> Result<Spec, Falsify
     })
 }
 
+/// `sha256.txt`: the SHA-256 of each file of a finished shard the merge reads, in the form
+/// `sha256sum -c` checks, written last.
+pub const DIGESTS: &str = "sha256.txt";
+
+/// The files of a shard the merge reads, as [`DIGESTS`] lists them.
+const DIGESTED: [&str; 5] = [
+    SHARD_JSON,
+    "result.json",
+    "progress.csv",
+    "bounds.toml",
+    "worst/timing.csv",
+];
+
+/// The SHA-256 of a file, in hex.
+fn sha256_hex(path: &Path) -> Result<String, FalsifyError> {
+    use sha2::Digest;
+    let bytes = std::fs::read(path).map_err(|e| files_error(path, e))?;
+    Ok(sha2::Sha256::digest(&bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect())
+}
+
+/// Writes `dir/sha256.txt` for a shard whose files are all written.
+pub fn write_digests(dir: &Path) -> Result<(), FalsifyError> {
+    let mut text = String::new();
+    for f in DIGESTED {
+        text.push_str(&format!("{}  {f}\n", sha256_hex(&dir.join(f))?));
+    }
+    let path = dir.join(DIGESTS);
+    tiltsim_rundir::files::write_atomic(&path, text).map_err(|e| files_error(&path, e))
+}
+
+/// Checks each file of shard `dir` against the digest written with it: a file changed,
+/// replaced or cut short after the shard finished is refused by name.
+fn check_digests(dir: &Path) -> Result<(), FalsifyError> {
+    let path = dir.join(DIGESTS);
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        invalid(
+            &path,
+            format!("{e}: a finished shard writes it last; run the shard again to complete it"),
+        )
+    })?;
+    let listed: std::collections::HashMap<&str, &str> = text
+        .lines()
+        .filter_map(|l| l.split_once("  ").map(|(h, f)| (f, h)))
+        .collect();
+    for f in DIGESTED {
+        let Some(want) = listed.get(f) else {
+            return Err(invalid(&path, format!("{f}: not listed")));
+        };
+        let file = dir.join(f);
+        if sha256_hex(&file)? != *want {
+            return Err(invalid(
+                &file,
+                format!(
+                    "its SHA-256 is not the one {} holds: the file was changed after the shard \
+                     finished; run the shard again",
+                    path.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// `shard.json`: which shard of which search a directory holds.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -154,6 +220,7 @@ pub fn read_shard(dir: &Path) -> Result<ShardDir, FalsifyError> {
         )
     })?;
     let info: ShardInfo = serde_json::from_str(&text).map_err(|e| invalid(&path, e))?;
+    check_digests(dir)?;
     if info.count == 0 || info.index >= info.count || info.budget < info.count {
         return Err(invalid(
             &path,
@@ -331,12 +398,33 @@ pub fn merge(
     let _ = std::fs::remove_dir_all(out.join("done"));
     // A merged search is not a shard, whatever the directory held before.
     let _ = std::fs::remove_file(out.join(SHARD_JSON));
+    let _ = std::fs::remove_file(out.join(DIGESTS));
     let trace = src.dir.join("worst").join(TIMING_CSV);
     let worst_run_metric = replay_worst(&s, &spec, out, interrupt, |p| {
         std::fs::copy(&trace, p)
             .map(|_| ())
             .map_err(|e| files_error(p, e))
     })?;
+    // The worst is derived again: its trace replayed here gives the metric and the objective
+    // the shard claims for it, bit for bit (a replay is deterministic).
+    let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+    let objective = spec.objective.of_metric(worst_run_metric);
+    if !same(worst_run_metric, we.metric) || !same(objective, we.objective) {
+        return Err(invalid(
+            &src.dir.join("progress.csv"),
+            format!(
+                "evaluation {} ({}) claims {} = {} (objective {}), but its worst/timing.csv \
+                 replays to {} (objective {}): the shard's files do not agree",
+                we.evaluation,
+                we.method.name(),
+                spec.objective.key(),
+                we.metric,
+                we.objective,
+                worst_run_metric,
+                objective
+            ),
+        ));
+    }
     write_merged_progress(out, &s, &spec, &evals)?;
     let best = |m: Method| {
         evals
