@@ -277,6 +277,15 @@ fn a_requirement_is_violated_with_its_counterexample_or_not_falsified_within_the
     assert!(worst >= 0.0, "{r}");
     assert_eq!(r["margin"].as_f64().unwrap(), -worst);
     assert!(broken.join("worst/timing.csv").is_file());
+    // Every random timing breaks it: the upper bound on the probability is 1.
+    let randoms = csv_table(&std::fs::read_to_string(broken.join("progress.csv")).unwrap())
+        .iter()
+        .filter(|r| r.iter().any(|c| c == "random"))
+        .count();
+    assert!(randoms > 0);
+    assert_eq!(r["random_samples"], randoms);
+    assert_eq!(r["random_broken"], randoms);
+    assert_eq!(r["random_broken_upper_95"], 1.0);
 
     let kept = dir.join("kept");
     let out = falsify(&b, &kept, &args("p_ct < 1000")).success();
@@ -289,4 +298,13 @@ fn a_requirement_is_violated_with_its_counterexample_or_not_falsified_within_the
         "{stdout}"
     );
     assert!(!stdout.contains(" met "), "{stdout}");
+    // None breaks it: the bound is 1 − 0.05^(1/n), the closed form with no event.
+    let n = r["random_samples"].as_u64().unwrap();
+    assert_eq!(r["random_broken"], 0);
+    let bound = 1.0 - 0.05f64.powf(1.0 / n as f64);
+    assert!(
+        (r["random_broken_upper_95"].as_f64().unwrap() - bound).abs() < 1e-12,
+        "{r}"
+    );
+    assert!(stdout.contains("0 of"), "{stdout}");
 }

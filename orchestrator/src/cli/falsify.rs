@@ -272,6 +272,15 @@ pub fn print_report(
             );
         }
     }
+    if let (Some(n), Some(k), Some(p)) =
+        (o.random_samples, o.random_broken, o.random_broken_upper_95)
+    {
+        println!(
+            "random sampling: {k} of {n} timings drawn uniformly from the bounds break it; the \
+             probability that one so drawn breaks it is below {p:.4} (95 % upper bound, \
+             Clopper-Pearson)"
+        );
+    }
     let parallel = jobs.map_or_else(
         || "summed over the shards".into(),
         |j| format!("with {j} parallel"),

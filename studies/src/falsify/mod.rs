@@ -10,6 +10,7 @@
 //! * [`adversaries`]: the obvious adversaries, tried before the search and seeding it;
 //! * [`mutation`]: the search's evolution of the histories themselves;
 //! * [`objective`]: a summary metric to maximise, or a requirement whose margin is minimised;
+//! * [`evidence`]: what the random sampling says about a requirement (a 95 % upper bound);
 //! * [`cmaes`]: the search, CMA-ES (Hansen's tutorial);
 //! * [`search`]: the evaluations (the in-process lock-step replay of each candidate trace, a
 //!   generation in parallel), the search (adversaries, CMA-ES, evolution of the histories)
@@ -20,6 +21,7 @@
 pub mod adversaries;
 pub mod bounds;
 pub mod cmaes;
+pub mod evidence;
 pub mod history;
 pub mod mutation;
 pub mod objective;

@@ -84,6 +84,16 @@ pub struct Outcome {
     /// proof that none does). `tiltsim falsify` exits 3 when violated.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub verdict: Option<&'static str>,
+    /// For a requirement: the random sampling's timings, drawn uniformly from the bounds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub random_samples: Option<usize>,
+    /// For a requirement: of them, those that broke it (a failed replay counts as broken).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub random_broken: Option<usize>,
+    /// For a requirement: the one-sided 95 % upper bound (Clopper-Pearson) on the probability
+    /// that a timing drawn from the sampler breaks it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub random_broken_upper_95: Option<f64>,
     /// Evaluations that failed.
     pub failed_evaluations: usize,
     /// Mean CPU time of one evaluation (s).
@@ -419,6 +429,7 @@ pub fn falsify_part(
     };
     let w = &f.worst.1;
     let requirement = matches!(spec.objective, super::Objective::Requirement { .. });
+    let sampled = requirement.then(|| super::evidence::sampled(&spec.objective, f.evals.iter()));
     let o = Outcome {
         scenario: s.name.clone(),
         objective: spec.objective.describe(),
@@ -443,6 +454,9 @@ pub fn falsify_part(
         violated: requirement.then(|| spec.objective.violated(w.metric)),
         margin: requirement.then(|| spec.objective.margin(w.metric)),
         verdict: verdict(requirement.then(|| spec.objective.violated(w.metric))),
+        random_samples: sampled.map(|e| e.n),
+        random_broken: sampled.map(|e| e.broken),
+        random_broken_upper_95: sampled.map(|e| e.upper_95),
         failed_evaluations: f.evals.iter().filter(|e| !e.error.is_empty()).count(),
         evaluation_cpu_s: f.eval_s,
         plain_run_cpu_s: plain_run_s,

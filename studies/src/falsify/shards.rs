@@ -437,6 +437,8 @@ pub fn merge(
     let n = shards.len() as f64;
     let sum = |f: &dyn Fn(&ShardResult) -> f64| shards.iter().map(|s| f(&s.result)).sum::<f64>();
     let requirement = matches!(spec.objective, Objective::Requirement { .. });
+    let sampled = requirement
+        .then(|| super::evidence::sampled(&spec.objective, evals.iter().map(|(_, e)| e)));
     let o = Outcome {
         scenario: s.name.clone(),
         objective: spec.objective.describe(),
@@ -461,6 +463,9 @@ pub fn merge(
         violated: requirement.then(|| spec.objective.violated(we.metric)),
         margin: requirement.then(|| spec.objective.margin(we.metric)),
         verdict: super::outputs::verdict(requirement.then(|| spec.objective.violated(we.metric))),
+        random_samples: sampled.map(|e| e.n),
+        random_broken: sampled.map(|e| e.broken),
+        random_broken_upper_95: sampled.map(|e| e.upper_95),
         failed_evaluations: evals.iter().filter(|(_, e)| !e.error.is_empty()).count(),
         evaluation_cpu_s: mean_evaluation_cpu(&shards),
         plain_run_cpu_s: sum(&|r| r.plain_run_cpu_s) / n,
