@@ -99,6 +99,9 @@ def test_compare_gives_the_command_lines_table(tmp_path: Path) -> None:
     assert (tmp_path / "py" / "paper-lqg" / "timeseries.csv").exists()
     # Without a directory: the same table, no files.
     pd.testing.assert_frame_equal(tiltsim.compare(files, transport="in-process"), cli)
+    # One path is not a list of scenarios (it would be taken letter by letter).
+    with pytest.raises(TypeError, match="compare: scenarios: a list of scenarios"):
+        tiltsim.compare(files[0])
 
 
 def expm(a: np.ndarray) -> np.ndarray:

@@ -588,6 +588,11 @@ def compare(
     ``df.pivot_table(index="metric", columns="column", values="value", aggfunc="first")``.
     With ``out`` the runs, tables and figures stay there.
     """
+    if isinstance(scenarios, (str, bytes, os.PathLike)):
+        raise TypeError(
+            "compare: scenarios: a list of scenarios (paths, TOML texts or dicts), not one "
+            f"{type(scenarios).__name__}; for one scenario use tiltsim.run, or pass [{scenarios!r}]"
+        )
     specs = [_scenario(s) for s in scenarios]
     raw = _tiltsim.compare(
         specs,

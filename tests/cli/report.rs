@@ -218,3 +218,33 @@ fn a_misspelt_choice_is_answered_with_the_closest_one() {
     assert!(!err.contains("did you mean"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--no-plots` draws no figure and says nothing of one; the run's files are the same, and
+/// `tiltsim plot DIR` draws the figures afterwards from them.
+#[test]
+fn no_plots_draws_nothing_and_plot_draws_them_later() {
+    let dir = temp_dir("report-no-plots");
+    let (with, without) = (dir.join("with"), dir.join("without"));
+    let _ = report_of("paper-passive.toml", &with, &[]);
+    let text = report_of("paper-passive.toml", &without, &["--no-plots"]);
+    let svgs = |d: &Path| {
+        std::fs::read_dir(d.join("plots"))
+            .map(|r| r.filter_map(Result::ok).count())
+            .unwrap_or(0)
+    };
+    assert!(svgs(&with) > 0);
+    assert_eq!(svgs(&without), 0, "{text}");
+    assert!(
+        !text.contains("plots/") && text.contains("draws the figures"),
+        "{text}"
+    );
+    for f in ["timeseries.csv", "events.csv"] {
+        assert!(
+            std::fs::read(with.join(f)).unwrap() == std::fs::read(without.join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    Tiltsim::command(["plot"]).arg(&without).success();
+    assert_eq!(svgs(&without), svgs(&with));
+    let _ = std::fs::remove_dir_all(&dir);
+}

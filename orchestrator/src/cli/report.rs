@@ -135,7 +135,8 @@ fn print_findings(c: &Comfort, flags: &Flags) {
 /// Where the files are: the directory, the files in it, the participants' logs, and whether
 /// they replaced an earlier run's.
 fn print_files(s: &Summary, out: &Path, replaced: bool) {
-    let figures = if s.analysis_skipped.is_some() {
+    let drawn = out.join("plots").is_dir();
+    let figures = if s.analysis_skipped.is_some() || !drawn {
         format!(" (`tiltsim plot {}` draws the figures)", out.display())
     } else {
         ", plots/*.svg|png".to_string()

@@ -78,7 +78,8 @@ pub struct RunArgs {
     #[arg(long, value_enum, value_name = "ROLE")]
     remote: Vec<RoleArg>,
     /// Where the run listens for participants on other hosts, overriding network.listen
-    /// (`HOST:PORT`, e.g. 10.0.0.1:7447; the link is TLS with the run's credentials).
+    /// (`HOST:PORT`, e.g. 10.0.0.1:7447; the link is QUIC, TLS 1.3 with the run's
+    /// credentials, on that UDP port).
     #[arg(long, value_name = "HOST:PORT")]
     listen: Option<String>,
     /// File holding the secret participants on other hosts prove they hold [default: the
@@ -86,6 +87,9 @@ pub struct RunArgs {
     /// that joins].
     #[arg(long, value_name = "PATH")]
     secret_file: Option<PathBuf>,
+    /// Draw no figures (`tiltsim plot DIR` draws them later from the run's files).
+    #[arg(long)]
+    no_plots: bool,
     /// Print nothing but errors: no progress bar, no warnings, no report.
     #[arg(short, long)]
     quiet: bool,
@@ -294,7 +298,7 @@ pub fn exec(a: RunArgs, verbose: bool) -> CliResult {
         participant_overrides: overrides(&a)?,
         ipc_prefix: a.ipc_prefix.clone(),
         interrupt,
-        plots: true,
+        plots: !a.no_plots,
         pace: a.pace,
         realtime,
         timing: true,

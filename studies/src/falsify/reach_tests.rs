@@ -105,8 +105,8 @@ fn generate(rng: &mut ChaCha8Rng, l: &LinkShape, b: &TickBound) -> Vec<Fate> {
         let len = rng.random_range(1..=400usize).min(n - i);
         let target = rng.random_range(b.d_min..=b.d_max);
         let square = rng.random_bool(0.3);
-        for j in i..i + len {
-            if h[j] != Fate::Delivered(0) {
+        for (j, fate) in h.iter_mut().enumerate().skip(i).take(len) {
+            if *fate != Fate::Delivered(0) {
                 continue;
             }
             let v = l.valid_from(j as u64);
@@ -127,7 +127,7 @@ fn generate(rng: &mut ChaCha8Rng, l: &LinkShape, b: &TickBound) -> Vec<Fate> {
                         .clamp(b.d_min.max(pd - b.jitter), b.d_max.min(pd + b.jitter))
                 }
             };
-            h[j] = Fate::Delivered(d);
+            *fate = Fate::Delivered(d);
             prev = Some((v, d));
         }
         i += len;
