@@ -368,6 +368,36 @@ fn objective_of(described: &str, path: &Path) -> Result<Objective, FalsifyError>
     .map_err(|e| invalid(path, format!("objective: {e}")))
 }
 
+/// The worst is derived again: its trace, replayed to `replayed`, gives the metric and the
+/// objective the shard in `dir` claims for evaluation `we`, bit for bit (a replay is
+/// deterministic); a shard whose files do not agree is refused naming its `progress.csv`.
+fn check_worst_claim(
+    dir: &Path,
+    objective: &Objective,
+    we: &Eval,
+    replayed: f64,
+) -> Result<(), FalsifyError> {
+    let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+    let derived = objective.of_metric(replayed);
+    if same(replayed, we.metric) && same(derived, we.objective) {
+        return Ok(());
+    }
+    Err(invalid(
+        &dir.join("progress.csv"),
+        format!(
+            "evaluation {} ({}) claims {} = {} (objective {}), but its worst/timing.csv \
+             replays to {} (objective {}): the shard's files do not agree",
+            we.evaluation,
+            we.method.name(),
+            objective.key(),
+            we.metric,
+            we.objective,
+            replayed,
+            derived
+        ),
+    ))
+}
+
 /// Merges the shard directories `dirs` into `out`: `progress.csv` and its figure, the worst
 /// timing's trace and its replay in `out/worst`, `result.json` and `bounds.toml`. Returns the
 /// merged evaluations (each with its shard) and the result.
@@ -405,26 +435,7 @@ pub fn merge(
             .map(|_| ())
             .map_err(|e| files_error(p, e))
     })?;
-    // The worst is derived again: its trace replayed here gives the metric and the objective
-    // the shard claims for it, bit for bit (a replay is deterministic).
-    let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
-    let objective = spec.objective.of_metric(worst_run_metric);
-    if !same(worst_run_metric, we.metric) || !same(objective, we.objective) {
-        return Err(invalid(
-            &src.dir.join("progress.csv"),
-            format!(
-                "evaluation {} ({}) claims {} = {} (objective {}), but its worst/timing.csv \
-                 replays to {} (objective {}): the shard's files do not agree",
-                we.evaluation,
-                we.method.name(),
-                spec.objective.key(),
-                we.metric,
-                we.objective,
-                worst_run_metric,
-                objective
-            ),
-        ));
-    }
+    check_worst_claim(&src.dir, &spec.objective, &we, worst_run_metric)?;
     write_merged_progress(out, &s, &spec, &evals)?;
     let best = |m: Method| {
         evals

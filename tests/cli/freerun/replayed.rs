@@ -6,30 +6,30 @@ use std::path::Path;
 use super::{bytes, replay, s};
 use tiltsim_suite::summary;
 
-/// The replay follows the trace: plant step 1000 told it read the bar angle of the actuator
-/// step plant step 999 read (one that could have happened: a late sample) gives other rows from
-/// there on, and the same rows before (`free`: the free run's rows).
+/// The replay follows the trace: the first plant step from 1000 on that read a newer
+/// actuator step than the step before it, told it read the same one as that step (one that
+/// could have happened: a late sample), gives other rows from there on, and the same rows
+/// before (`free`: the free run's rows).
 pub fn an_edited_trace_changes_the_rows_from_its_step(dir: &Path, root: &Path, free: &[u8]) {
     let edited = root.join("edited");
     std::fs::create_dir_all(&edited).unwrap();
     std::fs::copy(dir.join("scenario.toml"), edited.join("scenario.toml")).unwrap();
     let text = std::fs::read_to_string(dir.join("timing.csv")).unwrap();
-    let from_actuator = |step: &str| {
+    let from_actuator = |step: usize| -> String {
         let l = text
             .lines()
             .find(|l| l.starts_with(&format!("plant,{step},")))
             .unwrap();
         l.split(',').nth(3).unwrap().to_string()
     };
-    let (before, own) = (from_actuator("999"), from_actuator("1000"));
-    assert_ne!(
-        before, own,
-        "plant steps 999 and 1000 read the same actuator step"
-    );
+    let k = (1000..1990)
+        .find(|&k| from_actuator(k) != from_actuator(k - 1))
+        .expect("the plant read the same actuator step from step 1000 to the end");
+    let before = from_actuator(k - 1);
     let changed: Vec<String> = text
         .lines()
         .map(|l| {
-            if l.starts_with("plant,1000,") {
+            if l.starts_with(&format!("plant,{k},")) {
                 let mut c: Vec<&str> = l.split(',').collect();
                 c[3] = before.as_str();
                 c.join(",")
@@ -48,9 +48,18 @@ pub fn an_edited_trace_changes_the_rows_from_its_step(dir: &Path, root: &Path, f
             .map(String::from)
             .collect::<Vec<_>>()
     };
+    // The header, the row at the start and one row after each step: step k's is line k + 2.
     let (a, b) = (lines(free), lines(&other));
-    assert_eq!(a[..1001], b[..1001], "rows before step 1000 are unchanged");
-    assert_ne!(a[1001..], b[1001..], "the edited step changes what follows");
+    assert_eq!(
+        a[..k + 2],
+        b[..k + 2],
+        "rows before plant step {k} are unchanged"
+    );
+    assert_ne!(
+        a[k + 2..],
+        b[k + 2..],
+        "the edited step {k} changes what follows"
+    );
 }
 
 /// Another system under the same timing: twice the PI gain. Same time base, other commands.
