@@ -89,28 +89,26 @@ pub fn replay_timing(
 ) -> Result<Replayed, FreeError> {
     let period = s.controller_period_ticks();
     let trace = trace::read(trace_path, s.run.dt_s, s.steps(), period)?;
-    let verdict = real_time_verdict(&trace.steps, s.run.dt_s);
+    let verdict = real_time_verdict(&trace.steps, s.run.dt_s, period);
     let mut r = replay_trace(s, trace, trace_path, opts, out)?;
     r.not_real_time = Some(verdict);
     Ok(r)
 }
 
-/// The free run's verdict from its trace, as the free run judged it (`timing::Stats`): not
-/// real time when a plant step started more than [`super::NOT_REAL_TIME_TICKS`] ticks after it
-/// was due.
-fn real_time_verdict(steps: &[StepTrace], dt_s: f64) -> tiltsim_assessment::validity::NotRealTime {
-    let latest_ns = steps
-        .iter()
-        .filter(|t| t.role == Role::Plant)
-        .map(|t| t.read_ns.saturating_sub(t.due_ns))
-        .max()
-        .unwrap_or(0);
-    let plant_max_lateness_s = latest_ns as f64 * 1e-9;
-    let margin_s = super::timing::NOT_REAL_TIME_TICKS as f64 * dt_s;
+/// The free run's verdict on real time, judged from its trace by the free run's own
+/// statistics ([`super::timing::Stats`]).
+fn real_time_verdict(
+    steps: &[StepTrace],
+    dt_s: f64,
+    period: u64,
+) -> tiltsim_assessment::validity::NotRealTime {
+    let mut stats = super::timing::Stats::new((dt_s * 1e9).round() as u64, period);
+    steps.iter().for_each(|t| stats.note(t));
+    let f = stats.report(dt_s);
     tiltsim_assessment::validity::NotRealTime {
-        raised: plant_max_lateness_s > margin_s,
-        plant_max_lateness_s,
-        margin_s,
+        raised: f.not_real_time,
+        plant_max_lateness_s: f.plant_max_lateness_s,
+        margin_s: f.not_real_time_margin_s,
     }
 }
 

@@ -7,21 +7,11 @@
 
 use rand::{Rng as _, SeedableRng as _};
 use rand_chacha::ChaCha8Rng;
-use tiltsim_scenario::scenario::Scenario;
 
 use super::bounds::{Bounds, TickBound};
 use super::history::{self, Fate, Layout};
+use super::tests::shipped;
 use super::timing::{self, LinkShape};
-
-fn shipped(name: &str, duration_s: f64) -> Scenario {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenarios")
-        .join(name);
-    Scenario::load(&path)
-        .unwrap()
-        .with_setting("run.duration_s", &duration_s.to_string())
-        .unwrap()
-}
 
 /// Marks `len` samples from `start` as `what` where nothing is marked yet; false when any is.
 fn place(h: &mut [Fate], start: usize, len: usize, what: Fate) -> bool {

@@ -11,7 +11,8 @@ use super::history::{self, Fate, Layout};
 use super::objective::Objective;
 use super::timing;
 
-fn shipped(name: &str, duration_s: f64) -> Scenario {
+/// A shipped scenario, cut to `duration_s`.
+pub(super) fn shipped(name: &str, duration_s: f64) -> Scenario {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../scenarios")
         .join(name);
