@@ -325,7 +325,7 @@ pub(crate) fn falsify<'py>(
     bounds: &str,
     bounds_origin: &str,
     objective: Option<String>,
-    requirement: Option<String>,
+    requirement: Option<Vec<String>>,
     budget: Option<i64>,
     seed: u64,
     jobs: Option<usize>,
@@ -344,7 +344,7 @@ pub(crate) fn falsify<'py>(
             return Err(invalid(py, "give objective or requirement, not both"));
         }
         (Some(o), None) => Objective::maximise(&o),
-        (None, Some(r)) => Objective::requirement(&r),
+        (None, Some(r)) => Objective::requirements(&r),
         (None, None) => Objective::maximise("p_ct"),
     }
     .map_err(bad)?;
@@ -426,6 +426,9 @@ fn progress_frame<'py>(
     progress.set_item("phase", PyList::new(py, phase)?)?;
     progress.set_item("metric", col(|e| e.metric))?;
     progress.set_item("objective", col(|e| e.objective))?;
+    progress.set_item("margin", col(|e| e.margin))?;
+    let violated: Vec<bool> = evals.iter().map(|e| e.violated).collect();
+    progress.set_item("violated", PyList::new(py, violated)?)?;
     progress.set_item("best_so_far", col(|e| e.best_so_far))?;
     let valid: Vec<bool> = evals.iter().map(|e| e.valid).collect();
     progress.set_item("valid", PyList::new(py, valid)?)?;

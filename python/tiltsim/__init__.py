@@ -523,7 +523,7 @@ def falsify(
     bounds: Union[str, "os.PathLike[str]", Mapping[str, Mapping[str, Any]]],
     *,
     objective: Optional[str] = None,
-    requirement: Optional[str] = None,
+    requirement: Union[None, str, Sequence[str]] = None,
     budget: Optional[int] = None,
     seed: int = 1,
     set: Optional[Mapping[str, Any]] = None,
@@ -537,13 +537,22 @@ def falsify(
 
     ``bounds``: a bounds file's path, or a dict per link
     (``{"actuator_command": {"delay_ms": [0, 60], "jitter_ms": 10, "loss_pct": 1}}``).
-    ``objective``: a metric to maximise (default ``p_ct``); or ``requirement``
-    (``"p_ct < 35"``), whose margin is minimised. Returns ``(trace, worst, progress)``: the
+    ``objective``: a metric to maximise (default ``p_ct``); or ``requirement``, one or a
+    list judged all at once, whose margin is minimised: on a metric (``"p_ct < 35"``), on
+    validity (``"valid"``, ``"no flags"``, ``"no oscillation"``) or on signals over time
+    (``"always |lat_acc| < 1.2"``); ``worst["requirements"]`` gives each one's margin and
+    whether it holds at the worst timing. Returns ``(trace, worst, progress)``: the
     worst timing as ``timing.csv`` text (``tiltsim replay-timing`` replays it), the worst
     result (``result.json``'s fields) and every evaluation of both methods as a DataFrame
     (a dict of arrays without pandas). With ``out`` the files stay there.
     """
     kind, value, origin = _scenario(scenario)
+    if isinstance(requirement, str):
+        requirement = [requirement]
+    elif requirement is not None:
+        if not all(isinstance(r, str) for r in requirement):
+            raise TypeError("requirement: allowed a string or a sequence of strings")
+        requirement = list(requirement)
     if isinstance(bounds, Mapping):
         lines = []
         for link, fields in bounds.items():
@@ -571,7 +580,10 @@ def falsify(
         jobs=jobs,
         out=_path(out),
     )
-    return raw["trace"], dict(raw["worst"]), _frame(raw["progress"])
+    worst = dict(raw["worst"])
+    if isinstance(worst.get("requirements"), str):
+        worst["requirements"] = json.loads(worst["requirements"])
+    return raw["trace"], worst, _frame(raw["progress"])
 
 
 def compare(

@@ -78,7 +78,7 @@ def falsify(
     bounds: str,
     bounds_origin: str,
     objective: Optional[str] = None,
-    requirement: Optional[str] = None,
+    requirement: Optional[list[str]] = None,
     budget: int = 200,
     seed: int = 1,
     jobs: Optional[int] = None,

@@ -8,6 +8,7 @@
 mod bench;
 mod contract;
 mod falsify;
+mod falsify_requirements;
 mod falsify_shards;
 mod freerun;
 mod getting_started;

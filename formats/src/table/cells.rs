@@ -10,8 +10,13 @@ pub(super) trait Cell: Copy {
     fn read(field: &[u8]) -> Option<Self>;
     fn lo(self, other: Self) -> Self;
     fn hi(self, other: Self) -> Self;
+    /// The value as a float (integers below 2^53 exactly).
+    fn number(self) -> f64;
 }
 impl Cell for f64 {
+    fn number(self) -> f64 {
+        self
+    }
     fn read(field: &[u8]) -> Option<Self> {
         std::str::from_utf8(field).ok()?.parse().ok()
     }
@@ -27,6 +32,9 @@ impl Cell for f64 {
 }
 
 impl Cell for u64 {
+    fn number(self) -> f64 {
+        self as f64
+    }
     fn read(field: &[u8]) -> Option<Self> {
         std::str::from_utf8(field).ok()?.parse().ok()
     }
@@ -41,6 +49,9 @@ impl Cell for u64 {
     }
 }
 impl Cell for u32 {
+    fn number(self) -> f64 {
+        f64::from(self)
+    }
     fn read(field: &[u8]) -> Option<Self> {
         std::str::from_utf8(field).ok()?.parse().ok()
     }

@@ -43,6 +43,8 @@ macro_rules! row {
         /// kept in memory are read column-wise in place, a column being every
         /// `size_of::<Row>()` bytes from its offset.
         pub const OFFSETS: &[usize] = &[$(std::mem::offset_of!($name, $f)),*];
+        /// Each column of [`COLUMNS`] of a row, as a float (the signals of a requirement).
+        pub const GETTERS: &[fn(&$name) -> f64] = &[$(|r: &$name| Cell::number(r.$f)),*];
         impl $name {
             /// Appends every field, formatted, to `record` (using `buf` as scratch).
             fn write_into(&self, record: &mut csv::ByteRecord, buf: &mut String) {

@@ -33,9 +33,13 @@ pub struct FalsifyArgs {
     /// or p_ct, p_ct_seated, lat_acc_peak, tilt_error, n_mv, jerk_peak, roll_speed_peak.
     #[arg(long, conflicts_with = "requirement")]
     objective: Option<String>,
-    /// A requirement whose margin is minimised, `METRIC OP VALUE` (e.g. "p_ct < 35").
-    #[arg(long)]
-    requirement: Option<String>,
+    /// A requirement whose margin is minimised; repeatable (all at once): on a metric,
+    /// `METRIC OP VALUE` ("p_ct < 35"); on validity, `valid`, `no flags` or `no FLAG`
+    /// (oscillation, bump_stop, drive_limit, chopper, thermal, p_ct_range); on signals, a
+    /// temporal formula ("always |lat_acc| < 1.2",
+    /// "always (transition_end -> always[0,3] |tilt_error| < 0.5deg)").
+    #[arg(long, value_name = "R")]
+    requirement: Vec<String>,
     /// Evaluations of the search (and as many of the random sampling it is compared with)
     /// [default: from the number of coordinates searched: the obvious adversaries, CMA-ES
     /// for max(10, 5n/λ) generations of λ, and a third as many of the histories' evolution].
@@ -137,10 +141,10 @@ pub fn exec(a: FalsifyArgs) -> CliResult {
             "--budget {b}: allowed a whole number of evaluations from 1 to {MAX_BUDGET}"
         )));
     }
-    let objective = match (&a.objective, &a.requirement) {
+    let objective = match (&a.objective, a.requirement.is_empty()) {
         (Some(o), _) => Objective::maximise(o),
-        (None, Some(r)) => Objective::requirement(r),
-        (None, None) => Objective::maximise("p_ct"),
+        (None, false) => Objective::requirements(&a.requirement),
+        (None, true) => Objective::maximise("p_ct"),
     }
     .map_err(invalid)?;
     let shard = super::common::shard_of(a.shard.as_deref(), a.shards)?;
@@ -209,19 +213,30 @@ pub fn exec(a: FalsifyArgs) -> CliResult {
     verdict(&o, &out)
 }
 
-/// Exit 3 for a requirement the search falsified, naming the counterexample.
+/// Exit 3 for a requirement the search falsified, naming each broken one and the
+/// counterexample.
 pub fn verdict(o: &falsify::Outcome, out: &Path) -> CliResult {
-    match (o.violated, o.margin) {
-        (Some(true), Some(m)) => Err(CliError::Falsified(format!(
-            "falsified: requirement {} broken by {:.4} at the timing in {}/worst/timing.csv \
-             (`tiltsim replay-timing {}/worst`)",
-            o.objective,
-            -m,
-            out.display(),
-            out.display()
-        ))),
-        _ => Ok(()),
+    if o.violated != Some(true) {
+        return Ok(());
     }
+    let broken: Vec<String> = o
+        .requirements
+        .iter()
+        .flatten()
+        .filter(|j| !j.holds)
+        .map(|j| format!("`{}` (margin {:.4})", j.requirement, j.margin))
+        .collect();
+    Err(CliError::Falsified(format!(
+        "falsified: requirement {} broken at the timing in {}/worst/timing.csv \
+         (`tiltsim replay-timing {}/worst`)",
+        if broken.is_empty() {
+            format!("`{}`", o.objective)
+        } else {
+            broken.join(", ")
+        },
+        out.display(),
+        out.display()
+    )))
 }
 
 /// The table of a search (or of merged shards) on standard output.
@@ -259,14 +274,22 @@ pub fn print_report(
             )
         }
     );
+    for j in o.requirements.iter().flatten() {
+        println!(
+            "requirement `{}` at the worst timing: {}, margin {:.4}",
+            j.requirement,
+            if j.holds { "holds" } else { "VIOLATED" },
+            j.margin
+        );
+    }
     if let (Some(v), Some(m)) = (o.violated, o.margin) {
         if v {
-            println!("requirement {} VIOLATED by {:.4}", o.objective, -m);
+            println!("requirements {} VIOLATED (margin {m:.4})", o.objective);
         } else {
             println!(
-                "requirement {} not falsified within {} evaluations: margin {m:.4} at the worst \
-                 timing found (the timings evaluated keep it; that is not a proof that every \
-                 admissible one does)",
+                "requirements {} not falsified within {} evaluations: margin {m:.4} at the \
+                 worst timing found (the timings evaluated keep them; that is not a proof that \
+                 every admissible one does)",
                 o.objective,
                 evals.len()
             );

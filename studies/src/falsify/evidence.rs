@@ -23,7 +23,7 @@ pub fn sampled<'a>(objective: &Objective, evals: impl Iterator<Item = &'a Eval>)
     let (mut n, mut broken) = (0, 0);
     for e in evals.filter(|e| e.method == Method::Random) {
         n += 1;
-        broken += usize::from(!e.error.is_empty() || objective.violated(e.metric));
+        broken += usize::from(objective.is_requirement() && (!e.error.is_empty() || e.violated));
     }
     Sampled {
         n,

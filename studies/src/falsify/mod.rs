@@ -9,7 +9,9 @@
 //!   of any trace against bounds;
 //! * [`adversaries`]: the obvious adversaries, tried before the search and seeding it;
 //! * [`mutation`]: the search's evolution of the histories themselves;
-//! * [`objective`]: a summary metric to maximise, or a requirement whose margin is minimised;
+//! * [`objective`]: a summary metric to maximise, or requirements whose margin is minimised;
+//! * [`requirement`]: requirements on comfort metrics, on validity, and on signals over time
+//!   (a small signal temporal logic with its robustness as the margin);
 //! * [`evidence`]: what the random sampling says about a requirement (a 95 % upper bound);
 //! * [`cmaes`]: the search, CMA-ES (Hansen's tutorial);
 //! * [`search`]: the evaluations (the in-process lock-step replay of each candidate trace, a
@@ -26,6 +28,7 @@ pub mod history;
 pub mod mutation;
 pub mod objective;
 pub mod outputs;
+pub mod requirement;
 pub mod search;
 pub mod shards;
 pub mod timing;

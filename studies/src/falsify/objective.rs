@@ -1,7 +1,10 @@
-//! What a falsifying search maximises: one summary metric, or the violation of a requirement
-//! on one (`p_ct < 35`: its margin, 35 − P_CT, is minimised).
+//! What a falsifying search maximises: one summary metric, or the violation of requirements
+//! (`p_ct < 35`: its margin, 35 − P_CT, is minimised; several at once: the least of their
+//! scaled margins).
 
-use tiltsim_assessment::comfort::{Comfort, METRICS};
+use tiltsim_assessment::comfort::METRICS;
+
+use super::requirement::{Check, Judged, Requirement};
 
 use super::FalsifyError;
 
@@ -31,7 +34,8 @@ pub enum Cmp {
 }
 
 impl Cmp {
-    fn symbol(self) -> &'static str {
+    /// As written.
+    pub fn symbol(self) -> &'static str {
         match self {
             Cmp::Less => "<",
             Cmp::LessEq => "<=",
@@ -46,15 +50,8 @@ impl Cmp {
 pub enum Objective {
     /// Maximise the metric at this index of [`METRICS`].
     Maximise(usize),
-    /// Minimise the margin of `metric cmp bound`.
-    Requirement {
-        /// Index in [`METRICS`].
-        metric: usize,
-        /// The comparison.
-        cmp: Cmp,
-        /// The bound.
-        bound: f64,
-    },
+    /// Minimise the margin of these requirements, all at once (at least one).
+    Requirements(Vec<Requirement>),
 }
 
 /// The index in [`METRICS`] of `name` (a key or an alias); the error says what is allowed.
@@ -74,6 +71,21 @@ pub fn metric_index(name: &str, flag: &str) -> Result<usize, FalsifyError> {
     })
 }
 
+/// What an objective makes of one run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Score {
+    /// The objective's metric ([`Objective::metric`]).
+    pub metric: f64,
+    /// The requirements' margin (NaN when a metric is maximised).
+    pub margin: f64,
+    /// Whether a requirement is broken (never when a metric is maximised).
+    pub violated: bool,
+    /// What the search maximises: the metric, or the margin negated.
+    pub objective: f64,
+    /// Each requirement's judgement, in order.
+    pub checks: Vec<Check>,
+}
+
 impl Objective {
     /// `--objective NAME`.
     pub fn maximise(name: &str) -> Result<Objective, FalsifyError> {
@@ -83,39 +95,46 @@ impl Objective {
         )?))
     }
 
-    /// `--requirement "NAME OP VALUE"`, OP one of `<`, `<=`, `>`, `>=`.
-    pub fn requirement(text: &str) -> Result<Objective, FalsifyError> {
-        let bad = |what: &str| {
-            FalsifyError::Invalid(format!(
-                "--requirement `{text}`: {what}; allowed: `METRIC OP VALUE` with OP one of <, <=, >, >= (e.g. `p_ct < 35`)"
-            ))
-        };
-        let (at, op) = ["<=", ">=", "<", ">"]
-            .iter()
-            .find_map(|op| text.find(op).map(|i| (i, *op)))
-            .ok_or_else(|| bad("no comparison"))?;
-        let name = text[..at].trim();
-        let value = text[at + op.len()..].trim();
-        let metric = metric_index(name, "--requirement")?;
-        let bound: f64 = value
-            .parse()
-            .ok()
-            .filter(|v: &f64| v.is_finite())
-            .ok_or_else(|| bad(&format!("`{value}` is not a finite number")))?;
-        let cmp = match op {
-            "<" => Cmp::Less,
-            "<=" => Cmp::LessEq,
-            ">" => Cmp::Greater,
-            _ => Cmp::GreaterEq,
-        };
-        Ok(Objective::Requirement { metric, cmp, bound })
+    /// One `--requirement` per text; a text may also hold several separated by `;`
+    /// (as [`Objective::describe`] writes them).
+    pub fn requirements<S: AsRef<str>>(texts: &[S]) -> Result<Objective, FalsifyError> {
+        let mut all = Vec::new();
+        for text in texts {
+            for one in text.as_ref().split(';') {
+                all.push(Requirement::parse(one)?);
+            }
+        }
+        if all.is_empty() {
+            return Err(FalsifyError::Invalid(format!(
+                "--requirement: none given; allowed: {}",
+                super::requirement::ALLOWED
+            )));
+        }
+        Ok(Objective::Requirements(all))
     }
 
-    /// The metric's index in [`METRICS`].
+    /// `--requirement TEXT` (several separated by `;`).
+    pub fn requirement(text: &str) -> Result<Objective, FalsifyError> {
+        Objective::requirements(&[text])
+    }
+
+    /// The objective's metric's index in [`METRICS`]: the one maximised, or the first metric
+    /// a requirement names (P_CT standing when none does), shown beside the margin.
     pub fn metric(&self) -> usize {
         match self {
             Objective::Maximise(m) => *m,
-            Objective::Requirement { metric, .. } => *metric,
+            Objective::Requirements(rs) => rs
+                .iter()
+                .find_map(|r| match r {
+                    Requirement::Metric { metric, .. } => Some(*metric),
+                    _ => None,
+                })
+                .unwrap_or_else(|| {
+                    METRICS
+                        .iter()
+                        .position(|m| m.key == "p_ct_en12299_standing_pct")
+                        .unwrap_or(0)
+                }),
         }
     }
 
@@ -124,56 +143,71 @@ impl Objective {
         METRICS[self.metric()].key
     }
 
-    /// The value the search maximises for a run's comfort: the metric, or the requirement's
-    /// margin negated. NaN when the metric is not a number.
-    pub fn value(&self, c: &Comfort) -> f64 {
-        let v = (METRICS[self.metric()].get)(c);
-        match self {
-            Objective::Maximise(_) => v,
-            Objective::Requirement { .. } => -self.margin(v),
-        }
+    /// Whether requirements are judged (rather than a metric maximised).
+    pub fn is_requirement(&self) -> bool {
+        matches!(self, Objective::Requirements(_))
     }
 
-    /// The value the search maximises for metric value `v` (as [`Objective::value`]).
-    pub fn of_metric(&self, v: f64) -> f64 {
-        match self {
-            Objective::Maximise(_) => v,
-            Objective::Requirement { .. } => -self.margin(v),
-        }
+    /// Whether a requirement speaks of signals (so an evaluation keeps its rows).
+    pub fn on_signals(&self) -> bool {
+        matches!(self, Objective::Requirements(rs) if rs.iter().any(Requirement::on_signals))
     }
 
-    /// A requirement's margin for metric value `v` (positive: met with room to spare).
-    pub fn margin(&self, v: f64) -> f64 {
-        match self {
-            Objective::Maximise(_) => f64::NAN,
-            Objective::Requirement { cmp, bound, .. } => match cmp {
-                Cmp::Less | Cmp::LessEq => bound - v,
-                Cmp::Greater | Cmp::GreaterEq => v - bound,
-            },
-        }
-    }
-
-    /// Whether metric value `v` breaks the requirement (never for a metric maximised).
-    pub fn violated(&self, v: f64) -> bool {
-        match self {
-            Objective::Maximise(_) => false,
-            Objective::Requirement { cmp, .. } => {
-                let m = self.margin(v);
-                match cmp {
-                    Cmp::Less | Cmp::Greater => m <= 0.0 || m.is_nan(),
-                    Cmp::LessEq | Cmp::GreaterEq => m < 0.0 || m.is_nan(),
+    /// What the objective makes of run `r`. With one requirement the margin is its own; with
+    /// several, the least of their margins each divided by its scale
+    /// ([`Requirement::scale`]: the magnitude of its bound), so margins in different units
+    /// compare as fractions of their bounds. NaN when a margin is.
+    pub fn score(&self, r: &Judged) -> Score {
+        let metric = (METRICS[self.metric()].get)(r.comfort);
+        let Objective::Requirements(rs) = self else {
+            return Score {
+                metric,
+                margin: f64::NAN,
+                violated: false,
+                objective: metric,
+                checks: Vec::new(),
+            };
+        };
+        let checks: Vec<Check> = rs.iter().map(|q| q.check(r)).collect();
+        let margin = if let [one] = checks.as_slice() {
+            one.margin
+        } else {
+            rs.iter().zip(&checks).fold(f64::INFINITY, |m, (q, c)| {
+                let scaled = c.margin / q.scale();
+                if m.is_nan() || scaled.is_nan() {
+                    f64::NAN
+                } else {
+                    m.min(scaled)
                 }
-            }
+            })
+        };
+        Score {
+            metric,
+            margin,
+            violated: checks.iter().any(|c| !c.holds),
+            objective: -margin,
+            checks,
         }
     }
 
-    /// How it reads: `maximise p_ct_en12299_standing_pct`, `p_ct_en12299_standing_pct < 35`.
+    /// How it reads: `maximise p_ct_en12299_standing_pct`, `p_ct_en12299_standing_pct < 35`,
+    /// several requirements separated by `; ` (parsed again, it gives the same objective).
     pub fn describe(&self) -> String {
         match self {
             Objective::Maximise(_) => format!("maximise {}", self.key()),
-            Objective::Requirement { cmp, bound, .. } => {
-                format!("{} {} {bound}", self.key(), cmp.symbol())
-            }
+            Objective::Requirements(rs) => rs
+                .iter()
+                .map(Requirement::describe)
+                .collect::<Vec<_>>()
+                .join("; "),
+        }
+    }
+
+    /// Each requirement as it reads (none when a metric is maximised).
+    pub fn each(&self) -> Vec<String> {
+        match self {
+            Objective::Maximise(_) => Vec::new(),
+            Objective::Requirements(rs) => rs.iter().map(Requirement::describe).collect(),
         }
     }
 }

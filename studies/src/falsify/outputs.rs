@@ -16,6 +16,7 @@ use tiltsim_report::plot::{Chart, Line};
 use tiltsim_scenario::scenario::Scenario;
 
 use super::history::Layout;
+use super::objective::Score;
 use super::search::{Eval, Falsified, Method, Spec};
 use super::FalsifyError;
 use crate::sweep::Shard;
@@ -28,6 +29,18 @@ pub const CMA_ES_CITATION: &str =
 /// requirement).
 pub fn verdict(violated: Option<bool>) -> Option<&'static str> {
     violated.map(|v| if v { "violated" } else { "not-falsified" })
+}
+
+/// One requirement's judgement of the worst timing, in `result.json` → `requirements`.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Judgement {
+    /// The requirement as it reads.
+    pub requirement: String,
+    /// Its margin at the worst timing (negative: broken by that much; `null` when it is not
+    /// a finite number: +∞ for a formula nothing in the run put to the test).
+    pub margin: f64,
+    /// Whether it holds there.
+    pub holds: bool,
 }
 
 /// `result.json`.
@@ -76,9 +89,13 @@ pub struct Outcome {
     /// For a requirement: whether the worst timing breaks it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub violated: Option<bool>,
-    /// For a requirement: its margin at the worst timing (negative: broken by that much).
+    /// For requirements: their margin at the worst timing (negative: broken by that much;
+    /// several: the least of their margins each as a fraction of its bound).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub margin: Option<f64>,
+    /// For requirements: each one's judgement of the worst timing's replay.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub requirements: Option<Vec<Judgement>>,
     /// For a requirement: `violated` (the worst timing found breaks it: `worst/timing.csv` is
     /// the counterexample) or `not-falsified` (no timing evaluated breaks it, which is not a
     /// proof that none does). `tiltsim falsify` exits 3 when violated.
@@ -145,14 +162,14 @@ pub fn nominal(s: &Scenario, spec: &Spec, out: &Path, interrupt: &Arc<AtomicBool
 }
 
 /// Writes the worst timing's trace to `out/worst/timing.csv` and replays it there (a run
-/// directory with its figures); returns the replay's metric.
+/// directory with its figures); returns what the objective makes of the replay.
 pub fn write_worst(
     s: &Scenario,
     spec: &Spec,
     f: &Falsified,
     out: &Path,
     interrupt: &Arc<AtomicBool>,
-) -> Result<f64, FalsifyError> {
+) -> Result<Score, FalsifyError> {
     let trace = Layout::new(s, &f.ticks).trace(s, &f.worst.0);
     replay_worst(s, spec, out, interrupt, |path| {
         let mut w = TraceWriter::create(path, &trace.head).map_err(|e| files_error(path, e))?;
@@ -164,14 +181,15 @@ pub fn write_worst(
 }
 
 /// Takes `out/worst`, has `write` put the worst timing's trace in `out/worst/timing.csv`,
-/// and replays it there (a run directory with its figures); returns the replay's metric.
+/// and replays it there (a run directory with its figures); returns what the objective makes
+/// of the replay.
 pub fn replay_worst(
     s: &Scenario,
     spec: &Spec,
     out: &Path,
     interrupt: &Arc<AtomicBool>,
     write: impl FnOnce(&Path) -> Result<(), FalsifyError>,
-) -> Result<f64, FalsifyError> {
+) -> Result<Score, FalsifyError> {
     let dir = out.join("worst");
     let lock = tiltsim_rundir::outdir::claim_run(&dir, "falsify")
         .map_err(|e| FalsifyError::Invalid(e.to_string()))?;
@@ -192,9 +210,33 @@ pub fn replay_worst(
             done.summary.error.unwrap_or_default()
         )));
     }
-    Ok((METRICS[spec.objective.metric()].get)(
-        &done.summary.comfort,
+    let rows = if spec.objective.on_signals() {
+        tiltsim_formats::table::read_rows(&dir).map_err(|e| files_error(&dir, e))?
+    } else {
+        Vec::new()
+    };
+    Ok(super::search::judge(
+        s,
+        &spec.objective,
+        &done.summary,
+        &rows,
     ))
+}
+
+/// Each requirement's judgement in `score` (`None` when a metric is maximised).
+pub fn judgements(spec: &Spec, score: &Score) -> Option<Vec<Judgement>> {
+    spec.objective.is_requirement().then(|| {
+        spec.objective
+            .each()
+            .into_iter()
+            .zip(&score.checks)
+            .map(|(requirement, c)| Judgement {
+                requirement,
+                margin: c.margin,
+                holds: c.holds,
+            })
+            .collect()
+    })
 }
 
 /// Writes `progress.csv` and the progress figure.
@@ -235,6 +277,8 @@ pub fn write_merged_progress(
             e.phase,
             e.metric,
             e.objective,
+            e.margin,
+            e.violated,
             e.best_so_far,
             e.valid,
             &e.flags,
@@ -256,7 +300,7 @@ fn write_chart(out: &Path, s: &Scenario, spec: &Spec, evals: &[Eval]) -> Result<
             .map(|e| {
                 let v = if best { e.best_so_far } else { e.objective };
                 // A requirement is shown by its margin (the objective negated).
-                if matches!(spec.objective, super::Objective::Requirement { .. }) {
+                if spec.objective.is_requirement() {
                     -v
                 } else {
                     v
@@ -266,7 +310,7 @@ fn write_chart(out: &Path, s: &Scenario, spec: &Spec, evals: &[Eval]) -> Result<
     };
     let n = evals.iter().filter(|e| e.method == Method::CmaEs).count();
     let x: Vec<f64> = (1..=n).map(|i| i as f64).collect();
-    let requirement = matches!(spec.objective, super::Objective::Requirement { .. });
+    let requirement = spec.objective.is_requirement();
     let y_label = if requirement {
         format!("margin of {} (lowest so far)", spec.objective.describe())
     } else {
@@ -417,7 +461,7 @@ pub fn falsify_part(
     }
     let (nominal_metric, plain_run_s) = nominal(s, spec, &ex.out, &ex.interrupt);
     let f = super::run(s, spec, ex)?;
-    let worst_run_metric = write_worst(s, spec, &f, &ex.out, &ex.interrupt)?;
+    let replayed = write_worst(s, spec, &f, &ex.out, &ex.interrupt)?;
     write_progress(&ex.out, s, spec, &f.evals)?;
     let best = |m: Method| {
         f.evals
@@ -428,7 +472,7 @@ pub fn falsify_part(
             .unwrap_or(f64::NAN)
     };
     let w = &f.worst.1;
-    let requirement = matches!(spec.objective, super::Objective::Requirement { .. });
+    let requirement = spec.objective.is_requirement();
     let sampled = requirement.then(|| super::evidence::sampled(&spec.objective, f.evals.iter()));
     let o = Outcome {
         scenario: s.name.clone(),
@@ -450,10 +494,11 @@ pub fn falsify_part(
         worst_evaluation: w.evaluation,
         worst_metric: w.metric,
         worst_objective: w.objective,
-        worst_run_metric,
-        violated: requirement.then(|| spec.objective.violated(w.metric)),
-        margin: requirement.then(|| spec.objective.margin(w.metric)),
-        verdict: verdict(requirement.then(|| spec.objective.violated(w.metric))),
+        worst_run_metric: replayed.metric,
+        violated: requirement.then_some(w.violated),
+        margin: requirement.then_some(w.margin),
+        requirements: judgements(spec, &replayed),
+        verdict: verdict(requirement.then_some(w.violated)),
         random_samples: sampled.map(|e| e.n),
         random_broken: sampled.map(|e| e.broken),
         random_broken_upper_95: sampled.map(|e| e.upper_95),

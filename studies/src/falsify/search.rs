@@ -118,8 +118,13 @@ pub struct Eval {
     pub phase: Phase,
     /// The metric's value (NaN when the replay failed).
     pub metric: f64,
-    /// What the search maximises (the metric, or a requirement's margin negated).
+    /// What the search maximises (the metric, or the requirements' margin negated).
     pub objective: f64,
+    /// The requirements' margin (NaN when a metric is maximised or the replay failed).
+    pub margin: f64,
+    /// Whether a requirement is broken (a failed replay counts as broken; never when a
+    /// metric is maximised).
+    pub violated: bool,
     /// Largest `objective` of the method so far.
     pub best_so_far: f64,
     /// Whether the replay's comfort numbers are valid (`summary.json` `comfort_valid`: no
@@ -132,12 +137,14 @@ pub struct Eval {
 }
 
 /// The columns of `progress.csv` and `done/evals.csv`, in [`Eval`]'s order.
-pub const EVAL_COLUMNS: [&str; 9] = [
+pub const EVAL_COLUMNS: [&str; 11] = [
     "method",
     "evaluation",
     "phase",
     "metric",
     "objective",
+    "margin",
+    "violated",
     "best_so_far",
     "valid",
     "flags",
@@ -151,6 +158,10 @@ pub struct Scored {
     pub metric: f64,
     /// The objective (NaN when the replay failed).
     pub objective: f64,
+    /// The requirements' margin (NaN when none or the replay failed).
+    pub margin: f64,
+    /// Whether a requirement is broken.
+    pub violated: bool,
     /// `comfort_valid` of the replay.
     pub valid: bool,
     /// The flags raised, `;`-separated.
@@ -160,10 +171,12 @@ pub struct Scored {
 }
 
 impl Scored {
-    fn failed(error: String) -> Scored {
+    fn failed(requirement: bool, error: String) -> Scored {
         Scored {
             metric: f64::NAN,
             objective: f64::NAN,
+            margin: f64::NAN,
+            violated: requirement,
             valid: false,
             flags: String::new(),
             error,
@@ -174,6 +187,8 @@ impl Scored {
         Scored {
             metric: e.metric,
             objective: e.objective,
+            margin: e.margin,
+            violated: e.violated,
             valid: e.valid,
             flags: e.flags.clone(),
             error: e.error.clone(),
@@ -315,7 +330,7 @@ impl Kept {
 /// and the program's build.
 pub fn fingerprint(s: &Scenario, spec: &Spec) -> String {
     let text = format!(
-        "tiltsim falsify 2\n{}\n{:?}\n{}\n{} {}\n{}",
+        "tiltsim falsify 3\n{}\n{:?}\n{}\n{} {}\n{}",
         crate::sweep::identity::build(),
         spec.bounds,
         spec.objective.describe(),
@@ -331,6 +346,23 @@ fn validity(d: &tiltsim_master::Summary) -> (bool, String) {
     (d.comfort_valid, d.flags.raised().join(";"))
 }
 
+/// What `objective` makes of a completed run of `s` with summary `d` and rows `rows`.
+pub fn judge(
+    s: &Scenario,
+    objective: &Objective,
+    d: &tiltsim_master::Summary,
+    rows: &[tiltsim_formats::table::Row],
+) -> super::objective::Score {
+    let raised = d.flags.raised();
+    let trace = super::requirement::signals::Trace::new(s, rows);
+    objective.score(&super::requirement::Judged {
+        comfort: &d.comfort,
+        comfort_valid: d.comfort_valid,
+        raised: &raised,
+        trace: &trace,
+    })
+}
+
 /// One evaluation of history `h`: its trace, checked, replayed in process with its rows in
 /// memory. Nothing is written: `dir` only names the run in messages.
 pub(crate) fn evaluate(
@@ -342,13 +374,14 @@ pub(crate) fn evaluate(
     dir: PathBuf,
     interrupt: &Arc<AtomicBool>,
 ) -> Scored {
+    let failed = |e: String| Scored::failed(objective.is_requirement(), e);
     // Never expected to fail: every candidate is projected onto the bounds (tested).
     if let Err(e) = layout.admissible(h) {
-        return Scored::failed(format!("candidate not admissible: {e}"));
+        return failed(format!("candidate not admissible: {e}"));
     }
     let trace = layout.trace(s, h);
     if let Err(e) = super::timing::check(s, &trace, ticks) {
-        return Scored::failed(format!("candidate not admissible: {e}"));
+        return failed(format!("candidate not admissible: {e}"));
     }
     let mut opts = RunOptions::new(dir, PathBuf::new());
     opts.interrupt = interrupt.clone();
@@ -360,23 +393,25 @@ pub(crate) fn evaluate(
     job.replay_steps = Some(trace);
     match tiltsim_report::pipeline::carry_out(job) {
         Ok(d) if d.summary.status == Status::Completed && d.summary.analysis_skipped.is_none() => {
-            let c = &d.summary.comfort;
+            let score = judge(s, objective, &d.summary, &d.rows);
             let (valid, flags) = validity(&d.summary);
             Scored {
-                metric: (tiltsim_assessment::comfort::METRICS[objective.metric()].get)(c),
-                objective: objective.value(c),
+                metric: score.metric,
+                objective: score.objective,
+                margin: score.margin,
+                violated: score.violated,
                 valid,
                 flags,
                 error: String::new(),
             }
         }
-        Ok(d) => Scored::failed(
+        Ok(d) => failed(
             d.summary
                 .error
                 .or(d.summary.analysis_skipped)
                 .unwrap_or_else(|| "the replay did not complete".into()),
         ),
-        Err(e) => Scored::failed(e.to_string()),
+        Err(e) => failed(e.to_string()),
     }
 }
 
@@ -427,6 +462,8 @@ impl Ctx<'_> {
             phase,
             metric: v.metric,
             objective: v.objective,
+            margin: v.margin,
+            violated: v.violated,
             best_so_far: f64::NAN,
             valid: v.valid,
             flags: v.flags.clone(),
@@ -572,6 +609,8 @@ fn record(
             phase,
             metric: v.metric,
             objective: v.objective,
+            margin: v.margin,
+            violated: v.violated,
             best_so_far: if better { v.objective } else { prev },
             valid: v.valid,
             flags: v.flags,

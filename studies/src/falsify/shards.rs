@@ -20,6 +20,7 @@ use serde::{Deserialize, Serialize};
 use tiltsim_master::free::trace::TIMING_CSV;
 use tiltsim_scenario::scenario::Scenario;
 
+use super::objective::Score;
 use super::outputs::{replay_worst, write_merged_progress, write_result, Outcome, CMA_ES_CITATION};
 use super::search::{Eval, Method, Spec};
 use super::{Bounds, FalsifyError, Objective};
@@ -368,20 +369,26 @@ fn objective_of(described: &str, path: &Path) -> Result<Objective, FalsifyError>
     .map_err(|e| invalid(path, format!("objective: {e}")))
 }
 
-/// The worst is derived again: its trace, replayed to `replayed`, gives the metric and the
-/// objective the shard in `dir` claims for evaluation `we`, bit for bit (a replay is
-/// deterministic); a shard whose files do not agree is refused naming its `progress.csv`.
+/// The worst is derived again: its trace, replayed to `replayed`, gives the metric, the
+/// objective and the verdict the shard in `dir` claims for evaluation `we`, bit for bit (a
+/// replay is deterministic); a shard whose files do not agree is refused naming its
+/// `progress.csv`.
 fn check_worst_claim(
     dir: &Path,
     objective: &Objective,
     we: &Eval,
-    replayed: f64,
+    replayed: &Score,
 ) -> Result<(), FalsifyError> {
     let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
-    let derived = objective.of_metric(replayed);
-    if same(replayed, we.metric) && same(derived, we.objective) {
+    let derived = replayed.objective;
+    if same(replayed.metric, we.metric)
+        && same(derived, we.objective)
+        && same(replayed.margin, we.margin)
+        && replayed.violated == we.violated
+    {
         return Ok(());
     }
+    let replayed = replayed.metric;
     Err(invalid(
         &dir.join("progress.csv"),
         format!(
@@ -430,12 +437,12 @@ pub fn merge(
     let _ = std::fs::remove_file(out.join(SHARD_JSON));
     let _ = std::fs::remove_file(out.join(DIGESTS));
     let trace = src.dir.join("worst").join(TIMING_CSV);
-    let worst_run_metric = replay_worst(&s, &spec, out, interrupt, |p| {
+    let replayed = replay_worst(&s, &spec, out, interrupt, |p| {
         std::fs::copy(&trace, p)
             .map(|_| ())
             .map_err(|e| files_error(p, e))
     })?;
-    check_worst_claim(&src.dir, &spec.objective, &we, worst_run_metric)?;
+    check_worst_claim(&src.dir, &spec.objective, &we, &replayed)?;
     write_merged_progress(out, &s, &spec, &evals)?;
     let best = |m: Method| {
         evals
@@ -447,7 +454,7 @@ pub fn merge(
     };
     let n = shards.len() as f64;
     let sum = |f: &dyn Fn(&ShardResult) -> f64| shards.iter().map(|s| f(&s.result)).sum::<f64>();
-    let requirement = matches!(spec.objective, Objective::Requirement { .. });
+    let requirement = spec.objective.is_requirement();
     let sampled = requirement
         .then(|| super::evidence::sampled(&spec.objective, evals.iter().map(|(_, e)| e)));
     let o = Outcome {
@@ -470,10 +477,11 @@ pub fn merge(
         worst_evaluation: we.evaluation,
         worst_metric: we.metric,
         worst_objective: we.objective,
-        worst_run_metric,
-        violated: requirement.then(|| spec.objective.violated(we.metric)),
-        margin: requirement.then(|| spec.objective.margin(we.metric)),
-        verdict: super::outputs::verdict(requirement.then(|| spec.objective.violated(we.metric))),
+        worst_run_metric: replayed.metric,
+        violated: requirement.then_some(we.violated),
+        margin: requirement.then_some(we.margin),
+        requirements: super::outputs::judgements(&spec, &replayed),
+        verdict: super::outputs::verdict(requirement.then_some(we.violated)),
         random_samples: sampled.map(|e| e.n),
         random_broken: sampled.map(|e| e.broken),
         random_broken_upper_95: sampled.map(|e| e.upper_95),
