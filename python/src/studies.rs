@@ -314,7 +314,8 @@ pub(crate) fn parse_grid(py: Python<'_>, spec: &str) -> PyResult<(String, Vec<f6
 /// (`result.json`'s fields), the progress (`progress.csv`'s columns) and the directory.
 #[pyfunction]
 #[pyo3(signature = (kind, value, origin, settings, bounds, bounds_origin, objective=None,
-                    requirement=None, budget=None, seed=1, jobs=None, out=None))]
+                    requirement=None, budget=None, seed=1, jobs=None, out=None, shard=None,
+                    restarts=None, margin=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn falsify<'py>(
     py: Python<'py>,
@@ -330,6 +331,9 @@ pub(crate) fn falsify<'py>(
     seed: u64,
     jobs: Option<usize>,
     out: Option<PathBuf>,
+    shard: Option<String>,
+    restarts: Option<usize>,
+    margin: Option<(f64, usize)>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use tiltsim_studies::falsify::{self as fz, FalsifyError, Objective};
     let bad = |e: FalsifyError| match e {
@@ -358,12 +362,37 @@ pub(crate) fn falsify<'py>(
             .map_err(bad)?
             .min(100_000),
     };
+    let shard = shard
+        .map(|sh| tiltsim_studies::sweep::Shard::parse(&sh))
+        .transpose()
+        .map_err(|e| invalid(py, format!("shard: {e}")))?;
+    if let Some(n) = restarts.filter(|n| *n == 0 || *n > budget) {
+        return Err(invalid(
+            py,
+            format!("restarts = {n}: allowed 1 to the budget ({budget})"),
+        ));
+    }
+    if let Some((k, steps)) = margin {
+        if !(1.0..=100.0).contains(&k) || steps > 20 {
+            return Err(invalid(
+                py,
+                format!("margin = ({k}, {steps}): allowed a largest scale from 1 to 100 and 0 to 20 bisection steps"),
+            ));
+        }
+        if !objective.is_requirement() || shard.is_some() || restarts.is_some() {
+            return Err(invalid(
+                py,
+                "margin: allowed with a requirement, and without shard or restarts",
+            ));
+        }
+    }
     let spec = fz::Spec {
         bounds: b,
         bounds_from: bounds_origin.to_string(),
         objective,
         budget,
         seed,
+        margin: margin.map(|(max_scale, steps)| fz::margin::MarginPlan { max_scale, steps }),
     };
     let (dir, _scratch) = directory(py, out.as_deref(), "falsify")?;
     let lock = tiltsim_master::outdir::claim(&dir, tiltsim_master::outdir::Kind::Sweep, "falsify")
@@ -380,13 +409,18 @@ pub(crate) fn falsify<'py>(
     let count = move || done.load(Ordering::Relaxed) as u64;
     let total = 2 * budget as u64;
     let (found, raised) = supervise(py, &interrupt, (&count, total), None, move || {
-        fz::falsify(&s, &spec, &ex).map_err(|e| e.to_string())
+        match restarts {
+            Some(n) if n > 1 => fz::shards::restarts(&s, &spec, n, &ex)
+                .map(|(evals, o)| (evals.into_iter().map(|(_, e)| e).collect(), o)),
+            _ => fz::falsify_part(&s, &spec, shard, &ex).map(|(f, o)| (f.evals, o)),
+        }
+        .map_err(|e| e.to_string())
     });
     drop(lock);
     if let Some(e) = raised {
         return Err(e);
     }
-    let (f, o) = found.map_err(|e| error(py, "ParticipantError", e))?;
+    let (evals, o) = found.map_err(|e| error(py, "ParticipantError", e))?;
     let trace = std::fs::read_to_string(dir.join("worst").join("timing.csv"))
         .map_err(|e| error(py, "ParticipantError", format!("worst/timing.csv: {e}")))?;
     let result = PyDict::new(py);
@@ -403,7 +437,7 @@ pub(crate) fn falsify<'py>(
         }
     }
     result.set_item("worst", worst)?;
-    result.set_item("progress", progress_frame(py, &f.evals)?)?;
+    result.set_item("progress", progress_frame(py, &evals)?)?;
     result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
     Ok(result)
 }

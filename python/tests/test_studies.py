@@ -156,6 +156,41 @@ def test_falsify_gives_the_command_lines_worst_trace_and_progress(tmp_path: Path
                         {"actuator_command": {"delay_ms": [9, 1]}}, budget=2)
 
 
+
+def test_falsify_takes_the_command_lines_requirements_margin_and_shards(tmp_path: Path) -> None:
+    bounds = tmp_path / "b.toml"
+    bounds.write_text("[measurement]\ndelay_ms = [0, 60]\n")
+    reqs = ["p_ct < 25.48", "always |lat_acc| < 100", "valid"]
+    args = [a for r in reqs for a in ("--requirement", r)]
+    cli_out = tmp_path / "cli"
+    p = tiltsim_cli("falsify", "scenarios/paper-lqg.toml", "--bounds", str(bounds), "--set",
+                    "run.duration_s=7", "--budget", "4", "--jobs", "2", *args, "--margin",
+                    "--margin-steps", "1", "--out", str(cli_out), "--quiet", check=False)
+    cli = json.loads((cli_out / "result.json").read_text())
+    assert p.returncode == (3 if cli["violated"] else 0), p.stderr
+    _, worst, progress = tiltsim.falsify(
+        "scenarios/paper-lqg.toml", bounds, requirement=reqs, budget=4, jobs=1,
+        set={"run.duration_s": 7}, margin=(4.0, 1))
+    for key in ("requirements", "sensitivity", "timing_margin", "margin", "verdict"):
+        assert worst[key] == cli[key], key
+    assert [r["requirement"] for r in worst["requirements"]] == [
+        "p_ct_en12299_standing_pct < 25.48", "always |lat_acc| < 100", "valid"]
+    want = read(cli_out / "progress.csv")
+    np.testing.assert_array_equal(progress["margin"], want["margin"])
+    assert list(progress["violated"]) == list(want["violated"])
+    shard = tmp_path / "shard"
+    tiltsim.falsify("scenarios/paper-lqg.toml", bounds, requirement="valid", budget=4,
+                    set={"run.duration_s": 2}, shard="1/2", out=shard)
+    assert json.loads((shard / "result.json").read_text())["shard"] == "1/2"
+    for bad, match in [({"margin": (0.5, 1)}, "margin"), ({"shard": "3/2"}, "shard"),
+                       ({"restarts": 0}, "restarts")]:
+        with pytest.raises((tiltsim.ScenarioError, TypeError), match=match):
+            tiltsim.falsify("scenarios/paper-lqg.toml", bounds, requirement="valid", budget=4,
+                            **bad)
+    with pytest.raises(tiltsim.ScenarioError, match="`wobble` is not a signal"):
+        tiltsim.falsify("scenarios/paper-lqg.toml", bounds, requirement=["always wobble < 1"])
+
+
 SMALL_LINE = """# two curves between three straights
 chainage_m,length_m,radius_m,cant_mm,transition_m,shape,vmax_conventional_kmh,vmax_tilting_kmh
 0,3000,,,,,160,200

@@ -518,6 +518,13 @@ def route(
     return table
 
 
+def _count(name: str, value: Any) -> int:
+    """A whole number of at least 0 for argument ``name``, or a TypeError naming it."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise TypeError(f"{name}: allowed a whole number of at least 0, not {value!r}")
+    return value
+
+
 def falsify(
     scenario: Scenario,
     bounds: Union[str, "os.PathLike[str]", Mapping[str, Mapping[str, Any]]],
@@ -529,6 +536,9 @@ def falsify(
     set: Optional[Mapping[str, Any]] = None,
     jobs: Optional[int] = None,
     out: Union[None, str, "os.PathLike[str]"] = None,
+    shard: Optional[str] = None,
+    restarts: Optional[int] = None,
+    margin: Union[bool, tuple[float, int]] = False,
 ) -> tuple[str, dict, Any]:
     """Searches the admissible timing for the one that hurts the ride most, as ``tiltsim
     falsify`` does: the obvious adversaries, CMA-ES from the best of them and an evolution of
@@ -541,7 +551,11 @@ def falsify(
     list judged all at once, whose margin is minimised: on a metric (``"p_ct < 35"``), on
     validity (``"valid"``, ``"no flags"``, ``"no oscillation"``) or on signals over time
     (``"always |lat_acc| < 1.2"``); ``worst["requirements"]`` gives each one's margin and
-    whether it holds at the worst timing. Returns ``(trace, worst, progress)``: the
+    whether it holds at the worst timing. ``margin=True`` (or ``(largest scale, bisection
+    steps)``, default ``(4, 4)``) adds the requirements' timing margin
+    (``worst["timing_margin"]``, as ``--margin``); ``shard="I/N"`` runs one shard of the search
+    and ``restarts=N`` the N shards in one process, as ``--shard`` and ``--restarts``.
+    ``worst["sensitivity"]`` gives each bound's share of the worst timing. Returns ``(trace, worst, progress)``: the
     worst timing as ``timing.csv`` text (``tiltsim replay-timing`` replays it), the worst
     result (``result.json``'s fields) and every evaluation of both methods as a DataFrame
     (a dict of arrays without pandas). With ``out`` the files stay there.
@@ -553,6 +567,18 @@ def falsify(
         if not all(isinstance(r, str) for r in requirement):
             raise TypeError("requirement: allowed a string or a sequence of strings")
         requirement = list(requirement)
+    if margin is True:
+        margin = (4.0, 4)
+    elif margin is False or margin is None:
+        margin = None
+    elif not (isinstance(margin, tuple) and len(margin) == 2):
+        raise TypeError("margin: allowed True, False or (largest scale, bisection steps)")
+    else:
+        margin = (float(margin[0]), _count("margin steps", margin[1]))
+    if shard is not None and not isinstance(shard, str):
+        raise TypeError("shard: allowed a string \"I/N\"")
+    if restarts is not None:
+        restarts = _count("restarts", restarts)
     if isinstance(bounds, Mapping):
         lines = []
         for link, fields in bounds.items():
@@ -579,10 +605,14 @@ def falsify(
         seed=int(seed),
         jobs=jobs,
         out=_path(out),
+        shard=shard,
+        restarts=restarts,
+        margin=margin,
     )
     worst = dict(raw["worst"])
-    if isinstance(worst.get("requirements"), str):
-        worst["requirements"] = json.loads(worst["requirements"])
+    for key in ("requirements", "sensitivity", "timing_margin"):
+        if isinstance(worst.get(key), str):
+            worst[key] = json.loads(worst[key])
     return raw["trace"], worst, _frame(raw["progress"])
 
 

@@ -83,6 +83,9 @@ def falsify(
     seed: int = 1,
     jobs: Optional[int] = None,
     out: Optional[str] = None,
+    shard: Optional[str] = None,
+    restarts: Optional[int] = None,
+    margin: Optional[tuple[float, int]] = None,
 ) -> dict[str, Any]: ...
 
 def route(

@@ -1,7 +1,8 @@
 //! `tiltsim falsify` with requirements as engineers write them, several at once: on signals
 //! over time, on validity and on a metric. Each requirement's margin at the worst timing is
 //! computed again here from the worst replay's own files (`timeseries.csv`, `summary.json`),
-//! by the formulas' definitions, and the verdict and exit status follow from them.
+//! by the formulas' definitions, and the verdict and exit status follow from them. The timing
+//! margin's bracket and counterexample, and each bound's share of the worst.
 
 use std::path::Path;
 
@@ -172,4 +173,99 @@ fn requirements_kept_are_not_falsified_and_bad_ones_are_refused() {
         );
         assert!(!dir.join("bad").join("result.json").exists());
     }
+}
+
+/// The timing margin: a requirement the lock-step run keeps and the bounds given break is
+/// bracketed by bisection within 1/2⁴ of the scale; the counterexample at the upper end
+/// replays to a P_CT that breaks it, under bounds scaled as documented (delays rounded down
+/// to whole ticks). Each bound's share of the worst: with the measurement's delay range its
+/// only bound, the worst without it is the lock-step timing, so its objective is the nominal
+/// run's P_CT bit for bit.
+#[test]
+fn the_timing_margin_brackets_the_requirement_and_the_worst_owes_its_delay() {
+    let dir = temp_dir("falsify-margin");
+    let b = dir.join("b.toml");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(&b, "[measurement]\ndelay_ms = [0, 60]\n").unwrap();
+    let out = dir.join("o");
+    let run = |req: &str| {
+        Tiltsim::command(["falsify"])
+            .arg(tiltsim_suite::scenario("paper-lqg.toml"))
+            .arg("--bounds")
+            .arg(&b)
+            .args(["--set", "run.duration_s=7", "--budget", "6", "--jobs", "2"])
+            .args(["--requirement", req, "--margin", "--margin-steps", "4"])
+            .out(&out)
+    };
+    // The first search tells the nominal and the worst at scale 1; the bound between them.
+    let probe = dir.join("probe");
+    Tiltsim::command(["falsify"])
+        .arg(tiltsim_suite::scenario("paper-lqg.toml"))
+        .arg("--bounds")
+        .arg(&b)
+        .args(["--set", "run.duration_s=7", "--budget", "6", "--jobs", "2"])
+        .out(&probe)
+        .success();
+    let p = read_json(&probe.join("result.json"));
+    let (nominal, worst) = (
+        p["nominal_metric"].as_f64().unwrap(),
+        p["worst_metric"].as_f64().unwrap(),
+    );
+    assert!(worst > nominal, "{p}");
+    let share = &p["sensitivity"][0];
+    assert_eq!(
+        (share["link"].as_str(), share["parameter"].as_str()),
+        (Some("measurement"), Some("delay_ms"))
+    );
+    assert_eq!(share["objective_without"].as_f64(), Some(nominal));
+    assert_eq!(share["drop"].as_f64(), Some(worst - nominal));
+    // Beside it, the jitter (the range's width when not given) taken away: a constant delay.
+    let shares = p["sensitivity"].as_array().unwrap();
+    assert_eq!(shares.len(), 2, "{p}");
+    assert_eq!(shares[1]["parameter"].as_str(), Some("jitter_ms"));
+    assert!(shares[1]["drop"].as_f64().unwrap() <= share["drop"].as_f64().unwrap());
+
+    let bound = 0.5 * (nominal + worst);
+    run(&format!("p_ct < {bound}")).failure(3);
+    let r = read_json(&out.join("result.json"));
+    let m = &r["timing_margin"];
+    let (held, broken) = (
+        m["holds_up_to_scale"].as_f64().unwrap(),
+        m["broken_at_scale"].as_f64().unwrap(),
+    );
+    assert!(held < broken && broken - held <= 1.0 / 16.0 + 1e-12, "{m}");
+    assert!(m["steps"].as_array().unwrap().len() >= 6, "{m}");
+    for s in m["steps"].as_array().unwrap() {
+        let k = s["scale"].as_f64().unwrap();
+        let violated = s["violated"].as_bool().unwrap();
+        assert_eq!(
+            violated,
+            s["worst_metric"].as_f64().unwrap() >= bound,
+            "{s}"
+        );
+        assert!(
+            if k <= held {
+                !violated
+            } else {
+                k < broken || violated
+            },
+            "{s}"
+        );
+    }
+    let scaled: toml::Value =
+        toml::from_str(&std::fs::read_to_string(out.join("margin/worst/bounds.toml")).unwrap())
+            .unwrap();
+    let top = scaled["measurement"]["delay_ms"][1].as_float().unwrap();
+    assert_eq!(top, (broken * 60.0 + 1e-9).floor(), "{scaled}");
+    let replay = dir.join("replay");
+    Tiltsim::command(["replay-timing"])
+        .arg(out.join("margin/worst"))
+        .args(["--no-plots", "-q"])
+        .out(&replay)
+        .success();
+    let summary = read_json(&replay.join("summary.json"));
+    let p_ct = summary["comfort"]["p_ct_en12299"]["standing_pct"]
+        .as_f64()
+        .unwrap();
+    assert!(p_ct >= bound, "{p_ct} against {bound}");
 }

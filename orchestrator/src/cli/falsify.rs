@@ -67,6 +67,20 @@ pub struct FalsifyArgs {
     /// OUT: the same result as N shards run apart and merged with falsify-merge.
     #[arg(long, value_name = "N", value_parser = bounds::int(1..=MAX_BUDGET, ""))]
     restarts: Option<usize>,
+    /// After the search, the requirements' timing margin: the bounds scaled by k (k = 0 the
+    /// lock-step timing, 1 the bounds given), a search of the same budget at each scale, by
+    /// doubling up to --margin-max and bisection: the largest scale not falsified and the
+    /// smallest falsified, with its counterexample in OUT/margin/worst.
+    #[arg(long, requires = "requirement", conflicts_with_all = ["shard", "restarts"])]
+    margin: bool,
+    /// The largest scale --margin tries.
+    #[arg(long, value_name = "K", default_value_t = 4.0, requires = "margin",
+          value_parser = bounds::real((1.0, bounds::End::Closed), (100.0, bounds::End::Closed), ""))]
+    margin_max: f64,
+    /// Bisection steps of --margin (each a search).
+    #[arg(long, value_name = "N", default_value_t = 4, requires = "margin",
+          value_parser = bounds::int(0..=20usize, ""))]
+    margin_steps: usize,
     /// Output directory [default: out/falsify-<scenario name>].
     #[arg(long)]
     out: Option<PathBuf>,
@@ -175,6 +189,10 @@ pub fn exec(a: FalsifyArgs) -> CliResult {
         objective,
         budget,
         seed: a.seed,
+        margin: a.margin.then_some(falsify::margin::MarginPlan {
+            max_scale: a.margin_max,
+            steps: a.margin_steps,
+        }),
     };
     let (interrupt, exe) = interrupt_and_exe()?;
     let out = a
@@ -239,6 +257,22 @@ pub fn verdict(o: &falsify::Outcome, out: &Path) -> CliResult {
     )))
 }
 
+/// Which bounds the worst timing owes most to.
+fn print_sensitivity(o: &falsify::Outcome) {
+    let Some(shares) = o.sensitivity.as_ref().filter(|s| !s.is_empty()) else {
+        return;
+    };
+    let list: Vec<String> = shares
+        .iter()
+        .take(4)
+        .map(|s| format!("{}.{} {:.4}", s.link, s.parameter, s.drop))
+        .collect();
+    println!(
+        "the worst timing's objective without each bound (drop, largest first): {}",
+        list.join(", ")
+    );
+}
+
 /// The table of a search (or of merged shards) on standard output.
 pub fn print_report(
     bounds_from: &str,
@@ -294,6 +328,21 @@ pub fn print_report(
                 evals.len()
             );
         }
+    }
+    print_sensitivity(o);
+    if let Some(m) = &o.timing_margin {
+        let k = |v: Option<f64>| v.map_or("none".to_string(), |k| format!("{k}"));
+        println!(
+            "timing margin: not falsified with the bounds scaled up to {}, falsified at {} ({} \
+             scales searched{})",
+            k(m.holds_up_to_scale),
+            k(m.broken_at_scale),
+            m.steps.len(),
+            m.counterexample.as_ref().map_or(String::new(), |c| format!(
+                "; counterexample {}/{c}",
+                out.display()
+            ))
+        );
     }
     if let (Some(n), Some(k), Some(p)) =
         (o.random_samples, o.random_broken, o.random_broken_upper_95)

@@ -12,6 +12,8 @@
 //! * [`objective`]: a summary metric to maximise, or requirements whose margin is minimised;
 //! * [`requirement`]: requirements on comfort metrics, on validity, and on signals over time
 //!   (a small signal temporal logic with its robustness as the margin);
+//! * [`margin`]: each bound's share of the worst timing, and the timing margin of
+//!   requirements (the largest scale of the bounds not falsified, by bisection);
 //! * [`evidence`]: what the random sampling says about a requirement (a 95 % upper bound);
 //! * [`cmaes`]: the search, CMA-ES (Hansen's tutorial);
 //! * [`search`]: the evaluations (the in-process lock-step replay of each candidate trace, a
@@ -25,6 +27,7 @@ pub mod bounds;
 pub mod cmaes;
 pub mod evidence;
 pub mod history;
+pub mod margin;
 pub mod mutation;
 pub mod objective;
 pub mod outputs;

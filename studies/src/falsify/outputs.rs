@@ -96,6 +96,14 @@ pub struct Outcome {
     /// For requirements: each one's judgement of the worst timing's replay.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub requirements: Option<Vec<Judgement>>,
+    /// What the worst timing owes to each bound: the objective without it, largest drop
+    /// first (not for merged shards).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sensitivity: Option<Vec<super::margin::Share>>,
+    /// For requirements, with `--margin`: the largest scale of the bounds at which they were
+    /// not falsified and the smallest at which they were, with its counterexample.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub timing_margin: Option<super::margin::TimingMargin>,
     /// For a requirement: `violated` (the worst timing found breaks it: `worst/timing.csv` is
     /// the counterexample) or `not-falsified` (no timing evaluated breaks it, which is not a
     /// proof that none does). `tiltsim falsify` exits 3 when violated.
@@ -462,6 +470,13 @@ pub fn falsify_part(
     let (nominal_metric, plain_run_s) = nominal(s, spec, &ex.out, &ex.interrupt);
     let f = super::run(s, spec, ex)?;
     let replayed = write_worst(s, spec, &f, &ex.out, &ex.interrupt)?;
+    let sensitivity = super::margin::sensitivity(s, spec, &f, ex)?;
+    let timing_margin = match spec.margin {
+        Some(plan) if spec.objective.is_requirement() && shard.is_none() => {
+            Some(super::margin::timing_margin(s, spec, &f, ex, plan)?)
+        }
+        _ => None,
+    };
     write_progress(&ex.out, s, spec, &f.evals)?;
     let best = |m: Method| {
         f.evals
@@ -498,6 +513,8 @@ pub fn falsify_part(
         violated: requirement.then_some(w.violated),
         margin: requirement.then_some(w.margin),
         requirements: judgements(spec, &replayed),
+        sensitivity: Some(sensitivity),
+        timing_margin,
         verdict: verdict(requirement.then_some(w.violated)),
         random_samples: sampled.map(|e| e.n),
         random_broken: sampled.map(|e| e.broken),

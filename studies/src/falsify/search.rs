@@ -43,6 +43,9 @@ pub struct Spec {
     pub budget: usize,
     /// Seed of both.
     pub seed: u64,
+    /// The timing margin of the requirements, searched after the search at the bounds given
+    /// (`--margin`).
+    pub margin: Option<super::margin::MarginPlan>,
 }
 
 /// How to carry it out.

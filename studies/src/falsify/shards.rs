@@ -429,6 +429,7 @@ pub fn merge(
         objective: objective_of(&first.info.objective, &first.dir.join(SHARD_JSON))?,
         budget: first.info.budget,
         seed: first.info.seed,
+        margin: None,
     };
     std::fs::create_dir_all(out).map_err(|e| files_error(out, e))?;
     // An unsharded search's kept evaluations are not this one's.
@@ -481,6 +482,8 @@ pub fn merge(
         violated: requirement.then_some(we.violated),
         margin: requirement.then_some(we.margin),
         requirements: super::outputs::judgements(&spec, &replayed),
+        sensitivity: None,
+        timing_margin: None,
         verdict: super::outputs::verdict(requirement.then_some(we.violated)),
         random_samples: sampled.map(|e| e.n),
         random_broken: sampled.map(|e| e.broken),

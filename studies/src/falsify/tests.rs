@@ -356,6 +356,7 @@ fn an_evaluation_writes_nothing() {
         objective: o,
         budget: 1,
         seed: 1,
+        margin: None,
     };
     let (nominal, _) = super::outputs::nominal(&s, &spec, &dir, &interrupt);
     assert_eq!(m, nominal);
