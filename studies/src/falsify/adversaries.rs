@@ -1,8 +1,11 @@
 //! The obvious adversaries, evaluated before the search and seeding it: every link at its
-//! largest delay; and, at each curve transition's start and end and at each scheduled fault,
-//! every link at its largest delay with its whole loss and freeze budgets spent as one outage
-//! beginning there, on all links at once and on each link alone. Each is a point of the
-//! coordinates CMA-ES searches (`history::dims`), so the best of them is where CMA-ES starts.
+//! largest delay, and (with several links free) each link alone at its largest delay, the
+//! others as early as their bounds allow (a late measurement can soften what a late command
+//! does: on the paper's MPC, all links late hurt less than the command alone); and, at each
+//! curve transition's start and end and at each scheduled fault, the largest delay with the
+//! whole loss and freeze budgets spent as one outage beginning there, on all links at once
+//! and on each link alone (the others early). Each is a point of the coordinates CMA-ES
+//! searches (`history::dims`), so the best of them is where CMA-ES starts.
 
 use tiltsim_scenario::scenario::Scenario;
 
@@ -91,17 +94,27 @@ pub fn adversaries(s: &Scenario, layout: &Layout) -> Vec<Adversary> {
     if free.is_empty() {
         return Vec::new();
     }
-    let point = |on: &[usize], at: Option<f64>| {
+    // `late`: the links at their largest delay (the others at coordinates 0, as early as
+    // their bounds allow); `on`: those of them with an outage from `at`.
+    let point = |late: &[usize], on: &[usize], at: Option<f64>| {
         let mut a = vec![0.0; layout.dims];
-        for &i in &free {
+        for &i in late {
             link_coords(s, layout, i, at.filter(|_| on.contains(&i)), &mut a);
         }
         a
     };
     let mut out = vec![Adversary {
         name: "largest delay".into(),
-        coords: point(&[], None),
+        coords: point(&free, &[], None),
     }];
+    if free.len() > 1 {
+        for &i in &free {
+            out.push(Adversary {
+                name: format!("largest delay on {} alone", layout.links[i].0.id.name()),
+                coords: point(&[i], &[], None),
+            });
+        }
+    }
     let outages: Vec<usize> = free
         .iter()
         .copied()
@@ -122,7 +135,11 @@ pub fn adversaries(s: &Scenario, layout: &Layout) -> Vec<Adversary> {
                     "largest delay, outage on {} from {t:.2} s ({what})",
                     on.join(" and ")
                 ),
-                coords: point(g, Some(t)),
+                coords: if g.len() > 1 {
+                    point(&free, g, Some(t))
+                } else {
+                    point(g, g, Some(t))
+                },
             });
         }
     }

@@ -89,6 +89,8 @@ pub enum FalsifyError {
 }
 
 #[cfg(test)]
+mod beats_tests;
+#[cfg(test)]
 mod reach_tests;
 #[cfg(test)]
 mod tests;

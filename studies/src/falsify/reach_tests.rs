@@ -85,7 +85,7 @@ fn outages(rng: &mut ChaCha8Rng, l: &LinkShape, b: &TickBound, h: &mut [Fate]) {
 /// heading for a delay drawn from the range in steps drawn within the jitter bound, or a
 /// square wave of the whole jitter bound; a fall of more than the sample spacing arrives as a
 /// burst (the delay falls by the spacing per sample until it reaches the target).
-fn generate(rng: &mut ChaCha8Rng, l: &LinkShape, b: &TickBound) -> Vec<Fate> {
+pub(super) fn generate(rng: &mut ChaCha8Rng, l: &LinkShape, b: &TickBound) -> Vec<Fate> {
     let n = l.samples as usize;
     let mut h = vec![Fate::Delivered(0); n];
     outages(rng, l, b, &mut h);
@@ -227,9 +227,9 @@ fn an_adversary_spends_the_whole_budget_as_one_outage() {
         .unwrap();
     let layout = Layout::new(&s, &ticks);
     let adv = super::adversaries::adversaries(&s, &layout);
-    // Largest delay, then per moment all links and each link alone.
+    // Largest delay on all links and on each alone, then per moment all links and each alone.
     let moments = super::adversaries::moments(&s);
-    assert_eq!(adv.len(), 1 + 3 * moments.len());
+    assert_eq!(adv.len(), 3 + 3 * moments.len());
     for a in &adv {
         let h = layout.history(&a.coords);
         layout.admissible(&h).unwrap();
@@ -240,7 +240,7 @@ fn an_adversary_spends_the_whole_budget_as_one_outage() {
         (t1 - 3.0).abs() < 1e-9,
         "the curve entry begins at 3 s: {t1}"
     );
-    let h = layout.history(&adv[1].coords);
+    let h = layout.history(&adv[3].coords);
     for i in [0, 2] {
         let (l, b, _) = &layout.links[i];
         assert_eq!(history::budgets_used(l, &h[i]), (b.losses, b.freeze));
