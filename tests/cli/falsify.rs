@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use tiltsim_suite::{csv_table, temp_dir, Tiltsim};
+use tiltsim_suite::{csv_table, prefix, temp_dir, Hogs, Tiltsim};
 
 /// The short case every test searches: the paper's LQG on the first 3 s of its curve.
 const DURATION: &str = "3";
@@ -308,4 +308,128 @@ fn a_requirement_is_violated_with_its_counterexample_or_not_falsified_within_the
         "{r}"
     );
     assert!(stdout.contains("0 of"), "{stdout}");
+}
+
+/// Per link of a free run's `timing.csv` (rows of `csv_table`), the delay in ticks of each
+/// sample at the consumer step that first read it, counted from the tick its value holds from
+/// in lock-step (a plant output of step q at q + 1, the others at their step): by link name,
+/// the delays in consumer-step order. Reads never go back to an older sample.
+fn first_read_delays(rows: &[Vec<String>]) -> Vec<(&'static str, Vec<i64>)> {
+    let col = |name: &str| rows[0].iter().position(|c| c == name).unwrap();
+    let links = [
+        ("actuator_command", "controller", "actuator"),
+        ("bar_angle", "actuator", "plant"),
+        ("measurement", "plant", "controller"),
+        ("bar_twist", "plant", "actuator"),
+    ];
+    links
+        .iter()
+        .map(|&(link, producer, consumer)| {
+            let from = col(&format!("from_{producer}"));
+            let mut reads: Vec<(i64, i64)> = rows[1..]
+                .iter()
+                .filter(|r| r[0] == consumer)
+                .map(|r| (r[1].parse().unwrap(), r[from].parse().unwrap()))
+                .collect();
+            reads.sort_unstable();
+            let mut last = -1;
+            let mut delays = Vec::new();
+            for (k, q) in reads {
+                assert!(
+                    q >= last,
+                    "{link}: {consumer} step {k} reads {q} after {last}"
+                );
+                if q > last {
+                    let holds = if producer == "plant" { q + 1 } else { q };
+                    delays.push(k - holds);
+                    last = q;
+                }
+            }
+            (link, delays)
+        })
+        .collect()
+}
+
+/// The envelope of free runs recorded beside two CPU hogs, whose starved participants lag
+/// their producers (a consumer step reading a producer step before the tick its value holds
+/// from: a negative delay), is taken and searched; every recorded run's trace is within the
+/// `bounds.toml` written: each sample's delay when first read, and each rise of the delay
+/// between samples read one after another, counted from the run's own `timing.csv`. A link
+/// the bounds do not name keeps the lock-step timing (delay 0). The worst timing found replays
+/// byte for byte.
+#[test]
+fn the_envelope_of_free_runs_beside_cpu_hogs_admits_them() {
+    let dir = temp_dir("falsify-envelope");
+    let runs: Vec<std::path::PathBuf> = (0..3).map(|i| dir.join(format!("free-{i}"))).collect();
+    {
+        let _hogs = Hogs::start(2);
+        std::thread::scope(|scope| {
+            for (i, out) in runs.iter().enumerate() {
+                scope.spawn(move || {
+                    Tiltsim::run("paper-lqg.toml")
+                        .free_run()
+                        .duration(DURATION)
+                        .out(out)
+                        .ipc_prefix(&prefix(&format!("falsify-envelope-{i}")))
+                        .quiet()
+                        .success();
+                });
+            }
+        });
+    }
+    let out = dir.join("out");
+    let envelope = runs
+        .iter()
+        .flat_map(|r| [Path::new("--envelope"), r.as_path()]);
+    Tiltsim::command(["falsify"])
+        .arg(tiltsim_suite::scenario("paper-lqg.toml"))
+        .args(envelope)
+        .args(["--set", &format!("run.duration_s={DURATION}")])
+        .args(["--budget", "2", "--jobs", "2", "-q"])
+        .out(&out)
+        .success();
+    let again = dir.join("replayed");
+    Tiltsim::command(["replay-timing"])
+        .arg(out.join("worst"))
+        .args(["--no-plots", "-q"])
+        .out(&again)
+        .success();
+    assert!(
+        bytes(&again.join("timeseries.csv")) == bytes(&out.join("worst/timeseries.csv")),
+        "the worst timing's replay differs"
+    );
+    let text = std::fs::read_to_string(out.join("bounds.toml")).unwrap();
+    let bounds: toml::Table = text.parse().unwrap_or_else(|e| panic!("{e}:\n{text}"));
+    // paper-lqg: a tick of 1 ms.
+    let ms = |v: &toml::Value| {
+        v.as_float()
+            .unwrap_or_else(|| v.as_integer().unwrap() as f64)
+    };
+    for run in &runs {
+        let rows = csv_table(&std::fs::read_to_string(run.join("timing.csv")).unwrap());
+        for (link, delays) in first_read_delays(&rows[1..]) {
+            let b = bounds.get(link).and_then(|b| b.as_table());
+            let range = b.map_or([0.0, 0.0], |b| {
+                let r = b["delay_ms"].as_array().unwrap();
+                [ms(&r[0]), ms(&r[1])]
+            });
+            let jitter = b.and_then(|b| b.get("jitter_ms")).map_or(0.0, ms);
+            for (i, d) in delays.iter().enumerate() {
+                let d = *d as f64;
+                assert!(
+                    range[0] <= d && d <= range[1],
+                    "{}: {link}: sample read {i} is {d} ticks late; bounds.toml allows {range:?}",
+                    run.display()
+                );
+            }
+            for w in delays.windows(2) {
+                assert!(
+                    (w[1] - w[0]) as f64 <= jitter,
+                    "{}: {link}: the delay rises {} ticks; bounds.toml allows {jitter}",
+                    run.display(),
+                    w[1] - w[0]
+                );
+            }
+        }
+    }
 }

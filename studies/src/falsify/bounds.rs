@@ -17,6 +17,18 @@
 //!
 //! Samples are delivered in the order they were sent. A link not named keeps its lock-step
 //! timing (delay 0, nothing lost).
+//!
+//! A delay may be negative: a consumer that lags its producer on the wall clock (in a free
+//! run each participant keeps its own clock, and a starved one falls behind) reads, at its
+//! step k, a sample whose value holds from a later tick. In tick terms that sample is
+//! delivered before the tick it holds from, and the lock-step replay reproduces it as it is
+//! (the producer's step is taken before the consumer's). What keeps such a timing causal is
+//! the loop it is part of: a consumer ahead of its input in ticks is behind on the way back, so
+//! around each loop of links, plant → actuator → plant and controller → actuator → plant →
+//! controller, the delays add up to 0 or more ([`LOOPS`]). The bounds must admit that (the
+//! largest delays around each loop add up to 0 or more); the search makes delays from each
+//! link's causal floor ([`search_floors`]), so its candidates are causal whatever each link
+//! does, and a recorded run's trace, causal as it happened, is checked against the whole range.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -95,6 +107,48 @@ impl TickBound {
     }
 }
 
+/// The loops of links: a consumer's step waits for its producer's, which waits, through the
+/// links of the loop, for an earlier step of the consumer. A timing is causal when the delays
+/// of the samples read add up to 0 or more around each (a plant output holds from the tick
+/// after its step, the other outputs from their own step: each loop holds one plant output,
+/// so a sum of 0 still leaves the consumer's earlier step first).
+pub const LOOPS: [&[LinkId]; 2] = [
+    &[LinkId::BarAngle, LinkId::BarTwist],
+    &[
+        LinkId::ActuatorCommand,
+        LinkId::BarAngle,
+        LinkId::Measurement,
+    ],
+];
+
+/// The smallest delay the search makes on each link, in [`LinkId`] order: the bounds' own,
+/// raised where a loop's smallest delays add up to less than 0 ([`LOOPS`]) until they add up
+/// to 0, the most negative first and toward 0 before beyond it. Every timing whose delays are
+/// at or above these floors is causal: each link may still lag (a negative floor) as far as
+/// the other links of its loops make up for it. Within `[d_min, d_max]` when the largest
+/// delays around each loop add up to 0 or more, as [`Bounds::ticks`] checks.
+pub fn search_floors(b: &[TickBound; 4]) -> [i64; 4] {
+    let mut f: [i64; 4] = std::array::from_fn(|i| b[i].d_min);
+    for ring in LOOPS {
+        let mut short = -ring.iter().map(|id| f[*id as usize]).sum::<i64>();
+        for toward_zero in [true, false] {
+            let mut order: Vec<usize> = ring.iter().map(|id| *id as usize).collect();
+            order.sort_by_key(|&i| f[i]);
+            for i in order {
+                let cap = if toward_zero {
+                    b[i].d_max.min(0)
+                } else {
+                    b[i].d_max
+                };
+                let up = short.min(cap - f[i]).max(0);
+                f[i] += up;
+                short -= up;
+            }
+        }
+    }
+    f
+}
+
 fn err(file: &str, field: String, what: String) -> FalsifyError {
     FalsifyError::Invalid(format!("{file}: {field}: {what}"))
 }
@@ -129,24 +183,26 @@ impl Bounds {
         Ok(b)
     }
 
-    /// Checks every link's fields: finite, `0 <= min <= max <= 10000` ms, jitter and freeze
-    /// `>= 0` ms, loss in `[0, 100]` %.
+    /// Checks every link's fields: finite, `-10000 <= min <= max <= 10000` ms (a negative
+    /// delay: the consumer lags its producer), jitter and freeze `>= 0` ms, loss in `[0, 100]` %.
     pub fn validate(&self, file: &str) -> Result<(), FalsifyError> {
         for (name, l) in LINK_NAMES.iter().zip(&self.links) {
             let [lo, hi] = l.delay_ms;
             let f = |field: &str| format!("[{name}] {field}");
-            if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && hi <= 10_000.0) {
+            if !(lo.is_finite() && hi.is_finite() && lo >= -10_000.0 && hi <= 10_000.0) {
                 return Err(err(
                     file,
                     f("delay_ms"),
-                    format!("[{lo}, {hi}]; allowed: [min, max] with 0 <= min <= max <= 10000 ms"),
+                    format!(
+                        "[{lo}, {hi}]; allowed: [min, max] with -10000 <= min <= max <= 10000 ms"
+                    ),
                 ));
             }
             if lo > hi {
                 return Err(err(
                     file,
                     f("delay_ms"),
-                    format!("[{lo}, {hi}]: min > max; allowed: [min, max] with 0 <= min <= max <= 10000 ms"),
+                    format!("[{lo}, {hi}]: min > max; allowed: [min, max] with -10000 <= min <= max <= 10000 ms"),
                 ));
             }
             if let Some(j) = l.jitter_ms {
@@ -243,11 +299,28 @@ impl Bounds {
                 drops: (lost + frozen).min(link.samples as i64),
             };
         }
+        for ring in LOOPS {
+            let most: i64 = ring.iter().map(|id| out[*id as usize].d_max).sum();
+            if most < 0 {
+                let names: Vec<&str> = ring.iter().map(|id| id.name()).collect();
+                return Err(err(
+                    file,
+                    format!("[{}] delay_ms", names.join("], [")),
+                    format!(
+                        "the largest delays add up to {most} ticks around the loop, so no \
+                         timing they admit is causal; allowed: largest delays that add up to 0 \
+                         or more"
+                    ),
+                ));
+            }
+        }
         Ok(out)
     }
 
     /// The envelope of recorded runs: per link, the smallest and largest delay, the largest
-    /// delay change and the largest share of samples lost any of `observed` shows.
+    /// delay change and the largest share of samples lost any of `observed` shows. The
+    /// smallest delay is negative where a consumer lagged its producer; the largest is never
+    /// below 0, so the envelope always admits causal timings (the lock-step one among them).
     pub fn envelope(observed: &[[super::timing::LinkObs; 4]], s: &Scenario) -> Bounds {
         let dt_ms = s.run.dt_s * 1e3;
         let mut b = Bounds::default();

@@ -4,7 +4,9 @@
 //!
 //! A history of link `l` is admissible under bounds `b` when
 //!
-//! * every delivered sample's delay is within `[d_min, d_max]`;
+//! * every delivered sample's delay is within `[d_min, d_max]` (in a [`Layout`], `d_min` is
+//!   the link's causal floor, `bounds::search_floors`: a negative delay only as far as the
+//!   other links of its loops make up for it);
 //! * two consecutively delivered samples' delays differ by at most the jitter bound (they may
 //!   rise and fall, on any period);
 //! * samples arrive in the order they were sent (several may arrive at one tick: after a
@@ -306,12 +308,17 @@ pub struct Layout {
 }
 
 impl Layout {
-    /// The layout of scenario `s` with bounds `b`.
+    /// The layout of scenario `s` with bounds `b`: each link's delays from its causal floor
+    /// ([`super::bounds::search_floors`]; the bounds' smallest delay unless a loop of links
+    /// would let a negative one make a step wait for itself), so every history is causal.
     pub fn new(s: &Scenario, b: &[TickBound; 4]) -> Layout {
+        let floors = super::bounds::search_floors(b);
         let mut links = Vec::new();
         let mut at = 0;
         for id in LinkId::ALL {
-            let tb = b[id as usize];
+            let mut tb = b[id as usize];
+            tb.d_min = floors[id as usize].min(tb.d_max);
+            tb.jitter = tb.jitter.min(tb.d_max - tb.d_min);
             let n = dims(&tb);
             links.push((LinkShape::of(id, s), tb, at..at + n));
             at += n;

@@ -35,6 +35,8 @@ fn every_candidate_is_causal_and_within_its_bounds() {
         "[actuator_command]\ndelay_ms = [0, 60]\njitter_ms = 10\nloss_pct = 1\n",
         "[actuator_command]\ndelay_ms = [20, 80]\nfreeze_ms = 200\n[measurement]\ndelay_ms = [0, 15]\njitter_ms = 3\nloss_pct = 5\n",
         "[bar_angle]\ndelay_ms = [0, 5]\n[bar_twist]\ndelay_ms = [1, 4]\njitter_ms = 1\nloss_pct = 2\nfreeze_ms = 30\n",
+        // Lagging consumers: negative delays the other links of their loops make up for.
+        "[actuator_command]\ndelay_ms = [-3, 5]\njitter_ms = 2\n[bar_angle]\ndelay_ms = [2, 6]\n[bar_twist]\ndelay_ms = [-4, 3]\nloss_pct = 2\n[measurement]\ndelay_ms = [0, 4]\n",
     ];
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     for scen in ["paper-lqg.toml", "paper-mpc.toml"] {
@@ -183,6 +185,76 @@ fn the_envelope_of_a_trace_admits_it() {
     let et = env.ticks(&s, "envelope").unwrap();
     timing::check(&s, &t, &et).unwrap();
     assert_eq!(env.links[1], LinkBound::LOCK_STEP);
+}
+
+/// A consumer that lags its producer: the actuator reading the plant's bar twist 4 ticks
+/// before its value holds, made up for by a bar angle at least 4 ticks late. The search draws
+/// it (the causal floors keep the bounds' own smallest delays, whose loop adds up to 0), its
+/// made trace reads each lagging step just after the producer step it reads is published, is
+/// causal and replays; the envelope of that trace keeps the negative delay and admits it.
+#[test]
+fn a_lagging_consumer_is_searched_replayed_and_enveloped() {
+    use cosim::Role;
+    use tiltsim_master::free::trace::col;
+    let mut s = shipped("paper-lqg.toml", 0.5);
+    super::prepare(&mut s, "paper-lqg.toml").unwrap();
+    let b = bounds("[bar_angle]\ndelay_ms = [4, 8]\n[bar_twist]\ndelay_ms = [-4, 2]\n");
+    let ticks = b.ticks(&s, "t").unwrap();
+    assert_eq!(super::bounds::search_floors(&ticks), [0, 4, 0, -4]);
+    let layout = Layout::new(&s, &ticks);
+    let h = layout.earliest();
+    let t = layout.trace(&s, &h);
+    timing::check(&s, &t, &ticks).unwrap();
+    let publish = |role: Role, step: i64| {
+        let p = t
+            .steps
+            .iter()
+            .find(|x| x.role == role && x.step as i64 == step);
+        p.unwrap().publish_ns
+    };
+    for a in t
+        .steps
+        .iter()
+        .filter(|x| x.role == Role::Actuator && x.step < 400)
+    {
+        let m = a.step as i64 + 3;
+        assert_eq!(a.from[col(Role::Plant)], Some(m), "{a:?}");
+        assert!(a.read_ns > publish(Role::Plant, m), "{a:?}");
+    }
+    let env = Bounds::envelope(&[timing::observe_all(&s, &t).unwrap()], &s);
+    // Every bar twist read 4 ticks early; the envelope's largest delay is never below 0.
+    assert_eq!(env.links[LinkId::BarTwist as usize].delay_ms, [-4.0, 0.0]);
+    timing::check(&s, &t, &env.ticks(&s, "envelope").unwrap()).unwrap();
+    let dir = std::env::temp_dir().join(format!("tiltsim-lag-{}", std::process::id()));
+    let interrupt = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let o = Objective::maximise("p_ct").unwrap();
+    let v = super::search::evaluate(&s, &layout, &ticks, &o, &h, dir.clone(), &interrupt);
+    assert!(v.error.is_empty() && v.metric.is_finite(), "{}", v.error);
+    assert!(!dir.exists());
+}
+
+/// The search's floors: the bounds' smallest delays where each loop's add up to 0 or more,
+/// else raised, the most negative first and toward 0 first (an envelope of lagging runs gives
+/// the lock-step floor); bounds whose largest delays add up to less than 0 around a loop admit
+/// no causal timing and are refused, naming the links.
+#[test]
+fn causal_floors_and_loops_no_timing_can_close() {
+    let s = shipped("paper-lqg.toml", 0.5);
+    let floors = |text: &str| super::bounds::search_floors(&bounds(text).ticks(&s, "t").unwrap());
+    let lagging = "[actuator_command]\ndelay_ms = [-7, 3]\n[bar_angle]\ndelay_ms = [-2, 9]\n\
+                   [measurement]\ndelay_ms = [-1, 2]\n[bar_twist]\ndelay_ms = [-6, 1]\n";
+    assert_eq!(floors(lagging), [0, 0, 0, 0]);
+    let made_up = "[actuator_command]\ndelay_ms = [-7, 3]\n[bar_angle]\ndelay_ms = [3, 9]\n\
+                   [measurement]\ndelay_ms = [-1, 2]\n[bar_twist]\ndelay_ms = [-6, 1]\n";
+    assert_eq!(floors(made_up), [-2, 3, -1, -3]);
+    let e = bounds("[bar_angle]\ndelay_ms = [-5, -2]\n[bar_twist]\ndelay_ms = [-3, 1]\n")
+        .ticks(&s, "b.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("[bar_angle], [bar_twist] delay_ms") && e.contains("around the loop"),
+        "{e}"
+    );
 }
 
 /// Loss and freeze are budgets of their own: over 300 random points and the corners, on a

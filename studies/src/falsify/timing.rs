@@ -3,12 +3,16 @@
 //! check of any trace against bounds (what a trace shows of each link's timing).
 //!
 //! A consumer step reads the newest sample delivered at or before its tick (the output at t₀
-//! before any), which is never a step not yet computed: a sample is delivered no earlier than
-//! the tick its value holds from in lock-step, and within a tick the controller steps before
-//! the actuator, the actuator before the plant, as in the lock-step coupling.
+//! before any). A delay is counted from the tick the sample's value holds from in lock-step;
+//! it is negative when the consumer lags its producer (a free run's starved participant reads,
+//! at its step k, a producer step of a later tick). A made trace places every step at its
+//! tick's instant (the controller before the actuator, the actuator before the plant, as in
+//! the lock-step coupling) unless it waits for a sample of a producer it lags; its reads are
+//! causal when the delays add up to 0 or more around each loop of links
+//! ([`super::bounds::LOOPS`]), as the search's are.
 
 use cosim::Role;
-use tiltsim_master::free::trace::{col, StepTrace, Trace, TraceHead};
+use tiltsim_master::free::trace::{col, inputs_of, StepTrace, Trace, TraceHead};
 use tiltsim_scenario::links::LinkId;
 use tiltsim_scenario::scenario::Scenario;
 
@@ -82,40 +86,129 @@ fn offset(role: Role, dt_ns: u64) -> u64 {
     }
 }
 
+/// The steps of a made trace as they are placed: per role (by [`col`]) the steps placed so
+/// far, each known by its publish instant.
+struct Placer<'a> {
+    reads: &'a [Vec<i64>; 4],
+    period: u64,
+    dt_ns: u64,
+    /// Steps per role, by [`col`].
+    count: [u64; 3],
+    /// Publish instants of the steps placed, per role by [`col`].
+    published: [Vec<u64>; 3],
+}
+
+impl Placer<'_> {
+    fn ticks(&self, role: Role) -> u64 {
+        if role == Role::Controller {
+            self.period
+        } else {
+            1
+        }
+    }
+
+    /// The producer steps consumer step `k` of `role` reads.
+    fn from(&self, role: Role, k: u64) -> [Option<i64>; 3] {
+        let at = |l: LinkId, p: u64| Some(self.reads[l as usize][(k / p) as usize]);
+        let mut f = [None; 3];
+        match role {
+            Role::Controller => f[col(Role::Plant)] = at(LinkId::Measurement, self.period),
+            Role::Actuator => {
+                f[col(Role::Controller)] = at(LinkId::ActuatorCommand, 1);
+                f[col(Role::Plant)] = at(LinkId::BarTwist, 1);
+            }
+            Role::Plant => f[col(Role::Actuator)] = at(LinkId::BarAngle, 1),
+        }
+        f
+    }
+
+    /// Step `k` of `role` read at its tick's instant for the role.
+    fn at_tick(&self, role: Role, k: u64) -> StepTrace {
+        let due = k * self.dt_ns;
+        let read = due + offset(role, self.dt_ns);
+        StepTrace {
+            role,
+            step: k,
+            from: self.from(role, k),
+            due_ns: due,
+            read_ns: read,
+            compute_end_ns: read + self.dt_ns / 16,
+            publish_ns: read + self.dt_ns / 16,
+        }
+    }
+
+    /// The next step of `role` (`None`: every step is placed) and whether every input it
+    /// reads is placed; read at its tick's instant or, when an input it reads or its own
+    /// previous step is published later, just after.
+    fn next(&self, role: Role) -> Option<(StepTrace, bool)> {
+        let c = col(role);
+        let n = self.published[c].len() as u64;
+        if n >= self.count[c] {
+            return None;
+        }
+        let mut t = self.at_tick(role, n * self.ticks(role));
+        let mut ready = true;
+        for &p in inputs_of(role) {
+            let Some(q) = t.from[col(p)].filter(|&q| q >= 0) else {
+                continue;
+            };
+            match self.published[col(p)].get((q as u64 / self.ticks(p)) as usize) {
+                Some(&at) => t.read_ns = t.read_ns.max(at + 1),
+                None => ready = false,
+            }
+        }
+        if let Some(&at) = self.published[c].last() {
+            t.read_ns = t.read_ns.max(at + 1);
+        }
+        t.compute_end_ns = t.read_ns + self.dt_ns / 16;
+        t.publish_ns = t.compute_end_ns;
+        Some((t, ready))
+    }
+}
+
 /// The trace of scenario `s` in which consumer steps read as `reads` says (per link, in
-/// [`LinkId`] order, one entry per consumer step); its steps in read order.
+/// [`LinkId`] order, one entry per consumer step); its steps in read order. Of the steps
+/// whose inputs are published, the one due first is placed next; a step is read at its
+/// tick's instant (controller, actuator, plant within a tick, as the lock-step coupling
+/// orders them) unless it waits for an input published later, the sample of a producer it
+/// lags (a negative delay). Delays of 0 or more never wait: every step is at its tick's
+/// instant. Reads that no order can serve (a loop of steps waiting for each other, see
+/// [`super::bounds::LOOPS`]) leave the steps left at their ticks' instants, a trace the
+/// causality check refuses.
 pub fn trace(s: &Scenario, reads: &[Vec<i64>; 4]) -> Trace {
     let steps = s.steps();
     let period = s.controller_period_ticks();
-    let dt_ns = (s.run.dt_s * 1e9).round() as u64;
-    let mut out = Vec::with_capacity(2 * steps as usize + steps.div_ceil(period) as usize);
-    let at = |l: LinkId, k: u64, p: u64| reads[l as usize][(k / p) as usize];
-    for k in 0..steps {
-        let mut push = |role: Role, from: [Option<i64>; 3]| {
-            let due = k * dt_ns;
-            let read = due + offset(role, dt_ns);
-            out.push(StepTrace {
-                role,
-                step: k,
-                from,
-                due_ns: due,
-                read_ns: read,
-                compute_end_ns: read + dt_ns / 16,
-                publish_ns: read + dt_ns / 16,
-            });
-        };
-        if k % period == 0 {
-            let mut f = [None; 3];
-            f[col(Role::Plant)] = Some(at(LinkId::Measurement, k, period));
-            push(Role::Controller, f);
+    let mut p = Placer {
+        reads,
+        period,
+        dt_ns: (s.run.dt_s * 1e9).round() as u64,
+        count: [steps, steps, steps.div_ceil(period)],
+        published: Default::default(),
+    };
+    let mut out = Vec::with_capacity(p.count.iter().sum::<u64>() as usize);
+    loop {
+        let next = [Role::Controller, Role::Actuator, Role::Plant].map(|r| p.next(r));
+        if next.iter().all(Option::is_none) {
+            break;
         }
-        let mut f = [None; 3];
-        f[col(Role::Controller)] = Some(at(LinkId::ActuatorCommand, k, 1));
-        f[col(Role::Plant)] = Some(at(LinkId::BarTwist, k, 1));
-        push(Role::Actuator, f);
-        let mut f = [None; 3];
-        f[col(Role::Actuator)] = Some(at(LinkId::BarAngle, k, 1));
-        push(Role::Plant, f);
+        let due_first = |t: &StepTrace| t.due_ns + offset(t.role, p.dt_ns);
+        let ready = next.iter().flatten().filter(|n| n.1);
+        let Some((t, _)) = ready.min_by_key(|n| due_first(&n.0)) else {
+            // Stuck: the steps left at their ticks' instants.
+            for r in Role::ALL {
+                let c = col(r);
+                for n in p.published[c].len() as u64..p.count[c] {
+                    out.push(p.at_tick(r, n * p.ticks(r)));
+                }
+            }
+            break;
+        };
+        p.published[col(t.role)].push(t.publish_ns);
+        out.push(*t);
+    }
+    let key = |x: &StepTrace| (x.read_ns, col(x.role));
+    if !out.is_sorted_by_key(key) {
+        out.sort_by_key(key);
     }
     Trace {
         head: TraceHead {
@@ -199,21 +292,17 @@ pub fn observe(l: &LinkShape, r: &[i64], b: Option<&TickBound>) -> Result<LinkOb
     };
     let mut prev: Option<(u64, i64)> = None;
     for &(i, k) in &first {
-        // Delivered after the consumer's previous step, at or before this one.
+        // Delivered after the consumer's previous step, at or before this one: a delay in
+        // `hi - (p - 1)..=hi`, of 0 or more unless the read itself shows the consumer lagging
+        // its producer (`hi < 0`: the sample read before the tick its value holds from, the
+        // read's own delay).
+        // Checked against bounds, any delay of that range the bounds admit explains it.
         let hi = k - l.valid_from(i);
-        let lo = (hi - (p - 1)).max(0);
-        if hi < 0 {
-            return Err(fail(format!(
-                "{} step {k} reads {} step {} before its value holds",
-                l.consumer,
-                l.producer,
-                l.step_of(i)
-            )));
-        }
+        let lo = (hi - (p - 1)).max(hi.min(0));
         obs.d_min = obs.d_min.min(lo);
         obs.d_max = obs.d_max.max(hi);
         if let Some(b) = b {
-            if hi < b.d_min || lo > b.d_max {
+            if hi < b.d_min || hi - (p - 1) > b.d_max {
                 return Err(fail(format!(
                     "{} step {} is delivered {}..{} ticks late; the bounds allow {}..{}",
                     l.producer,
