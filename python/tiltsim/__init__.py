@@ -582,10 +582,13 @@ def compare(
     progress: Progress = None,
 ) -> Any:
     """Runs each scenario and lays them out like the paper's Table 4, as ``tiltsim compare``
-    does: the rows of its ``table.csv`` (every comfort metric for each controller and the
-    ideal tilt, the differences to the ideal tilt, the validity flags and the trade-off) as
-    a DataFrame (a dict of arrays without pandas). Pivot with
-    ``df.pivot_table(index="metric", columns="column", values="value", aggfunc="first")``.
+    does: the rows of its ``table.csv``, tidy (one row per metric and run: every comfort
+    metric for each controller and the ideal tilt, the differences to the ideal tilt, the
+    numbers behind the validity flags and the trade-off) as a DataFrame (a dict of lists
+    without pandas). ``value``, ``paper`` and ``difference`` are floats, read exactly (NaN
+    where the table has no number); ``metric`` is a key whose unit and meaning the
+    ``columns.csv`` beside ``table.csv`` gives (and ``unit`` on every row). Pivot with
+    ``df.pivot_table(index="metric", columns="run", values="value", aggfunc="first")``.
     With ``out`` the runs, tables and figures stay there.
     """
     if isinstance(scenarios, (str, bytes, os.PathLike)):
@@ -603,16 +606,35 @@ def compare(
     )
     for note in raw["notes"]:
         sys.stderr.write(f"note: {note}\n")
-    text = raw["table_csv"]
+    return _compare_table(raw["table_csv"])
+
+
+# The columns of a compare's table.csv that hold numbers (an empty cell: none).
+_COMPARE_NUMBERS = ("value", "paper", "difference")
+
+
+def _compare_table(text: str) -> Any:
+    """A compare's ``table.csv`` text as a DataFrame (a dict of lists without pandas): its
+    numbers parsed by Python's ``float``, which reads shortest round-trip text exactly, the
+    other columns as text ("" where empty)."""
+    import csv
+
+    reader = csv.reader(io.StringIO(text))
+    header = next(reader, [])
+    rows = list(reader)
+    table: dict = {c: [r[i] for r in rows] for i, c in enumerate(header)}
+    for c in _COMPARE_NUMBERS:
+        if c in table:
+            table[c] = [float(v) if v else float("nan") for v in table[c]]
     try:
         import pandas as pd
     except ImportError:
-        import csv
-
-        rows = list(csv.DictReader(io.StringIO(text)))
-        return {k: [r[k] for r in rows] for k in (rows[0] if rows else {})}
-    return pd.read_csv(io.StringIO(text), float_precision="round_trip", keep_default_na=False,
-                       na_values=[""])
+        return table
+    df = pd.DataFrame(table, columns=header)
+    for c in _COMPARE_NUMBERS:
+        if c in df:
+            df[c] = df[c].astype("float64")
+    return df
 
 
 class Linearization:
