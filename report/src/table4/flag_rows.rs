@@ -37,7 +37,11 @@ pub(super) fn flag_rows(
             }
             let flags: &[&str] = if raised { &[code] } else { &[] };
             for ((metric, unit, about), v) in keys.iter().zip(values) {
-                let k = Key { metric, unit, about };
+                let k = Key {
+                    metric,
+                    unit,
+                    about,
+                };
                 csv.put(k, "", names.entry(entries, i), v, None, flags);
             }
         }

@@ -86,7 +86,11 @@ fn a_run_exported_for_rerun_holds_every_signal_as_scalars_on_simulated_time() {
     assert_eq!(code, 0, "{err}");
     let step = table[0].iter().position(|c| c == "step").unwrap();
     let a = table[0].iter().position(|c| c == "lat_acc").unwrap();
-    for entity in ["/plant/lat_acc", "/actuator/delta_a", "/links/rx_measurement"] {
+    for entity in [
+        "/plant/lat_acc",
+        "/actuator/delta_a",
+        "/links/rx_measurement",
+    ] {
         let rows = rerun_rows(&printed, entity);
         assert_eq!(rows.len(), 2001, "{entity}");
         let off: Vec<(u64, u64)> = table[1..]
@@ -95,9 +99,16 @@ fn a_run_exported_for_rerun_holds_every_signal_as_scalars_on_simulated_time() {
             .map(|(r, (ns, _))| (r[step].parse::<u64>().unwrap() * 1_000_000, *ns))
             .filter(|(want, got)| want != got)
             .collect();
-        assert!(off.is_empty(), "{entity}: sim_time not step·dt: {:?}", &off[..off.len().min(5)]);
+        assert!(
+            off.is_empty(),
+            "{entity}: sim_time not step·dt: {:?}",
+            &off[..off.len().min(5)]
+        );
     }
-    for (r, (_, value)) in table[1..].iter().zip(&rerun_rows(&printed, "/plant/lat_acc")) {
+    for (r, (_, value)) in table[1..]
+        .iter()
+        .zip(&rerun_rows(&printed, "/plant/lat_acc"))
+    {
         assert_eq!(*value, r[a].parse::<f64>().unwrap());
     }
 }
