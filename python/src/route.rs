@@ -13,31 +13,53 @@ use tiltsim_studies::route::run::{process_cpu_s, RouteExec};
 use tiltsim_studies::route::study::{transition_columns, Column};
 use tiltsim_studies::route::{Grid, Limits, Running};
 
+use crate::args::arg;
 use crate::{directory, error, invalid, participant_exe, scenario_with, supervise};
 
 /// Runs `scenarios` (each `(kind, value, origin)`) over the route file `route`; returns
 /// `transitions` (the columns of `transitions.csv`), `variants` (one dict per variant, as
 /// `route.json` has them), the journey times and the output directory (when written).
 #[pyfunction]
-#[pyo3(signature = (route, scenarios, rho=None, cd_tilting=None, cd_conventional=150.0,
-                    accel=0.5, brake=0.6, running=None, jobs=None, transport=None, out=None,
+#[pyo3(signature = (route, scenarios, rho=None, cd_tilting=None, cd_conventional=None,
+                    accel=None, brake=None, running=None, jobs=None, transport=None, out=None,
                     exe=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn route<'py>(
     py: Python<'py>,
-    route: PathBuf,
+    route: Bound<'py, PyAny>,
     scenarios: Vec<(String, String, String)>,
-    rho: Option<Vec<f64>>,
-    cd_tilting: Option<Vec<f64>>,
-    cd_conventional: f64,
-    accel: f64,
-    brake: f64,
-    running: Option<String>,
-    jobs: Option<usize>,
-    transport: Option<String>,
-    out: Option<PathBuf>,
+    rho: Option<Bound<'py, PyAny>>,
+    cd_tilting: Option<Bound<'py, PyAny>>,
+    cd_conventional: Option<Bound<'py, PyAny>>,
+    accel: Option<Bound<'py, PyAny>>,
+    brake: Option<Bound<'py, PyAny>>,
+    running: Option<Bound<'py, PyAny>>,
+    jobs: Option<Bound<'py, PyAny>>,
+    transport: Option<Bound<'py, PyAny>>,
+    out: Option<Bound<'py, PyAny>>,
     exe: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let f = "route";
+    let route = arg(f, "route_file", &Some(route))
+        .path()?
+        .unwrap_or_default();
+    let rho = arg(f, "rho", &rho).numbers("compensation factors rho")?;
+    let cd_tilting = arg(f, "cd_tilting", &cd_tilting).numbers("cant deficiencies in mm")?;
+    let cd = |name, v: &Option<Bound<'py, PyAny>>, what, default| -> PyResult<f64> {
+        Ok(arg(f, name, v).number(what)?.unwrap_or(default))
+    };
+    let cd_conventional = cd(
+        "cd_conventional",
+        &cd_conventional,
+        "a cant deficiency in mm",
+        150.0,
+    )?;
+    let accel = cd("accel", &accel, "an acceleration in m/s2", 0.5)?;
+    let brake = cd("brake", &brake, "a deceleration in m/s2", 0.6)?;
+    let running = arg(f, "running", &running).text(r#""conventional" or "tilting""#)?;
+    let jobs = arg(f, "jobs", &jobs).count(1, 256)?;
+    let transport = arg(f, "transport", &transport).text(crate::TRANSPORTS)?;
+    let out = arg(f, "out", &out).path()?;
     let line = tiltsim_studies::route::load(&route).map_err(|e| invalid(py, e.to_string()))?;
     let (grid, limits) =
         grid_and_limits(py, rho, cd_tilting, cd_conventional, accel, brake, running)?;

@@ -149,8 +149,14 @@ def _progress(progress: Progress, unit: str) -> Optional[Callable[[int, int], An
     raise ScenarioError(f"progress: {progress!r}: allowed None, True or a callable(done, total)")
 
 
-def _path(p: Union[None, str, "os.PathLike[str]"]) -> Optional[str]:
-    return None if p is None else os.fspath(p)
+def _fspath(f: str, name: str, p: Any) -> str:
+    """Argument ``name`` of ``f`` as a path; a TypeError naming it for anything else."""
+    try:
+        return os.fspath(p)
+    except TypeError:
+        raise TypeError(
+            f"{f}: {name}: a path (a str or an os.PathLike), not {p!r} ({type(p).__name__})"
+        ) from None
 
 
 def _frame(columns: Mapping[str, Any]) -> Any:
@@ -342,7 +348,7 @@ def run(
         value,
         origin,
         _settings(set),
-        out=_path(out),
+        out=out,
         transport=transport,
         master=master,
         seed=seed,
@@ -373,7 +379,7 @@ def replay_timing(
     ended early or was killed) is replayed as far as it goes; ``summary["trace_partial"]``
     says what it lacked. ``out`` as for :func:`run`.
     """
-    run_dir = os.fspath(run_dir)
+    run_dir = _fspath("replay_timing", "run_dir", run_dir)
     kind, value, origin = _scenario(
         scenario if scenario is not None else os.path.join(run_dir, "scenario.toml")
     )
@@ -382,7 +388,7 @@ def replay_timing(
         value,
         origin,
         [],
-        out=_path(out),
+        out=out,
         transport=transport or "in-process",
         plots=plots,
         exe=_participant_exe(),
@@ -444,8 +450,14 @@ def sweep(
             raise ScenarioError(f"grid: {len(grid)} keys: allowed one KEY: values")
         grid = next(iter(grid.items()))
     if grid is not None:
-        key, values = grid
-        grid = (str(key), [float(v) for v in values])
+        try:
+            key, values = grid
+            grid = (str(key), [float(v) for v in values])
+        except (TypeError, ValueError):
+            raise TypeError(
+                'sweep: grid: "KEY=START:STOP:STEP", "KEY=V1,V2", (KEY, values) or '
+                f"{{KEY: values}} with numbers for values, not {grid!r}"
+            ) from None
     raw = _tiltsim.sweep(
         kind,
         value,
@@ -457,7 +469,7 @@ def sweep(
         grid=grid,
         jobs=jobs,
         transport=transport,
-        out=_path(out),
+        out=out,
         exe=_participant_exe(),
         progress=_progress(progress, "samples"),
     )
@@ -499,17 +511,17 @@ def route(
     motion-sickness doses) and ``journey`` (the two profiles' journey times).
     """
     raw = _tiltsim.route(
-        os.fspath(route_file),
+        route_file,
         [_scenario(s) for s in scenarios],
-        rho=None if rho is None else [float(r) for r in rho],
-        cd_tilting=None if cd_tilting is None else [float(c) for c in cd_tilting],
-        cd_conventional=float(cd_conventional),
-        accel=float(accel),
-        brake=float(brake),
+        rho=rho,
+        cd_tilting=cd_tilting,
+        cd_conventional=cd_conventional,
+        accel=accel,
+        brake=brake,
         running=running,
         jobs=jobs,
         transport=transport,
-        out=_path(out),
+        out=out,
         exe=_participant_exe(),
     )
     table = _frame(raw["transitions"])
@@ -552,7 +564,7 @@ def falsify(
                 lines.append(f"{k} = {_setting_text(str(k), v)}")
         text, bounds_origin = "\n".join(lines) + "\n", "<bounds dict>"
     else:
-        bounds_origin = os.fspath(bounds)
+        bounds_origin = _fspath("falsify", "bounds", bounds)
         try:
             text = Path(bounds_origin).read_text()
         except OSError as e:
@@ -566,10 +578,10 @@ def falsify(
         bounds_origin,
         objective=objective,
         requirement=requirement,
-        budget=None if budget is None else int(budget),
-        seed=int(seed),
+        budget=budget,
+        seed=seed,
         jobs=jobs,
-        out=_path(out),
+        out=out,
     )
     return raw["trace"], dict(raw["worst"]), _frame(raw["progress"])
 
@@ -600,7 +612,7 @@ def compare(
     raw = _tiltsim.compare(
         specs,
         transport=transport,
-        out=_path(out),
+        out=out,
         exe=_participant_exe(),
         progress=_progress(progress, "runs"),
     )
