@@ -97,6 +97,25 @@ struct Overrides {
 }
 
 impl Overrides {
+    /// The overrides entry point `f` was given: `settings`, then `transport`, `master`,
+    /// `seed`, `duration` and `execution` as Python objects, each checked by name.
+    fn of_call(
+        f: &'static str,
+        settings: Vec<(String, String)>,
+        [transport, master, seed, duration, execution]: [&Option<Bound<'_, PyAny>>; 5],
+        timing_replay: bool,
+    ) -> PyResult<Overrides> {
+        Ok(Overrides {
+            settings,
+            transport: arg(f, "transport", transport).text(TRANSPORTS)?,
+            master: arg(f, "master", master).text(r#""gauss-seidel" or "jacobi""#)?,
+            seed: arg(f, "seed", seed).whole(0, u64::MAX)?,
+            duration: arg(f, "duration", duration).number("a duration in s")?,
+            execution: arg(f, "execution", execution).text(r#""lock-step" or "free""#)?,
+            timing_replay,
+        })
+    }
+
     fn apply(&self, py: Python<'_>, mut s: Scenario, origin: &str) -> PyResult<Scenario> {
         if let Some(t) = &self.transport {
             s.run.transport = match t.as_str() {
@@ -423,23 +442,14 @@ fn run<'py>(
         "run"
     };
     let out = arg(f, "out", &out).path()?;
-    let transport = arg(f, "transport", &transport).text(TRANSPORTS)?;
-    let master = arg(f, "master", &master).text(r#""gauss-seidel" or "jacobi""#)?;
-    let seed = arg(f, "seed", &seed).whole(0, u64::MAX)?;
-    let duration = arg(f, "duration", &duration).number("a duration in s")?;
     let record = arg(f, "record", &record).flag()?;
     let plots = arg(f, "plots", &plots).flag()?;
-    let execution = arg(f, "execution", &execution).text(r#""lock-step" or "free""#)?;
-    let s = Overrides {
-        settings,
-        transport,
-        master,
-        seed,
-        duration,
-        timing_replay: replay_trace.is_some(),
-        execution,
-    }
-    .apply(py, scenario(py, kind, value, origin)?, origin)?;
+    let given = [&transport, &master, &seed, &duration, &execution];
+    let s = Overrides::of_call(f, settings, given, replay_trace.is_some())?.apply(
+        py,
+        scenario(py, kind, value, origin)?,
+        origin,
+    )?;
     let exe = participant_exe(py, exe, &s)?;
     let (dir, scratch) = directory(py, out.as_deref(), "run")?;
     let interrupt = Arc::new(AtomicBool::new(false));
