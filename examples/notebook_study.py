@@ -66,8 +66,11 @@ def controllers(out: Path) -> dict[str, tiltsim.Result]:
 def table4(out: Path) -> object:
     """The comparison laid out like the paper's Table 4 (a pandas DataFrame)."""
     table = tiltsim.compare(list(CONTROLLERS.values()), transport="in-process")
-    t4 = table.pivot_table(index="metric", columns="column", values="value", aggfunc="first",
-                           sort=False)
+    # Tidy: one row per metric and run; the whole-run metrics (not those at a passenger
+    # position) pivot into a column per controller, the ideal tilt beside them.
+    whole = table[table["position"] == ""]
+    t4 = whole.pivot_table(index="metric", columns="controller", values="value",
+                           aggfunc="first", sort=False)
     t4.to_csv(out / "table4.csv")
     print(t4.to_string(max_colwidth=24))
     return t4

@@ -2,7 +2,9 @@
 """Writes a finished tiltsim run as a Rerun recording (.rrd) whose signals plot over
 simulated time: every column of DIR/timeseries.csv as a Rerun `Scalars` series on the
 `sim_time` timeline, grouped by participant (/plant, /actuator, /controller, /links), and the
-run's events (DIR/events.csv) as text logs at their ticks.
+run's events (DIR/events.csv) as text logs at their ticks. Simulated time is exact: a row's
+`sim_time` is its `step` times the base tick `run.dt_s` (DIR/scenario.toml) in whole
+nanoseconds, integer arithmetic throughout, never seconds multiplied by 1e9 and truncated.
 
     python scripts/to-rerun.py DIR [--out FILE.rrd]     # default DIR/run.rrd
     rerun DIR/run.rrd
@@ -15,6 +17,7 @@ opaque bytes; this route gives it plottable scalars.
 import argparse
 import csv
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -62,6 +65,34 @@ def read_table(path: Path):
     return header, data
 
 
+def tick_ns(run_dir: Path, header, data) -> int:
+    """The base tick in whole ns: `run.dt_s` of DIR/scenario.toml, else the table's first step."""
+    sc = run_dir / "scenario.toml"
+    dt_s = None
+    if sc.is_file():
+        try:
+            with open(sc, "rb") as f:
+                dt_s = tomllib.load(f).get("run", {}).get("dt_s")
+        except (OSError, tomllib.TOMLDecodeError) as e:
+            fail(f"{sc}: {e}")
+    if dt_s is None:
+        if len(data) < 2:
+            fail(f"{run_dir}: no scenario.toml and a single row: the tick is unknown")
+        t = data[:, header.index(next(c for c in TIME_COLUMNS if c in header))]
+        dt_s = float(t[1] - t[0])
+    # dt_s is the double nearest a decimal number of seconds; its whole ns are the nearest.
+    return round(float(dt_s) * 1e9)
+
+
+def sim_time_ns(header, data, dt_ns: int):
+    """Each row's simulated time in ns, step·dt as integers (int64). Tables of tiltsim 0.1
+    (`step,t,...`) held the outputs after tick `step`, at (step + 1)·dt."""
+    steps = data[:, header.index("step")].astype(np.int64)
+    if "time" not in header:
+        steps = steps + 1
+    return steps * np.int64(dt_ns)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("dir", type=Path, help="a finished run's output directory")
@@ -72,12 +103,15 @@ def main() -> None:
     time_col = next((c for c in TIME_COLUMNS if c in header), None)
     if time_col is None:
         fail(f"{ts}: no time column (one of {', '.join(TIME_COLUMNS)})")
-    time = data[:, header.index(time_col)]
+    if "step" not in header:
+        fail(f"{ts}: no step column")
+    dt_ns = tick_ns(a.dir, header, data)
+    ns = sim_time_ns(header, data, dt_ns)
     out = a.out or a.dir / "run.rrd"
     name = a.dir.resolve().name
     rec = rr.RecordingStream("tiltsim", recording_id=f"tiltsim-{name}")
     rec.save(str(out))
-    times = [rr.TimeColumn("sim_time", duration=time)]
+    times = [rr.TimeColumn("sim_time", duration=ns.astype("timedelta64[ns]"))]
     for i, col in enumerate(header):
         if col in TIME_COLUMNS or col == "step":
             continue
@@ -87,14 +121,15 @@ def main() -> None:
     if ev.is_file():
         with open(ev, newline="") as f:
             for e in csv.DictReader(f):
-                when = next((e[c] for c in TIME_COLUMNS if c in e), None)
-                if when is None:
-                    fail(f"{ev}: no time column (one of {', '.join(TIME_COLUMNS)})")
-                rec.set_time("sim_time", duration=float(when))
+                if "step" not in e:
+                    fail(f"{ev}: no step column")
+                # An event is at the start of its tick: step·dt, as events.csv's time.
+                when = np.timedelta64(int(e["step"]) * dt_ns, "ns")
+                rec.set_time("sim_time", duration=when)
                 text = f"{e['source']} {e['event']}: {e['detail']}".strip()
                 rec.log("/events", rr.TextLog(text))
     rec.flush()
-    print(f"wrote {out} ({len(time)} rows, {len(header) - 2} signals on the sim_time timeline)")
+    print(f"wrote {out} ({len(ns)} rows, {len(header) - 2} signals on the sim_time timeline)")
 
 
 if __name__ == "__main__":

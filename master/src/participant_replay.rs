@@ -174,9 +174,9 @@ pub fn replay(
 /// time they hold at.
 #[derive(Clone, Copy)]
 struct Outbox {
-    /// The outputs hold at the end of the step (`k + 1` for step `k`), and the outputs at t_0
-    /// are recorded as step 0 (the plant and the actuator); otherwise they hold at its start.
-    ends_step: bool,
+    /// The outputs at t_0 are recorded as step 0 (the plant and the actuator; the
+    /// controller's are not recorded).
+    records_start: bool,
     fields: &'static [&'static str],
 }
 
@@ -199,30 +199,31 @@ fn drive<I: Message, O: Message>(
     ep.send(&init).map_err(link)?;
     let first = ep.receive(0, Kind::Init).map_err(link)?;
     let mut out = Vec::new();
-    if outbox.ends_step {
+    if outbox.records_start {
         let values = output(&first);
         let text = rec::message(0, fields, &values);
         out.push((0, values, text));
     }
-    for (k, v, _) in inbox
+    // A message of tick k is step k + 1, the row of `timeseries.csv` that holds it.
+    for (row, v, _) in inbox
         .iter()
-        .take_while(|(k, _, _)| lost.is_none_or(|l| *k < l))
+        .take_while(|(row, _, _)| lost.is_none_or(|l| *row <= l))
     {
+        let k = row.saturating_sub(1);
         let mut req = input(v);
-        let mut h = Header::new(*k, Kind::Step);
+        let mut h = Header::new(k, Kind::Step);
         if hold {
             h.flags |= FLAG_HOLD_BAD_INPUT;
         }
         *req.header_mut() = h;
         ep.send(&req).map_err(link)?;
-        let reply = ep.receive(*k, Kind::Step).map_err(link)?;
+        let reply = ep.receive(k, Kind::Step).map_err(link)?;
         if reply.header().flags & FLAG_REJECTED != 0 {
             break;
         }
         let values = output(&reply);
-        let at = if outbox.ends_step { *k + 1 } else { *k };
-        let text = rec::message(at, fields, &values);
-        out.push((at, values, text));
+        let text = rec::message(*row, fields, &values);
+        out.push((*row, values, text));
     }
     Ok(out)
 }
@@ -350,7 +351,7 @@ impl Stage<'_> {
             input,
             output,
             Outbox {
-                ends_step: self.role != Role::Controller,
+                records_start: self.role != Role::Controller,
                 fields: self.fields,
             },
         );

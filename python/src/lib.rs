@@ -23,8 +23,14 @@ use tiltsim_master::engine::{RunError, RunOptions};
 use tiltsim_master::scenario::{Execution, Master, Scenario, Transport};
 use tiltsim_master::table::{Row, COLUMNS, OFFSETS, TYPES};
 
+mod args;
 mod route;
 mod studies;
+
+use args::arg;
+
+/// What a `transport` argument allows.
+const TRANSPORTS: &str = r#""in-process" or "ipc""#;
 
 use studies::{compare, falsify, linearize, parse_grid, sweep};
 
@@ -91,6 +97,25 @@ struct Overrides {
 }
 
 impl Overrides {
+    /// The overrides entry point `f` was given: `settings`, then `transport`, `master`,
+    /// `seed`, `duration` and `execution` as Python objects, each checked by name.
+    fn of_call(
+        f: &'static str,
+        settings: Vec<(String, String)>,
+        [transport, master, seed, duration, execution]: [&Option<Bound<'_, PyAny>>; 5],
+        timing_replay: bool,
+    ) -> PyResult<Overrides> {
+        Ok(Overrides {
+            settings,
+            transport: arg(f, "transport", transport).text(TRANSPORTS)?,
+            master: arg(f, "master", master).text(r#""gauss-seidel" or "jacobi""#)?,
+            seed: arg(f, "seed", seed).whole(0, u64::MAX)?,
+            duration: arg(f, "duration", duration).number("a duration in s")?,
+            execution: arg(f, "execution", execution).text(r#""lock-step" or "free""#)?,
+            timing_replay,
+        })
+    }
+
     fn apply(&self, py: Python<'_>, mut s: Scenario, origin: &str) -> PyResult<Scenario> {
         if let Some(t) = &self.transport {
             s.run.transport = match t.as_str() {
@@ -389,7 +414,7 @@ fn run_error(py: Python<'_>, e: RunError, origin: &str) -> PyErr {
 /// when `plots`); without, it keeps its rows in memory and leaves no file.
 #[pyfunction]
 #[pyo3(signature = (kind, value, origin, settings, out=None, transport=None, master=None,
-                    seed=None, duration=None, record=false, plots=false, exe=None,
+                    seed=None, duration=None, record=None, plots=None, exe=None,
                     progress=None, execution=None, replay_trace=None))]
 #[allow(clippy::too_many_arguments)]
 fn run<'py>(
@@ -398,29 +423,33 @@ fn run<'py>(
     value: &str,
     origin: &str,
     settings: Vec<(String, String)>,
-    out: Option<PathBuf>,
-    transport: Option<String>,
-    master: Option<String>,
-    seed: Option<u64>,
-    duration: Option<f64>,
-    record: bool,
-    plots: bool,
+    out: Option<Bound<'py, PyAny>>,
+    transport: Option<Bound<'py, PyAny>>,
+    master: Option<Bound<'py, PyAny>>,
+    seed: Option<Bound<'py, PyAny>>,
+    duration: Option<Bound<'py, PyAny>>,
+    record: Option<Bound<'py, PyAny>>,
+    plots: Option<Bound<'py, PyAny>>,
     exe: Option<String>,
     progress: Option<Bound<'py, PyAny>>,
-    execution: Option<String>,
+    execution: Option<Bound<'py, PyAny>>,
     replay_trace: Option<PathBuf>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let started = std::time::Instant::now();
-    let s = Overrides {
-        settings,
-        transport,
-        master,
-        seed,
-        duration,
-        timing_replay: replay_trace.is_some(),
-        execution,
-    }
-    .apply(py, scenario(py, kind, value, origin)?, origin)?;
+    let f = if replay_trace.is_some() {
+        "replay_timing"
+    } else {
+        "run"
+    };
+    let out = arg(f, "out", &out).path()?;
+    let record = arg(f, "record", &record).flag()?;
+    let plots = arg(f, "plots", &plots).flag()?;
+    let given = [&transport, &master, &seed, &duration, &execution];
+    let s = Overrides::of_call(f, settings, given, replay_trace.is_some())?.apply(
+        py,
+        scenario(py, kind, value, origin)?,
+        origin,
+    )?;
     let exe = participant_exe(py, exe, &s)?;
     let (dir, scratch) = directory(py, out.as_deref(), "run")?;
     let interrupt = Arc::new(AtomicBool::new(false));

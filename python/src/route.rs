@@ -13,50 +13,47 @@ use tiltsim_studies::route::run::{process_cpu_s, RouteExec};
 use tiltsim_studies::route::study::{transition_columns, Column};
 use tiltsim_studies::route::{Grid, Limits, Running};
 
+use crate::args::arg;
 use crate::{directory, error, invalid, participant_exe, scenario_with, supervise};
 
 /// Runs `scenarios` (each `(kind, value, origin)`) over the route file `route`; returns
 /// `transitions` (the columns of `transitions.csv`), `variants` (one dict per variant, as
 /// `route.json` has them), the journey times and the output directory (when written).
 #[pyfunction]
-#[pyo3(signature = (route, scenarios, rho=None, cd_tilting=None, cd_conventional=150.0,
-                    accel=0.5, brake=0.6, running=None, jobs=None, transport=None, out=None,
+#[pyo3(signature = (route, scenarios, rho=None, cd_tilting=None, cd_conventional=None,
+                    accel=None, brake=None, running=None, jobs=None, transport=None, out=None,
                     exe=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn route<'py>(
     py: Python<'py>,
-    route: PathBuf,
+    route: Bound<'py, PyAny>,
     scenarios: Vec<(String, String, String)>,
-    rho: Option<Vec<f64>>,
-    cd_tilting: Option<Vec<f64>>,
-    cd_conventional: f64,
-    accel: f64,
-    brake: f64,
-    running: Option<String>,
-    jobs: Option<usize>,
-    transport: Option<String>,
-    out: Option<PathBuf>,
+    rho: Option<Bound<'py, PyAny>>,
+    cd_tilting: Option<Bound<'py, PyAny>>,
+    cd_conventional: Option<Bound<'py, PyAny>>,
+    accel: Option<Bound<'py, PyAny>>,
+    brake: Option<Bound<'py, PyAny>>,
+    running: Option<Bound<'py, PyAny>>,
+    jobs: Option<Bound<'py, PyAny>>,
+    transport: Option<Bound<'py, PyAny>>,
+    out: Option<Bound<'py, PyAny>>,
     exe: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let f = "route";
+    let route = arg(f, "route_file", &Some(route))
+        .path()?
+        .unwrap_or_default();
+    let jobs = arg(f, "jobs", &jobs).count(1, 256)?;
+    let transport = arg(f, "transport", &transport).text(crate::TRANSPORTS)?;
+    let out = arg(f, "out", &out).path()?;
     let line = tiltsim_studies::route::load(&route).map_err(|e| invalid(py, e.to_string()))?;
-    let (grid, limits) =
-        grid_and_limits(py, rho, cd_tilting, cd_conventional, accel, brake, running)?;
-    // In-process by default, as `tiltsim route`.
-    let transport = transport.or(Some("in-process".into()));
-    let mut loaded = Vec::new();
-    for (kind, value, origin) in &scenarios {
-        loaded.push(scenario_with(
-            py,
-            kind,
-            value,
-            origin,
-            Vec::new(),
-            transport.clone(),
-            None,
-            None,
-            None,
-        )?);
-    }
+    let (grid, limits) = grid_and_limits(
+        py,
+        [&rho, &cd_tilting],
+        [&cd_conventional, &accel, &brake],
+        &running,
+    )?;
+    let loaded = load(py, &scenarios, transport)?;
     let exe = match loaded.first() {
         Some(s) => participant_exe(py, exe, s)?,
         None => PathBuf::from("tiltsim"),
@@ -105,13 +102,7 @@ pub(crate) fn route<'py>(
         ));
     };
     written.map_err(|e| error(py, "ParticipantError", e))?;
-    let table = PyDict::new(py);
-    for (name, col) in transition_columns(&results) {
-        match col {
-            Column::Num(v) => table.set_item(name, PyArray1::from_vec(py, v))?,
-            Column::Text(v) => table.set_item(name, PyList::new(py, v)?)?,
-        }
-    }
+    let table = transitions(py, &results)?;
     let json = |v: &dyn erased::Ser| -> PyResult<Bound<'py, PyAny>> {
         let text = v.json().map_err(|e| error(py, "TiltsimError", e))?;
         py.import("json")?.call_method1("loads", (text,))
@@ -125,15 +116,68 @@ pub(crate) fn route<'py>(
 }
 
 /// The variants' grid and the profiles' limits the call asks for, checked.
-fn grid_and_limits(
+/// The route's scenarios, in-process by default as `tiltsim route`.
+fn load(
     py: Python<'_>,
-    rho: Option<Vec<f64>>,
-    cd_tilting: Option<Vec<f64>>,
-    cd_conventional: f64,
-    accel: f64,
-    brake: f64,
-    running: Option<String>,
+    scenarios: &[(String, String, String)],
+    transport: Option<String>,
+) -> PyResult<Vec<tiltsim_master::scenario::Scenario>> {
+    let transport = transport.or(Some("in-process".into()));
+    let mut loaded = Vec::new();
+    for (kind, value, origin) in scenarios {
+        loaded.push(scenario_with(
+            py,
+            kind,
+            value,
+            origin,
+            Vec::new(),
+            transport.clone(),
+            None,
+            None,
+            None,
+        )?);
+    }
+    Ok(loaded)
+}
+
+/// The transitions' columns as `{name: array or list}`.
+fn transitions<'py>(
+    py: Python<'py>,
+    results: &[tiltsim_studies::route::study::VariantResult],
+) -> PyResult<Bound<'py, PyDict>> {
+    let table = PyDict::new(py);
+    for (name, col) in transition_columns(results) {
+        match col {
+            Column::Num(v) => table.set_item(name, PyArray1::from_vec(py, v))?,
+            Column::Text(v) => table.set_item(name, PyList::new(py, v)?)?,
+        }
+    }
+    Ok(table)
+}
+
+/// The grid of variants and the speed limits from `rho` and `cd_tilting` (lists),
+/// `cd_conventional`, `accel` and `brake` (numbers) and `running`, each named in its error.
+fn grid_and_limits<'py>(
+    py: Python<'py>,
+    [rho, cd_tilting]: [&Option<Bound<'py, PyAny>>; 2],
+    [cd_conventional, accel, brake]: [&Option<Bound<'py, PyAny>>; 3],
+    running: &Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Grid, Limits)> {
+    let f = "route";
+    let rho = arg(f, "rho", rho).numbers("compensation factors rho")?;
+    let cd_tilting = arg(f, "cd_tilting", cd_tilting).numbers("cant deficiencies in mm")?;
+    let cd = |name, v, what, default| -> PyResult<f64> {
+        Ok(arg(f, name, v).number(what)?.unwrap_or(default))
+    };
+    let cd_conventional = cd(
+        "cd_conventional",
+        cd_conventional,
+        "a cant deficiency in mm",
+        150.0,
+    )?;
+    let accel = cd("accel", accel, "an acceleration in m/s2", 0.5)?;
+    let brake = cd("brake", brake, "a deceleration in m/s2", 0.6)?;
+    let running = arg(f, "running", running).text(r#""conventional" or "tilting""#)?;
     let grid = Grid {
         rho: rho.unwrap_or_default(),
         cd_tilting_mm: cd_tilting.unwrap_or_default(),

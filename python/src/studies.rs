@@ -13,12 +13,13 @@ use tiltsim_master::engine::RunOptions;
 use tiltsim_master::scenario::Scenario;
 use tiltsim_studies::sweep::{Exec, Plan, Row, SweepError, Swept};
 
-use crate::{directory, error, invalid, participant_exe, scenario_with, supervise};
+use crate::args::arg;
+use crate::{directory, error, invalid, participant_exe, scenario_with, supervise, TRANSPORTS};
 
 /// Runs a sweep; returns its samples' columns (as `samples.csv` has them), the tidy lateral
 /// acceleration series (`series.csv`), whether it was interrupted and its directory.
 #[pyfunction]
-#[pyo3(signature = (kind, value, origin, settings, samples=None, spread=0.22, seed=1,
+#[pyo3(signature = (kind, value, origin, settings, samples=None, spread=None, seed=None,
                     grid=None, jobs=None, transport=None, out=None, exe=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn sweep<'py>(
@@ -27,16 +28,24 @@ pub(crate) fn sweep<'py>(
     value: &str,
     origin: &str,
     settings: Vec<(String, String)>,
-    samples: Option<usize>,
-    spread: f64,
-    seed: u64,
+    samples: Option<Bound<'py, PyAny>>,
+    spread: Option<Bound<'py, PyAny>>,
+    seed: Option<Bound<'py, PyAny>>,
     grid: Option<(String, Vec<f64>)>,
-    jobs: Option<usize>,
-    transport: Option<String>,
-    out: Option<PathBuf>,
+    jobs: Option<Bound<'py, PyAny>>,
+    transport: Option<Bound<'py, PyAny>>,
+    out: Option<Bound<'py, PyAny>>,
     exe: Option<String>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let samples = arg("sweep", "samples", &samples).count(1, 100_000)?;
+    let spread = arg("sweep", "spread", &spread)
+        .number("the relative spread of the Monte Carlo factors")?
+        .unwrap_or(0.22);
+    let seed = arg("sweep", "seed", &seed).whole(0, u64::MAX)?.unwrap_or(1);
+    let jobs = arg("sweep", "jobs", &jobs).count(1, 256)?;
+    let transport = arg("sweep", "transport", &transport).text(TRANSPORTS)?;
+    let out = arg("sweep", "out", &out).path()?;
     // In-process by default, as `tiltsim sweep`.
     let transport = transport.or(Some("in-process".into()));
     let s = scenario_with(
@@ -206,11 +215,13 @@ fn series_frame<'py>(py: Python<'py>, rows: &[Row]) -> PyResult<Bound<'py, PyDic
 pub(crate) fn compare<'py>(
     py: Python<'py>,
     scenarios: Vec<(String, String, String)>,
-    transport: Option<String>,
-    out: Option<PathBuf>,
+    transport: Option<Bound<'py, PyAny>>,
+    out: Option<Bound<'py, PyAny>>,
     exe: Option<String>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let transport = arg("compare", "transport", &transport).text(TRANSPORTS)?;
+    let out = arg("compare", "out", &out).path()?;
     if scenarios.is_empty() {
         return Err(invalid(py, "compare: give at least one scenario"));
     }
@@ -314,7 +325,7 @@ pub(crate) fn parse_grid(py: Python<'_>, spec: &str) -> PyResult<(String, Vec<f6
 /// (`result.json`'s fields), the progress (`progress.csv`'s columns) and the directory.
 #[pyfunction]
 #[pyo3(signature = (kind, value, origin, settings, bounds, bounds_origin, objective=None,
-                    requirement=None, budget=None, seed=1, jobs=None, out=None, shard=None,
+                    requirement=None, budget=None, seed=None, jobs=None, out=None, shard=None,
                     restarts=None, margin=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn falsify<'py>(
@@ -325,24 +336,44 @@ pub(crate) fn falsify<'py>(
     settings: Vec<(String, String)>,
     bounds: &str,
     bounds_origin: &str,
-    objective: Option<String>,
-    requirement: Option<Vec<String>>,
-    budget: Option<i64>,
-    seed: u64,
-    jobs: Option<usize>,
-    out: Option<PathBuf>,
-    shard: Option<String>,
-    restarts: Option<usize>,
-    margin: Option<(f64, usize)>,
+    objective: Option<Bound<'py, PyAny>>,
+    requirement: Option<Bound<'py, PyAny>>,
+    budget: Option<Bound<'py, PyAny>>,
+    seed: Option<Bound<'py, PyAny>>,
+    jobs: Option<Bound<'py, PyAny>>,
+    out: Option<Bound<'py, PyAny>>,
+    shard: Option<Bound<'py, PyAny>>,
+    restarts: Option<Bound<'py, PyAny>>,
+    margin: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let f = "falsify";
+    let objective = arg(f, "objective", &objective)
+        .text("a comfort metric of summary.json (a str: p_ct, p_ct_seated, lat_acc_peak, ...)")?;
+    let requirement = arg(f, "requirement", &requirement).texts(
+        "requirements, a str or a list of str (\"p_ct < 26\", \"valid\", \"always |lat_acc| < 1.2\")",
+    )?;
+    let shard = arg(f, "shard", &shard).text("a shard, a str \"I/N\"")?;
+    let restarts = arg(f, "restarts", &restarts).count(1, 100_000)?;
+    let margin = match arg(f, "margin", &margin)
+        .numbers("the largest scale and the bisection steps")?
+        .as_deref()
+    {
+        None => None,
+        Some(&[k, n]) if n >= 0.0 && n.fract() == 0.0 => Some((k, n as usize)),
+        Some(_) => return Err(invalid(
+            py,
+            "falsify: margin: allowed (largest scale, bisection steps), the steps a whole number",
+        )),
+    };
+    let budget = arg(f, "budget", &budget).whole(1, 100_000)?;
+    let seed = arg(f, "seed", &seed).whole(0, u64::MAX)?.unwrap_or(1);
+    let jobs = arg(f, "jobs", &jobs).count(1, 256)?;
+    let out = arg(f, "out", &out).path()?;
     use tiltsim_studies::falsify::{self as fz, FalsifyError, Objective};
     let bad = |e: FalsifyError| match e {
         FalsifyError::Invalid(m) => invalid(py, m),
         e => error(py, "ParticipantError", e.to_string()),
     };
-    if let Some(b) = budget.filter(|b| !(1..=100_000).contains(b)) {
-        return Err(invalid(py, format!("budget = {b}: allowed 1 to 100000")));
-    }
     let objective = match (objective, requirement) {
         (Some(_), Some(_)) => {
             return Err(invalid(py, "give objective or requirement, not both"));

@@ -38,7 +38,7 @@ def test_a_bad_setting_or_dict_names_the_field_and_what_is_allowed() -> None:
         tiltsim.run({"run": {"dt_s": "fast"}})
     with pytest.raises(tiltsim.ScenarioError, match=r"transport.*in-process.*ipc"):
         tiltsim.run("scenarios/paper-lqg.toml", transport="udp")
-    with pytest.raises(tiltsim.ScenarioError, match=r"samples = 0: allowed 1 to 100000"):
+    with pytest.raises(ValueError, match=r"sweep: samples: a whole number from 1 to 100000"):
         tiltsim.sweep("scenarios/paper-lqg.toml", samples=0)
     with pytest.raises(tiltsim.ScenarioError, match=r"no-such-file\.toml"):
         tiltsim.run("scenarios/no-such-file.toml")
@@ -85,3 +85,46 @@ def test_the_package_command_is_the_command_line(tmp_path: Path) -> None:
     p = subprocess.run([str(exe), "run", "scenarios/no-such.toml"], cwd=ROOT,
                        capture_output=True, text=True)
     assert p.returncode == 2 and "no-such.toml" in p.stderr
+
+
+@pytest.mark.parametrize(
+    "call, error, words",
+    [
+        (lambda: tiltsim.run("scenarios/paper-lqg.toml", seed="abc"), TypeError,
+         r"run: seed: a whole number from 0 to 18446744073709551615 \(an int\), not 'abc' \(str\)"),
+        (lambda: tiltsim.run("scenarios/paper-lqg.toml", seed=-1), ValueError,
+         r"run: seed: a whole number from 0 to .*, not -1 \(int\)"),
+        (lambda: tiltsim.run("scenarios/paper-lqg.toml", duration="1"), TypeError,
+         r"run: duration: a duration in s, a finite number \(an int or a float\), not '1' \(str\)"),
+        (lambda: tiltsim.run("scenarios/paper-lqg.toml", transport=3), TypeError,
+         r'run: transport: "in-process" or "ipc", not 3 \(int\)'),
+        (lambda: tiltsim.run("scenarios/paper-lqg.toml", record="yes"), TypeError,
+         r"run: record: True or False, not 'yes' \(str\)"),
+        (lambda: tiltsim.run("scenarios/paper-lqg.toml", out=5), TypeError,
+         r"run: out: a path \(a str or an os.PathLike\), not 5 \(int\)"),
+        (lambda: tiltsim.sweep("scenarios/paper-lqg.toml", samples=2, seed=1.5), TypeError,
+         r"sweep: seed: a whole number"),
+        (lambda: tiltsim.sweep("scenarios/paper-lqg.toml", samples=2, jobs=0), ValueError,
+         r"sweep: jobs: a whole number from 1 to 256 \(an int\), not 0 \(int\)"),
+        (lambda: tiltsim.sweep("scenarios/paper-lqg.toml", samples="2"), TypeError,
+         r"sweep: samples: a whole number"),
+        (lambda: tiltsim.sweep("scenarios/paper-lqg.toml", grid=("k", ["a"])), TypeError,
+         r"sweep: grid: "),
+        (lambda: tiltsim.compare(["scenarios/paper-lqg.toml"], transport=1), TypeError,
+         r"compare: transport: "),
+        (lambda: tiltsim.falsify("scenarios/paper-lqg.toml",
+                                 {"actuator_command": {"delay_ms": [0, 10]}}, seed="x"),
+         TypeError, r"falsify: seed: a whole number"),
+        (lambda: tiltsim.falsify("scenarios/paper-lqg.toml", 3), TypeError,
+         r"falsify: bounds: a path"),
+        (lambda: tiltsim.route("routes/x.csv", [], accel="fast"), TypeError,
+         r"route: accel: an acceleration in m/s2, a finite number"),
+        (lambda: tiltsim.route(7, []), TypeError, r"route: route_file: a path"),
+        (lambda: tiltsim.replay_timing(7), TypeError, r"replay_timing: run_dir: a path"),
+    ],
+)
+def test_an_argument_of_the_wrong_type_or_range_is_named_with_what_it_allows(
+    call, error, words
+) -> None:
+    with pytest.raises(error, match=words):
+        call()

@@ -20,7 +20,7 @@ def test_the_notebook_example_reproduces_the_comparison_and_fig21(tmp_path: Path
         png = (tmp_path / name).read_bytes()
         assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000, name
     t4 = pd.read_csv(tmp_path / "table4.csv", index_col=0)
-    p_ct = t4.loc["P_CT standing, EN 12299 (per transition, 0.3 Hz filtered) (%)"]
+    p_ct = t4.loc["p_ct_en12299_standing_pct"]
     active = [c for c in t4.columns if c.startswith(("PI", "LQG", "MPC"))]
     passive = [c for c in t4.columns if c.startswith("passive")]
     assert len(active) == 3 and len(passive) == 1, list(t4.columns)

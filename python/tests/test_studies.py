@@ -92,10 +92,28 @@ def test_compare_gives_the_command_lines_table(tmp_path: Path) -> None:
     files = ["scenarios/paper-passive.toml", "scenarios/paper-lqg.toml"]
     tiltsim_cli("compare", *files, "--transport", "in-process", "--out", str(tmp_path / "cli"))
     df = tiltsim.compare(files, transport="in-process", out=tmp_path / "py")
-    assert (tmp_path / "py" / "table.csv").read_bytes() == (tmp_path / "cli" / "table.csv").read_bytes()
-    cli = pd.read_csv(tmp_path / "cli" / "table.csv", float_precision="round_trip",
-                      keep_default_na=False, na_values=[""])
+    for name in ("table.csv", "columns.csv"):
+        assert (tmp_path / "py" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes()
+    # Tidy and exact: every number of the table, parsed by Python's float, is in the frame.
+    table = tmp_path / "cli" / "table.csv"
+    cli = pd.read_csv(table, dtype=str, keep_default_na=False)
+    for c in ("value", "paper", "difference"):
+        cli[c] = [float(v) if v else float("nan") for v in cli[c]]
     pd.testing.assert_frame_equal(df, cli)
+    assert df["value"].dtype == np.float64
+    # What a notebook user gets with the readers' defaults: `value` is a float column.
+    assert pd.read_csv(table)["value"].dtype == np.float64
+    import polars as pl
+
+    assert pl.read_csv(table)["value"].dtype == pl.Float64
+    # Every metric has a unit and a meaning beside the table.
+    units = pd.read_csv(tmp_path / "cli" / "columns.csv", dtype=str, keep_default_na=False)
+    described = set(units[units["file"] == "table.csv"]["column"])
+    assert set(df.columns) <= described
+    assert set(df["metric"]) <= described
+    lqg = df[(df["run"] == "paper-lqg") & (df["metric"] == "lat_acc_peak_pct_g")]
+    assert lqg["paper"].iloc[0] == 9.796
+    assert lqg["difference"].iloc[0] == lqg["value"].iloc[0] - 9.796
     assert (tmp_path / "py" / "paper-lqg" / "timeseries.csv").exists()
     # Without a directory: the same table, no files.
     pd.testing.assert_frame_equal(tiltsim.compare(files, transport="in-process"), cli)
@@ -184,7 +202,7 @@ def test_falsify_takes_the_command_lines_requirements_margin_and_shards(tmp_path
     assert json.loads((shard / "result.json").read_text())["shard"] == "1/2"
     for bad, match in [({"margin": (0.5, 1)}, "margin"), ({"shard": "3/2"}, "shard"),
                        ({"restarts": 0}, "restarts")]:
-        with pytest.raises((tiltsim.ScenarioError, TypeError), match=match):
+        with pytest.raises((tiltsim.ScenarioError, TypeError, ValueError), match=match):
             tiltsim.falsify("scenarios/paper-lqg.toml", bounds, requirement="valid", budget=4,
                             **bad)
     with pytest.raises(tiltsim.ScenarioError, match="`wobble` is not a signal"):

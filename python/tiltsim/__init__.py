@@ -149,8 +149,14 @@ def _progress(progress: Progress, unit: str) -> Optional[Callable[[int, int], An
     raise ScenarioError(f"progress: {progress!r}: allowed None, True or a callable(done, total)")
 
 
-def _path(p: Union[None, str, "os.PathLike[str]"]) -> Optional[str]:
-    return None if p is None else os.fspath(p)
+def _fspath(f: str, name: str, p: Any) -> str:
+    """Argument ``name`` of ``f`` as a path; a TypeError naming it for anything else."""
+    try:
+        return os.fspath(p)
+    except TypeError:
+        raise TypeError(
+            f"{f}: {name}: a path (a str or an os.PathLike), not {p!r} ({type(p).__name__})"
+        ) from None
 
 
 def _frame(columns: Mapping[str, Any]) -> Any:
@@ -342,7 +348,7 @@ def run(
         value,
         origin,
         _settings(set),
-        out=_path(out),
+        out=out,
         transport=transport,
         master=master,
         seed=seed,
@@ -373,7 +379,7 @@ def replay_timing(
     ended early or was killed) is replayed as far as it goes; ``summary["trace_partial"]``
     says what it lacked. ``out`` as for :func:`run`.
     """
-    run_dir = os.fspath(run_dir)
+    run_dir = _fspath("replay_timing", "run_dir", run_dir)
     kind, value, origin = _scenario(
         scenario if scenario is not None else os.path.join(run_dir, "scenario.toml")
     )
@@ -382,7 +388,7 @@ def replay_timing(
         value,
         origin,
         [],
-        out=_path(out),
+        out=out,
         transport=transport or "in-process",
         plots=plots,
         exe=_participant_exe(),
@@ -444,8 +450,14 @@ def sweep(
             raise ScenarioError(f"grid: {len(grid)} keys: allowed one KEY: values")
         grid = next(iter(grid.items()))
     if grid is not None:
-        key, values = grid
-        grid = (str(key), [float(v) for v in values])
+        try:
+            key, values = grid
+            grid = (str(key), [float(v) for v in values])
+        except (TypeError, ValueError):
+            raise TypeError(
+                'sweep: grid: "KEY=START:STOP:STEP", "KEY=V1,V2", (KEY, values) or '
+                f"{{KEY: values}} with numbers for values, not {grid!r}"
+            ) from None
     raw = _tiltsim.sweep(
         kind,
         value,
@@ -457,7 +469,7 @@ def sweep(
         grid=grid,
         jobs=jobs,
         transport=transport,
-        out=_path(out),
+        out=out,
         exe=_participant_exe(),
         progress=_progress(progress, "samples"),
     )
@@ -499,30 +511,23 @@ def route(
     motion-sickness doses) and ``journey`` (the two profiles' journey times).
     """
     raw = _tiltsim.route(
-        os.fspath(route_file),
+        route_file,
         [_scenario(s) for s in scenarios],
-        rho=None if rho is None else [float(r) for r in rho],
-        cd_tilting=None if cd_tilting is None else [float(c) for c in cd_tilting],
-        cd_conventional=float(cd_conventional),
-        accel=float(accel),
-        brake=float(brake),
+        rho=rho,
+        cd_tilting=cd_tilting,
+        cd_conventional=cd_conventional,
+        accel=accel,
+        brake=brake,
         running=running,
         jobs=jobs,
         transport=transport,
-        out=_path(out),
+        out=out,
         exe=_participant_exe(),
     )
     table = _frame(raw["transitions"])
     if details:
         return table, {"variants": raw["variants"], "journey": raw["journey"]}
     return table
-
-
-def _count(name: str, value: Any) -> int:
-    """A whole number of at least 0 for argument ``name``, or a TypeError naming it."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-        raise TypeError(f"{name}: allowed a whole number of at least 0, not {value!r}")
-    return value
 
 
 def falsify(
@@ -561,24 +566,10 @@ def falsify(
     (a dict of arrays without pandas). With ``out`` the files stay there.
     """
     kind, value, origin = _scenario(scenario)
-    if isinstance(requirement, str):
-        requirement = [requirement]
-    elif requirement is not None:
-        if not all(isinstance(r, str) for r in requirement):
-            raise TypeError("requirement: allowed a string or a sequence of strings")
-        requirement = list(requirement)
     if margin is True:
         margin = (4.0, 4)
-    elif margin is False or margin is None:
+    elif margin is False:
         margin = None
-    elif not (isinstance(margin, tuple) and len(margin) == 2):
-        raise TypeError("margin: allowed True, False or (largest scale, bisection steps)")
-    else:
-        margin = (float(margin[0]), _count("margin steps", margin[1]))
-    if shard is not None and not isinstance(shard, str):
-        raise TypeError("shard: allowed a string \"I/N\"")
-    if restarts is not None:
-        restarts = _count("restarts", restarts)
     if isinstance(bounds, Mapping):
         lines = []
         for link, fields in bounds.items():
@@ -587,7 +578,7 @@ def falsify(
                 lines.append(f"{k} = {_setting_text(str(k), v)}")
         text, bounds_origin = "\n".join(lines) + "\n", "<bounds dict>"
     else:
-        bounds_origin = os.fspath(bounds)
+        bounds_origin = _fspath("falsify", "bounds", bounds)
         try:
             text = Path(bounds_origin).read_text()
         except OSError as e:
@@ -601,10 +592,10 @@ def falsify(
         bounds_origin,
         objective=objective,
         requirement=requirement,
-        budget=None if budget is None else int(budget),
-        seed=int(seed),
+        budget=budget,
+        seed=seed,
         jobs=jobs,
-        out=_path(out),
+        out=out,
         shard=shard,
         restarts=restarts,
         margin=margin,
@@ -624,10 +615,13 @@ def compare(
     progress: Progress = None,
 ) -> Any:
     """Runs each scenario and lays them out like the paper's Table 4, as ``tiltsim compare``
-    does: the rows of its ``table.csv`` (every comfort metric for each controller and the
-    ideal tilt, the differences to the ideal tilt, the validity flags and the trade-off) as
-    a DataFrame (a dict of arrays without pandas). Pivot with
-    ``df.pivot_table(index="metric", columns="column", values="value", aggfunc="first")``.
+    does: the rows of its ``table.csv``, tidy (one row per metric and run: every comfort
+    metric for each controller and the ideal tilt, the differences to the ideal tilt, the
+    numbers behind the validity flags and the trade-off) as a DataFrame (a dict of lists
+    without pandas). ``value``, ``paper`` and ``difference`` are floats, read exactly (NaN
+    where the table has no number); ``metric`` is a key whose unit and meaning the
+    ``columns.csv`` beside ``table.csv`` gives (and ``unit`` on every row). Pivot with
+    ``df.pivot_table(index="metric", columns="run", values="value", aggfunc="first")``.
     With ``out`` the runs, tables and figures stay there.
     """
     if isinstance(scenarios, (str, bytes, os.PathLike)):
@@ -639,22 +633,41 @@ def compare(
     raw = _tiltsim.compare(
         specs,
         transport=transport,
-        out=_path(out),
+        out=out,
         exe=_participant_exe(),
         progress=_progress(progress, "runs"),
     )
     for note in raw["notes"]:
         sys.stderr.write(f"note: {note}\n")
-    text = raw["table_csv"]
+    return _compare_table(raw["table_csv"])
+
+
+# The columns of a compare's table.csv that hold numbers (an empty cell: none).
+_COMPARE_NUMBERS = ("value", "paper", "difference")
+
+
+def _compare_table(text: str) -> Any:
+    """A compare's ``table.csv`` text as a DataFrame (a dict of lists without pandas): its
+    numbers parsed by Python's ``float``, which reads shortest round-trip text exactly, the
+    other columns as text ("" where empty)."""
+    import csv
+
+    reader = csv.reader(io.StringIO(text))
+    header = next(reader, [])
+    rows = list(reader)
+    table: dict = {c: [r[i] for r in rows] for i, c in enumerate(header)}
+    for c in _COMPARE_NUMBERS:
+        if c in table:
+            table[c] = [float(v) if v else float("nan") for v in table[c]]
     try:
         import pandas as pd
     except ImportError:
-        import csv
-
-        rows = list(csv.DictReader(io.StringIO(text)))
-        return {k: [r[k] for r in rows] for k in (rows[0] if rows else {})}
-    return pd.read_csv(io.StringIO(text), float_precision="round_trip", keep_default_na=False,
-                       na_values=[""])
+        return table
+    df = pd.DataFrame(table, columns=header)
+    for c in _COMPARE_NUMBERS:
+        if c in df:
+            df[c] = df[c].astype("float64")
+    return df
 
 
 class Linearization:

@@ -1,6 +1,7 @@
 //! A comparison run into a directory, as `tiltsim compare` and the Python package's
 //! `compare` make it: each scenario runs into `out/<name>`, then the Table 4 tables
-//! (`table.md`, `table.csv`), the figures and `compare.json` are written. The caller prints.
+//! (`table.md`, `table.csv` with its `columns.csv`), the figures and `compare.json` are
+//! written. The caller prints.
 
 use std::path::{Path, PathBuf};
 
@@ -137,8 +138,12 @@ impl Comparison {
             CompareError::Failed(format!("{}: {e}", out.join("plots").display()))
         };
         self.manifest.trade_off = crate::table4::trade_off_points(&self.entries);
-        let (md, csv) = crate::table4::tables(&self.entries);
-        for (name, text) in [("table.md", &md), ("table.csv", &csv)] {
+        let (md, csv, columns) = crate::table4::tables(&self.entries);
+        for (name, text) in [
+            ("table.md", &md),
+            ("table.csv", &csv),
+            ("columns.csv", &columns),
+        ] {
             tiltsim_rundir::files::write_atomic(&out.join(name), text)
                 .map_err(|e| CompareError::Failed(e.to_string()))?;
         }

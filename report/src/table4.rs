@@ -137,57 +137,54 @@ fn ideal_columns(entries: &[Entry]) -> (Vec<(String, &Comfort)>, Vec<usize>) {
     (cols, of)
 }
 
-/// Why a run's value in row `r` is not to be read as a number, if it is not.
-fn cell_flags(e: &Entry, r: usize, v: f64) -> Vec<String> {
+/// Why a run's value in row `r` is not to be read as a number, if it is not: each reason's
+/// code (`table.csv`) and words (`table.md`).
+fn cell_flags(e: &Entry, r: usize, v: f64) -> Vec<(&'static str, String)> {
     let f = &e.summary.flags;
     let mut tags = Vec::new();
     if f.oscillation.raised {
-        tags.push(format!(
-            "oscillating ±{:.2}° at {:.2} Hz",
-            f.oscillation.amplitude_deg, f.oscillation.frequency_hz
+        tags.push((
+            "oscillation",
+            format!(
+                "oscillating ±{:.2}° at {:.2} Hz",
+                f.oscillation.amplitude_deg, f.oscillation.frequency_hz
+            ),
         ));
     }
     if METRICS[r].is_p_ct && v > 100.0 {
-        tags.push("P_CT > 100 %".into());
+        tags.push(("p_ct_range", "P_CT > 100 %".into()));
     }
     if let Some(n) = f.not_real_time.as_ref().filter(|n| n.raised) {
-        tags.push(format!(
-            "not real-time (plant {:.1} ms late)",
-            n.plant_max_lateness_s * 1e3
+        tags.push((
+            "not_real_time",
+            format!(
+                "not real-time (plant {:.1} ms late)",
+                n.plant_max_lateness_s * 1e3
+            ),
         ));
     }
     tags
 }
 
-/// A flag row's cell: raised, and the measured value as text.
-type FlagCell = fn(&tiltsim_assessment::validity::Flags) -> (bool, String);
+/// The words of `tags`, for `table.md`.
+fn words(tags: &[(&str, String)]) -> String {
+    tags.iter()
+        .map(|t| t.1.as_str())
+        .collect::<Vec<_>>()
+        .join("; ")
+}
 
-/// `table.csv` as it is built: one record per cell, written by the `csv` crate.
-struct CsvTable(csv::Writer<Vec<u8>>);
+/// The codes of `tags`, for `table.csv`.
+fn codes<'a>(tags: &[(&'a str, String)]) -> Vec<&'a str> {
+    tags.iter().map(|t| t.0).collect()
+}
 
-impl CsvTable {
-    fn new() -> Self {
-        let mut w = csv::Writer::from_writer(Vec::new());
-        let _ = w.write_record([
-            "metric",
-            "column",
-            "scenario",
-            "value",
-            "paper",
-            "difference",
-            "flags",
-        ]);
-        CsvTable(w)
-    }
-    fn cell(&mut self, fields: [&str; 7]) {
-        // Writing into memory cannot fail.
-        let _ = self.0.write_record(fields);
-    }
-    fn finish(self) -> String {
-        self.0
-            .into_inner()
-            .map(|b| String::from_utf8_lossy(&b).into_owned())
-            .unwrap_or_default()
+/// Who each entry is in `table.csv`, with its ideal-tilt reference (`of`).
+fn who<'a>(e: &'a Entry, controller: &'a str, ideal: &'a str) -> Who<'a> {
+    Who {
+        run: &e.scenario.name,
+        controller,
+        ideal,
     }
 }
 
@@ -201,20 +198,59 @@ const INTRO: &str = "# Comfort assessment: EN 12299 first, then the paper's Tabl
     ride measure (the run oscillates, fell behind real time, or the formula is outside its 0-100 % \
     range); its value is given for the record only.\n";
 
-/// `table.md` and `table.csv`.
-pub fn tables(entries: &[Entry]) -> (String, String) {
+/// `table.md`, `table.csv` and the `columns.csv` that describes it.
+pub fn tables(entries: &[Entry]) -> (String, String, String) {
     let (ideal, of) = ideal_columns(entries);
+    let names = Names::new(entries, &ideal, &of);
     let mut md = String::from(INTRO);
-    let mut csv = CsvTable::new();
+    let mut csv = Tidy::new();
     ranking(&mut md, entries);
     header(&mut md, &ideal, entries);
-    metric_rows(&mut md, &mut csv, &ideal, entries);
-    position_rows(&mut md, &mut csv, &ideal, entries);
-    ideal_differences(&mut md, &mut csv, &ideal, &of, entries);
-    flag_rows(&mut md, &mut csv, ideal.len(), entries);
+    metric_rows(&mut md, &mut csv, &ideal, entries, &names);
+    position_rows(&mut md, &mut csv, &ideal, entries, &names);
+    ideal_differences(&mut md, &mut csv, &ideal, &of, entries, &names);
+    flag_rows(&mut md, &mut csv, ideal.len(), entries, &names);
     run_table(&mut md, entries);
     trade_off(&mut md, &mut csv, &ideal, &of, entries);
-    (md, csv.finish())
+    let (csv, columns) = csv.finish();
+    (md, csv, columns)
+}
+
+/// The names `table.csv` gives the entries and the ideal-tilt references.
+struct Names {
+    /// Each reference's `run`.
+    ideal: Vec<String>,
+    /// Each entry's controller and the `run` of its reference.
+    entries: Vec<(String, String)>,
+}
+
+impl Names {
+    fn new(entries: &[Entry], ideal: &[(String, &Comfort)], of: &[usize]) -> Names {
+        let names: Vec<String> = (0..ideal.len()).map(tidy::ideal_name).collect();
+        Names {
+            entries: entries
+                .iter()
+                .zip(of)
+                .map(|(e, i)| (controller_name(&e.scenario), names[*i].clone()))
+                .collect(),
+            ideal: names,
+        }
+    }
+
+    /// The `i`-th ideal-tilt reference.
+    fn ideal(&self, i: usize) -> Who<'_> {
+        Who {
+            run: &self.ideal[i],
+            controller: "ideal tilt",
+            ideal: &self.ideal[i],
+        }
+    }
+
+    /// The `i`-th entry.
+    fn entry<'a>(&'a self, entries: &'a [Entry], i: usize) -> Who<'a> {
+        let (c, r) = &self.entries[i];
+        who(&entries[i], c, r)
+    }
 }
 
 /// The runs ordered by P_CT standing, the standard's evaluation and the paper's, best first;
@@ -292,9 +328,10 @@ fn header(md: &mut String, ideal: &[(String, &Comfort)], entries: &[Entry]) {
 
 fn metric_rows(
     md: &mut String,
-    csv: &mut CsvTable,
+    csv: &mut Tidy,
     ideal: &[(String, &Comfort)],
     entries: &[Entry],
+    names: &Names,
 ) {
     // Rows the ideal tilt has no value for: it simulates no suspension, no sway, no ride.
     let not_ideal = [
@@ -305,34 +342,34 @@ fn metric_rows(
         metric("roll_acc_rms_rad_s2"),
     ];
     for (r, m) in METRICS.iter().enumerate() {
+        let key = Key {
+            metric: m.key,
+            unit: m.unit,
+            about: m.label,
+        };
         let _ = write!(md, "| {} |", m.label);
-        for (k, c) in ideal {
+        for (k, (_, c)) in ideal.iter().enumerate() {
             if not_ideal.contains(&r) {
                 let _ = write!(md, " — |");
             } else {
                 let v = (m.get)(c);
                 let _ = write!(md, " {} |", fmt(v));
-                let col = format!("ideal tilt ({k})");
-                csv.cell([m.label, &col, "ideal-tilt", &v.to_string(), "", "", ""]);
+                csv.put(key, "", names.ideal(k), v, None, &[]);
             }
         }
-        for e in entries {
+        for (i, e) in entries.iter().enumerate() {
             let v = (m.get)(&e.summary.comfort);
             let paper = paper_value(&e.scenario, r);
             let mut text = match paper {
                 Some(p) => format!("{} [{}] ({:+})", fmt(v), fmt(p), fmt(v - p)),
                 None => fmt(v),
             };
-            let tags = cell_flags(e, r, v).join("; ");
+            let tags = cell_flags(e, r, v);
             if !tags.is_empty() {
-                text = format!("⚠ {text} ({tags})");
+                text = format!("⚠ {text} ({})", words(&tags));
             }
             let _ = write!(md, " {text} |");
-            let (p, d) = paper.map_or((String::new(), String::new()), |p| {
-                (p.to_string(), (v - p).to_string())
-            });
-            let name = &e.scenario.name;
-            csv.cell([m.label, &e.label, name, &v.to_string(), &p, &d, &tags]);
+            csv.put(key, "", names.entry(entries, i), v, paper, &codes(&tags));
         }
         md.push('\n');
     }
@@ -342,28 +379,32 @@ fn metric_rows(
 /// point and N_MV with the vertical part the roll gives there.
 fn position_rows(
     md: &mut String,
-    csv: &mut CsvTable,
+    csv: &mut Tidy,
     ideal: &[(String, &Comfort)],
     entries: &[Entry],
+    names: &Names,
 ) {
     type Get = fn(&tiltsim_assessment::comfort::PositionComfort) -> f64;
-    let rows: [(&str, Get, bool, bool); 3] = [
+    let rows: [(&str, &str, &str, Get, bool); 3] = [
         (
             "P_CT standing, EN 12299",
+            "position_p_ct_en12299_standing_pct",
+            "%",
             |p| p.p_ct_en12299.standing,
-            true,
             true,
         ),
         (
             "P_CT seated, EN 12299",
+            "position_p_ct_en12299_seated_pct",
+            "%",
             |p| p.p_ct_en12299.seated,
-            true,
             true,
         ),
         (
             "N_MV with the vertical part from roll, 6·√(a_YP95^Wd² + a_ZP95^Wb²)",
+            "position_n_mv_roll",
+            "1",
             |p| p.ride.n_mv_roll,
-            false,
             false,
         ),
     ];
@@ -371,7 +412,7 @@ fn position_rows(
         return;
     };
     for pos in &first.summary.comfort.positions {
-        for (what, get, is_p_ct, for_ideal) in rows {
+        for (what, metric_key, unit, get, is_p_ct) in rows {
             let label = format!(
                 "{what} at {} ({:.2} m above rail, {:+.2} m off centre){}",
                 pos.name,
@@ -379,21 +420,27 @@ fn position_rows(
                 pos.offset_m,
                 if is_p_ct { " (%)" } else { "" }
             );
+            let about = format!("{what} at the passenger position named in `position`");
+            let key = Key {
+                metric: metric_key,
+                unit,
+                about: &about,
+            };
             let _ = write!(md, "| {label} |");
-            for (k, c) in ideal {
+            for (k, (_, c)) in ideal.iter().enumerate() {
                 match c.positions.iter().find(|p| p.name == pos.name) {
-                    Some(p) if for_ideal => {
+                    // The ideal tilt has no ride (N_MV) to give.
+                    Some(p) if is_p_ct => {
                         let v = get(p);
                         let _ = write!(md, " {} |", fmt(v));
-                        let col = format!("ideal tilt ({k})");
-                        csv.cell([&label, &col, "ideal-tilt", &v.to_string(), "", "", ""]);
+                        csv.put(key, &pos.name, names.ideal(k), v, None, &[]);
                     }
                     _ => {
                         let _ = write!(md, " — |");
                     }
                 }
             }
-            for e in entries {
+            for (i, e) in entries.iter().enumerate() {
                 let Some(p) = e
                     .summary
                     .comfort
@@ -411,22 +458,15 @@ fn position_rows(
                 } else {
                     "n_mv_lateral"
                 };
-                let tags = cell_flags(e, metric(like), v).join("; ");
+                let tags = cell_flags(e, metric(like), v);
                 let text = if tags.is_empty() {
                     fmt(v)
                 } else {
-                    format!("⚠ {} ({tags})", fmt(v))
+                    format!("⚠ {} ({})", fmt(v), words(&tags))
                 };
                 let _ = write!(md, " {text} |");
-                csv.cell([
-                    &label,
-                    &e.label,
-                    &e.scenario.name,
-                    &v.to_string(),
-                    "",
-                    "",
-                    &tags,
-                ]);
+                let who = names.entry(entries, i);
+                csv.put(key, &pos.name, who, v, None, &codes(&tags));
             }
             md.push('\n');
         }
@@ -435,117 +475,57 @@ fn position_rows(
 
 fn ideal_differences(
     md: &mut String,
-    csv: &mut CsvTable,
+    csv: &mut Tidy,
     ideal: &[(String, &Comfort)],
     of: &[usize],
     entries: &[Entry],
+    names: &Names,
 ) {
-    for (name, key, unit) in [
+    for (name, metric_key, key, unit) in [
         (
             "Lateral acceleration peak over ideal tilt",
+            "lat_acc_peak_over_ideal_pct_g",
             "lat_acc_peak_pct_g",
             "%g",
         ),
         (
             "P_CT standing (EN 12299) over ideal tilt",
+            "p_ct_en12299_standing_over_ideal_pct",
             "p_ct_en12299_standing_pct",
             "points",
         ),
         (
             "P_CT seated (EN 12299) over ideal tilt",
+            "p_ct_en12299_seated_over_ideal_pct",
             "p_ct_en12299_seated_pct",
             "points",
         ),
         (
             "P_CT standing (paper's form, whole-run peaks) over ideal tilt",
+            "p_ct_paper_standing_over_ideal_pct",
             "p_ct_paper_standing_pct",
             "points",
         ),
     ] {
         let r = metric(key);
         let get = METRICS[r].get;
+        let about = format!("{name}: the run's value minus its ideal-tilt reference's");
+        let k = Key {
+            metric: metric_key,
+            unit: if unit == "points" { "%" } else { unit },
+            about: &about,
+        };
         let _ = write!(md, "| {name} ({unit}) |");
         for _ in ideal {
             let _ = write!(md, " 0 |");
         }
-        for (e, i) in entries.iter().zip(of) {
+        for (i, (e, j)) in entries.iter().zip(of).enumerate() {
             let own = get(&e.summary.comfort);
-            let v = own - get(ideal[*i].1);
-            let tags = cell_flags(e, r, own).join("; ");
+            let v = own - get(ideal[*j].1);
+            let tags = cell_flags(e, r, own);
             let mark = if tags.is_empty() { "" } else { "⚠ " };
             let _ = write!(md, " {mark}{v:+.3} |");
-            let label = format!("{name} ({unit})");
-            csv.cell([
-                &label,
-                &e.label,
-                &e.scenario.name,
-                &v.to_string(),
-                "",
-                "",
-                &tags,
-            ]);
-        }
-        md.push('\n');
-    }
-}
-
-/// Validity flags, each with its measured value.
-fn flag_rows(md: &mut String, csv: &mut CsvTable, ideal_columns: usize, entries: &[Entry]) {
-    let rows: [(&str, FlagCell); 5] = [
-        (
-            "Oscillation of θ_v − θ_ref (amplitude, frequency)",
-            |f| {
-                let o = &f.oscillation;
-                (
-                    o.raised,
-                    format!("±{:.3}° at {:.2} Hz", o.amplitude_deg, o.frequency_hz),
-                )
-            },
-        ),
-        (
-            "Bump-stop contact (peak deflection, time, peak force a side)",
-            |f| {
-                let b = &f.bump_stop;
-                (
-                    b.raised,
-                    format!(
-                        "{:.1} mm, {:.3} s, {:.1} kN",
-                        b.deflection_peak_mm, b.time_in_contact_s, b.force_peak_kn
-                    ),
-                )
-            },
-        ),
-        ("Time at a drive limit (s)", |f| {
-            let d = &f.drive_limit;
-            let t = (d.time_at_any_limit_s, d.torque_s, d.speed_s);
-            (
-                d.raised,
-                format!("{:.3} (torque {:.3}, speed {:.3})", t.0, t.1, t.2),
-            )
-        }),
-        ("Energy dumped in the braking chopper (kJ)", |f| {
-            let c = &f.chopper;
-            (c.raised, format!("{:.2}", c.energy_j / 1e3))
-        }),
-        ("Largest P_CT (%; the formula's range is 0-100)", |f| {
-            let p = &f.p_ct_range;
-            (p.raised, format!("{:.1}", p.largest_pct))
-        }),
-    ];
-    for (name, get) in rows {
-        let _ = write!(md, "| {name} |");
-        for _ in 0..ideal_columns {
-            let _ = write!(md, " — |");
-        }
-        for e in entries {
-            let (raised, text) = get(&e.summary.flags);
-            if raised {
-                let _ = write!(md, " ⚠ {text} |");
-            } else {
-                let _ = write!(md, " clear ({text}) |");
-            }
-            let state = if raised { "raised" } else { "clear" };
-            csv.cell([name, &e.label, &e.scenario.name, &text, "", "", state]);
+            csv.put(k, "", names.entry(entries, i), v, None, &codes(&tags));
         }
         md.push('\n');
     }
@@ -619,11 +599,12 @@ impl Manifest {
 }
 
 /// Names a compare's own files and figures take in its directory: no run is put there.
-const RESERVED: [&str; 5] = [
+const RESERVED: [&str; 6] = [
     "plots",
     "compare.json",
     "table.md",
     "table.csv",
+    "columns.csv",
     tiltsim_rundir::outdir::LOCK_FILE,
 ];
 
@@ -654,7 +635,11 @@ pub fn straight_only(s: &Scenario) -> bool {
     end * s.track.speed() <= s.track.straight_before_m
 }
 
+mod flag_rows;
+mod tidy;
 mod trade_off;
+use flag_rows::flag_rows;
+use tidy::{Key, Tidy, Who};
 use trade_off::trade_off;
 pub use trade_off::{trade_off_points, trade_offs, TradeOff, TradeOffPoint};
 

@@ -79,7 +79,7 @@ pub const SWEEP_FILES: [&str; 7] = [
 /// Figures of a sweep in `plots/`.
 pub const SWEEP_PLOTS: [&str; 3] = ["sweep_lateral_acceleration", "sweep_p_ct", "sweep_comfort"];
 /// Files of a compare (its runs are in subdirectories listed in `compare.json`).
-pub const COMPARE_FILES: [&str; 3] = ["compare.json", "table.md", "table.csv"];
+pub const COMPARE_FILES: [&str; 4] = ["compare.json", "table.md", "table.csv", "columns.csv"];
 /// Figures of a compare in `plots/`.
 pub const COMPARE_PLOTS: [&str; 4] = [
     "compare_lateral_acceleration",

@@ -58,9 +58,11 @@ fn links_are_the_timeseries(m: &Messages, dir: &Path) {
     let rows = csv_table(&csv);
     let col = rows[0].iter().position(|c| c == "rx_measurement").unwrap();
     for (k, (_, log, data)) in m["/links/measurement"].iter().enumerate() {
-        assert_eq!(*log, k as u64 * 1_000_000);
+        // Tick k's exchange is row k + 1 of the table, at its time.
+        assert_eq!(*log, (k as u64 + 1) * 1_000_000);
         let v: serde_json::Value = serde_json::from_str(data).unwrap();
-        // Line 0 is the header, line 1 the start time: tick k ends at line k + 2.
+        assert_eq!(v["step"].as_u64(), Some(k as u64 + 1), "{data}");
+        // Line 0 is the header, line 1 the start time: row k + 1 is line k + 2.
         let rx = &rows[k + 2][col];
         if rx == "NaN" {
             assert!(
@@ -177,8 +179,8 @@ fn a_recorded_fault_run_replays_byte_for_byte_and_a_changed_gain_is_found() {
     ] {
         replays_identically(&m, &dir, role, transport);
     }
-    // A changed PI gain: the controller's first command already differs. At step 0 the
-    // command is (K_p + K_i·dt)·e (the integral has taken its first step), so the ratio of
+    // A changed PI gain: the controller's first command already differs. At tick 0 (row 1 of
+    // the table, the recording's step 1) the command is (K_p + K_i·dt)·e (the integral has taken its first step), so the ratio of
     // the two commands is (0.6 + 2.2831e-3) / (0.5708 + 2.2831e-3).
     let text = std::fs::read_to_string(dir.join("scenario.toml")).unwrap();
     assert!(text.contains("kp = 0.5708"));
@@ -201,7 +203,7 @@ fn a_recorded_fault_run_replays_byte_for_byte_and_a_changed_gain_is_found() {
         serde_json::from_str(&std::fs::read_to_string(out.join("replay.json")).unwrap()).unwrap();
     assert_eq!(r["identical"], false, "{stdout}");
     let d = &r["first_difference"];
-    assert_eq!(d["step"], 0);
+    assert_eq!(d["step"], 1);
     assert_eq!(d["field"], "delta_a_cmd");
     let ratio = d["replayed"].as_f64().unwrap() / d["recorded"].as_f64().unwrap();
     let expected = (0.6 + 2.2831e-3) / (0.5708 + 2.2831e-3);

@@ -39,14 +39,18 @@ fn compare_writes_table_4_with_the_papers_values_and_our_differences() {
     let s = summary(&dir.join("paper-lqg"));
     let ours = s["comfort"]["lat_acc_peak_pct_g"].as_f64().unwrap();
     let mut rd = csv::Reader::from_reader(csv.as_bytes());
+    let head = rd.headers().unwrap().clone();
+    let at = |name: &str| head.iter().position(|h| h == name).unwrap();
     let f = rd
         .records()
         .map(|r| r.unwrap())
-        .find(|r| &r[0] == "Lateral acceleration peak (%g)" && r[1].starts_with("LQG"))
+        .find(|r| &r[at("metric")] == "lat_acc_peak_pct_g" && &r[at("run")] == "paper-lqg")
         .unwrap();
-    assert_eq!(f[3].parse::<f64>().unwrap(), ours);
-    assert_eq!(f[4].parse::<f64>().unwrap(), 9.796);
-    assert!((f[5].parse::<f64>().unwrap() - (ours - 9.796)).abs() < 1e-12);
+    assert_eq!(&f[at("controller")], "LQG");
+    assert_eq!(&f[at("unit")], "%g");
+    assert_eq!(f[at("value")].parse::<f64>().unwrap(), ours);
+    assert_eq!(f[at("paper")].parse::<f64>().unwrap(), 9.796);
+    assert_eq!(f[at("difference")].parse::<f64>().unwrap(), ours - 9.796);
     // Passive: the quasi-static peak is the steady-curve 1.16-1.2 m/s² (12 %g); the
     // secondary suspension stays inside its 60 mm bump stops; P_CT computed from the peaks
     // it reports.

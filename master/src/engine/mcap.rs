@@ -9,12 +9,13 @@
 //!   them; `/summary`: the summary's deterministic part (written after the analysis); `/perf`:
 //!   its wall-clock part.
 //!
-//! Log time is the simulated time a message's values hold at, in ns: t_k = k·dt for what a
-//! participant received at tick k, the controller's answer and the links, t_(k+1) for the
-//! plant's and the actuator's outputs (the state at the end of the step); an event at its tick,
-//! the summary at the end. A message's `step` is the row of `timeseries.csv` at its log time
-//! (k for t_k, k + 1 for the outputs at t_(k+1)), and `/plant/out` and `/actuator/out` begin
-//! with the outputs at t_0 (step 0), as the table's first row does. Log times never decrease through the file, and the chunks are
+//! A message's `step` is the row of `timeseries.csv` that holds its values, and its log time
+//! is that row's time, step·dt in ns: everything exchanged in tick k (what each participant
+//! received, the controller's answer, the links) and the outputs after it are step k + 1 at
+//! t_(k+1), as the table holds them in row k + 1 (`rx_*`, the controller's columns); the plant's
+//! and the actuator's outputs at t_0 are step 0. Events are at their tick's time, the summary
+//! at the end. docs/studies.md, "Joining a recording and the table", lists the column of every
+//! field. Log times never decrease through the file, and the chunks are
 //! zstd-compressed. Publish time is the wall clock of the two-clock trace (`CLOCK_MONOTONIC`
 //! ns: request sent for `in`, reply received for `out`; the log time on the wall-clock-free
 //! channels). Every channel declares a JSON schema whose fields are numbers; a non-finite
@@ -282,14 +283,9 @@ impl McapRecorder {
                 });
             }
         }
-        let object = |title: &str| {
-            format!(
-                r#"{{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"{title}","type":"object"}}"#
-            )
-        };
         let events = add("foxglove.Log", "/events", EVENT_SCHEMA)?;
-        let summary = add("/summary", "/summary", &object("/summary"))?;
-        let perf = add("/perf", "/perf", &object("/perf"))?;
+        let summary = add("tiltsim.Summary", "/summary", SUMMARY_SCHEMA)?;
+        let perf = add("tiltsim.Perf", "/perf", PERF_SCHEMA)?;
         Ok(McapRecorder {
             out,
             path: path.to_path_buf(),
@@ -412,6 +408,30 @@ const EVENT_SCHEMA: &str = concat!(
     r#""value":{"type":"number","description":"The number that goes with it, if any"},"#,
     r#""detail":{"type":"string"}},"#,
     r#""required":["timestamp","level","message","name","file","line","step","time","source","kind","detail"]}"#
+);
+
+/// The schema of `/summary`: one message at the end, `summary.json` without the fields its
+/// `wall_clock_fields` lists (docs/outputs.md describes every key).
+const SUMMARY_SCHEMA: &str = concat!(
+    r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"tiltsim.Summary","#,
+    r#""description":"The run's summary.json without the fields named in its wall_clock_fields, which /perf holds: "#,
+    r#"what repeats exactly when the run does (docs/outputs.md lists every key and its unit)","#,
+    r#""type":"object","properties":{"#,
+    r#""scenario":{"type":"string"},"seed":{"type":"integer","minimum":0},"#,
+    r#""status":{"type":"string","enum":["completed","degraded","failed","interrupted"]},"#,
+    r#""steps_completed":{"type":"integer","minimum":0},"#,
+    r#""wall_clock_fields":{"type":"array","items":{"type":"string"},"description":"The summary.json fields left out here"},"#,
+    r#""comfort":{"type":"object"},"flags":{"type":"object"},"results":{"type":"object"},"#,
+    r#""participants":{"type":"array","items":{"type":"object"}}},"#,
+    r#""required":["scenario","status","steps_completed","wall_clock_fields"]}"#
+);
+
+/// The schema of `/perf`: one message at the end, the run's `perf.json`.
+const PERF_SCHEMA: &str = concat!(
+    r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"tiltsim.Perf","#,
+    r#""description":"The run's perf.json: the wall-clock fields of summary.json (wall time, real-time factor, "#,
+    r#"per-tick timing, link latency, pacing, each participant's pid, CPU and compute time); differs from run to run","#,
+    r#""type":"object"}"#
 );
 
 /// One event as recorded.
@@ -574,13 +594,14 @@ impl McapRecorder {
         self.put(j, 0, 0, &m)
     }
 
-    /// Writes one tick's messages: what the participants received, the controller's answer
-    /// and the links at t_k, the queued events of tick k, then the actuator's and the plant's
-    /// outputs at t_(k+1).
+    /// Writes one tick's messages: the queued events of tick k (at t_k), then what the
+    /// participants received, the controller's answer, the links and the actuator's and the
+    /// plant's outputs, each as step k + 1 at t_(k+1): the row of `timeseries.csv` that holds
+    /// tick k's exchanges (`rx_*`) and outputs.
     pub(crate) fn write_tick(&mut self, d: &TickData) -> std::io::Result<()> {
-        let log = d.k * self.dt_ns;
-        let next = log + self.dt_ns;
-        let k = d.k;
+        self.write_events(Some(d.k))?;
+        let row = d.k + 1;
+        let log = row * self.dt_ns;
         let when = |role: Role| d.wall[role as usize].unwrap_or((log, log));
         let rx = d.rx;
         let ch = |i: usize| CHANNELS[i].1;
@@ -588,9 +609,9 @@ impl McapRecorder {
             let (sent, got) = when(Role::Controller);
             let c = d.to_controller;
             let i = inbox(Role::Controller);
-            let m = message(k, ch(i), &[c.t, c.s, c.theta_v_meas]);
+            let m = message(row, ch(i), &[c.t, c.s, c.theta_v_meas]);
             self.put(i, log, sent, &m)?;
-            let m = message(k, ch(i + 1), &controller_out(d.c));
+            let m = message(row, ch(i + 1), &controller_out(d.c));
             self.put(i + 1, log, got, &m)?;
         }
         let (a_sent, a_got) = when(Role::Actuator);
@@ -599,20 +620,19 @@ impl McapRecorder {
             rx[LinkId::ActuatorCommand as usize],
             rx[LinkId::BarTwist as usize],
         ];
-        self.put(i, log, a_sent, &message(k, ch(i), &command))?;
+        self.put(i, log, a_sent, &message(row, ch(i), &command))?;
         let (p_sent, p_got) = when(Role::Plant);
         let j = inbox(Role::Plant);
         let bar = [rx[LinkId::BarAngle as usize]];
-        self.put(j, log, p_sent, &message(k, ch(j), &bar))?;
+        self.put(j, log, p_sent, &message(row, ch(j), &bar))?;
         for link in LinkId::ALL {
-            let l = 6 + link as usize;
-            let m = message(k, ch(l), &[d.tx[link as usize], rx[link as usize]]);
+            let l = link_channel(link);
+            let m = message(row, ch(l), &[d.tx[link as usize], rx[link as usize]]);
             self.put(l, log, log, &m)?;
         }
-        self.write_events(Some(k))?;
-        let m = message(k + 1, ch(i + 1), &actuator_out(d.a));
-        self.put(i + 1, next, a_got, &m)?;
-        let m = message(k + 1, ch(j + 1), &plant_out(d.p));
-        self.put(j + 1, next, p_got, &m)
+        let m = message(row, ch(i + 1), &actuator_out(d.a));
+        self.put(i + 1, log, a_got, &m)?;
+        let m = message(row, ch(j + 1), &plant_out(d.p));
+        self.put(j + 1, log, p_got, &m)
     }
 }

@@ -679,9 +679,6 @@ fn timing(obs: &mut Observers, e: &Ended) -> Timing {
         cpu_plan: obs.cpu_plan.as_ref().and_then(|p| p.report()),
         machine: None,
         placement: e.placement.clone(),
-        cpu_s: CpuTime {
-            orchestrator: e.cpu_orchestrator,
-            participants: e.exits.iter().filter_map(|(_, x)| x.cpu_s).sum(),
-        },
+        cpu_s: CpuTime::new(e.cpu_orchestrator, e.exits.iter().map(|(_, x)| x.cpu_s)),
     }
 }

@@ -127,6 +127,28 @@ pub struct CpuTime {
     pub participants: f64,
 }
 
+impl CpuTime {
+    /// The CPU time of the orchestrator and of the participants `each` (s, `None` where not
+    /// measured: in-process). A sum of nothing is `0.0`, never the `-0.0` that `f64`'s `Sum`
+    /// starts from, and nothing below zero is reported, so no reader sees `-0.00 s`.
+    pub fn new(orchestrator: f64, each: impl IntoIterator<Item = Option<f64>>) -> CpuTime {
+        let participants = each.into_iter().flatten().fold(0.0, |a, b| a + b);
+        CpuTime {
+            orchestrator: non_negative(orchestrator),
+            participants: non_negative(participants),
+        }
+    }
+}
+
+/// `x` if above zero, else `0.0` (a negative zero or a clock's rounding below zero included).
+pub fn non_negative(x: f64) -> f64 {
+    if x > 0.0 {
+        x
+    } else {
+        0.0
+    }
+}
+
 /// Result of a run, written as `summary.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
@@ -463,4 +485,24 @@ pub struct LinkLatency {
     pub reply_us: Percentiles,
     /// Whole exchange seen by the orchestrator.
     pub round_trip_us: Percentiles,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::CpuTime;
+
+    #[test]
+    fn cpu_time_is_never_negative_zero() {
+        // In-process: no participant process, so nothing measured; `Sum` would give -0.0.
+        let c = CpuTime::new(-0.0, [None, None, None]);
+        assert_eq!(c.participants.to_bits(), 0.0f64.to_bits());
+        assert_eq!(c.orchestrator.to_bits(), 0.0f64.to_bits());
+        assert_eq!(format!("{:.2}", c.participants), "0.00");
+        assert_eq!(
+            serde_json::to_string(&c).unwrap(),
+            r#"{"orchestrator":0.0,"participants":0.0}"#
+        );
+        let c = CpuTime::new(0.5, [Some(0.25), None, Some(0.125)]);
+        assert_eq!((c.orchestrator, c.participants), (0.5, 0.375));
+    }
 }

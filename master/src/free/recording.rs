@@ -2,8 +2,9 @@
 //! with the lock-step recording's channels (`/<role>/in`, `/<role>/out`, `/links/<name>`,
 //! `/events`, `/summary`, `/perf`) and the timing trace as `/timing/<role>`.
 //!
-//! Log times are simulated time as in lock-step (a step's input, the controller's answer, the
-//! links and the step's timing at t_k; the plant's and the actuator's outputs at t_(k+1)); the
+//! Steps and log times as in lock-step: what a step at tick k read, the controller's answer,
+//! the links and the outputs are step k + 1 at t_(k+1), the row of `timeseries.csv` that holds
+//! them; a step's timing is step k at t_k, the row of `timing.csv`; the
 //! publish times are the wall clock of the trace (CLOCK_MONOTONIC ns: the read instant for an
 //! input, the publish instant for an output and for a step's timing). The links' `sent` is
 //! the producer's output as published and `received` what the link delivered, for the sample
@@ -119,19 +120,29 @@ pub fn record(
         rec.at_start(p, a)?;
     }
     for k in 0..rows {
+        // The step's timing at t_k (the row of `timing.csv`), the events of tick k, then
+        // what each consumer stepping at k read, the links' samples it read and the outputs
+        // as step k + 1 at t_(k+1): the row of `timeseries.csv` that holds them.
         let log = k * dt_ns;
-        // What each consumer stepping at k read, and the links' samples it read.
+        for role in Role::ALL {
+            if let Some(t) = steps.at(role, k) {
+                let v = timing_values(t, period, dt_ns);
+                rec.put_values(timing_channel(role), k, log, wall(t.publish_ns), &v)?;
+            }
+        }
+        rec.events_until(k)?;
+        let (row, log) = (k + 1, log + dt_ns);
         if let Some(t) = steps.at(Role::Controller, k) {
             let qp = t.from[col(Role::Plant)].unwrap_or(-1);
             if let (Some(i), Some(p)) = (store.controller_input(qp), store.plant(qp)) {
                 let c = inbox(Role::Controller);
                 let v = [i.t, i.s, i.theta_v_meas];
-                rec.put_values(c, k, log, wall(t.read_ns), &v)?;
+                rec.put_values(c, row, log, wall(t.read_ns), &v)?;
                 if let Some(o) = store.controller(k as i64) {
-                    rec.put_values(c + 1, k, log, wall(t.publish_ns), &controller_out(o))?;
+                    rec.put_values(c + 1, row, log, wall(t.publish_ns), &controller_out(o))?;
                 }
                 let sent = [p.theta_v_meas, i.theta_v_meas];
-                rec.put_values(link_channel(LinkId::Measurement), k, log, log, &sent)?;
+                rec.put_values(link_channel(LinkId::Measurement), row, log, log, &sent)?;
             }
         }
         if let Some(t) = steps.at(Role::Actuator, k) {
@@ -143,36 +154,28 @@ pub fn record(
                 store.plant(qp),
             ) {
                 let a = inbox(Role::Actuator);
-                rec.put_values(a, k, log, wall(t.read_ns), &[i.delta_a_cmd, i.psi])?;
+                rec.put_values(a, row, log, wall(t.read_ns), &[i.delta_a_cmd, i.psi])?;
                 let cmd = [c.delta_a_cmd, i.delta_a_cmd];
-                rec.put_values(link_channel(LinkId::ActuatorCommand), k, log, log, &cmd)?;
+                rec.put_values(link_channel(LinkId::ActuatorCommand), row, log, log, &cmd)?;
                 let twist = [p.psi, i.psi];
-                rec.put_values(link_channel(LinkId::BarTwist), k, log, log, &twist)?;
+                rec.put_values(link_channel(LinkId::BarTwist), row, log, log, &twist)?;
             }
         }
         if let Some(t) = steps.at(Role::Plant, k) {
             let qa = t.from[col(Role::Actuator)].unwrap_or(-1);
             if let (Some(i), Some(a)) = (store.plant_input(qa), store.actuator(qa)) {
-                rec.put_values(inbox(Role::Plant), k, log, wall(t.read_ns), &[i.delta_a])?;
+                rec.put_values(inbox(Role::Plant), row, log, wall(t.read_ns), &[i.delta_a])?;
                 let bar = [a.delta_a, i.delta_a];
-                rec.put_values(link_channel(LinkId::BarAngle), k, log, log, &bar)?;
+                rec.put_values(link_channel(LinkId::BarAngle), row, log, log, &bar)?;
             }
         }
-        for role in Role::ALL {
-            if let Some(t) = steps.at(role, k) {
-                let v = timing_values(t, period, dt_ns);
-                rec.put_values(timing_channel(role), k, log, wall(t.publish_ns), &v)?;
-            }
-        }
-        rec.events_until(k)?;
-        let next = log + dt_ns;
         if let (Some(t), Some(o)) = (steps.at(Role::Actuator, k), store.actuator(k as i64)) {
             let a = inbox(Role::Actuator) + 1;
-            rec.put_values(a, k + 1, next, wall(t.publish_ns), &actuator_out(o))?;
+            rec.put_values(a, row, log, wall(t.publish_ns), &actuator_out(o))?;
         }
         if let (Some(t), Some(o)) = (steps.at(Role::Plant, k), store.plant(k as i64)) {
             let p = inbox(Role::Plant) + 1;
-            rec.put_values(p, k + 1, next, wall(t.publish_ns), &plant_out(o))?;
+            rec.put_values(p, row, log, wall(t.publish_ns), &plant_out(o))?;
         }
     }
     Ok(FreeRecording {

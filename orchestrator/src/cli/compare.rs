@@ -55,7 +55,7 @@ pub fn exec(a: CompareArgs) -> CliResult {
     }
     cmp.finish().map_err(cli)?;
     println!(
-        "wrote {0}/table.md, {0}/table.csv and {0}/plots/compare_*.svg|png",
+        "wrote {0}/table.md, {0}/table.csv (units: {0}/columns.csv) and {0}/plots/compare_*.svg|png",
         a.out.display()
     );
     Ok(())

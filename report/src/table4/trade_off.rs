@@ -5,7 +5,8 @@ use std::fmt::Write as _;
 
 use tiltsim_assessment::comfort::Comfort;
 
-use super::{fmt, ideal_columns, straight_only, CsvTable, Entry};
+use super::tidy::{Key, Tidy, Who};
+use super::{fmt, ideal_columns, straight_only, Entry};
 
 /// One controller's curving comfort against its straight-track ride: the curve run and the
 /// straight run of the same controller and actuator settings, with the curve run's ideal
@@ -47,7 +48,7 @@ pub fn trade_offs<'a>(entries: &'a [Entry], ideal_of: &[&'a Comfort]) -> Vec<Tra
 /// tilt on the curve, EN 12299's lateral mean comfort and the roll measures on the straight.
 pub(super) fn trade_off(
     md: &mut String,
-    csv: &mut CsvTable,
+    csv: &mut Tidy,
     ideal: &[(String, &Comfort)],
     of: &[usize],
     entries: &[Entry],
@@ -83,30 +84,50 @@ pub(super) fn trade_off(
             fmt(r.tilt_error_rms_deg),
             fmt(r.roll_acc_rms_rad_s2)
         );
-        for (name, v) in [
+        let pair = format!("{}+{}", t.curve.0.scenario.name, t.straight.scenario.name);
+        let who = Who {
+            run: &pair,
+            controller: &t.controller,
+            ideal: "",
+        };
+        for (metric, unit, about, v) in [
             (
-                "Trade-off: P_CT standing on the curve, EN 12299 (%)",
+                "trade_off_p_ct_en12299_standing_pct",
+                "%",
+                "Trade-off: P_CT standing on the curve, EN 12299",
                 c.p_ct_en12299.standing,
             ),
             (
-                "Trade-off: lateral acceleration peak over ideal tilt (%g)",
+                "trade_off_lat_acc_peak_over_ideal_pct_g",
+                "%g",
+                "Trade-off: lateral acceleration peak over ideal tilt on the curve",
                 over,
             ),
             (
+                "trade_off_n_mv_lateral",
+                "1",
                 "Trade-off: N_MV lateral part on the straight",
                 r.n_mv_lateral,
             ),
             (
-                "Trade-off: tilt error RMS on the straight (deg)",
+                "trade_off_tilt_error_rms_deg",
+                "deg",
+                "Trade-off: tilt error RMS on the straight",
                 r.tilt_error_rms_deg,
             ),
             (
-                "Trade-off: roll acceleration RMS on the straight (rad/s²)",
+                "trade_off_roll_acc_rms_rad_s2",
+                "rad/s2",
+                "Trade-off: roll acceleration RMS on the straight",
                 r.roll_acc_rms_rad_s2,
             ),
         ] {
-            let pair = format!("{}+{}", t.curve.0.scenario.name, t.straight.scenario.name);
-            csv.cell([name, &t.controller, &pair, &v.to_string(), "", "", ""]);
+            let k = Key {
+                metric,
+                unit,
+                about,
+            };
+            csv.put(k, "", who, v, None, &[]);
         }
     }
 }

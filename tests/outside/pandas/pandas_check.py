@@ -3,7 +3,11 @@ prints what it found as JSON: the columns that clash with a pandas DataFrame att
 units columns.csv gives, the first time and the time step, and whether FMPy's own CSV reader
 takes timeseries.csv (it needs a `time` column).
 
-    python pandas_check.py RUN_DIR SWEEP_DIR
+With a compare's directory too, its tidy table.csv: the type pandas and polars give each
+numeric column with their defaults, the table.csv columns and metrics columns.csv does not
+describe, and the text of any `value` that is not a number.
+
+    python pandas_check.py RUN_DIR SWEEP_DIR [COMPARE_DIR]
 """
 
 import json
@@ -41,7 +45,11 @@ def main():
     series = frames["series.csv"]
     first = series[series["sample_id"] == series["sample_id"].iloc[0]]
     fmpy_rows = read_csv(str(tables["timeseries.csv"]))
+    found = {}
+    if len(sys.argv) > 3:
+        found = compare_table(Path(sys.argv[3]))
     print(json.dumps({
+        **found,
         "clashes": clashes,
         "missing_units": missing,
         "first_column": list(ts.columns[:2]),
@@ -56,6 +64,32 @@ def main():
         "fmpy_rows": int(len(fmpy_rows)),
         "fmpy_time0": float(fmpy_rows["time"][0]),
     }))
+
+
+def compare_table(cmp: Path) -> dict:
+    import polars as pl
+
+    table = cmp / "table.csv"
+    df = pd.read_csv(table)
+    pl_df = pl.read_csv(table)
+    raw = pd.read_csv(table, dtype=str, keep_default_na=False)
+    not_numbers = []
+    for v in raw["value"]:
+        try:
+            float(v)
+        except ValueError:
+            not_numbers.append(v)
+    units = pd.read_csv(cmp / "columns.csv", dtype=str, keep_default_na=False)
+    described = set(units[units["file"] == "table.csv"]["column"])
+    return {
+        "compare_pandas_types": {c: str(df[c].dtype) for c in ("value", "paper", "difference")},
+        "compare_polars_value": str(pl_df["value"].dtype),
+        "compare_undescribed": sorted(
+            (set(df.columns) | set(df["metric"])) - described
+        ),
+        "compare_not_numbers": not_numbers,
+        "compare_rows": int(len(df)),
+    }
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 //! The tables of a run and of a sweep as a notebook user reads them, checked with the readers
 //! such a user has (pandas, and FMPy's CSV reader): time first and exact, a row at the start
 //! time, a unit for every column in `columns.csv`, no column named like a pandas attribute,
-//! and a tidy `series.csv`.
+//! a tidy `series.csv`, and a compare's tidy `table.csv` with a float `value`.
 
 use tiltsim_suite::{fmi_tool, mc_args, root, run_strings, scenario, temp_dir, Tiltsim};
 
@@ -21,6 +21,19 @@ fn pandas_and_fmpy_read_the_tables_with_units_exact_times_and_no_reserved_names(
     let (code, _, err) = run_strings(&mc_args(lqg, &sweep, "2", None));
     assert_eq!(code, 0, "{err}");
 
+    let cmp = dir.join("compare");
+    let passive = scenario("paper-passive.toml");
+    let (code, _, err) = run_strings(&[
+        "compare".into(),
+        passive.display().to_string(),
+        lqg.into(),
+        "--transport".into(),
+        "in-process".into(),
+        "--out".into(),
+        cmp.display().to_string(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+
     let check = root().join("tests/outside/pandas/pandas_check.py");
     let (code, printed, err) = fmi_tool(
         "python",
@@ -28,6 +41,7 @@ fn pandas_and_fmpy_read_the_tables_with_units_exact_times_and_no_reserved_names(
             check.to_str().unwrap(),
             out.to_str().unwrap(),
             sweep.to_str().unwrap(),
+            cmp.to_str().unwrap(),
         ],
     );
     assert_eq!(code, 0, "pandas_check.py: {err}");
@@ -58,4 +72,13 @@ fn pandas_and_fmpy_read_the_tables_with_units_exact_times_and_no_reserved_names(
     // the start time.
     assert_eq!(r["fmpy_rows"], 501);
     assert_eq!(r["fmpy_time0"], 0.0);
+    // A compare's table is tidy: `value` a number on every line, read as a float by pandas
+    // and polars with their defaults; every column and metric described in columns.csv.
+    assert_eq!(r["compare_not_numbers"], serde_json::json!([]), "{r}");
+    for c in ["value", "paper", "difference"] {
+        assert_eq!(r["compare_pandas_types"][c], "float64", "{c}: {r}");
+    }
+    assert_eq!(r["compare_polars_value"], "Float64", "{r}");
+    assert_eq!(r["compare_undescribed"], serde_json::json!([]), "{r}");
+    assert!(r["compare_rows"].as_u64().unwrap() > 50, "{r}");
 }
