@@ -268,12 +268,16 @@ pub fn write_timing_plots(s: &Scenario, dir: &Path) -> std::io::Result<Vec<PathB
     }
     let steps = s.steps();
     let period = s.controller_period_ticks();
-    let trace = tiltsim_master::free::trace::read(&path, s.run.dt_s, steps, period)
-        .map_err(|e| std::io::Error::other(e.to_string()))?;
-    if let Some(why) = trace.partial {
+    // One pass over the trace, one step in memory at a time.
+    let mut figures = crate::plot::TimingFigures::new(steps, period);
+    let partial = tiltsim_master::free::trace::each_step(&path, s.run.dt_s, steps, period, |t| {
+        figures.step(t)
+    })
+    .map_err(|e| std::io::Error::other(e.to_string()))?;
+    if let Some(why) = partial {
         return Err(std::io::Error::other(format!("{}: {why}", path.display())));
     }
-    crate::plot::write_timing_plots(dir, &s.name, &trace.steps, steps, s.run.dt_s, period)
+    figures.write(dir, &s.name, s.run.dt_s)
 }
 
 /// Writes the figures that put several runs side by side (`out/plots/compare_*`): lateral

@@ -280,6 +280,64 @@ mod tests {
         }
     }
 
+    /// Writes a trace of `ticks` of the lock-step data flow (of a run of `steps` ticks, a
+    /// controller every `period`), with the plant's steps `swap`ped at ticks 5 and 6.
+    fn trace_file(name: &str, steps: u64, ticks: u64, swap: bool) -> std::path::PathBuf {
+        let (period, dt_s) = (10, 1e-3);
+        let dir = std::env::temp_dir().join(format!("tiltsim-trace-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        let head = trace::TraceHead {
+            dt_s,
+            steps,
+            controller_period_ticks: period,
+            start_ns: 0,
+        };
+        let mut w = trace::TraceWriter::create(&path, &head).unwrap();
+        let plant = |k: u64| step(Role::Plant, k, [None, Some(k as i64 - 1), None]);
+        for k in 0..ticks {
+            if k.is_multiple_of(period) {
+                w.push(&step(Role::Controller, k, [Some(k as i64 - 1), None, None]))
+                    .unwrap();
+            }
+            let held = (k / period * period) as i64;
+            w.push(&step(
+                Role::Actuator,
+                k,
+                [Some(k as i64 - 1), None, Some(held)],
+            ))
+            .unwrap();
+            let k = match (swap, k) {
+                (true, 5) => 6,
+                (true, 6) => 5,
+                _ => k,
+            };
+            w.push(&plant(k)).unwrap();
+        }
+        w.finish().unwrap();
+        path
+    }
+
+    /// Reading a trace one step at a time gives the steps and the verdict of reading it whole,
+    /// and refuses a role's steps out of the order the writer keeps.
+    #[test]
+    fn a_trace_read_step_by_step_is_the_trace_read_whole() {
+        for (name, ticks) in [("whole.csv", 100), ("partial.csv", 55)] {
+            let path = trace_file(name, 100, ticks, false);
+            let whole = trace::read(&path, 1e-3, 100, 10).unwrap();
+            let mut seen = Vec::new();
+            let partial = trace::each_step(&path, 1e-3, 100, 10, |t| seen.push(*t)).unwrap();
+            assert_eq!(seen, whole.steps);
+            assert_eq!(partial, whole.partial);
+            assert_eq!(partial.is_some(), ticks < 100);
+        }
+        let path = trace_file("swapped.csv", 100, 100, true);
+        assert!(trace::read(&path, 1e-3, 100, 10).is_ok());
+        let e = trace::each_step(&path, 1e-3, 100, 10, |_| {}).unwrap_err();
+        assert!(e.to_string().contains("plant step 6"), "{e}");
+        let _ = std::fs::remove_dir_all(path.parent().unwrap());
+    }
+
     /// What a free run holds in memory does not grow with its length: over 200 000 ticks
     /// (200 s at 1 ms) of the lock-step data flow, every row written, the store holds a few
     /// entries of each kind once it forgets what no later step or row can name.

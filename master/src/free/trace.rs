@@ -235,11 +235,7 @@ pub fn read(
     let head_line = lines.next().unwrap_or_default();
     let head = read_head(&file, head_line, dt_s, steps, controller_period_ticks)?;
     if lines.next() != Some(COLUMNS) {
-        return Err(trace_error(
-            &file,
-            "line 2".into(),
-            format!("expected the columns `{COLUMNS}`"),
-        ));
+        return Err(no_columns(&file));
     }
     let mut body = Body::new(&file, steps, controller_period_ticks);
     let mut out = Vec::new();
@@ -253,6 +249,77 @@ pub fn read(
         steps: out,
         partial,
     })
+}
+
+/// Reads a trace as [`read`] does, checks it the same way, and hands each step to `visit` in
+/// the order of the file without keeping the steps: the memory needed does not grow with the
+/// trace (the figures of an hour-long free run). It also requires each role's steps in
+/// ascending order, as [`TraceWriter`] writes them. Returns what a partial trace lacks.
+pub fn each_step(
+    path: &Path,
+    dt_s: f64,
+    steps: u64,
+    controller_period_ticks: u64,
+    mut visit: impl FnMut(&StepTrace),
+) -> Result<Option<String>, TraceError> {
+    use std::io::BufRead;
+    let file = path.display().to_string();
+    let failed = |what: String| trace_error(&file, "file".into(), what);
+    let f = std::fs::File::open(path).map_err(|e| failed(e.to_string()))?;
+    unlocked(&f).map_err(failed)?;
+    let mut input = std::io::BufReader::with_capacity(1 << 16, f);
+    let mut line = String::new();
+    let mut n = 0usize;
+    let mut body = Body::ordered(&file, steps, controller_period_ticks);
+    // The last step of each role, for the check that no consumer reads an older sample.
+    let mut last: [Option<(usize, StepTrace)>; 3] = [None; 3];
+    let mut cut_short = false;
+    loop {
+        line.clear();
+        if input
+            .read_line(&mut line)
+            .map_err(|e| failed(e.to_string()))?
+            == 0
+        {
+            break;
+        }
+        let Some(text) = line.strip_suffix('\n') else {
+            // A last line without its newline was cut short by a kill.
+            cut_short = true;
+            break;
+        };
+        n += 1;
+        match n {
+            1 => {
+                read_head(&file, text, dt_s, steps, controller_period_ticks)?;
+            }
+            2 if text != COLUMNS => return Err(no_columns(&file)),
+            2 => {}
+            _ => {
+                let t = body.step(n, text)?;
+                let slot = &mut last[col(t.role)];
+                if let Some((at, before)) = slot {
+                    never_older(&file, (*at, before), (n, &t))?;
+                }
+                *slot = Some((n, t));
+                visit(&t);
+            }
+        }
+    }
+    match n {
+        0 => read_head(&file, "", dt_s, steps, controller_period_ticks).map(|_| None),
+        1 => Err(no_columns(&file)),
+        _ => body.partial(cut_short),
+    }
+}
+
+/// The error of trace `file` whose second line is not the column names.
+fn no_columns(file: &str) -> TraceError {
+    trace_error(
+        file,
+        "line 2".into(),
+        format!("expected the columns `{COLUMNS}`"),
+    )
 }
 
 /// A consumer holds the newest sample of each producer that has reached it (samples of a link
@@ -269,21 +336,32 @@ fn check_never_older(file: &str, steps: &[StepTrace]) -> Result<(), TraceError> 
         order.sort_unstable();
         for w in order.windows(2) {
             let (before, now) = (&steps[w[0].1], &steps[w[1].1]);
-            for &p in inputs_of(now.role) {
-                let (a, b) = (before.from[col(p)], now.from[col(p)]);
-                if let (Some(a), Some(b)) = (a, b) {
-                    if b < a {
-                        return Err(trace_error(
-                            file,
-                            format!("line {}: from_{}", w[1].1 + 3, p.name()),
-                            format!(
-                                "{} step {} reads {p} step {b}, older than step {a} its step {} \
-                                 read: a consumer never takes an older sample after a newer one",
-                                now.role, now.step, before.step
-                            ),
-                        ));
-                    }
-                }
+            never_older(file, (w[0].1 + 3, before), (w[1].1 + 3, now))?;
+        }
+    }
+    Ok(())
+}
+
+/// Refuses step `now` (on line `now.0`) of a consumer when it reads a producer step older
+/// than its step `before` did ([`check_never_older`]).
+fn never_older(
+    file: &str,
+    before: (usize, &StepTrace),
+    now: (usize, &StepTrace),
+) -> Result<(), TraceError> {
+    let ((_, before), (line, now)) = (before, now);
+    for &p in inputs_of(now.role) {
+        if let (Some(a), Some(b)) = (before.from[col(p)], now.from[col(p)]) {
+            if b < a {
+                return Err(trace_error(
+                    file,
+                    format!("line {line}: from_{}", p.name()),
+                    format!(
+                        "{} step {} reads {p} step {b}, older than step {a} its step {} \
+                         read: a consumer never takes an older sample after a newer one",
+                        now.role, now.step, before.step
+                    ),
+                ));
             }
         }
     }
@@ -384,8 +462,13 @@ struct Body<'a> {
     controller_period_ticks: u64,
     /// Steps per role in the scenario, by [`col`].
     counts: [u64; 3],
-    /// Per role, by [`col`], which of its steps have been read.
+    /// Per role, by [`col`], which of its steps have been read (empty when `ordered`).
     seen: [Vec<bool>; 3],
+    /// Each role's steps must come in ascending order: `next` then counts them, and `seen`
+    /// is not kept.
+    ordered: bool,
+    /// Per role, by [`col`], the steps read so far (when `ordered`).
+    next: [u64; 3],
 }
 
 impl<'a> Body<'a> {
@@ -400,7 +483,45 @@ impl<'a> Body<'a> {
                 vec![false; counts[1] as usize],
                 vec![false; counts[2] as usize],
             ],
+            ordered: false,
+            next: [0; 3],
         }
+    }
+
+    /// A body whose roles' steps must each come in ascending order, checked without a
+    /// record of every step.
+    fn ordered(file: &'a str, steps: u64, controller_period_ticks: u64) -> Self {
+        let counts = [steps, steps, steps.div_ceil(controller_period_ticks)];
+        Body {
+            file,
+            controller_period_ticks,
+            counts,
+            seen: Default::default(),
+            ordered: true,
+            next: [0; 3],
+        }
+    }
+
+    /// Notes step `idx` of `role` (on line `n`) as read; refuses one read twice, or, when
+    /// `ordered`, one out of order.
+    fn note(&mut self, n: usize, role: Role, idx: u64, step: u64) -> Result<(), TraceError> {
+        if self.ordered {
+            let next = &mut self.next[col(role)];
+            if idx != *next {
+                let expected = *next * self.ticks(role);
+                return Err(self.err(
+                    format!("line {n}: step"),
+                    format!("{role} step {step} where step {expected} was expected: each role's steps in order, once each"),
+                ));
+            }
+            *next += 1;
+        } else if std::mem::replace(&mut self.seen[col(role)][idx as usize], true) {
+            return Err(self.err(
+                format!("line {n}: step"),
+                format!("{role} step {step} appears twice"),
+            ));
+        }
+        Ok(())
     }
 
     fn err(&self, field: String, what: String) -> TraceError {
@@ -443,12 +564,7 @@ impl<'a> Body<'a> {
                 format!("{step} is not a step of the {role} in this scenario"),
             ));
         }
-        if std::mem::replace(&mut self.seen[col(role)][idx as usize], true) {
-            return Err(self.err(
-                format!("line {n}: step"),
-                format!("{role} step {step} appears twice"),
-            ));
-        }
+        self.note(n, role, idx, step)?;
         Ok(StepTrace {
             role,
             step,
@@ -490,6 +606,13 @@ impl<'a> Body<'a> {
     fn partial(&self, cut_short: bool) -> Result<Option<String>, TraceError> {
         let mut lacking = Vec::new();
         for r in Role::ALL {
+            if self.ordered {
+                let (present, total) = (self.next[col(r)], self.counts[col(r)]);
+                if present < total {
+                    lacking.push(format!("{r} {present} of {total} steps"));
+                }
+                continue;
+            }
             let ticks = self.ticks(r);
             let seen = &self.seen[col(r)];
             let present = seen.iter().filter(|s| **s).count();

@@ -20,7 +20,7 @@ pub use png::{rasterise, write_png};
 pub use run::{write_run_plots, RunTitle, SECTION_NOTE};
 pub use scatter::{write_scatter, write_trade_off_plot, Series};
 pub use svg::to_svg;
-pub use timing::write_timing_plots;
+pub use timing::TimingFigures;
 
 /// One line of a chart. Labels may hold subscripts and superscripts ([`markup`]).
 #[derive(Default)]
