@@ -452,12 +452,24 @@ pub(crate) fn falsify<'py>(
         return Err(e);
     }
     let (evals, o) = found.map_err(|e| error(py, "ParticipantError", e))?;
+    let result = falsify_result(py, &dir, &o)?;
+    result.set_item("progress", progress_frame(py, &evals)?)?;
+    result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
+    Ok(result)
+}
+
+/// The worst trace's text and the result's fields, for Python.
+fn falsify_result<'py>(
+    py: Python<'py>,
+    dir: &std::path::Path,
+    o: &tiltsim_studies::falsify::Outcome,
+) -> PyResult<Bound<'py, PyDict>> {
     let trace = std::fs::read_to_string(dir.join("worst").join("timing.csv"))
         .map_err(|e| error(py, "ParticipantError", format!("worst/timing.csv: {e}")))?;
     let result = PyDict::new(py);
     result.set_item("trace", trace)?;
     let worst = PyDict::new(py);
-    let json = serde_json::to_value(&o).unwrap_or_default();
+    let json = serde_json::to_value(o).unwrap_or_default();
     if let Some(m) = json.as_object() {
         for (k, v) in m {
             match v {
@@ -468,8 +480,6 @@ pub(crate) fn falsify<'py>(
         }
     }
     result.set_item("worst", worst)?;
-    result.set_item("progress", progress_frame(py, &evals)?)?;
-    result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
     Ok(result)
 }
 

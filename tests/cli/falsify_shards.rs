@@ -206,9 +206,10 @@ fn a_bad_freeze_budget_exits_2_naming_the_field() {
 }
 
 /// The measurement and the command searched at once, each with loss and freeze budgets: the
-/// point has both links' coordinates, the worst trace delays the controller's measurements
-/// and the actuator's commands (reads other than the lock-step ones on both links), and
-/// `replay-timing` replays it byte for byte.
+/// point has both links' coordinates; with a budget of one, the search's one evaluation is the
+/// first obvious adversary (every link at its largest delay) beside one random timing, so the
+/// worst trace delays the controller's measurements and the actuator's commands (reads other
+/// than the lock-step ones on both links), and `replay-timing` replays it byte for byte.
 #[test]
 fn the_measurement_and_the_command_are_searched_at_once() {
     let dir = temp_dir("falsify-two-links");
@@ -218,7 +219,7 @@ fn the_measurement_and_the_command_are_searched_at_once() {
         "[actuator_command]\ndelay_ms = [0, 60]\njitter_ms = 10\nloss_pct = 1\nfreeze_ms = 40\n[measurement]\ndelay_ms = [0, 20]\njitter_ms = 5\nloss_pct = 1\nfreeze_ms = 30\n",
     );
     let out = dir.join("out");
-    falsify(&b, &out, &["--budget", "4", "--jobs", "2", "-q"]).success();
+    falsify(&b, &out, &["--budget", "1", "--jobs", "2", "-q"]).success();
     // Per link: 6 knots, the jitter's amplitude and half-period, two loss windows and two
     // stalls (a position and a share each).
     let r = result(&out);

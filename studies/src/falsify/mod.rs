@@ -27,6 +27,7 @@ pub mod bounds;
 pub mod cmaes;
 pub mod evidence;
 pub mod history;
+mod kept;
 pub mod margin;
 pub mod mutation;
 pub mod objective;

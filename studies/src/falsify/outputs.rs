@@ -478,6 +478,41 @@ pub fn falsify_part(
         _ => None,
     };
     write_progress(&ex.out, s, spec, &f.evals)?;
+    let found = Found {
+        nominal_metric,
+        plain_run_s,
+        replayed,
+        sensitivity,
+        timing_margin,
+    };
+    let o = outcome(s, spec, shard, &f, found);
+    write_result(&ex.out, spec, &o)?;
+    if shard.is_some() {
+        super::shards::write_digests(&ex.out)?;
+    } else {
+        // A directory that held a shard before holds a whole search now.
+        let _ = std::fs::remove_file(ex.out.join(super::shards::DIGESTS));
+    }
+    Ok((f, o))
+}
+
+/// What a search's result holds beside its evaluations.
+struct Found {
+    nominal_metric: f64,
+    plain_run_s: f64,
+    replayed: Score,
+    sensitivity: Vec<super::margin::Share>,
+    timing_margin: Option<super::margin::TimingMargin>,
+}
+
+/// `result.json` of the search `f` of `spec` (shard `shard`).
+fn outcome(
+    s: &Scenario,
+    spec: &Spec,
+    shard: Option<Shard>,
+    f: &Falsified,
+    found: Found,
+) -> Outcome {
     let best = |m: Method| {
         f.evals
             .iter()
@@ -489,7 +524,7 @@ pub fn falsify_part(
     let w = &f.worst.1;
     let requirement = spec.objective.is_requirement();
     let sampled = requirement.then(|| super::evidence::sampled(&spec.objective, f.evals.iter()));
-    let o = Outcome {
+    Outcome {
         scenario: s.name.clone(),
         objective: spec.objective.describe(),
         metric: spec.objective.key().to_string(),
@@ -498,7 +533,7 @@ pub fn falsify_part(
         seed: spec.seed,
         dims: f.dims,
         lambda: f.lambda,
-        nominal_metric,
+        nominal_metric: found.nominal_metric,
         search_best: best(Method::CmaEs),
         random_best: best(Method::Random),
         worst_found_by: w.method.name().to_string(),
@@ -509,31 +544,23 @@ pub fn falsify_part(
         worst_evaluation: w.evaluation,
         worst_metric: w.metric,
         worst_objective: w.objective,
-        worst_run_metric: replayed.metric,
+        worst_run_metric: found.replayed.metric,
         violated: requirement.then_some(w.violated),
         margin: requirement.then_some(w.margin),
-        requirements: judgements(spec, &replayed),
-        sensitivity: Some(sensitivity),
-        timing_margin,
+        requirements: judgements(spec, &found.replayed),
+        sensitivity: Some(found.sensitivity),
+        timing_margin: found.timing_margin,
         verdict: verdict(requirement.then_some(w.violated)),
         random_samples: sampled.map(|e| e.n),
         random_broken: sampled.map(|e| e.broken),
         random_broken_upper_95: sampled.map(|e| e.upper_95),
         failed_evaluations: f.evals.iter().filter(|e| !e.error.is_empty()).count(),
         evaluation_cpu_s: f.eval_s,
-        plain_run_cpu_s: plain_run_s,
+        plain_run_cpu_s: found.plain_run_s,
         search_s: f.wall_s,
         resumed_evaluations: f.resumed,
         shard: shard.map(|sh| format!("{}/{}", sh.index, sh.count)),
         merged_shards: None,
         worst_shard: None,
-    };
-    write_result(&ex.out, spec, &o)?;
-    if shard.is_some() {
-        super::shards::write_digests(&ex.out)?;
-    } else {
-        // A directory that held a shard before holds a whole search now.
-        let _ = std::fs::remove_file(ex.out.join(super::shards::DIGESTS));
     }
-    Ok((f, o))
 }

@@ -12,8 +12,6 @@
 //! is kept in `OUT/done/evals.csv` as it ends: run again with the same arguments, an
 //! interrupted search takes the values it has and continues exactly as it would have.
 
-use std::collections::HashMap;
-use std::io::Write as _;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -27,6 +25,8 @@ use tiltsim_scenario::scenario::Scenario;
 use super::bounds::{Bounds, TickBound};
 use super::cmaes::CmaEs;
 use super::history::{History, Layout};
+pub use super::kept::fingerprint;
+use super::kept::Kept;
 use super::objective::Objective;
 use super::FalsifyError;
 
@@ -268,82 +268,6 @@ pub fn point_of(a: &[f64]) -> Vec<f64> {
 /// Step size of the search's first generation (the cube's preimage: x = ±2 is u = 0.12, 0.88).
 pub const SIGMA0: f64 = 2.0;
 
-/// The evaluations kept by earlier invocations of the same search.
-struct Kept {
-    values: HashMap<(Method, usize), Eval>,
-    file: Mutex<std::fs::File>,
-}
-
-fn files_error(what: &str, e: impl std::fmt::Display) -> FalsifyError {
-    FalsifyError::Files(format!("{what}: {e}"))
-}
-
-impl Kept {
-    /// Opens `out/done`: its evaluations when `fingerprint` is the one it was kept for, else
-    /// emptied for this search.
-    fn open(out: &std::path::Path, fingerprint: &str) -> Result<Kept, FalsifyError> {
-        let dir = out.join("done");
-        let id = dir.join("fingerprint");
-        let csv = dir.join("evals.csv");
-        let same = std::fs::read_to_string(&id).is_ok_and(|f| f.trim() == fingerprint);
-        let mut values = HashMap::new();
-        if same {
-            if let Ok(mut r) = csv::ReaderBuilder::new().from_path(&csv) {
-                // A line cut short by a kill does not parse: that evaluation is run again.
-                for e in r.deserialize::<Eval>().flatten() {
-                    values.insert((e.method, e.evaluation), e);
-                }
-            }
-        } else {
-            let _ = std::fs::remove_dir_all(&dir);
-            std::fs::create_dir_all(&dir)
-                .map_err(|e| files_error(&dir.display().to_string(), e))?;
-            std::fs::write(&id, format!("{fingerprint}\n"))
-                .map_err(|e| files_error(&id.display().to_string(), e))?;
-        }
-        let fresh = !csv.exists();
-        let mut file = std::fs::OpenOptions::new()
-            .create(true)
-            .append(true)
-            .open(&csv)
-            .map_err(|e| files_error(&csv.display().to_string(), e))?;
-        if fresh {
-            writeln!(file, "{}", EVAL_COLUMNS.join(","))
-                .map_err(|e| files_error(&csv.display().to_string(), e))?;
-        }
-        Ok(Kept {
-            values,
-            file: Mutex::new(file),
-        })
-    }
-
-    fn put(&self, e: &Eval) {
-        let mut w = csv::WriterBuilder::new()
-            .has_headers(false)
-            .from_writer(Vec::new());
-        if w.serialize(e).is_ok() {
-            if let (Ok(line), Ok(mut f)) = (w.into_inner(), self.file.lock()) {
-                let _ = f.write_all(&line);
-            }
-        }
-    }
-}
-
-/// What the search's files are checked against: scenario, bounds, objective, budget, seed
-/// and the program's build.
-pub fn fingerprint(s: &Scenario, spec: &Spec) -> String {
-    let text = format!(
-        "tiltsim falsify 3\n{}\n{:?}\n{}\n{} {}\n{}",
-        crate::sweep::identity::build(),
-        spec.bounds,
-        spec.objective.describe(),
-        spec.budget,
-        spec.seed,
-        toml::to_string(s).unwrap_or_default()
-    );
-    crate::sweep::identity::sha256(text.as_bytes())
-}
-
 /// The validity and flags of a completed replay's summary.
 fn validity(d: &tiltsim_master::Summary) -> (bool, String) {
     (d.comfort_valid, d.flags.raised().join(";"))
@@ -538,7 +462,8 @@ pub fn run(s: &Scenario, spec: &Spec, ex: &Exec) -> Result<Falsified, FalsifyErr
     let t0 = Instant::now();
     let ticks = spec.bounds.ticks(s, &spec.bounds_from)?;
     let layout = Layout::new(s, &ticks);
-    std::fs::create_dir_all(&ex.out).map_err(|e| files_error(&ex.out.display().to_string(), e))?;
+    std::fs::create_dir_all(&ex.out)
+        .map_err(|e| FalsifyError::Files(format!("{}: {e}", ex.out.display())))?;
     let kept = Kept::open(&ex.out, &fingerprint(s, spec))?;
     let resumed = kept.values.len();
     if resumed > 0 {
