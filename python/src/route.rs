@@ -46,13 +46,14 @@ pub(crate) fn route<'py>(
     let jobs = arg(f, "jobs", &jobs).count(1, 256)?;
     let transport = arg(f, "transport", &transport).text(crate::TRANSPORTS)?;
     let out = arg(f, "out", &out).path()?;
-    let line = tiltsim_studies::route::load(&route).map_err(|e| invalid(py, e.to_string()))?;
+    // Every argument is checked before the route file is read.
     let (grid, limits) = grid_and_limits(
         py,
         [&rho, &cd_tilting],
         [&cd_conventional, &accel, &brake],
         &running,
     )?;
+    let line = tiltsim_studies::route::load(&route).map_err(|e| invalid(py, e.to_string()))?;
     let loaded = load(py, &scenarios, transport)?;
     let exe = match loaded.first() {
         Some(s) => participant_exe(py, exe, s)?,

@@ -354,17 +354,7 @@ pub(crate) fn falsify<'py>(
     )?;
     let shard = arg(f, "shard", &shard).text("a shard, a str \"I/N\"")?;
     let restarts = arg(f, "restarts", &restarts).count(1, 100_000)?;
-    let margin = match arg(f, "margin", &margin)
-        .numbers("the largest scale and the bisection steps")?
-        .as_deref()
-    {
-        None => None,
-        Some(&[k, n]) if n >= 0.0 && n.fract() == 0.0 => Some((k, n as usize)),
-        Some(_) => return Err(invalid(
-            py,
-            "falsify: margin: allowed (largest scale, bisection steps), the steps a whole number",
-        )),
-    };
+    let margin = arg(f, "margin", &margin).numbers("the largest scale and the bisection steps")?;
     let budget = arg(f, "budget", &budget).whole(1, 100_000)?;
     let seed = arg(f, "seed", &seed).whole(0, u64::MAX)?.unwrap_or(1);
     let jobs = arg(f, "jobs", &jobs).count(1, 256)?;
@@ -393,37 +383,14 @@ pub(crate) fn falsify<'py>(
             .map_err(bad)?
             .min(100_000),
     };
-    let shard = shard
-        .map(|sh| tiltsim_studies::sweep::Shard::parse(&sh))
-        .transpose()
-        .map_err(|e| invalid(py, format!("shard: {e}")))?;
-    if let Some(n) = restarts.filter(|n| *n == 0 || *n > budget) {
-        return Err(invalid(
-            py,
-            format!("restarts = {n}: allowed 1 to the budget ({budget})"),
-        ));
-    }
-    if let Some((k, steps)) = margin {
-        if !(1.0..=100.0).contains(&k) || steps > 20 {
-            return Err(invalid(
-                py,
-                format!("margin = ({k}, {steps}): allowed a largest scale from 1 to 100 and 0 to 20 bisection steps"),
-            ));
-        }
-        if !objective.is_requirement() || shard.is_some() || restarts.is_some() {
-            return Err(invalid(
-                py,
-                "margin: allowed with a requirement, and without shard or restarts",
-            ));
-        }
-    }
+    let (shard, margin) = falsify_plan(py, &objective, budget, shard, restarts, margin)?;
     let spec = fz::Spec {
         bounds: b,
         bounds_from: bounds_origin.to_string(),
         objective,
         budget,
         seed,
-        margin: margin.map(|(max_scale, steps)| fz::margin::MarginPlan { max_scale, steps }),
+        margin,
     };
     let (dir, _scratch) = directory(py, out.as_deref(), "falsify")?;
     let lock = tiltsim_master::outdir::claim(&dir, tiltsim_master::outdir::Kind::Sweep, "falsify")
@@ -456,6 +423,59 @@ pub(crate) fn falsify<'py>(
     result.set_item("progress", progress_frame(py, &evals)?)?;
     result.set_item("out_dir", out.map(|o| o.display().to_string()))?;
     Ok(result)
+}
+
+/// How a search is carried out: the shard it is (`"I/N"`), and the timing margin's plan
+/// (`(largest scale, bisection steps)`), checked against the objective and the budget.
+fn falsify_plan(
+    py: Python<'_>,
+    objective: &tiltsim_studies::falsify::Objective,
+    budget: usize,
+    shard: Option<String>,
+    restarts: Option<usize>,
+    margin: Option<Vec<f64>>,
+) -> PyResult<(
+    Option<tiltsim_studies::sweep::Shard>,
+    Option<tiltsim_studies::falsify::margin::MarginPlan>,
+)> {
+    let margin = match margin.as_deref() {
+        None => None,
+        Some(&[k, n]) if n >= 0.0 && n.fract() == 0.0 => Some((k, n as usize)),
+        Some(_) => return Err(invalid(
+            py,
+            "falsify: margin: allowed (largest scale, bisection steps), the steps a whole number",
+        )),
+    };
+    let shard = shard
+        .map(|sh| tiltsim_studies::sweep::Shard::parse(&sh))
+        .transpose()
+        .map_err(|e| invalid(py, format!("shard: {e}")))?;
+    if let Some(n) = restarts.filter(|n| *n == 0 || *n > budget) {
+        return Err(invalid(
+            py,
+            format!("restarts = {n}: allowed 1 to the budget ({budget})"),
+        ));
+    }
+    if let Some((k, steps)) = margin {
+        if !(1.0..=100.0).contains(&k) || steps > 20 {
+            return Err(invalid(
+                py,
+                format!("margin = ({k}, {steps}): allowed a largest scale from 1 to 100 and 0 to 20 bisection steps"),
+            ));
+        }
+        if !objective.is_requirement() || shard.is_some() || restarts.is_some() {
+            return Err(invalid(
+                py,
+                "margin: allowed with a requirement, and without shard or restarts",
+            ));
+        }
+    }
+    Ok((
+        shard,
+        margin.map(
+            |(max_scale, steps)| tiltsim_studies::falsify::margin::MarginPlan { max_scale, steps },
+        ),
+    ))
 }
 
 /// The worst trace's text and the result's fields, for Python.
