@@ -10,5 +10,6 @@
 pub mod bench;
 pub use tiltsim_rundir::budget;
 pub mod falsify;
+pub mod parallel;
 pub mod route;
 pub mod sweep;

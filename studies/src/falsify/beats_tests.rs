@@ -4,9 +4,8 @@
 //! least the worst of as many histories drawn by the generator written apart from the search
 //! (`reach_tests::generate`: piecewise delays rising and falling within the jitter bound,
 //! bursts, the budgets spent as one outage or many) and at least every obvious adversary's.
-//! (With a budget of 60, below that default, the search over both links lost to the generator
-//! by up to 0.03 point on one seed of three: CMA-ES gets two generations of 13 in 24
-//! dimensions.)
+//! The default budget is the one the search is made for: below it CMA-ES gets too few
+//! generations to adapt (two of 13 in 24 dimensions at a budget of 60).
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;

@@ -11,8 +11,6 @@
 //!   one, and at the other a timing that breaks them (`margin/worst/timing.csv`).
 
 use std::path::Path;
-use std::sync::atomic::Ordering;
-use std::sync::Mutex;
 
 use serde::Serialize;
 use tiltsim_scenario::links::LinkId;
@@ -57,7 +55,8 @@ fn without(b: &LinkBound, parameter: &str) -> Option<LinkBound> {
 }
 
 /// Each bound's share of the worst timing `f` found within `spec`, largest drop first
-/// (evaluated on `jobs` threads; the order does not depend on them).
+/// (evaluated on `jobs` threads; the order does not depend on them). A bound without which
+/// the bounds admit no causal timing is left out.
 pub fn sensitivity(
     s: &Scenario,
     spec: &Spec,
@@ -70,39 +69,23 @@ pub fn sensitivity(
             if let Some(l) = without(&spec.bounds.links[id as usize], p) {
                 let mut b = spec.bounds;
                 b.links[id as usize] = l;
-                cases.push((id.name(), p, b.ticks(s, &spec.bounds_from)?));
+                // Without it no timing may be causal (an envelope whose smallest delays are
+                // negative, its range collapsed there): nothing to compare with.
+                if let Ok(ticks) = b.ticks(s, &spec.bounds_from) {
+                    cases.push((id.name(), p, ticks));
+                }
             }
         }
     }
     let worst = &f.worst;
-    let out: Mutex<Vec<Option<f64>>> = Mutex::new(vec![None; cases.len()]);
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    std::thread::scope(|sc| {
-        for _ in 0..ex.jobs.clamp(1, cases.len().max(1)) {
-            sc.spawn(|| loop {
-                let i = next.fetch_add(1, Ordering::Relaxed);
-                if i >= cases.len() || ex.interrupt.load(Ordering::Relaxed) {
-                    break;
-                }
-                let ticks = &cases[i].2;
-                let layout = Layout::new(s, ticks);
-                let h = layout.project(&worst.0);
-                let v = evaluate(
-                    s,
-                    &layout,
-                    ticks,
-                    &spec.objective,
-                    &h,
-                    ex.out.join("sensitivity"),
-                    &ex.interrupt,
-                );
-                if let Ok(mut o) = out.lock() {
-                    o[i] = Some(v.objective);
-                }
-            });
-        }
+    let values = crate::parallel::map(cases.len(), ex.jobs, &ex.interrupt, |i| {
+        let ticks = &cases[i].2;
+        let layout = Layout::new(s, ticks);
+        let h = layout.project(&worst.0);
+        let dir = ex.out.join("sensitivity");
+        let v = evaluate(s, &layout, ticks, &spec.objective, &h, dir, &ex.interrupt);
+        Some(v.objective)
     });
-    let values = out.into_inner().unwrap_or_default();
     let mut shares: Vec<Share> = cases
         .iter()
         .zip(values)

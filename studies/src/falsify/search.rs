@@ -408,28 +408,15 @@ impl Ctx<'_> {
         first: usize,
         hs: &[History],
     ) -> Option<Vec<Scored>> {
-        let next = AtomicUsize::new(0);
-        let out: Mutex<Vec<Option<Scored>>> = Mutex::new(vec![None; hs.len()]);
-        std::thread::scope(|sc| {
-            for _ in 0..self.ex.jobs.clamp(1, hs.len().max(1)) {
-                sc.spawn(|| loop {
-                    let i = next.fetch_add(1, Ordering::Relaxed);
-                    if i >= hs.len() || self.ex.interrupt.load(Ordering::Relaxed) {
-                        break;
-                    }
-                    let Some(v) = self.one(method, phase, first + i, &hs[i]) else {
-                        break;
-                    };
-                    if let Some(d) = &self.ex.done {
-                        d.fetch_add(1, Ordering::Relaxed);
-                    }
-                    if let Ok(mut o) = out.lock() {
-                        o[i] = Some(v);
-                    }
-                });
+        crate::parallel::map(hs.len(), self.ex.jobs, &self.ex.interrupt, |i| {
+            let v = self.one(method, phase, first + i, &hs[i])?;
+            if let Some(d) = &self.ex.done {
+                d.fetch_add(1, Ordering::Relaxed);
             }
-        });
-        out.into_inner().ok()?.into_iter().collect()
+            Some(v)
+        })
+        .into_iter()
+        .collect()
     }
 }
 
