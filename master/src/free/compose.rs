@@ -66,6 +66,10 @@ impl<T: Clone> Window<T> {
     pub fn held(&self) -> usize {
         self.items.len()
     }
+    /// The entries set, in index order.
+    pub fn iter(&self) -> impl Iterator<Item = &T> {
+        self.items.iter().flatten()
+    }
 }
 
 /// The outputs of a run by producer step, what the links made of each, and the producer steps
@@ -228,6 +232,31 @@ impl Store {
             .map(|(_, l, i)| self.events[l].events[i].clone())
             .collect();
         all
+    }
+
+    /// The links' events of ticks up to `k` that `taken` (per link, how many of its events
+    /// were taken before) leaves out, in the order of [`Store::events`]; advances `taken`.
+    /// Each link logs its events at the tick its sample is sent, and passes its samples in
+    /// the order they were sent, so a link's events are in tick order and those of ticks up
+    /// to `k` come first.
+    pub fn link_events_through(&self, k: u64, taken: &mut [usize; 4]) -> Vec<crate::events::Event> {
+        let mut tagged: Vec<(u64, usize, usize)> = Vec::new();
+        for (l, log) in self.events.iter().enumerate() {
+            let new = log.events.get(taken[l]..).unwrap_or(&[]);
+            let n = new.iter().take_while(|e| e.step <= k).count();
+            tagged.extend(
+                new[..n]
+                    .iter()
+                    .enumerate()
+                    .map(|(i, e)| (e.step, l, taken[l] + i)),
+            );
+            taken[l] += n;
+        }
+        tagged.sort_unstable();
+        tagged
+            .into_iter()
+            .map(|(_, l, i)| self.events[l].events[i].clone())
+            .collect()
     }
 
     /// Index of `role`'s step `step` in its vectors.

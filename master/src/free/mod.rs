@@ -110,9 +110,7 @@ pub(crate) fn run_events(
     store: &compose::Store,
     rows: u64,
 ) -> crate::events::EventLog {
-    let mut ev = crate::events::EventLog::new(s.run.dt_s);
-    crate::links::LinkSet::describe(&s.links, &mut ev);
-    crate::engine::manipulator::FaultSchedule::new(&s.faults, s.run.dt_s).log_until(rows, &mut ev);
+    let mut ev = planned_events(s, rows);
     let links = store.events();
     let mut merged = Vec::with_capacity(ev.events.len() + links.events.len());
     let mut a = ev.events.into_iter().peekable();
@@ -127,6 +125,15 @@ pub(crate) fn run_events(
         merged.extend(if take_a { a.next() } else { b.next() });
     }
     ev.events = merged;
+    ev
+}
+
+/// The events of a run of `s` that do not come from the links' samples: the links' set-up and
+/// the faults scheduled up to tick `last`, in tick order.
+pub(crate) fn planned_events(s: &Scenario, last: u64) -> crate::events::EventLog {
+    let mut ev = crate::events::EventLog::new(s.run.dt_s);
+    crate::links::LinkSet::describe(&s.links, &mut ev);
+    crate::engine::manipulator::FaultSchedule::new(&s.faults, s.run.dt_s).log_until(last, &mut ev);
     ev
 }
 
@@ -177,6 +184,11 @@ impl RowStream {
             self.next += 1;
         }
         Ok(())
+    }
+
+    /// The ticks whose rows are written (or kept).
+    pub(crate) fn written(&self) -> u64 {
+        self.next
     }
 
     /// The oldest producer steps a later row can name.

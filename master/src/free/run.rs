@@ -11,6 +11,7 @@ use cosim::msg::{FreeClock, ToActuator, ToController, ToPlant, FLAG_FREE_START};
 use cosim::{LinkError, ProcessFault, Role};
 
 use super::compose::Store;
+use super::recording::{FreeRecorder, FreeRecording};
 use super::relay::{Deliveries, Relay};
 use super::timing::Stats;
 use super::trace::{StepTrace, TraceHead, TraceWriter, TIMING_CSV};
@@ -57,7 +58,8 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
         rows,
         writer,
         stats,
-        kept,
+        recorder,
+        record_error,
         start_ns,
         ..
     } = hub;
@@ -81,17 +83,8 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
     let (ticks, kept_rows, rows_error) = rows.finish();
     write_errors.extend(rows_error);
     let events = write_events(s, dir, &store, ticks, network.as_ref(), &mut write_errors);
-    let recording = match kept {
-        Some(kept) => {
-            let path = dir.join("run.mcap");
-            let r = super::recording::record(
-                &path, s.run.dt_s, &store, &kept, ticks, start_ns, &events,
-            )
-            .map_err(|e| FreeError::io(&path, e))?;
-            Some(r)
-        }
-        None => None,
-    };
+    write_errors.extend(record_error);
+    let recording = finish_recording(recorder, &store, ticks, &events, &mut write_errors);
     let interrupted = opts.interrupt.load(Ordering::Relaxed);
     let (status, error) = match outcome {
         Ok(()) if interrupted => (
@@ -127,6 +120,21 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
         participant_logs,
         network,
     })
+}
+
+/// The recording's last ticks and events (`None` when the run was not recorded or its
+/// recording failed, the failure in `write_errors`).
+fn finish_recording(
+    recorder: Option<FreeRecorder>,
+    store: &Store,
+    ticks: u64,
+    events: &crate::events::EventLog,
+    write_errors: &mut Vec<String>,
+) -> Option<FreeRecording> {
+    recorder?
+        .finish(store, ticks, events)
+        .map_err(|e| write_errors.push(e.to_string()))
+        .ok()
 }
 
 /// Writes the run's `events.csv` (the schedule's events and the network's attempts) and
@@ -207,8 +215,10 @@ struct Hub<'a> {
     deliveries: Deliveries,
     faults: FaultSchedule,
     stats: Stats,
-    /// Every step's trace, kept for `run.mcap` (`--record`; the store then forgets nothing).
-    kept: Option<Vec<StepTrace>>,
+    /// `run.mcap` (`--record`), written as the ticks complete.
+    recorder: Option<FreeRecorder>,
+    /// Why the recording stopped, when a write failed (the run goes on without it).
+    record_error: Option<String>,
     /// Steps recorded per role.
     done: RoleMap<u64>,
     totals: RoleMap<u64>,
@@ -267,6 +277,12 @@ impl<'a> Hub<'a> {
         let period = s.controller_period_ticks();
         let dt_ns = (s.run.dt_s * 1e9).round() as u64;
         let rows = RowStream::create(opts, out).map_err(FreeError::Run)?;
+        let recorder = if out.record {
+            let path = opts.out_dir.join("run.mcap");
+            Some(FreeRecorder::create(&path, s).map_err(|e| FreeError::io(&path, e))?)
+        } else {
+            None
+        };
         let start_ns = now_ns();
         Ok(Hub {
             s,
@@ -279,7 +295,8 @@ impl<'a> Hub<'a> {
             deliveries: Deliveries::new(),
             faults: FaultSchedule::new(&s.faults, s.run.dt_s),
             stats: Stats::new(dt_ns, period),
-            kept: out.record.then(Vec::new),
+            recorder,
+            record_error: None,
             done: RoleMap::default(),
             totals: RoleMap::new([steps, steps, steps.div_ceil(period)]),
             ticks: RoleMap::new([1, 1, period]),
@@ -298,6 +315,10 @@ impl<'a> Hub<'a> {
             .map_err(|e| format!("cannot write timeseries.csv: {e}"))?;
         self.start_ns = now_ns() + START_MARGIN.as_nanos() as u64;
         self.last_heard = RoleMap::new([self.start_ns; 3]);
+        if let Some(r) = &mut self.recorder {
+            r.start(&self.store, self.start_ns)
+                .map_err(|e| format!("cannot write run.mcap: {e}"))?;
+        }
         let head = TraceHead {
             dt_s: self.s.run.dt_s,
             steps: self.s.steps(),
@@ -349,6 +370,7 @@ impl<'a> Hub<'a> {
             deliveries.release(now, ps, store, relays)?;
             self.check_silence(now)?;
             if !arrived.is_empty() {
+                self.record();
                 self.forget();
             } else {
                 std::thread::sleep(HUB_NAP);
@@ -422,8 +444,8 @@ impl<'a> Hub<'a> {
         };
         self.store.note_read(&t);
         self.stats.note(&t);
-        if let Some(k) = &mut self.kept {
-            k.push(t);
+        if let Some(r) = &mut self.recorder {
+            r.push(t, &self.store);
         }
         if let Some(w) = &mut self.writer {
             w.push(&t)
@@ -480,6 +502,18 @@ impl<'a> Hub<'a> {
         Ok(())
     }
 
+    /// Records the ticks that are complete; a write that fails ends the recording (the run
+    /// goes on, the failure among its write errors).
+    fn record(&mut self) {
+        let Some(r) = &mut self.recorder else {
+            return;
+        };
+        if let Err(e) = r.advance(&self.store, self.rows.written()) {
+            self.record_error = Some(e.to_string());
+            self.recorder = None;
+        }
+    }
+
     /// Ends the run, naming the participant, when one that still has steps to take has
     /// published nothing for `run.hang_ceiling_ms` (stopped, hung, or starved that long).
     fn check_silence(&self, now: u64) -> Result<(), String> {
@@ -504,13 +538,13 @@ impl<'a> Hub<'a> {
     /// Lets the store forget what nothing can name any more: a consumer reads the relays sent
     /// to it in order, so the oldest relay it may still read bounds the producer steps its
     /// later steps name; the rows written bound what later rows name; a sample relayed or
-    /// still on its way is newer than the newest delivered. With `--record` nothing is
-    /// forgotten (the recording is written from the store after the run).
+    /// still on its way is newer than the newest delivered; the ticks not recorded yet name
+    /// what their steps read.
     fn forget(&mut self) {
-        if self.kept.is_some() {
-            return;
-        }
         let mut floor = self.rows.floor();
+        if let Some(r) = &self.recorder {
+            r.floor(&mut floor);
+        }
         let n = self.deliveries.newest;
         let newest = [
             n[LinkId::Measurement as usize].min(n[LinkId::BarTwist as usize]),
