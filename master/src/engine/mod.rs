@@ -6,7 +6,7 @@
 //!   manipulators on the way ([`manipulator`]: scheduled faults, degraded replacement; link
 //!   effects in `crate::links`);
 //! * [`algorithm`]: the master algorithms, Gauss-Seidel and Jacobi;
-//! * [`observer`]: the engine's own measurements: timing, compute, latency, pacing and drive
+//! * [`instruments`]: the engine's own measurements: timing, compute, latency, pacing and drive
 //!   events;
 //! * [`observe`]: the [`Observer`](observe::Observer) trait a caller implements and adds to a
 //!   [`Run`], with its lifecycle (start, each tick, close, finish with its part of the
@@ -23,13 +23,13 @@
 
 pub(crate) mod algorithm;
 pub mod cpu_plan;
+pub(crate) mod instruments;
 pub(crate) mod launch;
 pub mod machine;
 pub mod manipulate;
 pub(crate) mod manipulator;
 pub mod mcap;
 pub mod observe;
-pub(crate) mod observer;
 mod options;
 pub mod outputs;
 pub mod summary;
@@ -50,9 +50,11 @@ pub use summary::{
 use crate::events::EventLog;
 use crate::roles::RoleMap;
 use crate::scenario::{Scenario, Transport};
+pub use instruments::LatencyHistogram;
+use instruments::{
+    ComputeStats, DriveEvents, FinishedTick, Instrument, Latency, Pacing, TickTiming,
+};
 use launch::Held;
-pub use observer::LatencyHistogram;
-use observer::{ComputeStats, DriveEvents, FinishedTick, Latency, Observer, Pacing, TickTiming};
 use outputs::Outputs;
 use team::Team;
 

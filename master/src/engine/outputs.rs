@@ -17,9 +17,9 @@ use std::time::Instant;
 use cosim::msg::ToController;
 use cosim::Role;
 
+use super::instruments::{RowRecorder, RowSink};
 use super::mcap::{McapRecorder, TickData};
 use super::observe::{Observer, Start, Tick};
-use super::observer::{RowRecorder, RowSink};
 use crate::scenario::Scenario;
 use crate::table::{Recorder, Row};
 

@@ -28,8 +28,8 @@ use cosim::msg::{FromActuator, FromController, FromPlant, Header, Kind};
 use cosim::msg::{ToActuator, ToController, ToPlant};
 use cosim::LinkError;
 
+use crate::engine::instruments::{RowRecorder, RowSink};
 use crate::engine::launch::Participants;
-use crate::engine::observer::{RowRecorder, RowSink};
 use crate::engine::{RunError, RunMode, Status, Summary};
 use crate::scenario::Scenario;
 use crate::table::{Recorder, Row};

@@ -7,6 +7,7 @@
 //! computed by then; the participants are deterministic functions of their request
 //! sequences, so every output, and every row, is the free run's bit for bit.
 
+use std::ops::ControlFlow;
 use std::path::Path;
 
 use cosim::msg::{Kind, Message};
@@ -47,23 +48,8 @@ pub struct Replayed {
     pub not_real_time: Option<tiltsim_assessment::validity::NotRealTime>,
 }
 
-/// Per step of `order`, the oldest producer steps (by [`col`]) named by it or any later step.
-fn floors(order: &[StepTrace]) -> Vec<[i64; 3]> {
-    let mut out = vec![[i64::MAX; 3]; order.len() + 1];
-    for (i, t) in order.iter().enumerate().rev() {
-        let mut f = out[i + 1];
-        for (p, q) in t.from.iter().enumerate() {
-            if let Some(q) = q {
-                f[p] = f[p].min(*q);
-            }
-        }
-        out[i] = f;
-    }
-    out
-}
-
 /// Steps replayed between two clean-ups of the store.
-const FORGET_EVERY: usize = 1024;
+const FORGET_EVERY: u64 = 1024;
 
 /// One lock-step exchange of step `step`.
 fn ask<I: Message, O: Message>(
@@ -80,30 +66,76 @@ fn ask<I: Message, O: Message>(
 
 /// Replays the trace at `trace_path` with scenario `s` (its own or another system's) on
 /// `s.run.transport`; writes `timeseries.csv`, `events.csv` and `scenario.toml` to
-/// `opts.out_dir`.
+/// `opts.out_dir`. The trace is read twice, a step at a time, and never held whole: once to
+/// check it (and judge the free run's real time), then to replay it, so an hour's trace
+/// takes the memory a second's does.
 pub fn replay_timing(
     s: &Scenario,
     trace_path: &Path,
     opts: &RunOptions,
     out: &Outputs,
 ) -> Result<Replayed, FreeError> {
-    let period = s.controller_period_ticks();
-    let trace = trace::read(trace_path, s.run.dt_s, s.steps(), period)?;
-    let verdict = real_time_verdict(&trace.steps, s.run.dt_s, period);
-    let mut r = replay_trace(s, trace, trace_path, opts, out)?;
+    let (steps, period, dt_s) = (s.steps(), s.controller_period_ticks(), s.run.dt_s);
+    let mut stats = super::timing::Stats::new((dt_s * 1e9).round() as u64, period);
+    let mut order = ReadOrder::new(steps, period);
+    let mut causal = Causal::new(trace_path, period);
+    let mut bad = None;
+    let partial = trace::each_step_until(trace_path, dt_s, steps, period, |t| {
+        stats.note(t);
+        order.push(*t);
+        while let Some(x) = order.pop(false) {
+            if let Err(e) = causal.check(&x) {
+                bad = Some(e);
+                return ControlFlow::Break(());
+            }
+        }
+        ControlFlow::Continue(())
+    })?;
+    if let Some(e) = bad {
+        return Err(e.into());
+    }
+    while let Some(x) = order.pop(true) {
+        causal.check(&x)?;
+    }
+    let verdict = real_time_verdict(stats, dt_s);
+    let mut r = run_replay(s, opts, out, partial, |rep| {
+        let mut order = ReadOrder::new(steps, period);
+        let mut failed = None;
+        trace::each_step_until(trace_path, dt_s, steps, period, |t| {
+            order.push(*t);
+            while let Some(x) = order.pop(false) {
+                if let Err(e) = rep.take(&x) {
+                    failed = Some(e);
+                    return ControlFlow::Break(());
+                }
+                if rep.interrupted() {
+                    return ControlFlow::Break(());
+                }
+            }
+            ControlFlow::Continue(())
+        })
+        .map_err(|e| e.to_string())?;
+        if let Some(e) = failed {
+            return Err(e);
+        }
+        while let Some(x) = order.pop(true) {
+            if rep.interrupted() {
+                break;
+            }
+            rep.take(&x)?;
+        }
+        Ok(())
+    })?;
     r.not_real_time = Some(verdict);
     Ok(r)
 }
 
 /// The free run's verdict on real time, judged from its trace by the free run's own
-/// statistics ([`super::timing::Stats`]).
+/// statistics ([`super::timing::Stats`]), which have seen every step.
 fn real_time_verdict(
-    steps: &[StepTrace],
+    stats: super::timing::Stats,
     dt_s: f64,
-    period: u64,
 ) -> tiltsim_assessment::validity::NotRealTime {
-    let mut stats = super::timing::Stats::new((dt_s * 1e9).round() as u64, period);
-    steps.iter().for_each(|t| stats.note(t));
     let f = stats.report(dt_s);
     tiltsim_assessment::validity::NotRealTime {
         raised: f.not_real_time,
@@ -132,6 +164,26 @@ pub fn replay_trace(
         order.sort_by_key(|t| (t.read_ns, col(t.role)));
     }
     check_causal(trace_path, &order, period)?;
+    run_replay(s, opts, out, trace.partial, |rep| {
+        for t in &order {
+            if rep.interrupted() {
+                break;
+            }
+            rep.take(t)?;
+        }
+        Ok(())
+    })
+}
+
+/// Starts the participants, lets `drive` hand the replay its steps in read order, stops the
+/// participants and finishes the files (none when in process with the rows kept in memory).
+fn run_replay(
+    s: &Scenario,
+    opts: &RunOptions,
+    out: &Outputs,
+    partial: Option<String>,
+    drive: impl FnOnce(&mut Replayer<'_>) -> Result<(), String>,
+) -> Result<Replayed, FreeError> {
     let dir = &opts.out_dir;
     // Participants in other processes log to the directory: it is made for them.
     let files = !(out.rows_in_memory && s.run.transport == Transport::InProcess);
@@ -143,8 +195,23 @@ pub fn replay_trace(
     let cpus = cosim::ipc::allowed_cpus();
     let mut rows = RowStream::create(opts, out).map_err(FreeError::Run)?;
     let mut ps = launch::start(s, opts, &prefix).map_err(FreeError::Run)?;
-    let mut store = Store::new(period, s.run.dt_s, &s.links, s.run.seed);
-    let outcome = replay_steps(s, opts, &order, &mut ps, &mut store, &mut rows);
+    let mut store = Store::new(
+        s.controller_period_ticks(),
+        s.run.dt_s,
+        &s.links,
+        s.run.seed,
+    );
+    let mut rep = Replayer {
+        steps: s.steps(),
+        interrupt: &opts.interrupt,
+        ps: &mut ps,
+        store: &mut store,
+        rows: &mut rows,
+        last: [[-1; 3]; 3],
+        taken: 0,
+    };
+    let outcome = rep.start().and_then(|()| drive(&mut rep));
+    let exchanges = rep.taken;
     let pids = ps.pids();
     let exits = super::shut_down(ps, &prefix, &cpus);
     drop(guard);
@@ -157,8 +224,8 @@ pub fn replay_trace(
     let (ticks, kept, error) = finish_files(s, dir, &store, rows, outcome.err());
     Ok(Replayed {
         steps_completed: ticks,
-        exchanges: order.len() as u64,
-        partial: trace.partial,
+        exchanges,
+        partial,
         rows: kept,
         exits,
         pids,
@@ -169,34 +236,137 @@ pub fn replay_trace(
     })
 }
 
-/// Takes the outputs at t₀, then each step of `order` in turn, writing the rows as they
-/// complete; stops early, without an error, when the run is interrupted.
-fn replay_steps(
-    s: &Scenario,
-    opts: &RunOptions,
-    order: &[StepTrace],
-    ps: &mut Participants,
-    store: &mut Store,
-    rows: &mut RowStream,
-) -> Result<(), String> {
-    let steps = s.steps();
-    let floors = floors(order);
-    init_all(ps, store).map_err(|e| e.to_string())?;
-    rows.start(store).map_err(write_rows)?;
-    for (i, t) in order.iter().enumerate() {
-        if opts.interrupt.load(std::sync::atomic::Ordering::Relaxed) {
-            return Ok(());
-        }
-        replay_step(t, ps, store, rows, steps)?;
-        if i % FORGET_EVERY == FORGET_EVERY - 1 {
-            let mut floor = rows.floor();
-            for p in 0..3 {
-                floor[p] = floor[p].min(floors[i + 1][p]);
-            }
-            store.forget_before(floor);
+/// The steps of a trace in the order the replay takes them (by read instant, then role
+/// column), from each role's steps in step order as a trace file holds them: a step is handed
+/// on once every role that has steps to come has one waiting, so only the steps read ahead
+/// of the slowest role are held (a stalled participant's, for the length of its stall).
+struct ReadOrder {
+    waiting: [std::collections::VecDeque<StepTrace>; 3],
+    /// Per role, by [`col`], its steps not pushed yet.
+    left: [u64; 3],
+}
+
+impl ReadOrder {
+    fn new(steps: u64, period: u64) -> Self {
+        ReadOrder {
+            waiting: Default::default(),
+            left: [steps, steps, steps.div_ceil(period)],
         }
     }
-    Ok(())
+
+    fn push(&mut self, t: StepTrace) {
+        let c = col(t.role);
+        self.left[c] = self.left[c].saturating_sub(1);
+        self.waiting[c].push_back(t);
+    }
+
+    /// The next step in read order, when it is known: once every role with steps to come
+    /// has one waiting, or (`ended`) no step will come.
+    fn pop(&mut self, ended: bool) -> Option<StepTrace> {
+        if !ended && (0..3).any(|c| self.waiting[c].is_empty() && self.left[c] > 0) {
+            return None;
+        }
+        let c = (0..3)
+            .filter(|&c| !self.waiting[c].is_empty())
+            .min_by_key(|&c| (self.waiting[c][0].read_ns, c))?;
+        self.waiting[c].pop_front()
+    }
+}
+
+/// Checks, step by step in read order, that every input a step names was produced by a step
+/// read earlier: a role's steps are taken in step order, so the steps of each producer done
+/// so far are its first ones.
+struct Causal<'a> {
+    path: &'a Path,
+    period: u64,
+    /// Per role, by [`col`], the steps taken so far.
+    done: [u64; 3],
+}
+
+impl<'a> Causal<'a> {
+    fn new(path: &'a Path, period: u64) -> Self {
+        Causal {
+            path,
+            period,
+            done: [0; 3],
+        }
+    }
+
+    fn index(&self, role: Role, step: u64) -> u64 {
+        if role == Role::Controller {
+            step / self.period
+        } else {
+            step
+        }
+    }
+
+    fn check(&mut self, t: &StepTrace) -> Result<(), TraceError> {
+        for &p in trace::inputs_of(t.role) {
+            let Some(q) = t.from[col(p)].filter(|&q| q >= 0) else {
+                continue;
+            };
+            if self.index(p, q as u64) >= self.done[col(p)] {
+                return Err(TraceError {
+                    file: self.path.display().to_string(),
+                    field: format!("{} step {}: from_{}", t.role, t.step, p.name()),
+                    what: format!("{p} step {q} is read before it was computed"),
+                });
+            }
+        }
+        let i = self.index(t.role, t.step) + 1;
+        let d = &mut self.done[col(t.role)];
+        *d = (*d).max(i);
+        Ok(())
+    }
+}
+
+/// A replay under way: the participants, the store and the rows, and what each consumer
+/// read last, which bounds what its later steps can name (a consumer never reads an older
+/// sample after a newer one, which reading the trace checks).
+struct Replayer<'a> {
+    steps: u64,
+    interrupt: &'a std::sync::atomic::AtomicBool,
+    ps: &'a mut Participants,
+    store: &'a mut Store,
+    rows: &'a mut RowStream,
+    /// Per consumer, by [`col`], the producer steps its last step read (−1: none yet).
+    last: [[i64; 3]; 3],
+    /// Steps replayed.
+    taken: u64,
+}
+
+impl Replayer<'_> {
+    /// The outputs at t₀ and the row at the start time.
+    fn start(&mut self) -> Result<(), String> {
+        init_all(self.ps, self.store).map_err(|e| e.to_string())?;
+        self.rows.start(self.store).map_err(write_rows)
+    }
+
+    fn interrupted(&self) -> bool {
+        self.interrupt.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Replays step `t`, then now and then lets the store forget what no later step or row
+    /// can name.
+    fn take(&mut self, t: &StepTrace) -> Result<(), String> {
+        replay_step(t, self.ps, self.store, self.rows, self.steps)?;
+        for (l, f) in self.last[col(t.role)].iter_mut().zip(t.from) {
+            if let Some(q) = f {
+                *l = q;
+            }
+        }
+        self.taken += 1;
+        if self.taken.is_multiple_of(FORGET_EVERY) {
+            let mut floor = self.rows.floor();
+            for r in Role::ALL {
+                for &p in trace::inputs_of(r) {
+                    floor[col(p)] = floor[col(p)].min(self.last[col(r)][col(p)]);
+                }
+            }
+            self.store.forget_before(floor);
+        }
+        Ok(())
+    }
 }
 
 /// The error of a write to `timeseries.csv` that failed.
@@ -281,34 +451,71 @@ fn finish_files(
 /// of another run, may say otherwise); `order` is the trace's steps sorted by read instant
 /// (and role column at equal instants), as the replay takes them.
 pub fn check_causal(path: &Path, order: &[StepTrace], period: u64) -> Result<(), TraceError> {
-    let n = order.len();
-    let mut done = [vec![false; n], vec![false; n], vec![false; n]];
-    for t in order {
-        for &p in trace::inputs_of(t.role) {
-            let Some(q) = t.from[col(p)].filter(|&q| q >= 0) else {
-                continue;
-            };
-            let i = if p == Role::Controller {
-                q as u64 / period
-            } else {
-                q as u64
-            } as usize;
-            if !done[col(p)].get(i).copied().unwrap_or(false) {
-                return Err(TraceError {
-                    file: path.display().to_string(),
-                    field: format!("{} step {}: from_{}", t.role, t.step, p.name()),
-                    what: format!("{p} step {q} is read before it was computed"),
-                });
-            }
-        }
-        let i = if t.role == Role::Controller {
-            t.step / period
-        } else {
-            t.step
-        } as usize;
-        if let Some(d) = done[col(t.role)].get_mut(i) {
-            *d = true;
+    let mut causal = Causal::new(path, period);
+    order.iter().try_for_each(|t| causal.check(t))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn step(role: Role, step: u64, read_ns: u64) -> StepTrace {
+        StepTrace {
+            role,
+            step,
+            from: [None; 3],
+            due_ns: 0,
+            read_ns,
+            compute_end_ns: read_ns,
+            publish_ns: read_ns,
         }
     }
-    Ok(())
+
+    /// Steps handed on one at a time, each role's in step order but the roles interleaved as
+    /// a trace file holds them (a role's steps written up to `lag` steps after the others'),
+    /// come out in the order of sorting the whole trace by read instant and role, holding
+    /// no more than the lag.
+    #[test]
+    fn steps_in_file_order_come_out_in_read_order_holding_only_the_lag() {
+        let (steps, period, lag) = (5_000u64, 10u64, 40usize);
+        let mut file = Vec::new();
+        let mut late = std::collections::VecDeque::new();
+        let mut actuator = 0;
+        for k in 0..steps {
+            // Reads 0-300 µs into the tick, the same instants now and then (ties by role).
+            let at = |r: u64| k * 1_000_000 + (k * 7919 + r * 104_729) % 3 * 100_000;
+            file.push(step(Role::Plant, k, at(0)));
+            if k.is_multiple_of(period) {
+                late.push_back(step(Role::Controller, k, at(2)));
+            }
+            // The actuator's lines come `lag` steps late in bursts, the controller's later.
+            if k % 25 == 0 || k == steps - 1 {
+                for j in actuator..=k {
+                    file.push(step(Role::Actuator, j, j * 1_000_000 + 50_000));
+                }
+                actuator = k + 1;
+            }
+            if late.len() > lag / 10 || k == steps - 1 {
+                file.extend(late.drain(..));
+            }
+        }
+        let mut want = file.clone();
+        want.sort_by_key(|t| (t.read_ns, col(t.role)));
+        let mut order = ReadOrder::new(steps, period);
+        let (mut got, mut held) = (Vec::new(), 0);
+        for t in &file {
+            order.push(*t);
+            held = held.max(order.waiting.iter().map(|w| w.len()).sum::<usize>());
+            while let Some(x) = order.pop(false) {
+                got.push(x);
+            }
+        }
+        while let Some(x) = order.pop(true) {
+            got.push(x);
+        }
+        assert_eq!(got.len(), want.len());
+        let first = got.iter().zip(&want).position(|(a, b)| a != b);
+        assert_eq!(first, None, "first step out of read order");
+        assert!(held <= 3 * lag, "{held} steps held");
+    }
 }

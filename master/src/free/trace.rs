@@ -262,6 +262,21 @@ pub fn each_step(
     controller_period_ticks: u64,
     mut visit: impl FnMut(&StepTrace),
 ) -> Result<Option<String>, TraceError> {
+    each_step_until(path, dt_s, steps, controller_period_ticks, |t| {
+        visit(t);
+        std::ops::ControlFlow::Continue(())
+    })
+}
+
+/// [`each_step`] whose `visit` may stop the reading (`Break`): the steps after are neither
+/// read nor checked, and the result is then `None`.
+pub fn each_step_until(
+    path: &Path,
+    dt_s: f64,
+    steps: u64,
+    controller_period_ticks: u64,
+    mut visit: impl FnMut(&StepTrace) -> std::ops::ControlFlow<()>,
+) -> Result<Option<String>, TraceError> {
     use std::io::BufRead;
     let file = path.display().to_string();
     let failed = |what: String| trace_error(&file, "file".into(), what);
@@ -302,7 +317,9 @@ pub fn each_step(
                     never_older(&file, (*at, before), (n, &t))?;
                 }
                 *slot = Some((n, t));
-                visit(&t);
+                if visit(&t).is_break() {
+                    return Ok(None);
+                }
             }
         }
     }
@@ -342,14 +359,25 @@ fn check_never_older(file: &str, steps: &[StepTrace]) -> Result<(), TraceError> 
     Ok(())
 }
 
-/// Refuses step `now` (on line `now.0`) of a consumer when it reads a producer step older
-/// than its step `before` did ([`check_never_older`]).
+/// Refuses step `now` (on line `now.0`) of a consumer when it read its inputs before its step
+/// `before` did, or reads a producer step older than `before` did ([`check_never_older`]).
 fn never_older(
     file: &str,
     before: (usize, &StepTrace),
     now: (usize, &StepTrace),
 ) -> Result<(), TraceError> {
     let ((_, before), (line, now)) = (before, now);
+    if now.read_ns < before.read_ns {
+        return Err(trace_error(
+            file,
+            format!("line {line}: read_ns"),
+            format!(
+                "{} step {} read at {} ns, before its step {} read (at {} ns): a participant \
+                 reads its steps' inputs in turn",
+                now.role, now.step, now.read_ns, before.step, before.read_ns
+            ),
+        ));
+    }
     for &p in inputs_of(now.role) {
         if let (Some(a), Some(b)) = (before.from[col(p)], now.from[col(p)]) {
             if b < a {
@@ -506,15 +534,17 @@ impl<'a> Body<'a> {
     /// `ordered`, one out of order.
     fn note(&mut self, n: usize, role: Role, idx: u64, step: u64) -> Result<(), TraceError> {
         if self.ordered {
-            let next = &mut self.next[col(role)];
-            if idx != *next {
-                let expected = *next * self.ticks(role);
-                return Err(self.err(
-                    format!("line {n}: step"),
-                    format!("{role} step {step} where step {expected} was expected: each role's steps in order, once each"),
-                ));
+            let next = self.next[col(role)];
+            if idx != next {
+                let expected = next * self.ticks(role);
+                let what = if idx > next {
+                    format!("{role} step {step} comes where step {expected} was expected: {role} step {expected} is missing or out of order (each role's steps in order, once each)")
+                } else {
+                    format!("{role} step {step} where step {expected} was expected: each role's steps in order, once each")
+                };
+                return Err(self.err(format!("line {n}: step"), what));
             }
-            *next += 1;
+            self.next[col(role)] += 1;
         } else if std::mem::replace(&mut self.seen[col(role)][idx as usize], true) {
             return Err(self.err(
                 format!("line {n}: step"),

@@ -18,7 +18,7 @@ use crate::events::{EventKind, EventLog};
 use crate::roles::RoleMap;
 use crate::table::{Recorder, Row};
 
-/// One finished tick, as the observers see it.
+/// One finished tick, as the engine's instruments see it.
 pub(crate) struct FinishedTick<'a> {
     /// Tick.
     pub k: u64,
@@ -43,7 +43,7 @@ pub(crate) struct FinishedTick<'a> {
 }
 
 /// Something that watches every tick.
-pub(crate) trait Observer {
+pub(crate) trait Instrument {
     /// Before tick `k` starts (pacing waits here).
     fn before_tick(&mut self, _k: u64) {}
     /// After tick `t.k`; may log events. An error stops the run.
@@ -117,7 +117,7 @@ pub(crate) struct TickTiming {
     pub ticks: Timings,
 }
 
-impl Observer for TickTiming {
+impl Instrument for TickTiming {
     fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
         let tick_us = t.started.elapsed().as_secs_f64() * 1e6;
         self.ticks.record(tick_us);
@@ -135,7 +135,7 @@ pub(crate) struct ComputeStats {
     solver_failures: u64,
 }
 
-impl Observer for ComputeStats {
+impl Instrument for ComputeStats {
     fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
         for role in [Role::Plant, Role::Actuator] {
             self.per_role[role].record(t.compute_ns[role] as f64 * 1e-3);
@@ -192,7 +192,7 @@ fn us(a: u64, b: u64) -> f64 {
     b.saturating_sub(a) as f64 * 1e-3
 }
 
-impl Observer for Latency {
+impl Instrument for Latency {
     fn after_tick(&mut self, t: &FinishedTick, _: &mut EventLog) -> std::io::Result<()> {
         for x in t.exchanges {
             let c = &mut self.clocks[x.role];
@@ -355,7 +355,7 @@ fn wait_until(target: Option<Instant>) {
     }
 }
 
-impl Observer for Pacing {
+impl Instrument for Pacing {
     fn before_tick(&mut self, k: u64) {
         if k == 0 {
             self.start = Instant::now();
@@ -400,7 +400,7 @@ pub(crate) struct DriveEvents {
     previous: u32,
 }
 
-impl Observer for DriveEvents {
+impl Instrument for DriveEvents {
     fn after_tick(&mut self, t: &FinishedTick, ev: &mut EventLog) -> std::io::Result<()> {
         let a = &t.held.a;
         let rising = a.limits & !self.previous;
