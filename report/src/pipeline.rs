@@ -38,11 +38,11 @@ pub struct Job<'a> {
     /// What it writes beside its summary (`outputs.rows_in_memory` keeps the rows in memory
     /// and writes no file at all).
     pub outputs: Outputs,
-    /// The caller's observers of a lock-step run, told after the outputs' own (a free run and
-    /// a timing replay take none: [`carry_out`] refuses them).
+    /// The caller's observers of a lock-step run, told after the outputs' own, or of a timing
+    /// replay (a free run takes none: [`carry_out`] refuses them).
     pub observers: Vec<Box<dyn Observer>>,
-    /// The caller's manipulators of a lock-step run, after the scenario's own (refused for
-    /// the other modes, as observers are).
+    /// The caller's manipulators of a lock-step run, after the scenario's own (refused for a
+    /// free run and a timing replay, which repeats the trace).
     pub manipulators: Vec<Box<dyn Manipulator>>,
     /// Replay this free run's timing trace in lock-step instead of running the scenario's
     /// execution (`tiltsim replay-timing`).
@@ -136,14 +136,21 @@ pub fn carry_out(mut job: Job) -> Result<Done, JobError> {
     let s = job.scenario;
     let files = job.writes_files();
     let mut warnings = Vec::new();
-    let extra = !job.observers.is_empty() || !job.manipulators.is_empty();
-    if extra && job.mode() != RunMode::LockStep {
+    // A free run's steps are timed by the participants' own clocks, not told by a master:
+    // nothing can act on them as they go, and what is watched is the trace, replayed.
+    if job.mode() == RunMode::Free && !job.observers.is_empty() {
         return Err(JobError::Invalid(format!(
-            "{}: observers and manipulators act on a lock-step run; this one is {}",
+            "{}: observers watch a lock-step run or a timing replay; this one is a free run (run.execution = \"free\"): replay its timing.csv with them",
+            job.scenario_file
+        )));
+    }
+    if job.mode() != RunMode::LockStep && !job.manipulators.is_empty() {
+        return Err(JobError::Invalid(format!(
+            "{}: manipulators act on a lock-step run; this one is {}",
             job.scenario_file,
             match job.mode() {
                 RunMode::Free => "a free run (run.execution = \"free\")",
-                _ => "a replay of a free run's timing",
+                _ => "a replay of a free run's timing, which repeats what the trace says",
             }
         )));
     }
@@ -256,6 +263,7 @@ fn replay(job: &mut Job) -> Result<Ran, JobError> {
         .replay_trace
         .clone()
         .unwrap_or_else(|| PathBuf::from("(in memory)"));
+    let observers = std::mem::take(&mut job.observers);
     let mut r = match job.replay_steps.take() {
         Some(steps) => tiltsim_master::free::timing_replay::replay_trace(
             s,
@@ -263,11 +271,12 @@ fn replay(job: &mut Job) -> Result<Ran, JobError> {
             &trace,
             &job.opts,
             &job.outputs,
+            observers,
         )?,
-        None => tiltsim_master::free::replay_timing(s, &trace, &job.opts, &job.outputs)?,
+        None => tiltsim_master::free::replay_timing(s, &trace, &job.opts, &job.outputs, observers)?,
     };
     let trace = trace.as_path();
-    let summary = tiltsim_master::free::summary_of_replay(s, &job.scenario_file, trace, &r);
+    let summary = tiltsim_master::free::summary_of_replay(s, &job.scenario_file, trace, &mut r);
     Ok(Ran {
         summary,
         rows: r.rows.take().unwrap_or_default(),

@@ -489,16 +489,7 @@ impl<'a> Run<'a> {
     /// Runs the lock-step to its end (or to the failure or interrupt that ends it early), as
     /// [`run`] describes, with the observers' parts in the summary.
     pub fn simulate(self) -> Result<Ran, RunError> {
-        let names: Vec<&str> = self.observers.iter().map(|o| o.name()).collect();
-        if let Some(dup) = names
-            .iter()
-            .enumerate()
-            .find_map(|(i, n)| names[..i].contains(n).then_some(*n))
-        {
-            return Err(RunError::Observer(format!(
-                "two observers are named `{dup}`; each needs its own name (its key in summary.json)"
-            )));
-        }
+        observe::distinct_names(&self.observers)?;
         simulate(self)
     }
 }

@@ -161,6 +161,21 @@ pub trait Observer: Send {
     }
 }
 
+/// Refuses observers of which two share a name (their key in `summary.json`).
+pub(crate) fn distinct_names(list: &[Box<dyn Observer>]) -> Result<(), super::RunError> {
+    let names: Vec<&str> = list.iter().map(|o| o.name()).collect();
+    match names
+        .iter()
+        .enumerate()
+        .find_map(|(i, n)| names[..i].contains(n).then_some(*n))
+    {
+        Some(dup) => Err(super::RunError::Observer(format!(
+            "two observers are named `{dup}`; each needs its own name (its key in summary.json)"
+        ))),
+        None => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -95,6 +95,8 @@ pub struct Store {
     arrived: [Window<Option<f64>>; 4],
     /// What the links did, per link (merged in tick order by [`Store::events`]).
     events: [EventLog; 4],
+    /// Per link, the tick of the last sample it passed.
+    passed: [Option<u64>; 4],
     dt: f64,
 }
 
@@ -112,6 +114,7 @@ impl Store {
             links: LinkSet::new(links, seed),
             arrived: Default::default(),
             events: std::array::from_fn(|_| EventLog::new(dt)),
+            passed: [None; 4],
             dt,
         }
     }
@@ -160,6 +163,7 @@ impl Store {
     /// tick `k`, with value `v`; returns its delay in ticks, `None` when lost.
     fn pass(&mut self, id: LinkId, index: usize, k: u64, v: f64) -> Option<u64> {
         let i = id as usize;
+        self.passed[i] = Some(k);
         let got = self.links.pass(
             id,
             k,
@@ -371,12 +375,19 @@ impl Store {
     /// later row names only these steps or later ones (each consumer reads its inputs in the
     /// order they were sent, and they were sent in step order).
     pub fn row_and_reads(&self, k: u64) -> Option<(Row, [i64; 3])> {
-        let p = self.p.get(k as usize)?;
+        let r = self.row_parts(k)?;
+        let row = Row::after_tick(k, self.dt, r.plant, r.actuator, r.controller, &r.rx);
+        Some((row, [r.qp_c.min(r.qp_a), r.qa, r.qc]))
+    }
+
+    /// What row `k + 1` is made of ([`Store::row`]); `None` if an output is missing.
+    pub fn row_parts(&self, k: u64) -> Option<RowParts<'_>> {
+        let plant = self.p.get(k as usize)?;
         let qa = self.read_of(Role::Plant, k as i64, Role::Actuator)?;
-        let a = self.actuator(qa)?;
+        let actuator = self.actuator(qa)?;
         let qc = self.read_of(Role::Actuator, qa, Role::Controller)?;
         let qp_a = self.read_of(Role::Actuator, qa, Role::Plant)?;
-        let c = self.controller(qc)?;
+        let controller = self.controller(qc)?;
         let qp_c = self.read_of(Role::Controller, qc, Role::Plant)?;
         self.plant(qp_c)?;
         self.plant(qp_a)?;
@@ -386,7 +397,36 @@ impl Store {
             self.arrived(LinkId::Measurement, qp_c)?,
             self.arrived(LinkId::BarTwist, qp_a)?,
         ];
-        let row = Row::after_tick(k, self.dt, p, a, c, &rx);
-        Some((row, [qp_c.min(qp_a), qa, qc]))
+        Some(RowParts {
+            plant,
+            actuator,
+            controller,
+            qa,
+            qc,
+            qp_c,
+            qp_a,
+            rx,
+        })
     }
+
+    /// The newest tick up to which every link's events are logged: each link has passed a
+    /// sample of that tick or a later one (`None` while one has passed none).
+    pub fn events_complete_through(&self) -> Option<u64> {
+        self.passed.iter().copied().min().flatten()
+    }
+}
+
+/// What a row of `timeseries.csv` after a tick is made of: the plant's output of the tick,
+/// the actuator output that step read (step `qa`), the controller output that actuator step
+/// read (step `qc`), the plant steps the controller and the actuator steps read (`qp_c`,
+/// `qp_a`; −1 for the outputs at t₀) and what each link delivered to them ([`LinkId`] order).
+pub struct RowParts<'a> {
+    pub plant: &'a FromPlant,
+    pub actuator: &'a FromActuator,
+    pub controller: &'a FromController,
+    pub qa: i64,
+    pub qc: i64,
+    pub qp_c: i64,
+    pub qp_a: i64,
+    pub rx: [f64; 4],
 }

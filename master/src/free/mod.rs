@@ -15,6 +15,8 @@
 //! * [`trace`]: `timing.csv`, written and read back with its checks.
 
 pub mod compose;
+mod feed;
+mod observed;
 pub mod recording;
 mod relay;
 pub mod run;
@@ -256,7 +258,7 @@ pub fn summary_of_replay(
     s: &Scenario,
     scenario_file: &str,
     trace_path: &Path,
-    r: &Replayed,
+    r: &mut Replayed,
 ) -> Summary {
     let mut sm = Summary::blank(s, scenario_file, RunMode::ReplayTiming);
     if let Some(e) = &r.error {
@@ -271,6 +273,11 @@ pub fn summary_of_replay(
     sm.trace_partial = r.partial.clone();
     sm.replayed_exchanges = Some(r.exchanges);
     sm.flags.not_real_time = r.not_real_time.clone();
+    for mut o in r.observers.drain(..) {
+        if let Some(part) = o.finish(&sm) {
+            sm.observers.insert(o.name().to_string(), part);
+        }
+    }
     sm
 }
 

@@ -21,12 +21,13 @@ use std::path::{Path, PathBuf};
 use cosim::Role;
 
 use super::compose::{Store, Window};
+use super::feed::EventFeed;
 use super::trace::{age, col, inputs_of, StepTrace};
 use crate::engine::mcap::{
     actuator_out, controller_out, inbox, link_channel, plant_out, timing_channel, EventMessage,
     McapRecorder,
 };
-use crate::events::{Event, EventLog};
+use crate::events::EventLog;
 use crate::links::LinkId;
 use crate::scenario::Scenario;
 
@@ -59,14 +60,8 @@ pub struct FreeRecorder {
     period: u64,
     /// The start instant (CLOCK_MONOTONIC ns) the trace's times count from.
     start_ns: u64,
-    /// The events that do not come from the links (the links' set-up and every scheduled
-    /// fault of the run), in the order of `events.csv`, and how many of them are queued.
-    planned: Vec<Event>,
-    planned_queued: usize,
-    /// Per link, how many of its events are queued.
-    link_queued: [usize; 4],
-    /// Events queued in all (the prefix of the run's `events.csv` they are).
-    queued: usize,
+    /// The run's events, tick by tick.
+    events: EventFeed,
 }
 
 impl FreeRecorder {
@@ -79,10 +74,7 @@ impl FreeRecorder {
             next: 0,
             period: s.controller_period_ticks(),
             start_ns: 0,
-            planned: super::planned_events(s, s.steps()).events,
-            planned_queued: 0,
-            link_queued: [0; 4],
-            queued: 0,
+            events: EventFeed::new(s),
         })
     }
 
@@ -159,9 +151,9 @@ impl FreeRecorder {
         rows: u64,
         events: &EventLog,
     ) -> std::io::Result<FreeRecording> {
-        let rest = events.events.get(self.queued..).unwrap_or(&[]);
+        let rest = events.events.get(self.events.given..).unwrap_or(&[]);
         self.rec.queue_events(rest.iter().map(EventMessage::from));
-        self.queued = events.events.len();
+        self.events.given = events.events.len();
         while self.next < rows {
             self.write_tick(store, self.next)?;
         }
@@ -181,24 +173,10 @@ impl FreeRecorder {
         self.steps[col(role)].get(i as usize)
     }
 
-    /// Queues the events of ticks up to `k` not queued yet, in the order of `events.csv`: the
-    /// planned ones of a tick before the links'.
+    /// Queues the events of ticks up to `k` not queued yet.
     fn queue_events_through(&mut self, store: &Store, k: u64) {
-        let planned = &self.planned[self.planned_queued..];
-        let n = planned.iter().take_while(|e| e.step <= k).count();
-        let links = store.link_events_through(k, &mut self.link_queued);
-        let (mut a, mut b) = (planned[..n].iter().peekable(), links.iter().peekable());
-        let mut merged = Vec::with_capacity(n + links.len());
-        while let Some(e) = match (a.peek(), b.peek()) {
-            (Some(x), Some(y)) if x.step <= y.step => a.next(),
-            (Some(_), None) => a.next(),
-            _ => b.next(),
-        } {
-            merged.push(EventMessage::from(e));
-        }
-        self.planned_queued += n;
-        self.queued += merged.len();
-        self.rec.queue_events(merged);
+        let new = self.events.through(store, k);
+        self.rec.queue_events(new.iter().map(EventMessage::from));
     }
 
     /// Writes tick `k` (the events queued for it included) and forgets its steps.

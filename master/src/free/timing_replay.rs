@@ -14,15 +14,16 @@ use cosim::msg::{Kind, Message};
 use cosim::{Endpoint, LinkError, Role};
 
 use super::compose::Store;
+use super::observed::ReplayObservers;
 use super::trace::{self, col, StepTrace, TraceError};
 use super::{init_all, FilesGuard, FreeError, RowStream};
 use crate::engine::launch::{self, Participants};
+use crate::engine::observe::Observer;
 use crate::engine::outputs::Outputs;
 use crate::engine::RunOptions;
 use crate::scenario::{Scenario, Transport};
 
 /// What a replay did.
-#[derive(Debug, Clone)]
 pub struct Replayed {
     /// Rows written to `timeseries.csv` after the one at the start time.
     pub steps_completed: u64,
@@ -46,6 +47,21 @@ pub struct Replayed {
     /// by a program, whose instants are not a run's): a replay of a run that did not keep
     /// real time is no more valid than the run.
     pub not_real_time: Option<tiltsim_assessment::validity::NotRealTime>,
+    /// The caller's observers, told every tick and closed, for their part of the summary
+    /// ([`super::summary_of_replay`]).
+    pub observers: Vec<Box<dyn Observer>>,
+}
+
+impl std::fmt::Debug for Replayed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Replayed")
+            .field("steps_completed", &self.steps_completed)
+            .field("exchanges", &self.exchanges)
+            .field("partial", &self.partial)
+            .field("error", &self.error)
+            .field("observers", &self.observers.len())
+            .finish_non_exhaustive()
+    }
 }
 
 /// Steps replayed between two clean-ups of the store.
@@ -74,6 +90,7 @@ pub fn replay_timing(
     trace_path: &Path,
     opts: &RunOptions,
     out: &Outputs,
+    observers: Vec<Box<dyn Observer>>,
 ) -> Result<Replayed, FreeError> {
     let (steps, period, dt_s) = (s.steps(), s.controller_period_ticks(), s.run.dt_s);
     let mut stats = super::timing::Stats::new((dt_s * 1e9).round() as u64, period);
@@ -98,7 +115,7 @@ pub fn replay_timing(
         causal.check(&x)?;
     }
     let verdict = real_time_verdict(stats, dt_s);
-    let mut r = run_replay(s, opts, out, partial, |rep| {
+    let mut r = run_replay(s, opts, out, partial, observers, |rep| {
         let mut order = ReadOrder::new(steps, period);
         let mut failed = None;
         trace::each_step_until(trace_path, dt_s, steps, period, |t| {
@@ -156,6 +173,7 @@ pub fn replay_trace(
     trace_path: &Path,
     opts: &RunOptions,
     out: &Outputs,
+    observers: Vec<Box<dyn Observer>>,
 ) -> Result<Replayed, FreeError> {
     let period = s.controller_period_ticks();
     let mut order = trace.steps;
@@ -164,7 +182,7 @@ pub fn replay_trace(
         order.sort_by_key(|t| (t.read_ns, col(t.role)));
     }
     check_causal(trace_path, &order, period)?;
-    run_replay(s, opts, out, trace.partial, |rep| {
+    run_replay(s, opts, out, trace.partial, observers, |rep| {
         for t in &order {
             if rep.interrupted() {
                 break;
@@ -182,8 +200,10 @@ fn run_replay(
     opts: &RunOptions,
     out: &Outputs,
     partial: Option<String>,
+    observers: Vec<Box<dyn Observer>>,
     drive: impl FnOnce(&mut Replayer<'_>) -> Result<(), String>,
 ) -> Result<Replayed, FreeError> {
+    crate::engine::observe::distinct_names(&observers).map_err(FreeError::Run)?;
     let dir = &opts.out_dir;
     // Participants in other processes log to the directory: it is made for them.
     let files = !(out.rows_in_memory && s.run.transport == Transport::InProcess);
@@ -209,9 +229,20 @@ fn run_replay(
         rows: &mut rows,
         last: [[-1; 3]; 3],
         taken: 0,
+        observers: (!observers.is_empty()).then(|| ReplayObservers::new(s, observers)),
     };
-    let outcome = rep.start().and_then(|()| drive(&mut rep));
+    let mut outcome = rep.start().and_then(|()| drive(&mut rep));
     let exchanges = rep.taken;
+    let observers = match rep.observers.take() {
+        Some(mut o) => {
+            let closed = o.close();
+            if let Some(e) = closed.into_iter().next() {
+                outcome = outcome.and(Err(e));
+            }
+            o.into_list()
+        }
+        None => Vec::new(),
+    };
     let pids = ps.pids();
     let exits = super::shut_down(ps, &prefix, &cpus);
     drop(guard);
@@ -233,6 +264,7 @@ fn run_replay(
         ipc_prefix: prefix,
         participant_logs,
         not_real_time: None,
+        observers,
     })
 }
 
@@ -333,13 +365,19 @@ struct Replayer<'a> {
     last: [[i64; 3]; 3],
     /// Steps replayed.
     taken: u64,
+    /// The caller's observers, told each row as it is composed.
+    observers: Option<ReplayObservers>,
 }
 
 impl Replayer<'_> {
     /// The outputs at t₀ and the row at the start time.
     fn start(&mut self) -> Result<(), String> {
         init_all(self.ps, self.store).map_err(|e| e.to_string())?;
-        self.rows.start(self.store).map_err(write_rows)
+        self.rows.start(self.store).map_err(write_rows)?;
+        match &mut self.observers {
+            Some(o) => o.start(self.store).map_err(|e| format!("an observer: {e}")),
+            None => Ok(()),
+        }
     }
 
     fn interrupted(&self) -> bool {
@@ -349,7 +387,14 @@ impl Replayer<'_> {
     /// Replays step `t`, then now and then lets the store forget what no later step or row
     /// can name.
     fn take(&mut self, t: &StepTrace) -> Result<(), String> {
+        let told = self.rows.written();
         replay_step(t, self.ps, self.store, self.rows, self.steps)?;
+        if let Some(o) = &mut self.observers {
+            for k in told..self.rows.written() {
+                o.tick(self.store, k)
+                    .map_err(|e| format!("an observer at tick {k}: {e}"))?;
+            }
+        }
         for (l, f) in self.last[col(t.role)].iter_mut().zip(t.from) {
             if let Some(q) = f {
                 *l = q;
