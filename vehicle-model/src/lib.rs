@@ -8,6 +8,7 @@
 //!   cross-level drawn from the ERRI B176 spectra of [`spectrum`]).
 //! * [`vehicle`]: the 9-state model of paper eqs 9-13 and A.2, read as `model-notes.md` says.
 
+pub mod full_car;
 pub mod params;
 pub mod spectrum;
 pub mod track;
