@@ -44,23 +44,24 @@ pub fn hertz_semi_axes(ax: f64, ay: f64, p: f64, e: f64, nu: f64) -> (f64, f64) 
         let (k, ee) = elliptic_ke(ecc);
         (ee / (1.0 - ecc * ecc) - k) / (k - ee)
     };
-    let (mut lo, mut hi) = (1e-6_f64, 1.0 - 1e-12);
-    let ecc = if ratio <= 1.0 + 1e-12 {
-        lo
-    } else {
-        for _ in 0..200 {
-            let mid = 0.5 * (lo + hi);
-            if curv_ratio(mid) < ratio {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
+    if ratio <= 1.0 + 1e-9 {
+        // Circular contact: (K − E)/e² → π/4, a³ = 3P/(8 A E*) = 3PR/(4E*) with A = 1/(2R).
+        let r = (3.0 * p / (8.0 * small * e_star)).cbrt();
+        return (r, r);
+    }
+    let (mut lo, mut hi) = (1e-9_f64, 1.0 - 1e-12);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if curv_ratio(mid) < ratio {
+            lo = mid;
+        } else {
+            hi = mid;
         }
-        0.5 * (lo + hi)
-    };
+    }
+    let ecc = 0.5 * (lo + hi);
     let (k, ee) = elliptic_ke(ecc);
-    let major = (3.0 * p * (k - ee) / (2.0 * std::f64::consts::PI * small * e_star * ecc * ecc))
-        .powf(1.0 / 3.0);
+    let major =
+        (3.0 * p * (k - ee) / (2.0 * std::f64::consts::PI * small * e_star * ecc * ecc)).cbrt();
     let minor = major * (1.0 - ecc * ecc).sqrt();
     // The major axis lies along the direction of the smaller relative curvature.
     if ax <= ay {
