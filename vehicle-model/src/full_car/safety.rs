@@ -123,7 +123,9 @@ impl RunningSafety {
     /// Assesses what was collected at speed `v` (m/s) and tick `dt` (s), static wheel load
     /// `q0` (N). Dynamic Y/Q and ΣY are the largest 2 m sliding means (EN 14363's (·)_2m);
     /// quasi-static values are medians over the record (its 50 % value), so the caller
-    /// passes the section it means (a steady curve). None when nothing was collected.
+    /// passes the section it means (a steady curve). A wheel whose load reaches zero has an
+    /// infinite Y/Q (and ΔQ/Q0 ≥ 1): the linear model has left its range there. None when
+    /// nothing was collected.
     pub fn assess(&self, lim: &SafetyLimits, v: f64, dt: f64, q0: f64) -> Option<Vec<Assessed>> {
         if self.samples.is_empty() {
             return None;
@@ -132,10 +134,16 @@ impl RunningSafety {
         let yq = |s: &[WheelForces], plus: bool| -> Vec<f64> {
             s.iter()
                 .map(|f| {
-                    if plus {
-                        f.y_climb_plus() / f.q_plus
+                    let (y, q) = if plus {
+                        (f.y_climb_plus(), f.q_plus)
                     } else {
-                        f.y_climb_minus() / f.q_minus
+                        (f.y_climb_minus(), f.q_minus)
+                    };
+                    // A lifted wheel (Q ≤ 0, beyond the linear model's range) has no quotient.
+                    if q > 0.0 {
+                        y / q
+                    } else {
+                        f64::INFINITY
                     }
                 })
                 .collect()
