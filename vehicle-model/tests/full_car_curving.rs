@@ -49,8 +49,9 @@ fn roll_by_hand(p: &FullCarParams, a: f64) -> (f64, f64, f64) {
     (ds, s[0], s[1])
 }
 
-/// Steady curve R = 1000 m, cant 6°, 162 km/h: the model's static solution A x = −B u
-/// against the hand balances: body and bogie roll (1e-3 relative: the two bogies' secondary
+/// Steady curve R = 1000 m, cant 6°, 162 km/h: the model's static solution (A x + B u = 0
+/// with the leading wheelsets on their flanges) against the hand balances, which hold
+/// whichever wheelsets take the lateral load: body and bogie roll (1e-3 relative: the two bogies' secondary
 /// forces differ by the yaw springs' share, about 1e-4), the secondary deflection seen from
 /// the state with the chord's versine a²κ/2, the total lateral force on the rails against
 /// the whole mass times the cant deficiency acceleration (1e-9), and the passengers' lateral

@@ -155,8 +155,10 @@ impl FullCar {
         bisect_stability(|v| self.max_real_part(v), lo, hi, tol)
     }
 
-    /// The static solution on a steady curve: x with A x + B u = 0 for the track `w` at every
-    /// wheelset, drives at `delta` (rad), speed `v`.
+    /// The static solution on a steady curve: x with A x + B u + flange forces = 0 for the
+    /// track `w` at every wheelset, drives at `delta` (rad), speed `v`. The flanges are found
+    /// by an active set: solve, put every wheelset beyond its clearance on its flange (an
+    /// affine force), solve again until the set no longer changes.
     pub fn steady_state(&self, v: f64, delta: [f64; 2], w: WheelsetInput) -> State {
         let ss = self.state_space(v);
         let mut u = SVector::<f64, NU>::zeros();
@@ -167,13 +169,38 @@ impl FullCar {
                 u[input_col(j, k)] = *val;
             }
         }
-        let rhs = -(ss.b * u);
-        let a = DMatrix::from_column_slice(NX, NX, ss.a.as_slice());
-        let sol = a
-            .lu()
-            .solve(&DMatrix::from_column_slice(NX, 1, rhs.as_slice()))
-            .expect("A is regular: every body is held to the track");
-        State::from_column_slice(sol.as_slice())
+        let bu = ss.b * u;
+        let p = &self.p;
+        let mut side = [0.0_f64; NW]; // −1, 0, +1: which flange each wheelset runs on
+        for _ in 0..=2 * NW {
+            let mut a = DMatrix::from_column_slice(NX, NX, ss.a.as_slice());
+            let mut rhs = DMatrix::from_column_slice(NX, 1, (-bu).as_slice());
+            for (j, &s) in side.iter().enumerate() {
+                if s != 0.0 && p.k_flange > 0.0 {
+                    let (r, c) = (ix::rate(ix::y_w(j)), ix::y_w(j));
+                    a[(r, c)] -= p.k_flange / p.m_w;
+                    rhs[r] -= p.k_flange * (w.y_o + s * p.flange_clearance) / p.m_w;
+                }
+            }
+            let sol = a
+                .lu()
+                .solve(&rhs)
+                .expect("A is regular: every body is held to the track");
+            let x = State::from_column_slice(sol.as_slice());
+            let next: [f64; NW] = std::array::from_fn(|j| {
+                let d = x[ix::y_w(j)] - w.y_o;
+                if p.k_flange > 0.0 && d.abs() > p.flange_clearance {
+                    d.signum()
+                } else {
+                    0.0
+                }
+            });
+            if next == side {
+                return x;
+            }
+            side = next;
+        }
+        panic!("the flanges' active set does not settle");
     }
 }
 

@@ -13,9 +13,13 @@ pub struct WheelForces {
     /// ΣY: lateral force of the rails on the wheelset, towards +y (N); the track shift force
     /// is its magnitude.
     pub sum_y: f64,
-    /// Lateral force of the rail on each wheel, towards +y (ΣY shared equally: one creep
-    /// coefficient for both wheels, linearised at Q_0) (N).
-    pub y_wheel: f64,
+    /// Lateral force of the rail on the +y wheel, towards +y (N): half the creep force (one
+    /// creep coefficient for both wheels, linearised at Q_0), and the flange force when the
+    /// wheelset runs against the +y rail.
+    pub y_plus: f64,
+    /// Lateral force of the rail on the −y wheel, towards +y (N): the other half, and the
+    /// flange force when the wheelset runs against the −y rail.
+    pub y_minus: f64,
     /// Vertical load on the +y wheel Q_+ (N).
     pub q_plus: f64,
     /// Vertical load on the −y wheel Q_− (N).
@@ -26,11 +30,11 @@ impl WheelForces {
     /// The flange-climbing lateral force on the +y wheel: the rail pushing it towards −y,
     /// towards the track centre (N).
     pub fn y_climb_plus(&self) -> f64 {
-        -self.y_wheel
+        -self.y_plus
     }
     /// The flange-climbing lateral force on the −y wheel: the rail pushing it towards +y (N).
     pub fn y_climb_minus(&self) -> f64 {
-        self.y_wheel
+        self.y_minus
     }
 }
 
@@ -57,15 +61,28 @@ pub fn force_vector(eq: &Equations, x: &[f64], w: &CarInputs) -> [f64; NY] {
     out
 }
 
-/// Wheel forces of every wheelset, static loads included.
+/// Wheel forces of every wheelset, static loads included, with the flange force where a
+/// wheelset is beyond its clearance (on the flanging wheel, at rail level in the roll balance).
 pub fn wheel_forces(eq: &Equations, x: &[f64], w: &CarInputs) -> [WheelForces; NW] {
-    let q0 = eq.p.static_wheel_load();
+    let p = eq.p;
+    let q0 = p.static_wheel_load();
     let v = force_vector(eq, x, w);
-    std::array::from_fn(|j| WheelForces {
-        sum_y: v[2 * j],
-        y_wheel: 0.5 * v[2 * j],
-        q_plus: q0 + v[2 * j + 1],
-        q_minus: q0 - v[2 * j + 1],
+    std::array::from_fn(|j| {
+        let flange = p.flange_force(x[ix::y_w(j)] - w[j].y_o);
+        let dq = v[2 * j + 1] - 0.5 * p.r0 * flange / p.l0;
+        let creep = 0.5 * v[2 * j];
+        let (fp, fm) = if flange < 0.0 {
+            (flange, 0.0)
+        } else {
+            (0.0, flange)
+        };
+        WheelForces {
+            sum_y: v[2 * j] + flange,
+            y_plus: creep + fp,
+            y_minus: creep + fm,
+            q_plus: q0 + dq,
+            q_minus: q0 - dq,
+        }
     })
 }
 

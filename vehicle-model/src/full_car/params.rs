@@ -44,6 +44,13 @@ pub struct FullCarParams {
     /// Gravitational lateral stiffness per wheelset k_gy (N/m); 0 for conical treads on
     /// knife-edge rails (docs/model.md, "The whole car").
     pub k_gy: f64,
+    /// Flangeway clearance c_f (m): the wheelset's free lateral play on the rails either way
+    /// before a flange touches.
+    pub flange_clearance: f64,
+    /// Flange contact stiffness k_f (N/m): the rail's lateral give under a flanging wheel,
+    /// acting beyond the clearance (0: no flange). Simulation only; the linear state space
+    /// leaves it out (docs/model.md D60).
+    pub k_flange: f64,
     /// Young's modulus of wheel and rail E (Pa).
     pub young: f64,
     /// Poisson's ratio of wheel and rail ν (-).
@@ -132,6 +139,8 @@ impl FullCarParams {
             l0: 0.75,
             conicity: 0.15,
             k_gy: 0.0,
+            flange_clearance: 0.005,
+            k_flange: 40e6,
             young: 2.1e11,
             poisson: 0.3,
             rail_crown_radius: 0.3,
@@ -172,6 +181,18 @@ impl FullCarParams {
     /// Static wheelset load P_0 = 2 Q_0 (N).
     pub fn static_axle_load(&self) -> f64 {
         (self.m_c / 4.0 + self.m_b / 2.0 + self.m_w) * crate::G
+    }
+
+    /// Lateral force of the rails' flanges on a wheelset (N, towards +y) at displacement `d`
+    /// = y_w − y_o (m) from the rails' centre: zero within the clearance, beyond it
+    /// −sign(d)·k_f·(|d| − c_f).
+    pub fn flange_force(&self, d: f64) -> f64 {
+        let over = d.abs() - self.flange_clearance;
+        if over <= 0.0 {
+            0.0
+        } else {
+            -d.signum() * self.k_flange * over
+        }
     }
 
     /// Primary yaw stiffness per wheelset 2 k_px d_px² (N·m/rad).

@@ -159,7 +159,13 @@ impl RunningSafety {
                 .map(|f| (q0 - f.q_plus.min(f.q_minus)) / q0)
                 .fold(f64::NEG_INFINITY, f64::max)
         });
-        let (yqst, j_yqst) = self.worst(|s| median(s.iter().map(|f| f.y_wheel.abs()).collect()));
+        let (yqst, j_yqst) = self.worst(|s| {
+            median(
+                s.iter()
+                    .map(|f| f.y_plus.abs().max(f.y_minus.abs()))
+                    .collect(),
+            )
+        });
         let (qqst, j_qqst) =
             self.worst(|s| median(s.iter().map(|f| f.q_plus.max(f.q_minus)).collect()));
         let p0_kn = 2.0 * q0 / 1000.0;

@@ -6,7 +6,7 @@ use nalgebra::SVector;
 
 use super::inputs::{CarInputs, NW};
 use super::outputs::{passengers, wheel_forces, Passenger, WheelForces};
-use super::{input_col, FullCar, FullCarStateSpace, State, NU};
+use super::{input_col, ix, FullCar, FullCarStateSpace, State, NU};
 
 /// A running car at one speed.
 #[derive(Debug, Clone)]
@@ -61,19 +61,37 @@ impl FullCarSim {
         &self.ss
     }
 
+    /// The flanges' lateral acceleration of each wheelset (the model's one nonlinear element,
+    /// left out of the state space), added to x' = A x + B u.
+    fn flange_acc(&self, x: &State, w: &CarInputs) -> State {
+        let p = &self.car.p;
+        let mut f = State::zeros();
+        if p.k_flange > 0.0 {
+            for (j, wj) in w.iter().enumerate() {
+                let y = x[ix::y_w(j)] - wj.y_o;
+                f[ix::rate(ix::y_w(j))] = p.flange_force(y) / p.m_w;
+            }
+        }
+        f
+    }
+
     /// Advances one step `h` (s) with the drives' bar angles `delta` (rad) held and the track
     /// `track(τ)` at time τ ∈ [0, h] into the step.
     pub fn step(&mut self, h: f64, delta: [f64; 2], track: impl Fn(f64) -> CarInputs) {
-        let u0 = input_vector(delta, &track(0.0));
-        let um = input_vector(delta, &track(0.5 * h));
-        let u1 = input_vector(delta, &track(h));
+        let (w0, wm, w1) = (track(0.0), track(0.5 * h), track(h));
+        let (u0, um, u1) = (
+            input_vector(delta, &w0),
+            input_vector(delta, &wm),
+            input_vector(delta, &w1),
+        );
         let (a, b) = (&self.ss.a, &self.ss.b);
-        let f = |x: &State, u: &SVector<f64, NU>| a * x + b * u;
+        let f =
+            |x: &State, u: &SVector<f64, NU>, w: &CarInputs| a * x + b * u + self.flange_acc(x, w);
         let x = self.x;
-        let k1 = f(&x, &u0);
-        let k2 = f(&(x + k1 * (h / 2.0)), &um);
-        let k3 = f(&(x + k2 * (h / 2.0)), &um);
-        let k4 = f(&(x + k3 * h), &u1);
+        let k1 = f(&x, &u0, &w0);
+        let k2 = f(&(x + k1 * (h / 2.0)), &um, &wm);
+        let k3 = f(&(x + k2 * (h / 2.0)), &um, &wm);
+        let k4 = f(&(x + k3 * h), &u1, &w1);
         self.x = x + (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (h / 6.0);
         self.t += h;
     }
