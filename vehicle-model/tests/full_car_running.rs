@@ -270,3 +270,31 @@ fn running_safety_on_the_steady_curve() {
         }
     }
 }
+
+/// The project's track under the wheelsets: on the paper's clothoid entry transition
+/// (135-243 m, 0 → 1/1000 m⁻¹ and 0 → 6° over 108 m) each wheelset's curvature and cant are
+/// the ramps' values at its own position s + x_j, its curvature rate V·κ_c/L_t and its cant
+/// rate V·θ_c/L_t, all written here from the ramp's closed form.
+#[test]
+fn the_projects_track_reaches_each_wheelset_at_its_own_position() {
+    let p = FullCarParams::default();
+    let tp = vehicle_model::TrackParams::default();
+    let track = vehicle_model::Track::new(&tp, 1);
+    let v = tp.speed();
+    let (start, len) = (tp.straight_before_m, tp.transition_m);
+    let (kc, tc) = (1.0 / tp.radius_m, tp.cant_deg.to_radians());
+    let s = start + 50.0; // body centre; every wheelset within the ramp
+    let w = vehicle_model::full_car::inputs::inputs_from_track(&p, &track, s, v);
+    for (j, wj) in w.iter().enumerate() {
+        let u = (s + p.wheelset_x(j) - start) / len;
+        assert!((0.0..=1.0).contains(&u));
+        assert!(
+            (wj.curvature - kc * u).abs() < 1e-12,
+            "{j}: κ {}",
+            wj.curvature
+        );
+        assert!((wj.cant - tc * u).abs() < 1e-12, "{j}: θ {}", wj.cant);
+        assert!((wj.curvature_rate - v * kc / len).abs() < 1e-9 * v * kc / len);
+        assert!((wj.cant_rate - v * tc / len).abs() < 1e-12);
+    }
+}
