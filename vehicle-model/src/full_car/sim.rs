@@ -4,9 +4,10 @@
 
 use nalgebra::SVector;
 
-use super::inputs::{CarInputs, NW};
+use super::inputs::{inputs_from_track, CarInputs, NW};
 use super::outputs::{passengers, wheel_forces, Passenger, WheelForces};
 use super::{input_col, ix, FullCar, FullCarStateSpace, State, NU};
+use crate::track::Track;
 
 /// A running car at one speed.
 #[derive(Debug, Clone)]
@@ -101,6 +102,42 @@ impl FullCarSim {
     pub fn cant_rate_jump(&mut self, j: usize, d_rate: f64) {
         let col = self.ss.b.column(input_col(j, 4)).into_owned();
         self.x += col * d_rate;
+    }
+
+    /// Advances from time `t0` to `t0 + h` on the project's `track`, the body centre at
+    /// s = s0 + V t, as the half vehicle's plant does: the step is split at every instant a
+    /// ramp corner reaches a wheelset (at s_corner − x_j from the body centre), where that
+    /// wheelset's cant-rate jump is applied, and RK4 covers the pieces between.
+    pub fn advance_on_track(&mut self, track: &Track, s0: f64, t0: f64, h: f64, delta: [f64; 2]) {
+        let v = self.v;
+        let p = self.car.p.clone();
+        let mut events: Vec<(f64, usize, f64)> = Vec::new();
+        for c in track.corners() {
+            for j in 0..NW {
+                let tc = (c.s - p.wheelset_x(j) - s0) / v;
+                if tc > t0 && tc <= t0 + h {
+                    events.push((tc, j, v * c.dslope));
+                }
+            }
+        }
+        events.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut t = t0;
+        for (tc, j, d_rate) in events {
+            if tc > t {
+                let start = t;
+                self.step(tc - t, delta, |tau| {
+                    inputs_from_track(&p, track, s0 + v * (start + tau), v)
+                });
+                t = tc;
+            }
+            self.cant_rate_jump(j, d_rate);
+        }
+        if t0 + h > t {
+            let start = t;
+            self.step(t0 + h - t, delta, |tau| {
+                inputs_from_track(&p, track, s0 + v * (start + tau), v)
+            });
+        }
     }
 
     /// Wheel forces now, with the track `w` under the wheelsets.
