@@ -118,3 +118,30 @@ fn creep_coefficients_of_the_car() {
     assert!(c.f11 > 6e6 && c.f11 < 12e6, "f11 {}", c.f11);
     assert!(c.f22 > 6e6 && c.f22 < 12e6, "f22 {}", c.f22);
 }
+
+/// The default parameters pass their checks; a negative mass, a Poisson's ratio above 0.5
+/// and a wheelbase longer than the bogie spacing are each reported under their field, once.
+#[test]
+fn full_car_parameters_are_checked() {
+    assert!(FullCarParams::default()
+        .validate("vehicle")
+        .errors
+        .is_empty());
+    let bad = FullCarParams {
+        m_w: -1.0,
+        poisson: 0.6,
+        a: 2.0,
+        b: 3.0,
+        ..FullCarParams::default()
+    };
+    let fields: Vec<String> = bad
+        .validate("vehicle")
+        .errors
+        .iter()
+        .map(|e| e.field.clone())
+        .collect();
+    for f in ["vehicle.m_w", "vehicle.poisson", "vehicle.b"] {
+        assert!(fields.iter().any(|x| x == f), "{f} not in {fields:?}");
+    }
+    assert_eq!(fields.len(), 3, "{fields:?}");
+}

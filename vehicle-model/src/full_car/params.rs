@@ -6,20 +6,27 @@
 //! does not have (yaw, wheelsets, contact, bogie spacing) comes from the sources docs/model.md
 //! names next to each field.
 
+use serde::{Deserialize, Serialize};
+use tiltsim_protocol::settings::Checker;
+
 use crate::params::VehicleParams;
 
-/// Parameters of the full-car lateral model: carbody, two bogies, four wheelsets.
-#[derive(Debug, Clone, PartialEq)]
+/// Parameters of the full-car lateral model: carbody, two bogies, four wheelsets. Serde with
+/// the half vehicle's conventions (unknown fields rejected, missing ones at their defaults),
+/// ready for a scenario section.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct FullCarParams {
     /// Carbody mass m_c (kg): twice the half vehicle's m_v.
     pub m_c: f64,
     /// Carbody roll inertia about its c.o.g. I_cx (kg·m²): twice the half vehicle's i_vr.
     pub i_cx: f64,
-    /// Carbody yaw inertia I_cz (kg·m²): uniform box, m_c (L² + W²)/12.
+    /// Carbody yaw inertia I_cz (kg·m²); the default is a uniform box's, m_c (L² + W²)/12,
+    /// from the default dimensions (setting L or W alone leaves it as it is).
     pub i_cz: f64,
-    /// Carbody length L used for I_cz (m).
+    /// Carbody length L behind the default I_cz (m).
     pub body_length: f64,
-    /// Carbody width W used for I_cz (m).
+    /// Carbody width W behind the default I_cz (m).
     pub body_width: f64,
     /// Half the bogie centre distance a (m): bogie 1 at x = +a (leading), bogie 2 at −a.
     pub a: f64,
@@ -170,6 +177,79 @@ impl FullCarParams {
             h_gv: h.h_gv,
             h_gb: h.h_gb,
         }
+    }
+
+    /// Checks every field; errors are reported under `prefix`. Masses, inertias, lengths,
+    /// stiffnesses of the running gear and the contact's constants must be positive (the body
+    /// held by its springs, the wheelsets by their creep); dampers, k_gy and the flange may be
+    /// zero; heights may be negative.
+    pub fn validate(&self, prefix: &str) -> Checker {
+        let mut c = Checker::new(prefix);
+        for (f, v, hi, unit) in [
+            ("m_c", self.m_c, 1e6, "kg"),
+            ("i_cx", self.i_cx, 1e7, "kg·m²"),
+            ("i_cz", self.i_cz, 1e9, "kg·m²"),
+            ("a", self.a, 20.0, "m"),
+            ("m_b", self.m_b, 1e5, "kg"),
+            ("i_bx", self.i_bx, 1e6, "kg·m²"),
+            ("i_bz", self.i_bz, 1e6, "kg·m²"),
+            ("b", self.b, 5.0, "m"),
+            ("m_w", self.m_w, 1e5, "kg"),
+            ("i_wz", self.i_wz, 1e5, "kg·m²"),
+            ("r0", self.r0, 2.0, "m"),
+            ("l0", self.l0, 2.0, "m"),
+            ("conicity", self.conicity, 1.0, "-"),
+            ("young", self.young, 1e13, "Pa"),
+            ("rail_crown_radius", self.rail_crown_radius, 10.0, "m"),
+            ("creep_factor", self.creep_factor, 10.0, "-"),
+            ("k_sy", self.k_sy, 1e9, "N/m"),
+            ("k_px", self.k_px, 1e10, "N/m"),
+            ("d_px", self.d_px, 5.0, "m"),
+            ("k_py", self.k_py, 1e10, "N/m"),
+            ("k_pz", self.k_pz, 1e10, "N/m"),
+            ("c_rz", self.c_rz, 1e8, "N·s/m"),
+            ("d1", self.d1, 5.0, "m"),
+            ("d2", self.d2, 5.0, "m"),
+            ("flange_clearance", self.flange_clearance, 0.1, "m"),
+        ] {
+            c.positive(f, v, hi, unit);
+        }
+        c.range("poisson", self.poisson, 0.0, 0.5, "-");
+        for (f, v, hi, unit) in [
+            ("k_gy", self.k_gy, 1e13, "N/m"),
+            ("k_flange", self.k_flange, 1e10, "N/m"),
+            ("c_sy", self.c_sy, 1e8, "N·s/m"),
+            ("k_sx", self.k_sx, 1e9, "N/m"),
+            ("c_yd", self.c_yd, 1e8, "N·s/m"),
+            ("d_yd", self.d_yd, 5.0, "m"),
+            ("k_az", self.k_az, 1e9, "N/m"),
+            ("k_sz", self.k_sz, 1e9, "N/m"),
+            ("k_rz", self.k_rz, 1e9, "N/m"),
+            ("k_vr", self.k_vr, 1e9, "N·m/rad"),
+            ("c_vr", self.c_vr, 1e8, "N·m·s/rad"),
+            ("c_py", self.c_py, 1e8, "N·s/m"),
+            ("c_pz", self.c_pz, 1e8, "N·s/m"),
+            ("body_length", self.body_length, 50.0, "m"),
+            ("body_width", self.body_width, 5.0, "m"),
+        ] {
+            c.range(f, v, 0.0, hi, unit);
+        }
+        for (f, v) in [
+            ("h1", self.h1),
+            ("h2", self.h2),
+            ("h3", self.h3),
+            ("h_gv", self.h_gv),
+            ("h_gb", self.h_gb),
+        ] {
+            c.range(f, v, -3.0, 5.0, "m");
+        }
+        c.require(
+            self.b < self.a,
+            "b",
+            self.b,
+            "less than a (the wheelsets of one bogie)",
+        );
+        c
     }
 
     /// Static vertical load on one wheel Q_0 (N): a quarter of the body, half a bogie frame
