@@ -7,7 +7,10 @@
 //!   and the seeded, band-limited irregularity (the paper's random cant, or alignment and
 //!   cross-level drawn from the ERRI B176 spectra of [`spectrum`]).
 //! * [`vehicle`]: the 9-state model of paper eqs 9-13 and A.2, read as `model-notes.md` says.
+//! * [`full_car`]: the whole car beside it: body, two bogies and four wheelsets on the rails
+//!   through creep forces, one tilt drive per bogie, wheel forces and running safety.
 
+pub mod full_car;
 pub mod params;
 pub mod spectrum;
 pub mod track;
