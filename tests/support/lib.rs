@@ -36,12 +36,31 @@ pub fn tiltsim() -> PathBuf {
 
 /// A fresh, empty directory for one test.
 pub fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir()
-        .join("tiltsim-tests")
-        .join(format!("{name}-{}", std::process::id()));
+    static SWEPT: std::sync::Once = std::sync::Once::new();
+    let all = std::env::temp_dir().join("tiltsim-tests");
+    SWEPT.call_once(|| remove_dirs_of_ended_runs(&all));
+    let d = all.join(format!("{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).expect("create temp dir");
     d
+}
+
+/// Removes the directories under `all` that test processes no longer running made (each name
+/// ends in `-<pid>`): a test's directory stays after it for a look at what it wrote, until the
+/// next run of the tests, so repeated runs do not fill the disk.
+fn remove_dirs_of_ended_runs(all: &std::path::Path) {
+    let Ok(entries) = std::fs::read_dir(all) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let Some(pid) = name.rsplit('-').next().and_then(|p| p.parse::<u32>().ok()) else {
+            continue;
+        };
+        if !std::path::Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_dir_all(e.path());
+        }
+    }
 }
 
 /// A unique iceoryx2 prefix for one test.
