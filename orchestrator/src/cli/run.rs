@@ -8,7 +8,7 @@ use super::error::{CliError, CliResult};
 use tiltsim_master::engine::outputs::{Outputs, ProgressStyle};
 use tiltsim_master::engine::{RunOptions, Status, Summary};
 use tiltsim_master::scenario::Scenario;
-use tiltsim_report::pipeline::{carry_out, Job};
+use tiltsim_runner::pipeline::{carry_out, Job};
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -323,7 +323,7 @@ pub fn exec(a: RunArgs, verbose: bool) -> CliResult {
 /// Prints a finished run's warnings and report (neither when `quiet`; every timing figure
 /// when `verbose`) and gives its exit.
 pub(super) fn report(
-    done: &tiltsim_report::pipeline::Done,
+    done: &tiltsim_runner::pipeline::Done,
     s: &Scenario,
     out: &std::path::Path,
     quiet: bool,
