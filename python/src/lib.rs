@@ -18,10 +18,10 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use tiltsim_formats::table::{Row, COLUMNS, OFFSETS, TYPES};
 use tiltsim_master::engine::outputs::Outputs;
 use tiltsim_master::engine::{RunError, RunOptions};
-use tiltsim_master::scenario::{Execution, Master, Scenario, Transport};
-use tiltsim_master::table::{Row, COLUMNS, OFFSETS, TYPES};
+use tiltsim_scenario::scenario::{Execution, Master, Scenario, Transport};
 
 mod args;
 mod route;
@@ -483,7 +483,7 @@ fn run<'py>(
                     return Ok(done);
                 }
                 // What the run wrote is what the arrays hold.
-                let rows = tiltsim_master::table::read_rows(&out_dir).map_err(|e| {
+                let rows = tiltsim_formats::table::read_rows(&out_dir).map_err(|e| {
                     tiltsim_runner::pipeline::JobError::Failed(format!(
                         "{}: {e}",
                         out_dir.display()
@@ -520,7 +520,7 @@ fn run<'py>(
 /// The columns of a run's time series: `(name, unit, description)` in order.
 #[pyfunction]
 fn signals() -> Vec<(String, String, String)> {
-    tiltsim_master::columns::timeseries()
+    tiltsim_formats::columns::timeseries()
         .into_iter()
         .map(|c| (c.name, c.unit, c.description))
         .collect()

@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use tiltsim_master::engine::RunOptions;
-use tiltsim_master::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 use tiltsim_studies::sweep::{Exec, Plan, Row, SweepError, Swept};
 
 use crate::args::arg;
@@ -56,7 +56,7 @@ pub(crate) fn sweep<'py>(
         .map_err(|e| invalid(py, format!("{origin}: {e}")))?;
     let exe = participant_exe(py, exe, &s)?;
     let (dir, _scratch) = directory(py, out.as_deref(), "sweep")?;
-    let lock = tiltsim_master::outdir::claim(&dir, tiltsim_master::outdir::Kind::Sweep, "sweep")
+    let lock = tiltsim_rundir::outdir::claim(&dir, tiltsim_rundir::outdir::Kind::Sweep, "sweep")
         .map_err(|e| invalid(py, e.to_string()))?;
     let interrupt = Arc::new(AtomicBool::new(false));
     let done = Arc::new(AtomicUsize::new(0));
@@ -393,7 +393,7 @@ pub(crate) fn falsify<'py>(
         margin,
     };
     let (dir, _scratch) = directory(py, out.as_deref(), "falsify")?;
-    let lock = tiltsim_master::outdir::claim(&dir, tiltsim_master::outdir::Kind::Sweep, "falsify")
+    let lock = tiltsim_rundir::outdir::claim(&dir, tiltsim_rundir::outdir::Kind::Sweep, "falsify")
         .map_err(|e| invalid(py, e.to_string()))?;
     let interrupt = Arc::new(AtomicBool::new(false));
     let done = Arc::new(AtomicUsize::new(0));

@@ -189,7 +189,7 @@ struct Ran {
 enum Recording {
     LockStep(
         tiltsim_master::engine::mcap::McapRecorder,
-        tiltsim_master::events::EventLog,
+        tiltsim_formats::events::EventLog,
     ),
     Free(tiltsim_master::free::recording::FreeRecording),
 }

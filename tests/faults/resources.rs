@@ -260,7 +260,7 @@ fn the_output_estimate_covers_what_a_switched_drive_run_with_record_and_trace_wr
         .trace()
         .quiet()
         .success();
-    let s = tiltsim_master::scenario::Scenario::load(&sc).unwrap();
+    let s = tiltsim_scenario::scenario::Scenario::load(&sc).unwrap();
     let e = tiltsim_studies::budget::estimate(
         &s,
         tiltsim_studies::budget::Extras {

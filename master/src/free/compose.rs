@@ -15,11 +15,12 @@
 use cosim::msg::{FromActuator, FromController, FromPlant, Header, Kind};
 use cosim::msg::{ToActuator, ToController, ToPlant};
 use cosim::Role;
+use tiltsim_formats::events::EventLog;
+use tiltsim_formats::table::Row;
+use tiltsim_scenario::links::{LinkId, Links};
 
 use super::trace::{col, StepTrace};
-use crate::events::EventLog;
-use crate::links::{LinkId, LinkSet, Links};
-use crate::table::Row;
+use crate::links::LinkSet;
 
 /// A sequence indexed from 0 of which only a window is kept: entries are set as they come
 /// (any index at or past the window's start) and forgotten from the front once nothing can

@@ -13,6 +13,8 @@
 use std::path::{Path, PathBuf};
 
 use cosim::Role;
+use tiltsim_formats::events::EventLog;
+use tiltsim_scenario::links::LinkId;
 
 use super::compose::Store;
 use super::trace::{age, col, inputs_of, StepTrace};
@@ -20,8 +22,6 @@ use crate::engine::mcap::{
     actuator_out, controller_out, inbox, link_channel, plant_out, timing_channel, EventMessage,
     McapRecorder,
 };
-use crate::events::EventLog;
-use crate::links::LinkId;
 
 /// A free run's recording, complete but for the summary, which the caller closes it with.
 pub struct FreeRecording {

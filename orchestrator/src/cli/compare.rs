@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use super::common::{interrupt_and_exe, load, TransportArg};
 use super::error::{CliError, CliResult};
 use tiltsim_master::engine::RunOptions;
-use tiltsim_master::scenario::Scenario;
 use tiltsim_runner::compare::{CompareError, Comparison};
+use tiltsim_scenario::scenario::Scenario;
 
 /// Arguments.
 #[derive(clap::Args, Debug)]

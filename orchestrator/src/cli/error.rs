@@ -67,7 +67,7 @@ impl CliError {
             tiltsim_master::engine::RunError::Interrupted { role } => {
                 CliError::Interrupted(format!(
                     "interrupted by {} while participant {role} was starting: nothing recorded",
-                    tiltsim_master::signals::describe()
+                    tiltsim_rundir::signals::describe()
                 ))
             }
             e => CliError::Failed(format!("{context}{e}")),

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use super::common::{interrupt_and_exe, load, TransportArg};
 use super::error::{CliError, CliResult};
 use tiltsim_master::engine::RunOptions;
-use tiltsim_master::scenario::Transport;
 use tiltsim_runner::pipeline::{carry_out, Job};
+use tiltsim_scenario::scenario::Transport;
 
 /// Arguments of `replay-timing`.
 #[derive(clap::Args, Debug)]
