@@ -14,7 +14,7 @@ use std::path::PathBuf;
 use tiltsim_master::engine::observe::{Observer, Start, Tick};
 use tiltsim_master::engine::outputs::Rows;
 use tiltsim_master::engine::{Run, RunOptions, Summary};
-use tiltsim_master::scenario::{Scenario, Transport};
+use tiltsim_scenario::scenario::{Scenario, Transport};
 
 /// The largest |ÿ| seen (eq 13, m/s²) and its time.
 #[derive(Default)]

@@ -14,12 +14,12 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
+use tiltsim_formats::events::{EventKind, EventLog};
 use tiltsim_master::engine::manipulate::{Control, Manipulator};
 use tiltsim_master::engine::outputs::Rows;
 use tiltsim_master::engine::{Run, RunOptions};
-use tiltsim_master::events::{EventKind, EventLog};
-use tiltsim_master::links::LinkId;
-use tiltsim_master::scenario::{Scenario, Transport};
+use tiltsim_scenario::links::LinkId;
+use tiltsim_scenario::scenario::{Scenario, Transport};
 
 /// Rounds every measurement to the nearest multiple of `step` (rad).
 struct Quantiser {

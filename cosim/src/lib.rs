@@ -1,13 +1,12 @@
 //! `cosim`: the transports of tiltsim's co-simulation, beside the protocol they carry.
 //!
 //! The samples, their header and the [`Participant`] trait are in `tiltsim-protocol`
-//! (re-exported here as [`msg`], [`participant`], [`settings`] and [`time`]); this crate moves
-//! them:
+//! (re-exported here as [`msg`], [`participant`], [`settings`], [`time`] and [`wait`]); this
+//! crate moves them:
 //!
 //! * [`endpoint`]: the orchestrator's view of a participant, one interface for both transports:
 //!   [`InProcess`](endpoint::InProcess) and [`ipc::IpcEndpoint`].
 //! * [`ipc`]: iceoryx2 transport (orchestrator side and participant side).
-//! * [`wait`]: the wait strategy used while a port has no sample yet.
 //! * [`realtime`]: `SCHED_FIFO` and locked memory for paced runs.
 //! * [`stats`]: percentiles for timing reports.
 //!
@@ -18,9 +17,8 @@ pub mod endpoint;
 pub mod ipc;
 pub mod realtime;
 pub mod stats;
-pub mod wait;
 
-pub use tiltsim_protocol::{msg, participant, settings, time};
+pub use tiltsim_protocol::{msg, participant, settings, time, wait};
 
 pub use endpoint::{Endpoint, InProcess, LinkError, ProcessFault};
 pub use msg::{Header, Kind, Message};

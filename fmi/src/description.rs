@@ -3,7 +3,7 @@
 
 use std::fmt::Write as _;
 
-use cosim::msg::ScalarType;
+use tiltsim_protocol::msg::ScalarType;
 
 use crate::layout::{fmi3_scalar_type, Layout, ParamValue};
 use crate::units::UNIT_DEFS;

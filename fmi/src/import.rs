@@ -6,9 +6,9 @@ use std::collections::BTreeMap;
 use std::marker::PhantomData;
 use std::path::{Path, PathBuf};
 
-use cosim::msg::{Message, ScalarType, ScalarValue, Scalars};
-use cosim::{Participant, Role};
 use serde::{Deserialize, Serialize};
+use tiltsim_protocol::msg::{Message, ScalarType, ScalarValue, Scalars};
+use tiltsim_protocol::{Participant, Role};
 
 use crate::archive::{read_description, Unpacked};
 use crate::binding::{IntType, Slave, Value};
@@ -255,7 +255,7 @@ fn bind(
     role: Role,
     md: &ModelDescription,
     table: &str,
-    list: &[cosim::msg::ScalarInfo],
+    list: &[tiltsim_protocol::msg::ScalarInfo],
     map: &BTreeMap<String, String>,
     causality: &str,
 ) -> Result<(Vec<Binding>, Vec<String>), PlanError> {

@@ -3,10 +3,12 @@
 //! reference. The exporter writes `modelDescription.xml` from this layout and the FMU's library
 //! rebuilds the same layout from the same settings, so the two always agree.
 
-use cosim::msg::{FromActuator, FromController, FromPlant, ScalarInfo, ScalarType, Scalars};
-use cosim::msg::{ToActuator, ToController, ToPlant};
-use cosim::Role;
 use serde_json::Value;
+use tiltsim_protocol::msg::{
+    FromActuator, FromController, FromPlant, ScalarInfo, ScalarType, Scalars,
+};
+use tiltsim_protocol::msg::{ToActuator, ToController, ToPlant};
+use tiltsim_protocol::Role;
 
 use crate::params_doc::param_description;
 use crate::units::param_unit;

@@ -6,7 +6,7 @@ use cosim::msg::ScalarValue;
 use cosim::Role;
 use tiltsim_fmi::layout::{token, FmuConfig, Stepping};
 use tiltsim_master::engine::Inits;
-use tiltsim_master::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 
 use crate::{instantiate, Instance, State};
 

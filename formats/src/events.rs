@@ -112,7 +112,7 @@ impl EventLog {
     ) {
         self.events.push(Event {
             step: k,
-            time: cosim::time::tick_time(k, self.dt),
+            time: tiltsim_protocol::time::tick_time(k, self.dt),
             source: source.to_string(),
             kind,
             value,

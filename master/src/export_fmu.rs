@@ -8,9 +8,9 @@ use cosim::Role;
 use tiltsim_fmi::description::{write_fmi2, write_fmi3, ExportInfo, FmiVersion};
 use tiltsim_fmi::layout::{period_ticks, token, FmuConfig, Stepping};
 use tiltsim_fmi::Layout;
+use tiltsim_scenario::scenario::Scenario;
 
 use crate::engine::Inits;
-use crate::scenario::Scenario;
 
 /// Why an FMU could not be written.
 #[derive(Debug, thiserror::Error)]

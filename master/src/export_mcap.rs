@@ -13,13 +13,13 @@ use std::path::{Path, PathBuf};
 use cosim::msg::{FromActuator, FromController, FromPlant, ToController};
 use cosim::participant::Participant;
 use cosim::Role;
+use tiltsim_formats::table::Row;
+use tiltsim_scenario::links::LinkId;
+use tiltsim_scenario::scenario::{Master, Scenario};
 
 use crate::engine::mcap::{EventMessage, McapRecorder, TickData};
 use crate::engine::summary::deterministic;
 use crate::engine::Inits;
-use crate::links::LinkId;
-use crate::scenario::{Master, Scenario};
-use crate::table::Row;
 
 /// Why a run could not be exported.
 #[derive(Debug, thiserror::Error)]
@@ -92,7 +92,7 @@ fn trace(dir: &Path) -> Result<WallTimes, ExportError> {
     if !path.exists() {
         return Ok(out);
     }
-    let mut rd = crate::table::whole_lines(&path).map_err(|e| err(&path, e))?;
+    let mut rd = tiltsim_formats::table::whole_lines(&path).map_err(|e| err(&path, e))?;
     for (i, rec) in rd.records().enumerate() {
         let rec = rec.map_err(|e| err(&path, e))?;
         let num = |i: usize| rec.get(i).and_then(|v| v.parse::<u64>().ok());
@@ -116,7 +116,7 @@ fn trace(dir: &Path) -> Result<WallTimes, ExportError> {
 /// The events of `events.csv`; a damaged row is an error naming the file and its line.
 fn events(dir: &Path) -> Result<Vec<EventMessage>, ExportError> {
     let path = dir.join("events.csv");
-    let mut rd = crate::table::whole_lines(&path).map_err(|e| err(&path, e))?;
+    let mut rd = tiltsim_formats::table::whole_lines(&path).map_err(|e| err(&path, e))?;
     let mut out = Vec::new();
     for (i, rec) in rd.records().enumerate() {
         let rec = rec.map_err(|e| err(&path, e))?;
@@ -132,7 +132,7 @@ fn events(dir: &Path) -> Result<Vec<EventMessage>, ExportError> {
         }
         let f = |i: usize| rec.get(i).unwrap_or("").to_string();
         let bad = |what: &str| err(&path, format!("line {line}: {what}"));
-        let kind: crate::events::EventKind = serde_json::from_value(f(3).into())
+        let kind: tiltsim_formats::events::EventKind = serde_json::from_value(f(3).into())
             .map_err(|_| bad(&format!("`{}` is not an event kind tiltsim writes", f(3))))?;
         out.push(EventMessage {
             t: f(0)
@@ -199,7 +199,7 @@ pub fn export(dir: &Path) -> Result<PathBuf, ExportError> {
     let period = s.controller_period_ticks();
     let gauss_seidel = s.run.master == Master::GaussSeidel;
     let mut failed: Option<std::io::Error> = None;
-    let rows = crate::table::each_row(dir, |r| {
+    let rows = tiltsim_formats::table::each_row(dir, |r| {
         // Row 0 holds the outputs at the start time, which no tick wrote; row k + 1 is tick k.
         let Some(k) = r.step.checked_sub(1) else {
             return true;

@@ -16,10 +16,10 @@ use cosim::Role;
 use tiltsim_fmi::description::FmiVersion;
 use tiltsim_fmi::layout::Stepping;
 use tiltsim_fmi::ssd::{Component, Connection, Connector, ConnectorType, System};
+use tiltsim_scenario::links::{LinkEffects, LINK_NAMES};
+use tiltsim_scenario::scenario::Scenario;
 
 use crate::export_fmu::{export, ExportError, FmuOptions};
-use crate::links::{LinkEffects, LINK_NAMES};
-use crate::scenario::Scenario;
 
 /// The file name of the system structure in the output directory.
 pub const SSD_FILE: &str = "SystemStructure.ssd";
@@ -213,7 +213,7 @@ pub fn export_ssp(
     let text =
         tiltsim_fmi::ssd::write_ssd(&system).map_err(|e| ExportError::Layout(e.to_string()))?;
     let ssd = dir.join(SSD_FILE);
-    crate::files::write_atomic(&ssd, text).map_err(|source| ExportError::Io {
+    tiltsim_rundir::files::write_atomic(&ssd, text).map_err(|source| ExportError::Io {
         path: ssd.clone(),
         source,
     })?;
@@ -271,12 +271,14 @@ mod tests {
         assert_eq!(unsupported(&s).unwrap().0, "links.measurement.noise_std");
         // A fault is named as the scenario file writes its action.
         let mut s = base.clone();
-        s.faults.schedule.push(crate::faults::ScheduledFault {
-            participant: Role::Controller,
-            action: crate::faults::FaultAction::Kill,
-            at_s: 8.0,
-            stall_s: 0.0,
-        });
+        s.faults
+            .schedule
+            .push(tiltsim_scenario::faults::ScheduledFault {
+                participant: Role::Controller,
+                action: tiltsim_scenario::faults::FaultAction::Kill,
+                at_s: 8.0,
+                stall_s: 0.0,
+            });
         let (field, value, _) = unsupported(&s).unwrap();
         assert_eq!(
             (field.as_str(), value.as_str()),

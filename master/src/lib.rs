@@ -4,14 +4,14 @@
 //! they exchanged.
 //!
 //! A caller runs a scenario with:
-//! * [`Scenario::load`] (the file, validated: every error names the field and what is
-//!   allowed);
+//! * `tiltsim_scenario::scenario::Scenario::load` (the file, validated: every error names the
+//!   field and what is allowed);
 //! * [`engine::Run`] with [`RunOptions`], its observers (the outputs among them:
 //!   [`engine::outputs`], and the caller's own: [`engine::observe`]) and its manipulators
 //!   ([`engine::manipulate`]); [`engine::run`] is the short form that writes the rows to
 //!   `timeseries.csv`;
 //! * the [`Summary`] it returns (the schema of `summary.json`), and the recorded series read
-//!   back as typed rows: [`table::each_row`], [`table::Rows`].
+//!   back as typed rows: `tiltsim_formats::table::each_row`, `tiltsim_formats::table::Rows`.
 //!
 //! Modules: [`engine`] (launch, lock-step, team, manipulators, algorithms, observers,
 //! summary), [`free`] (free running and its exact replay), [`links`] (link effects on the
@@ -20,15 +20,13 @@
 //! run), [`export_fmu`] (a scenario's participant as an FMU), [`export_ssp`] (a scenario as an
 //! SSP system of FMUs).
 //!
-//! Re-exported from the crates below, so that their paths under `tiltsim_master::` keep
-//! working: from `tiltsim-scenario`, [`scenario`] (the file and its validation), [`faults`]
-//! (process-fault settings) and [`roles`] (a value per role); from `tiltsim-formats`,
-//! [`table`] (`timeseries.csv`), [`columns`] (`columns.csv`), [`events`] (`events.csv`) and
-//! [`float_text`] (floats as every table writes them); from `tiltsim-rundir`, [`outdir`] (one
-//! run per output directory), [`budget`] (a run's outputs against the disk's free space),
-//! [`files`] and [`signals`] (atomic writes, interrupting signals).
-//! The comfort and validity results the summary carries come from `tiltsim-assessment`;
-//! filling them, and drawing figures, is the caller's step (`tiltsim-report`).
+//! The crates below hold what the master reads and writes, each at its own path:
+//! `tiltsim-scenario` (the scenario file and its validation, fault and link settings, a value
+//! per role), `tiltsim-formats` (`timeseries.csv`, `columns.csv`, `events.csv`, floats as every
+//! table writes them) and `tiltsim-rundir` (one run per output directory, the disk budget,
+//! atomic writes, interrupting signals). The comfort and validity results the summary carries
+//! come from `tiltsim-assessment`; filling them, and drawing figures, is the caller's step
+//! (`tiltsim-runner`'s pipeline, with `tiltsim-report`).
 
 pub mod degraded;
 pub mod engine;
@@ -39,12 +37,7 @@ pub mod free;
 pub mod links;
 pub mod participant_replay;
 
-pub use tiltsim_formats::{columns, events, float_text, table};
-pub use tiltsim_rundir::{budget, files, outdir, signals};
-pub use tiltsim_scenario::{faults, roles, scenario};
-
 pub use engine::{run, RunOptions, Summary};
-pub use scenario::{Master, Scenario, Transport};
 
 #[cfg(test)]
 mod tests {

@@ -1,6 +1,6 @@
 //! Link effects at run time: what the transport between two processes does to the samples it
 //! carries, applied to the values in flight. The settings (section `[links.<name>]`) are
-//! `tiltsim_scenario::links`, re-exported here.
+//! [`tiltsim_scenario::links`].
 //!
 //! Every sample between participants passes through the orchestrator (a star), so the
 //! effects are applied there, on the value in flight, and the models never know. Links are
@@ -18,9 +18,9 @@ use std::collections::VecDeque;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Exp, Normal};
 
-pub use tiltsim_scenario::links::*;
+use tiltsim_scenario::links::{Jitter, LinkEffects, LinkId, Links, LINK_NAMES};
 
-use crate::events::{EventKind, EventLog};
+use tiltsim_formats::events::{EventKind, EventLog};
 
 /// The state of one link over a run.
 pub struct Link {
@@ -281,8 +281,9 @@ impl LinkSet {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use tiltsim_scenario::links::{Override, Window};
 
-    fn run(fx: LinkEffects, n: u64) -> (Vec<f64>, Vec<crate::events::Event>) {
+    fn run(fx: LinkEffects, n: u64) -> (Vec<f64>, Vec<tiltsim_formats::events::Event>) {
         let mut l = Link::new(0, &fx, 1);
         let mut ev = EventLog::new(1e-3);
         let out = (0..n)

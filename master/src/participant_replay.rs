@@ -14,11 +14,11 @@ use std::path::{Path, PathBuf};
 use cosim::msg::{Header, Kind, Message, FLAG_HOLD_BAD_INPUT, FLAG_REJECTED};
 use cosim::{Endpoint, InProcess, Role};
 use serde::Serialize;
+use tiltsim_scenario::faults::OnBadData;
+use tiltsim_scenario::scenario::Scenario;
 
 use crate::engine::mcap as rec;
 use crate::engine::Inits;
-use crate::faults::OnBadData;
-use crate::scenario::Scenario;
 
 /// Why a replay could not run.
 #[derive(Debug, thiserror::Error)]
@@ -158,11 +158,11 @@ pub fn replay(
     })?;
     let lines: String = replayed.iter().map(|(_, _, t)| format!("{t}\n")).collect();
     let file = out.join(format!("{}-out.jsonl", role.name()));
-    crate::files::write_atomic(&file, lines)
+    tiltsim_rundir::files::write_atomic(&file, lines)
         .map_err(|source| ReplayError::Io { path: file, source })?;
     let report = compare(role, &replayed, &outbox, lost, fields);
     let file = out.join("replay.json");
-    crate::files::write_atomic(
+    tiltsim_rundir::files::write_atomic(
         &file,
         serde_json::to_string_pretty(&report).unwrap_or_default() + "\n",
     )

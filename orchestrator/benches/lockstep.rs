@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use cosim::wait::WaitStrategy;
 use tiltsim_master::engine::{run, RunOptions};
-use tiltsim_master::{Master, Scenario, Transport};
+use tiltsim_scenario::scenario::{Master, Scenario, Transport};
 
 fn main() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -1,17 +1,17 @@
 //! Recording benchmark: the cost of one `timeseries.csv` row, the orchestrator's largest share
 //! of a tick after the participants' compute. Rows come from a real in-process paper-mpc run
 //! (20 000 of them); each round writes them all to a fresh file through
-//! [`Recorder`](tiltsim_master::table::Recorder) and reads them back with
-//! [`each_row`](tiltsim_master::table::each_row). Run with
+//! [`Recorder`](tiltsim_formats::table::Recorder) and reads them back with
+//! [`each_row`](tiltsim_formats::table::each_row). Run with
 //! `cargo bench -p orchestrator --bench record`; prints ns per row, median and best of the
 //! rounds. Numbers are measured, never asserted.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
+use tiltsim_formats::table::{each_row, read_rows, Recorder};
 use tiltsim_master::engine::{run, RunOptions};
-use tiltsim_master::table::{each_row, read_rows, Recorder};
-use tiltsim_master::{Scenario, Transport};
+use tiltsim_scenario::scenario::{Scenario, Transport};
 
 const ROUNDS: usize = 15;
 

@@ -41,6 +41,16 @@ fn the_pinned_layout_is_the_current_versions() {
         "the protocol version changed: pin its layout in this file"
     );
     // Ports are matched by type name, which carries the version.
+    assert_eq!(
+        <FromPlant as Message>::TYPE_NAME,
+        format!("tiltsim/from_plant/v{PROTOCOL_VERSION}")
+    );
+}
+
+/// The transport matches ports by the type name the zero-copy marker gives: the versioned one.
+#[cfg(feature = "ipc")]
+#[test]
+fn the_transports_type_name_is_the_versioned_one() {
     use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
     // SAFETY: type_name only returns a string.
     let name = unsafe { <FromPlant as ZeroCopySend>::type_name() };

@@ -12,19 +12,26 @@
 //!   names its field, its value and what is allowed.
 //! * [`address`]: where a participant on another host reaches the run, checked before any
 //!   transport sees it.
+//! * [`process`]: a process of one boot told apart from a later one with its pid (the owner of
+//!   a run's shared-memory files, the holder of an output directory's lock).
+//! * [`wait`]: how a waiter spends the time while a port has no sample yet (the strategy a
+//!   scenario names, and the spin, yield and nap every transport shares).
 //! * [`wire`]: the samples as bytes on a network (little-endian fields at their pinned
 //!   offsets, padding zero), for transports that cannot share memory.
 //!
 //! `layout_tests` pins the wire layout (sizes and offsets) against the protocol version.
 //!
-//! Transports live beside this crate (`cosim`: in-process and iceoryx2); model and
-//! assessment crates depend on this crate only.
+//! Transports live beside this crate (`cosim`: in-process and iceoryx2; it enables the `ipc`
+//! feature, which makes every sample an iceoryx2 zero-copy payload); model, assessment,
+//! scenario, run-directory and table crates depend on this crate only and build no iceoryx2.
 
 pub mod address;
 pub mod msg;
 pub mod participant;
+pub mod process;
 pub mod settings;
 pub mod time;
+pub mod wait;
 pub mod wire;
 
 #[cfg(test)]

@@ -10,6 +10,7 @@
 //! over `[t_k, t_{k+1})`; the reply for step `k` carries the participant's outputs at
 //! `t_{k+1}`. The reply to [`Kind::Init`] carries the outputs at `t_0`.
 
+#[cfg(feature = "ipc")]
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 /// Version of the sample layouts below. Bumped whenever a field changes; the layout tests
@@ -152,9 +153,25 @@ pub struct Header {
 
 // SAFETY: `#[repr(C)]` integers and a `#[repr(C)]` struct of integers: plain data with no
 // padding (the layout tests check the offsets), no pointer, no drop.
+#[cfg(feature = "ipc")]
 unsafe impl ZeroCopySend for FreeClock {}
 // SAFETY: as for `FreeClock`.
+#[cfg(feature = "ipc")]
 unsafe impl ZeroCopySend for Header {}
+
+/// What a transport needs of a sample beyond plain data: with the `ipc` feature, iceoryx2's
+/// `ZeroCopySend` (every [`Message`] has it, so a transport can lend samples zero-copy);
+/// without it, nothing.
+#[cfg(feature = "ipc")]
+pub trait Lendable: ZeroCopySend {}
+#[cfg(feature = "ipc")]
+impl<T: ZeroCopySend> Lendable for T {}
+/// What a transport needs of a sample beyond plain data: with the `ipc` feature, iceoryx2's
+/// `ZeroCopySend`; without it (this build), nothing.
+#[cfg(not(feature = "ipc"))]
+pub trait Lendable {}
+#[cfg(not(feature = "ipc"))]
+impl<T> Lendable for T {}
 
 impl Header {
     /// A header for step `step` of kind `kind` at the current protocol version.
@@ -169,9 +186,12 @@ impl Header {
 }
 
 /// A sample type: plain old data with a [`Header`].
-pub trait Message: Copy + Default + core::fmt::Debug + ZeroCopySend + Send + 'static {
+pub trait Message: Copy + Default + core::fmt::Debug + Lendable + Send + 'static {
     /// Name used in error messages and service names.
     const NAME: &'static str;
+    /// The type name ports are matched by; it carries the protocol version, so ports of two
+    /// versions do not connect.
+    const TYPE_NAME: &'static str;
     /// The header.
     fn header(&self) -> &Header;
     /// The header, mutably.
@@ -242,13 +262,15 @@ macro_rules! message {
         // SAFETY: `#[repr(C)]` plain data (a `Header` and `f64`, `u32` and `[f64; N]` fields):
         // no pointer, no reference, no drop; its layout is pinned by the layout tests. The
         // type name carries the protocol version, so ports of two versions do not connect.
+        #[cfg(feature = "ipc")]
         unsafe impl ZeroCopySend for $name {
             unsafe fn type_name() -> &'static str {
-                concat!("tiltsim/", $label, "/v", protocol_version!())
+                <Self as Message>::TYPE_NAME
             }
         }
         impl Message for $name {
             const NAME: &'static str = $label;
+            const TYPE_NAME: &'static str = concat!("tiltsim/", $label, "/v", protocol_version!());
             fn header(&self) -> &Header { &self.header }
             fn header_mut(&mut self) -> &mut Header { &mut self.header }
             const FIELDS: &'static [&'static str] = &[$(stringify!($f)),*];

@@ -18,10 +18,10 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use tiltsim_formats::table::{Row, COLUMNS, OFFSETS, TYPES};
 use tiltsim_master::engine::outputs::Outputs;
 use tiltsim_master::engine::{RunError, RunOptions};
-use tiltsim_master::scenario::{Execution, Master, Scenario, Transport};
-use tiltsim_master::table::{Row, COLUMNS, OFFSETS, TYPES};
+use tiltsim_scenario::scenario::{Execution, Master, Scenario, Transport};
 
 mod args;
 mod route;
@@ -170,7 +170,7 @@ impl Overrides {
             }
         }
         if self.timing_replay {
-            tiltsim_report::pipeline::as_timing_replay(&mut s);
+            tiltsim_runner::pipeline::as_timing_replay(&mut s);
         }
         let errors = s.validate();
         if !errors.is_empty() {
@@ -391,8 +391,8 @@ fn participant_exe(py: Python<'_>, exe: Option<String>, s: &Scenario) -> PyResul
 }
 
 /// The exception of a job that could not be carried out.
-fn job_error(py: Python<'_>, e: tiltsim_report::pipeline::JobError, origin: &str) -> PyErr {
-    use tiltsim_report::pipeline::JobError;
+fn job_error(py: Python<'_>, e: tiltsim_runner::pipeline::JobError, origin: &str) -> PyErr {
+    use tiltsim_runner::pipeline::JobError;
     match e {
         JobError::Run(r) => run_error(py, r, origin),
         JobError::Invalid(m) => invalid(py, m),
@@ -468,7 +468,7 @@ fn run<'py>(
         progress.as_ref(),
         move || {
             let out_dir = opts.out_dir.clone();
-            let mut job = tiltsim_report::pipeline::Job::new(&s, file, opts);
+            let mut job = tiltsim_runner::pipeline::Job::new(&s, file, opts);
             job.replay_trace = replay_trace;
             // Without `out` the run writes into a scratch directory removed afterwards.
             job.claim = keep_files;
@@ -478,18 +478,18 @@ fn run<'py>(
                 ticks_done: Some(ticks_seen),
                 ..Outputs::default()
             };
-            tiltsim_report::pipeline::carry_out(job).and_then(|done| {
+            tiltsim_runner::pipeline::carry_out(job).and_then(|done| {
                 if !keep_files {
                     return Ok(done);
                 }
                 // What the run wrote is what the arrays hold.
-                let rows = tiltsim_master::table::read_rows(&out_dir).map_err(|e| {
-                    tiltsim_report::pipeline::JobError::Failed(format!(
+                let rows = tiltsim_formats::table::read_rows(&out_dir).map_err(|e| {
+                    tiltsim_runner::pipeline::JobError::Failed(format!(
                         "{}: {e}",
                         out_dir.display()
                     ))
                 })?;
-                Ok(tiltsim_report::pipeline::Done { rows, ..done })
+                Ok(tiltsim_runner::pipeline::Done { rows, ..done })
             })
         },
     );
@@ -520,7 +520,7 @@ fn run<'py>(
 /// The columns of a run's time series: `(name, unit, description)` in order.
 #[pyfunction]
 fn signals() -> Vec<(String, String, String)> {
-    tiltsim_master::columns::timeseries()
+    tiltsim_formats::columns::timeseries()
         .into_iter()
         .map(|c| (c.name, c.unit, c.description))
         .collect()

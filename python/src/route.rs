@@ -122,7 +122,7 @@ fn load(
     py: Python<'_>,
     scenarios: &[(String, String, String)],
     transport: Option<String>,
-) -> PyResult<Vec<tiltsim_master::scenario::Scenario>> {
+) -> PyResult<Vec<tiltsim_scenario::scenario::Scenario>> {
     let transport = transport.or(Some("in-process".into()));
     let mut loaded = Vec::new();
     for (kind, value, origin) in scenarios {

@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use tiltsim_master::engine::RunOptions;
-use tiltsim_master::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 use tiltsim_studies::sweep::{Exec, Plan, Row, SweepError, Swept};
 
 use crate::args::arg;
@@ -56,7 +56,7 @@ pub(crate) fn sweep<'py>(
         .map_err(|e| invalid(py, format!("{origin}: {e}")))?;
     let exe = participant_exe(py, exe, &s)?;
     let (dir, _scratch) = directory(py, out.as_deref(), "sweep")?;
-    let lock = tiltsim_master::outdir::claim(&dir, tiltsim_master::outdir::Kind::Sweep, "sweep")
+    let lock = tiltsim_rundir::outdir::claim(&dir, tiltsim_rundir::outdir::Kind::Sweep, "sweep")
         .map_err(|e| invalid(py, e.to_string()))?;
     let interrupt = Arc::new(AtomicBool::new(false));
     let done = Arc::new(AtomicUsize::new(0));
@@ -246,7 +246,7 @@ pub(crate) fn compare<'py>(
         .iter()
         .map(|(f, s, _)| (f.clone(), s.clone()))
         .collect();
-    let notes = tiltsim_report::compare::distinct(&mut pairs, &dir);
+    let notes = tiltsim_runner::compare::distinct(&mut pairs, &dir);
     let exe = loaded[0].2.clone();
     let interrupt = Arc::new(AtomicBool::new(false));
     let done = Arc::new(AtomicU64::new(0));
@@ -260,7 +260,7 @@ pub(crate) fn compare<'py>(
             let interrupt = interrupt.clone();
             let done = done.clone();
             move || {
-                use tiltsim_report::compare::Comparison;
+                use tiltsim_runner::compare::Comparison;
                 let mut cmp = Comparison::start(&dir, &pairs)?;
                 let mut base = RunOptions::new(dir.clone(), exe);
                 base.interrupt = interrupt;
@@ -272,12 +272,12 @@ pub(crate) fn compare<'py>(
                     done.fetch_add(1, Ordering::Relaxed);
                 }
                 let (_, csv) = cmp.finish()?;
-                Ok::<_, tiltsim_report::compare::CompareError>((csv, summaries))
+                Ok::<_, tiltsim_runner::compare::CompareError>((csv, summaries))
             }
         },
     );
     let (csv, summaries) = compared.map_err(|e| {
-        use tiltsim_report::compare::CompareError as E;
+        use tiltsim_runner::compare::CompareError as E;
         match e {
             E::Invalid(m) => invalid(py, m),
             E::Failed(m) => error(py, "ParticipantError", m),
@@ -393,7 +393,7 @@ pub(crate) fn falsify<'py>(
         margin,
     };
     let (dir, _scratch) = directory(py, out.as_deref(), "falsify")?;
-    let lock = tiltsim_master::outdir::claim(&dir, tiltsim_master::outdir::Kind::Sweep, "falsify")
+    let lock = tiltsim_rundir::outdir::claim(&dir, tiltsim_rundir::outdir::Kind::Sweep, "falsify")
         .map_err(|e| invalid(py, e.to_string()))?;
     let interrupt = Arc::new(AtomicBool::new(false));
     let done = Arc::new(AtomicUsize::new(0));

@@ -1,5 +1,5 @@
 //! Analysis of a run, composed by the run pipeline after the engine has run
-//! ([`crate::pipeline`]), or on a finished run's directory: the quick look, ride comfort, validity flags and figures, all read back from
+//! (`tiltsim_runner::pipeline`), or on a finished run's directory: the quick look, ride comfort, validity flags and figures, all read back from
 //! `timeseries.csv` as typed rows (or from the rows a sweep's sample kept in memory).
 
 use std::path::{Path, PathBuf};

@@ -32,8 +32,8 @@ use std::os::unix::fs::MetadataExt as _;
 use std::os::unix::io::AsRawFd as _;
 use std::path::{Path, PathBuf};
 
-use cosim::ipc::Owner;
 use serde::{Deserialize, Serialize};
+use tiltsim_protocol::process::Owner;
 
 /// The lock file's name inside an output directory.
 pub const LOCK_FILE: &str = ".tiltsim.lock";
@@ -458,13 +458,13 @@ pub fn clear_run(dir: &Path) -> Result<usize, OutDirError> {
     let mut n = remove_named(dir, &names(&RUN_FILES))?;
     n += clear_plots(dir, &RUN_PLOTS)?;
     let logs = dir.join(RUN_LOGS);
-    let files: Vec<String> = cosim::Role::ALL
+    let files: Vec<String> = tiltsim_protocol::Role::ALL
         .iter()
         .map(|r| format!("{}.log", r.name()))
         .collect();
     n += remove_named(&logs, &files)?;
     remove_if_empty(&logs);
-    for role in cosim::Role::ALL {
+    for role in tiltsim_protocol::Role::ALL {
         let sub = dir.join(format!("replay-{}", role.name()));
         let files: Vec<String> = REPLAY_FILES
             .iter()

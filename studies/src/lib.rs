@@ -4,11 +4,12 @@
 //!   samples run in parallel ([`sweep::run`]), shards and their merge ([`sweep::merge`]), and
 //!   what the comfort metrics do across them ([`sweep::write_outputs`]);
 //! * [`bench`]: the machine's numbers for the co-simulation, measured in one run
-//!   ([`bench::run`], [`bench::table`]);
-//! * [`budget`]: what a run will write, estimated before it starts ([`budget::check`]).
+//!   ([`bench::run`], [`bench::table`]).
+//!
+//! What a run will write against the disk's free space (the disk budget) is
+//! `tiltsim_rundir::budget`.
 
 pub mod bench;
-pub use tiltsim_rundir::budget;
 pub mod falsify;
 pub mod parallel;
 pub mod route;

@@ -258,7 +258,7 @@ fn numeric_range(cell: &str) -> Option<(f64, bool, f64)> {
 
 #[test]
 fn docs_scenarios_gives_every_key_its_default_and_ranges_the_checks_hold_to() {
-    use tiltsim_master::scenario::Scenario;
+    use tiltsim_scenario::scenario::Scenario;
     let doc = std::fs::read_to_string(tiltsim_suite::root().join("docs/scenarios.md")).unwrap();
     let rows = key_rows(&doc);
     let defaults = toml::Value::try_from(Scenario::default()).unwrap();
@@ -310,7 +310,7 @@ fn docs_scenarios_gives_every_key_its_default_and_ranges_the_checks_hold_to() {
             // Probed on a free run, where every key's own range applies (a lock-step run
             // also wants `run.controller_busy_wait_s` = 0).
             let mut base = Scenario::default();
-            base.run.execution = tiltsim_master::scenario::Execution::Free;
+            base.run.execution = tiltsim_scenario::scenario::Execution::Free;
             let names_key = |v: f64| {
                 let text = if whole {
                     format!("{}", v as i64)

@@ -316,7 +316,7 @@ fn an_earlier_runs_recording_trace_and_replays_are_not_left_beside_a_new_run() {
     for f in &all {
         std::fs::copy(d.join(f), copy.join(f)).unwrap();
     }
-    tiltsim_master::outdir::clear_run(&copy).unwrap();
+    tiltsim_rundir::outdir::clear_run(&copy).unwrap();
     assert_eq!(files_under(&copy), ["notes.txt", "plots/mine.svg"]);
 
     // Another scenario without --record or --trace: nothing of the first run is left, so

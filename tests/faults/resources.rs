@@ -132,7 +132,7 @@ fn a_full_disk_is_named_the_summary_counts_what_is_on_disk_and_nothing_leaks() {
         panic!("the run did not start writing within 30 s");
     }
     // Another writer fills the disk, leaving 64 kB.
-    let free = tiltsim_studies::budget::free_bytes(&mnt).unwrap();
+    let free = tiltsim_rundir::budget::free_bytes(&mnt).unwrap();
     let filler = vec![0u8; (free - (64 << 10)) as usize];
     let _ = std::fs::write(mnt.join("filler"), &filler);
     let (code, _, err) = tiltsim_suite::wait_with_limit(child, Duration::from_secs(120));
@@ -214,7 +214,7 @@ fn a_run_whose_outputs_cannot_fit_is_refused_with_its_estimate() {
         out.contains("147.6 GB") && out.contains("360000000 rows"),
         "{out}"
     );
-    let free = tiltsim_studies::budget::free_bytes(Path::new("out")).unwrap();
+    let free = tiltsim_rundir::budget::free_bytes(Path::new("out")).unwrap();
     if free < 147_600_000_000 {
         assert_eq!(code, 2, "{err}");
         assert!(
@@ -260,10 +260,10 @@ fn the_output_estimate_covers_what_a_switched_drive_run_with_record_and_trace_wr
         .trace()
         .quiet()
         .success();
-    let s = tiltsim_master::scenario::Scenario::load(&sc).unwrap();
-    let e = tiltsim_studies::budget::estimate(
+    let s = tiltsim_scenario::scenario::Scenario::load(&sc).unwrap();
+    let e = tiltsim_rundir::budget::estimate(
         &s,
-        tiltsim_studies::budget::Extras {
+        tiltsim_rundir::budget::Extras {
             trace: true,
             record: true,
         },

@@ -146,9 +146,9 @@ fn assert_png_chart(path: &std::path::Path) {
 /// remainder on each side).
 #[test]
 fn comfort_roll_speed_is_continuous_across_every_ramp_corner() {
-    use tiltsim_master::table::Rows;
+    use tiltsim_formats::table::Rows;
     let dir = run_in_process("corner-roll", &scenario("paper-lqg.toml"));
-    let s = tiltsim_master::Scenario::load(&dir.join("scenario.toml")).unwrap();
+    let s = tiltsim_scenario::scenario::Scenario::load(&dir.join("scenario.toml")).unwrap();
     let dt = s.run.dt_s;
     let mut t = Vec::new();
     let mut phi = Vec::new();

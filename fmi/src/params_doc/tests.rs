@@ -43,7 +43,7 @@ fn parameters_are_written_with_their_description_and_unit_in_both_versions() {
         },
         "seed": 7,
     });
-    let layout = Layout::new(cosim::Role::Controller, &settings).unwrap();
+    let layout = Layout::new(tiltsim_protocol::Role::Controller, &settings).unwrap();
     let info = ExportInfo {
         model_name: "m".into(),
         model_identifier: "tiltsim_controller".into(),

@@ -9,7 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use cosim::msg::{FromActuator, FromController, FromPlant};
+use tiltsim_protocol::msg::{FromActuator, FromController, FromPlant};
 use tiltsim_scenario::links::LinkId;
 
 mod cells;
@@ -154,7 +154,7 @@ row!(
     }
 );
 
-pub use cosim::time::tick_time;
+pub use tiltsim_protocol::time::tick_time;
 
 impl Row {
     /// The row after tick `k` (step `k + 1`) from the held outputs and what each link

@@ -8,11 +8,11 @@
 
 use cosim::msg::{Header, ToActuator, ToController, ToPlant};
 use cosim::{Kind, LinkError};
+use tiltsim_scenario::links::LinkId;
+use tiltsim_scenario::roles::RoleMap;
+use tiltsim_scenario::scenario::Master;
 
 use super::team::{actuator, controller, plant, Team};
-use crate::links::LinkId;
-use crate::roles::RoleMap;
-use crate::scenario::Master;
 
 /// What a tick's exchanges leave besides the held outputs.
 #[derive(Debug, Clone, Copy, Default)]

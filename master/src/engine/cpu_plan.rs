@@ -16,10 +16,10 @@ use serde::Serialize;
 
 use cosim::ipc::placement::Placement;
 use cosim::Role;
+use tiltsim_scenario::roles::RoleMap;
+use tiltsim_scenario::scenario::{CpuPlanMode, Master, Scenario, Transport};
 
 use super::launch::Participants;
-use crate::roles::RoleMap;
-use crate::scenario::{CpuPlanMode, Master, Scenario, Transport};
 
 /// What the planner decided, for `summary.json` → `timing.cpu_plan`.
 #[derive(Debug, Clone, Serialize)]

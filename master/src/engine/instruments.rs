@@ -10,13 +10,13 @@ use std::time::{Duration, Instant};
 use actuator_proc::bldc::limit;
 use cosim::stats::{Percentiles, Timings};
 use cosim::Role;
+use tiltsim_formats::events::{EventKind, EventLog};
+use tiltsim_formats::table::{Recorder, Row};
+use tiltsim_scenario::roles::RoleMap;
 
 use super::launch::Held;
 use super::observe::Exchange;
 use super::summary::{LinkLatency, PacingReport, SolverReport};
-use crate::events::{EventKind, EventLog};
-use crate::roles::RoleMap;
-use crate::table::{Recorder, Row};
 
 /// One finished tick, as the engine's instruments see it.
 pub(crate) struct FinishedTick<'a> {
@@ -338,7 +338,7 @@ const SIGNAL_POLL: Duration = Duration::from_millis(50);
 /// then stops before the next tick.
 fn wait_until(target: Option<Instant>) {
     loop {
-        if crate::signals::received() {
+        if tiltsim_rundir::signals::received() {
             return;
         }
         let now = Instant::now();

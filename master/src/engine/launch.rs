@@ -16,10 +16,10 @@ use plant_proc::{Plant, PlantSettings};
 use serde::Serialize;
 use tiltsim_fmi::{ActuatorIo, ControllerIo, PlantIo};
 use tiltsim_net::{NetHub, NetSettings};
+use tiltsim_scenario::roles::RoleMap;
+use tiltsim_scenario::scenario::{Scenario, Transport};
 
 use super::{RunError, RunOptions};
-use crate::roles::RoleMap;
-use crate::scenario::{Scenario, Transport};
 
 /// The held (latest) outputs of every participant.
 #[derive(Debug, Clone, Copy, Default)]
@@ -363,7 +363,7 @@ fn start_processes(
         participant_cpu: placement.shared_participant_cpu(),
     })?
     .interrupted_by(opts.interrupt.clone())
-    .logs_into(opts.out_dir.join(crate::outdir::RUN_LOGS));
+    .logs_into(opts.out_dir.join(tiltsim_rundir::outdir::RUN_LOGS));
     if let Some(own) = placement.orchestrator_cpu {
         cosim::ipc::pin_to_cpu(own);
     }
@@ -437,7 +437,7 @@ fn start_processes(
 /// removed afterwards (a sweep's sample, a run from Python without a directory) loses its logs
 /// with it.
 pub fn finish_logs(out_dir: &Path) -> Vec<String> {
-    let logs = out_dir.join(crate::outdir::RUN_LOGS);
+    let logs = out_dir.join(tiltsim_rundir::outdir::RUN_LOGS);
     let mut kept = Vec::new();
     for role in Role::ALL {
         let path = IpcHub::log_file(&logs, role);
@@ -453,7 +453,7 @@ pub fn finish_logs(out_dir: &Path) -> Vec<String> {
             Err(_) => {}
         }
     }
-    crate::outdir::remove_if_empty(&logs);
+    tiltsim_rundir::outdir::remove_if_empty(&logs);
     kept
 }
 

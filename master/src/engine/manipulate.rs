@@ -18,11 +18,11 @@
 use cosim::endpoint::ExitReport;
 use cosim::msg::{FromActuator, FromController, FromPlant, ToActuator, ToController};
 use cosim::{Endpoint, InProcess, LinkError, Participant, ProcessFault, Role};
+use tiltsim_formats::events::EventLog;
+use tiltsim_scenario::links::LinkId;
+use tiltsim_scenario::roles::RoleMap;
 
 use super::launch::{Held, Participants};
-use crate::events::EventLog;
-use crate::links::LinkId;
-use crate::roles::RoleMap;
 
 /// Something that acts on a run (see the module's lifecycle). Every method has a default that
 /// does nothing, so a manipulator implements only what it acts on.
@@ -119,8 +119,8 @@ mod tests {
     use super::*;
     use crate::engine::outputs::Rows;
     use crate::engine::{Run, RunOptions, Status};
-    use crate::events::EventKind;
-    use crate::scenario::{Scenario, Transport};
+    use tiltsim_formats::events::EventKind;
+    use tiltsim_scenario::scenario::{Scenario, Transport};
 
     /// Adds `offset` to every value on the bar-twist link and notes what it was handed.
     struct Offset {
@@ -148,7 +148,10 @@ mod tests {
         }
     }
 
-    fn run_with(bias: f64, offsets: &[f64]) -> (Vec<crate::table::Row>, Vec<Vec<(u64, f64)>>) {
+    fn run_with(
+        bias: f64,
+        offsets: &[f64],
+    ) -> (Vec<tiltsim_formats::table::Row>, Vec<Vec<(u64, f64)>>) {
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
         let mut s = Scenario::load(&root.join("scenarios/paper-passive.toml")).unwrap();
         s.run.transport = Transport::InProcess;

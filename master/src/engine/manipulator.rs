@@ -6,13 +6,14 @@ use std::time::Duration;
 
 use cosim::msg::FLAG_CRASH;
 use cosim::{LinkError, ProcessFault, Role};
+use tiltsim_formats::events::{EventKind, EventLog};
+use tiltsim_scenario::faults::{Fallback, FaultAction, Faults, OnFailure, ScheduledFault};
+use tiltsim_scenario::links::LinkId;
+use tiltsim_scenario::scenario::Scenario;
 
 use super::manipulate::{Control, Manipulator};
 use crate::degraded::{FallbackController, NeutralBar};
-use crate::events::{EventKind, EventLog};
-use crate::faults::{Fallback, FaultAction, Faults, OnFailure, ScheduledFault};
-use crate::links::{LinkId, LinkSet};
-use crate::scenario::Scenario;
+use crate::links::LinkSet;
 
 /// The scenario's scheduled faults, each at its tick.
 pub(crate) struct FaultSchedule {

@@ -30,8 +30,8 @@ use std::path::{Path, PathBuf};
 use cosim::msg::{FromActuator, FromController, FromPlant, ToActuator, ToController, ToPlant};
 use cosim::Role;
 
-use crate::events::EventLog;
-use crate::links::LinkId;
+use tiltsim_formats::events::EventLog;
+use tiltsim_scenario::links::LinkId;
 
 /// One channel: its id and its fields (the schema's properties, in message order).
 struct Channel {
@@ -209,7 +209,7 @@ pub fn message(step: u64, fields: &[&str], values: &[f64]) -> String {
         s.push_str(",\"");
         s.push_str(f);
         s.push_str("\":");
-        crate::table::put_f64(*v, &mut s);
+        tiltsim_formats::table::put_f64(*v, &mut s);
     }
     s.push('}');
     s
@@ -307,7 +307,7 @@ impl McapRecorder {
     }
 
     /// Queues the events of `log` not taken yet.
-    pub(crate) fn take_events(&mut self, log: &[crate::events::Event]) {
+    pub(crate) fn take_events(&mut self, log: &[tiltsim_formats::events::Event]) {
         let new = log.get(self.taken..).unwrap_or(&[]);
         self.taken += new.len();
         self.queued.extend(new.iter().map(EventMessage::from));
@@ -449,8 +449,8 @@ pub(crate) struct EventMessage {
 /// The `foxglove.LogLevel` of an event kind: the per-sample link effects are debug detail,
 /// the set-up and the windows information, faults and what the run did about them warnings,
 /// a participant lost or a drive's protection tripping an error, a run that stopped fatal.
-pub(crate) fn level(kind: crate::events::EventKind) -> u8 {
-    use crate::events::EventKind as K;
+pub(crate) fn level(kind: tiltsim_formats::events::EventKind) -> u8 {
+    use tiltsim_formats::events::EventKind as K;
     match kind {
         K::Drop | K::Jitter => 1,
         K::Delay | K::JitterOn | K::DropOn | K::Bias | K::Noise | K::ChopperOn => 2,
@@ -462,8 +462,8 @@ pub(crate) fn level(kind: crate::events::EventKind) -> u8 {
     }
 }
 
-impl From<&crate::events::Event> for EventMessage {
-    fn from(e: &crate::events::Event) -> Self {
+impl From<&tiltsim_formats::events::Event> for EventMessage {
+    fn from(e: &tiltsim_formats::events::Event) -> Self {
         EventMessage {
             step: e.step,
             t: e.time,
@@ -484,7 +484,7 @@ impl EventMessage {
     /// without a value (NaN) has no `value` field.
     fn json(&self, dt_ns: u64) -> String {
         let (value, words) = if self.value.is_finite() {
-            let v = crate::table::fmt_f64(self.value);
+            let v = tiltsim_formats::table::fmt_f64(self.value);
             (format!(",\"value\":{v}"), format!(" ({v})"))
         } else {
             (String::new(), String::new())
@@ -505,7 +505,7 @@ impl EventMessage {
             serde_json::Value::from(message),
             serde_json::Value::from(self.source.as_str()),
             self.step,
-            crate::table::fmt_f64(self.t),
+            tiltsim_formats::table::fmt_f64(self.t),
             serde_json::Value::from(self.source.as_str()),
             serde_json::Value::from(self.kind.as_str()),
             serde_json::Value::from(self.detail.as_str()),

@@ -39,6 +39,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use cosim::{LinkError, Role};
+use tiltsim_formats::events::EventLog;
+use tiltsim_scenario::roles::RoleMap;
+use tiltsim_scenario::scenario::{Scenario, Transport};
 
 pub use launch::{finish_logs, Inits};
 pub use options::{RunError, RunOptions, Status};
@@ -47,9 +50,6 @@ pub use summary::{
     Summary, Timing,
 };
 
-use crate::events::EventLog;
-use crate::roles::RoleMap;
-use crate::scenario::{Scenario, Transport};
 pub use instruments::LatencyHistogram;
 use instruments::{
     ComputeStats, DriveEvents, FinishedTick, Instrument, Latency, Pacing, TickTiming,
@@ -311,7 +311,7 @@ pub(crate) fn prepare(s: &Scenario, opts: &RunOptions) -> Result<(), RunError> {
     let dir = &opts.out_dir;
     std::fs::create_dir_all(dir).map_err(RunError::io(dir.clone()))?;
     let resolved = dir.join("scenario.toml");
-    crate::files::write_atomic(&resolved, toml::to_string(s).unwrap_or_default())
+    tiltsim_rundir::files::write_atomic(&resolved, toml::to_string(s).unwrap_or_default())
         .map_err(RunError::io(resolved))
 }
 
@@ -442,7 +442,7 @@ pub struct Ran {
 ///
 /// ```no_run
 /// # use tiltsim_master::engine::{observe, outputs, Run, RunOptions};
-/// # fn f(s: &tiltsim_master::scenario::Scenario, mine: Box<dyn observe::Observer>) {
+/// # fn f(s: &tiltsim_scenario::scenario::Scenario, mine: Box<dyn observe::Observer>) {
 /// let opts = RunOptions::new("out/mine".into(), "tiltsim".into());
 /// std::fs::create_dir_all(&opts.out_dir).unwrap();
 /// let csv = outputs::Rows::to_file(&opts.out_dir.join("timeseries.csv"), s.run.dt_s).unwrap();
@@ -562,7 +562,7 @@ fn simulate(run: Run<'_>) -> Result<Ran, RunError> {
     if let Err(e) = events.write(&opts.out_dir.join("events.csv")) {
         write_errors.push(e);
     }
-    if let Err(e) = crate::columns::write_run(&opts.out_dir) {
+    if let Err(e) = tiltsim_formats::columns::write_run(&opts.out_dir) {
         write_errors.push(e);
     }
     let latency_histogram = opts.timing.then(|| obs.latency.request_histogram());
@@ -620,7 +620,10 @@ fn status(e: &Ended, opts: &RunOptions) -> (Status, Option<String>) {
     match &e.outcome {
         Ok(_) if opts.interrupt.load(Ordering::Relaxed) => (
             Status::Interrupted,
-            Some(format!("interrupted by {}", crate::signals::describe())),
+            Some(format!(
+                "interrupted by {}",
+                tiltsim_rundir::signals::describe()
+            )),
         ),
         Ok(_) if e.degraded => (
             Status::Degraded,
@@ -634,7 +637,7 @@ fn status(e: &Ended, opts: &RunOptions) -> (Status, Option<String>) {
             Status::Interrupted,
             Some(format!(
                 "interrupted by {} ({err})",
-                crate::signals::describe()
+                tiltsim_rundir::signals::describe()
             )),
         ),
         Err(err) => (Status::Failed, Some(err.to_string())),

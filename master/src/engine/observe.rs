@@ -24,9 +24,9 @@
 
 use cosim::msg::{FromActuator, FromController, FromPlant, Header, ToController};
 use cosim::Role;
+use tiltsim_formats::events::Event;
 
 use super::Summary;
-use crate::events::Event;
 
 /// One request to a participant and its reply, stamped on the monotonic clock
 /// ([`cosim::msg::now_ns`], ns; all zero when the run measures no wall-clock times).
@@ -60,7 +60,7 @@ pub struct LinkValues {
 impl LinkValues {
     /// In the engine's `LinkId` order.
     pub(crate) fn ordered(&self) -> [f64; 4] {
-        use crate::links::LinkId;
+        use tiltsim_scenario::links::LinkId;
         let mut v = [0.0; 4];
         v[LinkId::ActuatorCommand as usize] = self.actuator_command;
         v[LinkId::BarAngle as usize] = self.bar_angle;
@@ -71,7 +71,7 @@ impl LinkValues {
 
     /// From the engine's `LinkId`-ordered array.
     pub(crate) fn from_ordered(v: &[f64; 4]) -> Self {
-        use crate::links::LinkId;
+        use tiltsim_scenario::links::LinkId;
         LinkValues {
             actuator_command: v[LinkId::ActuatorCommand as usize],
             bar_angle: v[LinkId::BarAngle as usize],
@@ -181,7 +181,7 @@ mod tests {
     use super::*;
     use crate::engine::outputs::Rows;
     use crate::engine::{Run, RunError, RunOptions, Status};
-    use crate::scenario::{Scenario, Transport};
+    use tiltsim_scenario::scenario::{Scenario, Transport};
 
     /// Counts what it is told; fails at tick `fail_at` if set.
     struct Counter {

@@ -16,12 +16,12 @@ use std::time::Instant;
 
 use cosim::msg::ToController;
 use cosim::Role;
+use tiltsim_formats::table::{Recorder, Row};
+use tiltsim_scenario::scenario::Scenario;
 
 use super::instruments::{RowRecorder, RowSink};
 use super::mcap::{McapRecorder, TickData};
 use super::observe::{Observer, Start, Tick};
-use crate::scenario::Scenario;
-use crate::table::{Recorder, Row};
 
 /// What an observer hands back once the run has returned: the caller keeps a clone and
 /// [`take`](Handle::take)s the value.
@@ -132,7 +132,7 @@ impl Outputs {
     }
 }
 
-/// The run's rows (the row declaration of `crate::table`): row 0 with the outputs at t₀, then
+/// The run's rows (the row declaration of `tiltsim_formats::table`): row 0 with the outputs at t₀, then
 /// one row per tick, to `timeseries.csv` as they complete or kept in memory.
 pub struct Rows {
     dt: f64,
@@ -244,7 +244,7 @@ impl Observer for TraceCsv {
             let h = &x.reply;
             let r = self.out.serialize((
                 x.step,
-                crate::table::fmt_f64(x.step as f64 * self.dt),
+                tiltsim_formats::table::fmt_f64(x.step as f64 * self.dt),
                 x.role.name(),
                 rel(x.sent_ns),
                 rel(h.recv_ns),
@@ -397,7 +397,7 @@ impl Observer for Progress {
             eprintln!(
                 "{{\"progress\":{percent},\"step\":{done},\"steps\":{},\"t_s\":{},\"wall_s\":{:.3}}}",
                 self.steps,
-                crate::table::fmt_f64(done as f64 * self.dt),
+                tiltsim_formats::table::fmt_f64(done as f64 * self.dt),
                 self.started.elapsed().as_secs_f64()
             );
         }

@@ -3,13 +3,14 @@
 //! fills `results`, `comfort` and `flags` from the recorded series (`tiltsim_report::analysis`).
 
 use cosim::endpoint::ExitReport;
+use cosim::endpoint::LostSamples;
 use cosim::stats::Percentiles;
 use cosim::wait::WaitStrategy;
 use cosim::Role;
 use serde::Serialize;
+use tiltsim_scenario::scenario::{Master, Transport};
 
 use super::Status;
-use crate::scenario::{Master, Transport};
 
 /// `summary.json` → `network`: the run's participants on other hosts.
 #[derive(Debug, Clone, Serialize)]
@@ -43,7 +44,7 @@ impl NetworkReport {
 
 impl NetworkReport {
     /// Logs the attempts in `events`, each at the step the run was at when it was seen.
-    pub fn log_attempts(&self, events: &mut crate::events::EventLog) {
+    pub fn log_attempts(&self, events: &mut tiltsim_formats::events::EventLog) {
         for a in &self.attempts {
             let from = if a.from.is_empty() {
                 String::new()
@@ -53,7 +54,7 @@ impl NetworkReport {
             events.insert(
                 a.step,
                 "network",
-                crate::events::EventKind::NetworkRefused,
+                tiltsim_formats::events::EventKind::NetworkRefused,
                 f64::NAN,
                 format!("{}{from}: {}", a.kind.words(), a.detail),
             );
@@ -82,8 +83,6 @@ pub struct ParticipantReport {
     /// Requests re-sent and repeats discarded: what lost samples cost.
     pub lost_samples: LostSamples,
 }
-
-pub use cosim::endpoint::LostSamples;
 
 /// Timing of the run.
 #[derive(Debug, Clone, Serialize, Default)]
@@ -261,7 +260,11 @@ pub enum RunMode {
 impl Summary {
     /// The part of a summary every run has, for a run of `s` in `mode` that ended with
     /// `status`: participants, timing and results left empty for the caller to fill.
-    pub fn blank(s: &crate::scenario::Scenario, scenario_file: &str, mode: RunMode) -> Summary {
+    pub fn blank(
+        s: &tiltsim_scenario::scenario::Scenario,
+        scenario_file: &str,
+        mode: RunMode,
+    ) -> Summary {
         Summary {
             tiltsim_version: env!("CARGO_PKG_VERSION"),
             scenario: s.name.clone(),

@@ -7,16 +7,17 @@ use cosim::endpoint::ExitReport;
 use cosim::msg::{clock_ns, FromActuator, FromController, FromPlant, Header, Message};
 use cosim::msg::{ToActuator, ToController, ToPlant, FLAG_HELD, FLAG_HOLD_BAD_INPUT};
 use cosim::{Endpoint, Kind, LinkError, Role};
+use tiltsim_formats::events::{EventKind, EventLog};
+use tiltsim_scenario::faults::OnBadData;
+use tiltsim_scenario::links::LinkId;
+use tiltsim_scenario::roles::RoleMap;
+use tiltsim_scenario::scenario::Scenario;
 
 use super::launch::{Held, Participants};
 use super::manipulate::{Control, Manipulator};
 use super::manipulator::{Degrader, FaultSchedule};
 pub(crate) use super::observe::Exchange;
-use crate::events::{EventKind, EventLog};
-use crate::faults::OnBadData;
-use crate::links::{LinkId, LinkSet};
-use crate::roles::RoleMap;
-use crate::scenario::Scenario;
+use crate::links::LinkSet;
 
 /// Picks one participant's endpoint out of the set.
 pub(crate) type Pick<I, O> = fn(&mut Participants) -> &mut Box<dyn Endpoint<I, O>>;

@@ -15,11 +15,12 @@
 use cosim::msg::{FromActuator, FromController, FromPlant, Header, Kind};
 use cosim::msg::{ToActuator, ToController, ToPlant};
 use cosim::Role;
+use tiltsim_formats::events::EventLog;
+use tiltsim_formats::table::Row;
+use tiltsim_scenario::links::{LinkId, Links};
 
 use super::trace::{col, StepTrace};
-use crate::events::EventLog;
-use crate::links::{LinkId, LinkSet, Links};
-use crate::table::Row;
+use crate::links::LinkSet;
 
 /// A sequence indexed from 0 of which only a window is kept: entries are set as they come
 /// (any index at or past the window's start) and forgotten from the front once nothing can
@@ -243,7 +244,11 @@ impl Store {
     /// Each link logs its events at the tick its sample is sent, and passes its samples in
     /// the order they were sent, so a link's events are in tick order and those of ticks up
     /// to `k` come first.
-    pub fn link_events_through(&self, k: u64, taken: &mut [usize; 4]) -> Vec<crate::events::Event> {
+    pub fn link_events_through(
+        &self,
+        k: u64,
+        taken: &mut [usize; 4],
+    ) -> Vec<tiltsim_formats::events::Event> {
         let mut tagged: Vec<(u64, usize, usize)> = Vec::new();
         for (l, log) in self.events.iter().enumerate() {
             let new = log.events.get(taken[l]..).unwrap_or(&[]);

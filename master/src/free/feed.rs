@@ -3,8 +3,8 @@
 //! tick by tick.
 
 use super::compose::Store;
-use crate::events::Event;
-use crate::scenario::Scenario;
+use tiltsim_formats::events::Event;
+use tiltsim_scenario::scenario::Scenario;
 
 /// Hands on the events of each tick once, in the order of `events.csv`.
 pub(crate) struct EventFeed {

@@ -29,12 +29,12 @@ use std::path::Path;
 use cosim::msg::{FromActuator, FromController, FromPlant, Header, Kind};
 use cosim::msg::{ToActuator, ToController, ToPlant};
 use cosim::LinkError;
+use tiltsim_formats::table::{Recorder, Row};
+use tiltsim_scenario::scenario::Scenario;
 
 use crate::engine::instruments::{RowRecorder, RowSink};
 use crate::engine::launch::Participants;
 use crate::engine::{RunError, RunMode, Status, Summary};
-use crate::scenario::Scenario;
-use crate::table::{Recorder, Row};
 
 pub use run::{run, FreeReport, FreeTiming};
 pub use timing_replay::{replay_timing, Replayed};
@@ -68,8 +68,8 @@ pub(crate) fn shut_down(
     mut ps: Participants,
     prefix: &str,
     cpus: &[usize],
-) -> crate::roles::RoleMap<cosim::endpoint::ExitReport> {
-    let exits = ps.shut_down(crate::roles::RoleMap::default());
+) -> tiltsim_scenario::roles::RoleMap<cosim::endpoint::ExitReport> {
+    let exits = ps.shut_down(tiltsim_scenario::roles::RoleMap::default());
     if let Some(hub) = ps.hub.take() {
         hub.cleanup_dead();
         drop(ps);
@@ -111,7 +111,7 @@ pub(crate) fn run_events(
     s: &Scenario,
     store: &compose::Store,
     rows: u64,
-) -> crate::events::EventLog {
+) -> tiltsim_formats::events::EventLog {
     let mut ev = planned_events(s, rows);
     let links = store.events();
     let mut merged = Vec::with_capacity(ev.events.len() + links.events.len());
@@ -132,8 +132,8 @@ pub(crate) fn run_events(
 
 /// The events of a run of `s` that do not come from the links' samples: the links' set-up and
 /// the faults scheduled up to tick `last`, in tick order.
-pub(crate) fn planned_events(s: &Scenario, last: u64) -> crate::events::EventLog {
-    let mut ev = crate::events::EventLog::new(s.run.dt_s);
+pub(crate) fn planned_events(s: &Scenario, last: u64) -> tiltsim_formats::events::EventLog {
+    let mut ev = tiltsim_formats::events::EventLog::new(s.run.dt_s);
     crate::links::LinkSet::describe(&s.links, &mut ev);
     crate::engine::manipulator::FaultSchedule::new(&s.faults, s.run.dt_s).log_until(last, &mut ev);
     ev
@@ -211,8 +211,8 @@ impl RowStream {
 /// (compute, waits and lost samples are lock-step measurements).
 fn participants(
     s: &Scenario,
-    pids: &crate::roles::RoleMap<u32>,
-    exits: &crate::roles::RoleMap<cosim::endpoint::ExitReport>,
+    pids: &tiltsim_scenario::roles::RoleMap<u32>,
+    exits: &tiltsim_scenario::roles::RoleMap<cosim::endpoint::ExitReport>,
 ) -> Vec<crate::engine::ParticipantReport> {
     let periods = [s.run.dt_s, s.run.dt_s, s.controller.period_s];
     cosim::Role::ALL

@@ -15,8 +15,8 @@
 use super::compose::Store;
 use super::feed::EventFeed;
 use crate::engine::observe::{LinkValues, Observer, Start, Tick};
-use crate::events::Event;
-use crate::scenario::Scenario;
+use tiltsim_formats::events::Event;
+use tiltsim_scenario::scenario::Scenario;
 
 /// The observers of one replay and what they are told beside the rows.
 pub(crate) struct ReplayObservers {
@@ -120,7 +120,7 @@ mod tests {
     use super::*;
     use crate::engine::{Run, RunOptions, Summary};
     use crate::free::trace::{StepTrace, Trace, TraceHead};
-    use crate::scenario::{Master, Transport};
+    use tiltsim_scenario::scenario::{Master, Transport};
 
     /// What an observer saw of one tick, bit for bit.
     type Seen = (u64, u64, u64, u64, u64, bool, u64, Option<u64>, u64);

@@ -19,6 +19,8 @@
 use std::path::{Path, PathBuf};
 
 use cosim::Role;
+use tiltsim_formats::events::EventLog;
+use tiltsim_scenario::links::LinkId;
 
 use super::compose::{Store, Window};
 use super::feed::EventFeed;
@@ -27,9 +29,7 @@ use crate::engine::mcap::{
     actuator_out, controller_out, inbox, link_channel, plant_out, timing_channel, EventMessage,
     McapRecorder,
 };
-use crate::events::EventLog;
-use crate::links::LinkId;
-use crate::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 
 /// A free run's recording, complete but for the summary, which the caller closes it with.
 pub struct FreeRecording {

@@ -5,11 +5,11 @@ use std::collections::VecDeque;
 
 use cosim::msg::Message;
 use cosim::{Endpoint, LinkError, Role};
+use tiltsim_scenario::links::LinkId;
+use tiltsim_scenario::roles::RoleMap;
 
 use super::compose::Store;
 use crate::engine::launch::Participants;
-use crate::links::LinkId;
-use crate::roles::RoleMap;
 
 /// Relays one consumer's inputs and remembers which producer steps each carried.
 #[derive(Default)]

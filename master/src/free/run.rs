@@ -9,6 +9,10 @@ use cosim::endpoint::check_reply;
 use cosim::msg::{now_ns, FromActuator, FromController, FromPlant, Header, Kind, Message};
 use cosim::msg::{FreeClock, ToActuator, ToController, ToPlant, FLAG_FREE_START};
 use cosim::{LinkError, ProcessFault, Role};
+use tiltsim_scenario::faults::FaultAction;
+use tiltsim_scenario::links::LinkId;
+use tiltsim_scenario::roles::RoleMap;
+use tiltsim_scenario::scenario::Scenario;
 
 use super::compose::Store;
 use super::recording::{FreeRecorder, FreeRecording};
@@ -20,10 +24,6 @@ use crate::engine::launch::{self, Participants};
 use crate::engine::manipulator::FaultSchedule;
 use crate::engine::outputs::Outputs;
 use crate::engine::{RunOptions, Status};
-use crate::faults::FaultAction;
-use crate::links::LinkId;
-use crate::roles::RoleMap;
-use crate::scenario::Scenario;
 
 pub use super::timing::NOT_REAL_TIME_TICKS;
 pub use super::timing::{AgeDistribution, FreeReport, FreeTiming, RoleFreeTiming};
@@ -89,14 +89,17 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
     let (status, error) = match outcome {
         Ok(()) if interrupted => (
             Status::Interrupted,
-            Some(format!("interrupted by {}", crate::signals::describe())),
+            Some(format!(
+                "interrupted by {}",
+                tiltsim_rundir::signals::describe()
+            )),
         ),
         Ok(()) => (Status::Completed, None),
         Err(e) if interrupted => (
             Status::Interrupted,
             Some(format!(
                 "interrupted by {} ({e})",
-                crate::signals::describe()
+                tiltsim_rundir::signals::describe()
             )),
         ),
         Err(e) => (Status::Failed, Some(e)),
@@ -128,7 +131,7 @@ fn finish_recording(
     recorder: Option<FreeRecorder>,
     store: &Store,
     ticks: u64,
-    events: &crate::events::EventLog,
+    events: &tiltsim_formats::events::EventLog,
     write_errors: &mut Vec<String>,
 ) -> Option<FreeRecording> {
     recorder?
@@ -146,7 +149,7 @@ fn write_events(
     ticks: u64,
     network: Option<&crate::engine::summary::NetworkReport>,
     write_errors: &mut Vec<String>,
-) -> crate::events::EventLog {
+) -> tiltsim_formats::events::EventLog {
     let mut events = super::run_events(s, store, ticks);
     if let Some(n) = network {
         n.log_attempts(&mut events);
@@ -155,7 +158,7 @@ fn write_events(
     if let Err(e) = events.write(&events_csv) {
         write_errors.push(format!("{}: {e}", events_csv.display()));
     }
-    if let Err(e) = crate::columns::write_run(dir) {
+    if let Err(e) = tiltsim_formats::columns::write_run(dir) {
         write_errors.push(format!("{}: {e}", dir.join("columns.csv").display()));
     }
     events

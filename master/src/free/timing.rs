@@ -4,10 +4,10 @@
 use std::collections::BTreeMap;
 
 use cosim::Role;
+use tiltsim_scenario::roles::RoleMap;
 
 use super::trace::{age, col, inputs_of, StepTrace};
 use crate::engine::Status;
-use crate::roles::RoleMap;
 
 /// A free run is judged not real-time when one of its plant steps started later than this
 /// many base ticks after it was due.
@@ -119,7 +119,7 @@ pub struct FreeReport {
     /// Shared-memory files left behind (empty unless something is wrong).
     pub leftover_ipc_files: Vec<String>,
     /// The rows, when kept in memory (`Outputs::rows_in_memory`).
-    pub rows: Option<Vec<crate::table::Row>>,
+    pub rows: Option<Vec<tiltsim_formats::table::Row>>,
     /// `run.mcap` (`--record`), to be closed with the summary.
     pub recording: Option<super::recording::FreeRecording>,
     /// Files that could not be written (each named), besides the run's own outcome.

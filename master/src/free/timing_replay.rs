@@ -12,6 +12,7 @@ use std::path::Path;
 
 use cosim::msg::{Kind, Message};
 use cosim::{Endpoint, LinkError, Role};
+use tiltsim_scenario::scenario::{Scenario, Transport};
 
 use super::compose::Store;
 use super::observed::ReplayObservers;
@@ -21,7 +22,6 @@ use crate::engine::launch::{self, Participants};
 use crate::engine::observe::Observer;
 use crate::engine::outputs::Outputs;
 use crate::engine::RunOptions;
-use crate::scenario::{Scenario, Transport};
 
 /// What a replay did.
 pub struct Replayed {
@@ -32,11 +32,11 @@ pub struct Replayed {
     /// What a partial trace lacks (`None`: the whole run was replayed).
     pub partial: Option<String>,
     /// The rows, when kept in memory (`Outputs::rows_in_memory`).
-    pub rows: Option<Vec<crate::table::Row>>,
+    pub rows: Option<Vec<tiltsim_formats::table::Row>>,
     /// Each participant's exit.
-    pub exits: crate::roles::RoleMap<cosim::endpoint::ExitReport>,
+    pub exits: tiltsim_scenario::roles::RoleMap<cosim::endpoint::ExitReport>,
     /// Each participant's process id.
-    pub pids: crate::roles::RoleMap<u32>,
+    pub pids: tiltsim_scenario::roles::RoleMap<u32>,
     /// Why the replay stopped before the end of the trace (a participant failed).
     pub error: Option<String>,
     /// The run's iceoryx2 prefix (empty in one process).
@@ -471,7 +471,11 @@ fn finish_files(
     store: &Store,
     rows: RowStream,
     mut error: Option<String>,
-) -> (u64, Option<Vec<crate::table::Row>>, Option<String>) {
+) -> (
+    u64,
+    Option<Vec<tiltsim_formats::table::Row>>,
+    Option<String>,
+) {
     let (ticks, kept, row_error) = rows.finish();
     let Some(dir) = dir else {
         if let Some(e) = row_error {
@@ -483,7 +487,7 @@ fn finish_files(
     if let Err(e) = super::run_events(s, store, ticks).write(&events_csv) {
         error.get_or_insert(format!("cannot write {}: {e}", events_csv.display()));
     }
-    if let Err(e) = crate::columns::write_run(dir) {
+    if let Err(e) = tiltsim_formats::columns::write_run(dir) {
         error.get_or_insert(format!("cannot write columns.csv: {e}"));
     }
     if let Some(e) = row_error {

@@ -292,7 +292,7 @@ fn machine_floors(
 /// against iceoryx2's floor").
 fn exchange_floors(
     exe: &std::path::Path,
-    s: &tiltsim_master::scenario::Scenario,
+    s: &tiltsim_scenario::scenario::Scenario,
 ) -> Result<tiltsim_studies::bench::ExchangeFloors, CliError> {
     use cosim::ipc::pattern::Order;
     let every = vec![1, 1, s.controller_period_ticks()];

@@ -242,7 +242,7 @@ pub fn concurrent(
     let scratch: PathBuf = tiltsim_studies::bench::scratch_dir(out);
     // Ctrl-C reaches the runs too (they end as interrupted); the rows measured so far are
     // reported and no further row starts.
-    let interrupt = tiltsim_master::signals::install();
+    let interrupt = tiltsim_rundir::signals::install();
     let mut rows = Vec::new();
     'rows: for &h in hogs {
         for &n in counts {
@@ -282,7 +282,7 @@ pub fn concurrent(
     if interrupt.load(Ordering::Relaxed) {
         return Err(CliError::Interrupted(format!(
             "interrupted by {}: {} of {} rows measured",
-            tiltsim_master::signals::describe(),
+            tiltsim_rundir::signals::describe(),
             rows.len(),
             counts.len() * hogs.len()
         )));

@@ -19,10 +19,10 @@ use std::time::Duration;
 use cosim::stats::Percentiles;
 use cosim::Role;
 use tiltsim_master::engine::{self, RunOptions, Status};
-use tiltsim_master::scenario::{Master, Scenario, Transport};
 use tiltsim_net::pingpong::Floor;
 use tiltsim_net::session::Tuning;
 use tiltsim_protocol::address::{Address, ADDRESS_FORM};
+use tiltsim_scenario::scenario::{Master, Scenario, Transport};
 
 use super::bench::BenchArgs;
 use super::common::write_json;

@@ -10,7 +10,7 @@ use cosim::wait::WaitStrategy;
 use serde::Serialize;
 
 use super::error::CliError;
-use tiltsim_master::scenario::{Master, Scenario, Transport};
+use tiltsim_scenario::scenario::{Master, Scenario, Transport};
 
 /// `--transport`.
 #[derive(ValueEnum, Clone, Copy, Debug)]
@@ -84,7 +84,7 @@ pub const PARTICIPANT_EXE_VAR: &str = "TILTSIM_PARTICIPANT_EXE";
 /// The interrupt flag (set by SIGINT, SIGTERM or SIGHUP) and the executable that serves
 /// participants.
 pub fn interrupt_and_exe() -> Result<(Arc<AtomicBool>, PathBuf), CliError> {
-    let interrupt = tiltsim_master::signals::install();
+    let interrupt = tiltsim_rundir::signals::install();
     // An FMU unpacked in this process (the in-process transport) stops at Ctrl-C too.
     tiltsim_fmi::archive::stop_unpacking_when(interrupt.clone());
     // A program that carries tiltsim as a library (the Python package's `tiltsim` command,
@@ -103,7 +103,7 @@ pub fn interrupt_and_exe() -> Result<(Arc<AtomicBool>, PathBuf), CliError> {
 /// Writes `v` as pretty JSON to `path`.
 pub fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), CliError> {
     let text = serde_json::to_string_pretty(v).unwrap_or_default() + "\n";
-    tiltsim_master::files::write_atomic(path, text).map_err(|e| CliError::Failed(e.to_string()))
+    tiltsim_rundir::files::write_atomic(path, text).map_err(|e| CliError::Failed(e.to_string()))
 }
 
 /// The shard a `--shard I/N|auto [--shards N]` pair names, if any (sweeps and searches).
@@ -126,7 +126,7 @@ pub fn check_shards_to_merge(shards: &[PathBuf], out: &Path) -> Result<(), CliEr
     let out_real = std::fs::canonicalize(out).ok();
     for d in shards {
         // A shard still running has not written its results.
-        if let Some(h) = tiltsim_master::outdir::live_holder(d) {
+        if let Some(h) = tiltsim_rundir::outdir::live_holder(d) {
             return Err(CliError::Invalid(format!(
                 "{}: in use by {h}: a shard still running cannot be merged",
                 d.display()

@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use super::common::{interrupt_and_exe, load, TransportArg};
 use super::error::{CliError, CliResult};
 use tiltsim_master::engine::RunOptions;
-use tiltsim_master::scenario::Scenario;
-use tiltsim_report::compare::{CompareError, Comparison};
+use tiltsim_runner::compare::{CompareError, Comparison};
+use tiltsim_scenario::scenario::Scenario;
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -35,7 +35,7 @@ fn cli(e: CompareError) -> CliError {
 /// Runs the command.
 pub fn exec(a: CompareArgs) -> CliResult {
     let mut loaded = load_all(&a)?;
-    for note in tiltsim_report::compare::distinct(&mut loaded, &a.out) {
+    for note in tiltsim_runner::compare::distinct(&mut loaded, &a.out) {
         eprintln!("note: {note}");
     }
     // The compare holds its directory; an earlier compare's runs and tables there go first.

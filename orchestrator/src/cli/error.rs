@@ -51,8 +51,8 @@ impl CliError {
     /// A run that could not start or end: an interrupt during the start-up exits as an
     /// interrupt (130), naming the signal; anything else is a failure with `context` first.
     /// The error of a job that could not be carried out, with its exit code.
-    pub fn of_job(e: tiltsim_report::pipeline::JobError) -> CliError {
-        use tiltsim_report::pipeline::JobError;
+    pub fn of_job(e: tiltsim_runner::pipeline::JobError) -> CliError {
+        use tiltsim_runner::pipeline::JobError;
         match e {
             JobError::Invalid(m) => CliError::Invalid(m),
             JobError::Trace(t) => CliError::Invalid(t.to_string()),
@@ -67,7 +67,7 @@ impl CliError {
             tiltsim_master::engine::RunError::Interrupted { role } => {
                 CliError::Interrupted(format!(
                     "interrupted by {} while participant {role} was starting: nothing recorded",
-                    tiltsim_master::signals::describe()
+                    tiltsim_rundir::signals::describe()
                 ))
             }
             e => CliError::Failed(format!("{context}{e}")),

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use super::bounds;
 use super::common::{interrupt_and_exe, load};
 use super::error::{CliError, CliResult};
-use tiltsim_master::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 use tiltsim_studies::falsify::{self, Bounds, Exec, FalsifyError, Objective, Spec};
 
 /// The most evaluations of a search (`--budget`).
@@ -204,7 +204,7 @@ pub fn exec(a: FalsifyArgs) -> CliResult {
             .map(|n| n.get())
             .unwrap_or(1)
     });
-    let _lock = tiltsim_master::outdir::claim(&out, tiltsim_master::outdir::Kind::Sweep, "falsify")
+    let _lock = tiltsim_rundir::outdir::claim(&out, tiltsim_rundir::outdir::Kind::Sweep, "falsify")
         .map_err(|e| CliError::Invalid(e.to_string()))?;
     let ex = Exec {
         out: out.clone(),

@@ -26,9 +26,9 @@ pub fn exec(a: FalsifyMergeArgs) -> CliResult {
     let shards =
         tiltsim_studies::falsify::shards::read_all(&a.shards).map_err(super::falsify::invalid)?;
     let _lock =
-        tiltsim_master::outdir::claim(&a.out, tiltsim_master::outdir::Kind::Sweep, "falsify-merge")
+        tiltsim_rundir::outdir::claim(&a.out, tiltsim_rundir::outdir::Kind::Sweep, "falsify-merge")
             .map_err(|e| invalid(e.to_string()))?;
-    let interrupt = tiltsim_master::signals::install();
+    let interrupt = tiltsim_rundir::signals::install();
     let (evals, o) = tiltsim_studies::falsify::shards::merge(&a.shards, &a.out, &interrupt)
         .map_err(|e| {
             if interrupt.load(std::sync::atomic::Ordering::Relaxed) {

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use super::common::{interrupt_and_exe, load, TransportArg};
 use super::error::{CliError, CliResult};
 use tiltsim_master::engine::RunOptions;
-use tiltsim_master::scenario::Transport;
-use tiltsim_report::pipeline::{carry_out, Job};
+use tiltsim_runner::pipeline::{carry_out, Job};
+use tiltsim_scenario::scenario::Transport;
 
 /// Arguments of `replay-timing`.
 #[derive(clap::Args, Debug)]
@@ -46,7 +46,7 @@ pub fn replay_timing(a: ReplayTimingArgs, verbose: bool) -> CliResult {
         .clone()
         .unwrap_or_else(|| a.run_dir.join("scenario.toml"));
     let mut s = load(&file)?;
-    tiltsim_report::pipeline::as_timing_replay(&mut s);
+    tiltsim_runner::pipeline::as_timing_replay(&mut s);
     s.run.transport = a
         .transport
         .map(Transport::from)

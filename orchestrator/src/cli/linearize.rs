@@ -10,8 +10,8 @@ use serde_json::Value;
 use super::bounds::{self, End};
 use super::common::load;
 use super::error::{CliError, CliResult};
-use tiltsim_master::scenario::Scenario;
 use tiltsim_report::linearize::PiTargets;
+use tiltsim_scenario::scenario::Scenario;
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -74,7 +74,7 @@ pub fn exec(a: LinearizeArgs) -> CliResult {
     }
     match a.out {
         Some(p) => {
-            tiltsim_master::files::write_atomic(&p, text)
+            tiltsim_rundir::files::write_atomic(&p, text)
                 .map_err(|e| CliError::Failed(e.to_string()))?;
             println!(
                 "wrote {} (matrices, eigenvalues, modes and gains as JSON)",

@@ -171,7 +171,7 @@ fn suggest_value(e: &mut clap::Error) {
         return;
     };
     let near =
-        tiltsim_master::scenario::suggest::closest(given, allowed.iter().map(String::as_str))
+        tiltsim_scenario::scenario::suggest::closest(given, allowed.iter().map(String::as_str))
             .map(str::to_string);
     if let Some(near) = near {
         e.insert(ContextKind::SuggestedValue, ContextValue::String(near));
@@ -203,7 +203,7 @@ where
         cli.command,
         Command::Validate(_) | Command::New(_) | Command::Inspect(_) | Command::Completions(_)
     ) {
-        tiltsim_master::signals::end_quietly_on_closed_pipe();
+        tiltsim_rundir::signals::end_quietly_on_closed_pipe();
     }
     let result = match cli.command {
         Command::Run(a) => run::exec(a, verbose),

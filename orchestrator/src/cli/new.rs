@@ -181,7 +181,7 @@ pub fn exec(a: NewArgs) -> CliResult {
         .unwrap_or_else(|| PathBuf::from(format!("{}.toml", a.name)));
     let text = template(&a.name, a.controller);
     // The name must be one a scenario may have; checked as the file will be read.
-    tiltsim_master::scenario::Scenario::parse(&text, &path)
+    tiltsim_scenario::scenario::Scenario::parse(&text, &path)
         .map_err(|e| CliError::Invalid(format!("command line: NAME: {e}")))?;
     let mut f = std::fs::OpenOptions::new()
         .write(true)

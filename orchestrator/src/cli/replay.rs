@@ -35,7 +35,7 @@ pub fn exec(a: ReplayArgs) -> CliResult {
         ))
     })?;
     // A run still writing its recording there is not replayed.
-    if let Some(h) = tiltsim_master::outdir::live_holder(&a.run_dir) {
+    if let Some(h) = tiltsim_rundir::outdir::live_holder(&a.run_dir) {
         return Err(CliError::Invalid(format!(
             "{}: in use by {h}: its recording is not finished",
             a.run_dir.display()
@@ -50,8 +50,8 @@ pub fn exec(a: ReplayArgs) -> CliResult {
         .out
         .clone()
         .unwrap_or_else(|| a.run_dir.join(format!("replay-{}", role.name())));
-    let at = match a.transport.map(tiltsim_master::scenario::Transport::from) {
-        Some(tiltsim_master::scenario::Transport::Ipc) => {
+    let at = match a.transport.map(tiltsim_scenario::scenario::Transport::from) {
+        Some(tiltsim_scenario::scenario::Transport::Ipc) => {
             tiltsim_master::participant_replay::Where::Process(std::env::current_exe().map_err(
                 |e| CliError::Failed(format!("cannot find the tiltsim executable: {e}")),
             )?)

@@ -8,7 +8,7 @@ use std::path::Path;
 use tiltsim_assessment::comfort::Comfort;
 use tiltsim_assessment::validity::Flags;
 use tiltsim_master::engine::{QuickLook, RunMode, Summary};
-use tiltsim_master::scenario::Scenario;
+use tiltsim_scenario::scenario::Scenario;
 
 /// What ran, as a user would say it: the controller and the actuator (and the vehicle when an
 /// FMU plays it), e.g. "LQG servo, switched BLDC drive" or "controller FMU pi.fmu, ideal bar".

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use super::bounds::{self, End};
 use super::common::{interrupt_and_exe, load, TransportArg};
 use super::error::{CliError, CliResult};
-use tiltsim_master::scenario::Transport;
+use tiltsim_scenario::scenario::Transport;
 use tiltsim_studies::route::outputs::{self, Cost, Journey};
 use tiltsim_studies::route::run::{process_cpu_s, RouteExec};
 use tiltsim_studies::route::{Grid, Limits, Running, Variant};
@@ -118,7 +118,7 @@ pub fn exec(a: RouteArgs) -> CliResult {
             .map(|n| n.get())
             .unwrap_or(1)
     });
-    let _lock = tiltsim_master::outdir::claim(&out, tiltsim_master::outdir::Kind::Sweep, "route")
+    let _lock = tiltsim_rundir::outdir::claim(&out, tiltsim_rundir::outdir::Kind::Sweep, "route")
         .map_err(|e| CliError::Invalid(e.to_string()))?;
     let ex = RouteExec {
         out: out.clone(),
@@ -131,7 +131,7 @@ pub fn exec(a: RouteArgs) -> CliResult {
     let results = tiltsim_studies::route::study(&route, &variants, &ex).ok_or_else(|| {
         CliError::Interrupted(format!(
             "interrupted by {}: nothing written",
-            tiltsim_master::signals::describe()
+            tiltsim_rundir::signals::describe()
         ))
     })?;
     let cost = Cost {

@@ -7,8 +7,8 @@ use super::common::{interrupt_and_exe, load, MasterArg, TransportArg, WaitArg};
 use super::error::{CliError, CliResult};
 use tiltsim_master::engine::outputs::{Outputs, ProgressStyle};
 use tiltsim_master::engine::{RunOptions, Status, Summary};
-use tiltsim_master::scenario::Scenario;
-use tiltsim_report::pipeline::{carry_out, Job};
+use tiltsim_runner::pipeline::{carry_out, Job};
+use tiltsim_scenario::scenario::Scenario;
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -181,7 +181,7 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
         s.run.duration_s = Some(d);
     }
     if a.free_run {
-        s.run.execution = tiltsim_master::scenario::Execution::Free;
+        s.run.execution = tiltsim_scenario::scenario::Execution::Free;
     }
     for &r in &a.remote {
         let r = cosim::Role::from(r);
@@ -220,7 +220,7 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
             s.run.wait = cosim::wait::WaitStrategy::Paced;
         }
     }
-    let free = s.run.execution == tiltsim_master::scenario::Execution::Free;
+    let free = s.run.execution == tiltsim_scenario::scenario::Execution::Free;
     if free {
         for (given, flag) in [(a.pace.is_some(), "--pace"), (a.trace, "--trace")] {
             if given {
@@ -323,7 +323,7 @@ pub fn exec(a: RunArgs, verbose: bool) -> CliResult {
 /// Prints a finished run's warnings and report (neither when `quiet`; every timing figure
 /// when `verbose`) and gives its exit.
 pub(super) fn report(
-    done: &tiltsim_report::pipeline::Done,
+    done: &tiltsim_runner::pipeline::Done,
     s: &Scenario,
     out: &std::path::Path,
     quiet: bool,

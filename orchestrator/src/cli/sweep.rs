@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use super::bounds::{self, End};
 use super::common::{interrupt_and_exe, load, TransportArg};
 use super::error::{CliError, CliResult};
-use tiltsim_master::scenario::{Scenario, Transport};
+use tiltsim_scenario::scenario::{Scenario, Transport};
 use tiltsim_studies::sweep::{Exec, Plan, Shard};
 
 /// The most samples of a Monte Carlo sweep (`--samples`).
@@ -89,7 +89,7 @@ fn plan(a: &SweepArgs, s: &Scenario) -> Result<Plan, CliError> {
 /// `--plan-only`: one JSON line per sample of the shard.
 fn print_plan(s: &Scenario, plan: &Plan, shard: Option<Shard>) -> CliResult {
     use std::io::Write as _;
-    let interrupt = tiltsim_master::signals::install();
+    let interrupt = tiltsim_rundir::signals::install();
     let mut out = std::io::stdout().lock();
     for j in shard
         .unwrap_or(Shard { index: 0, count: 1 })
@@ -99,7 +99,7 @@ fn print_plan(s: &Scenario, plan: &Plan, shard: Option<Shard>) -> CliResult {
             let _ = out.flush();
             return Err(CliError::Interrupted(format!(
                 "interrupted by {}: the plan printed up to sample {j}",
-                tiltsim_master::signals::describe()
+                tiltsim_rundir::signals::describe()
             )));
         }
         let set: serde_json::Map<String, serde_json::Value> =
@@ -135,7 +135,7 @@ pub fn exec(a: SweepArgs) -> CliResult {
     let plan = plan(&a, &s)?;
     let shard = super::common::shard_of(a.shard.as_deref(), a.shards)?;
     if a.plan_only {
-        tiltsim_master::signals::end_quietly_on_closed_pipe();
+        tiltsim_rundir::signals::end_quietly_on_closed_pipe();
         return print_plan(&s, &plan, shard);
     }
     let (interrupt, exe) = interrupt_and_exe()?;
@@ -158,7 +158,7 @@ pub fn exec(a: SweepArgs) -> CliResult {
         samples_done: None,
     };
     // Held until the sweep ends: one sweep (or shard) per directory.
-    let _lock = tiltsim_master::outdir::claim(&out, tiltsim_master::outdir::Kind::Sweep, "sweep")
+    let _lock = tiltsim_rundir::outdir::claim(&out, tiltsim_rundir::outdir::Kind::Sweep, "sweep")
         .map_err(|e| CliError::Invalid(e.to_string()))?;
     let started = std::time::Instant::now();
     let swept = tiltsim_studies::sweep::run(&s, &plan, shard, &ex).map_err(|e| match e {
@@ -174,7 +174,7 @@ pub fn exec(a: SweepArgs) -> CliResult {
         // What finished stays on disk, marked as such in sweep.json.
         return Err(CliError::Interrupted(format!(
             "interrupted by {}: the {} samples that had finished are written to {} (sweep.json: \"interrupted\": true)",
-            tiltsim_master::signals::describe(),
+            tiltsim_rundir::signals::describe(),
             rows.len(),
             out.display()
         )));

@@ -23,7 +23,7 @@ pub fn exec(a: SweepMergeArgs) -> CliResult {
         tiltsim_studies::sweep::merge(&a.shards).map_err(|e| invalid(e.to_string()))?;
     // Checked whole before the output directory is touched.
     let _lock =
-        tiltsim_master::outdir::claim(&a.out, tiltsim_master::outdir::Kind::Sweep, "sweep-merge")
+        tiltsim_rundir::outdir::claim(&a.out, tiltsim_rundir::outdir::Kind::Sweep, "sweep-merge")
             .map_err(|e| invalid(e.to_string()))?;
     tiltsim_studies::sweep::clear_for_merge(&a.out).map_err(|e| invalid(e.to_string()))?;
     tiltsim_studies::sweep::write_outputs(&a.out, &base, &plan, None, &rows, false, &build)

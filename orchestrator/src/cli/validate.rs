@@ -26,20 +26,20 @@ pub fn exec(a: ValidateArgs) -> CliResult {
         s.actuator.model
     );
     let out = std::path::Path::new("out").join(&s.name);
-    let e = tiltsim_studies::budget::estimate(&s, tiltsim_studies::budget::Extras::default());
+    let e = tiltsim_rundir::budget::estimate(&s, tiltsim_rundir::budget::Extras::default());
     println!(
         "outputs: about {} ({} rows); default directory {}",
-        tiltsim_studies::budget::human(e.bytes),
+        tiltsim_rundir::budget::human(e.bytes),
         e.rows,
         out.display()
     );
-    match tiltsim_studies::budget::check(&s, &out, tiltsim_studies::budget::Extras::default()) {
-        tiltsim_studies::budget::Verdict::Fits => Ok(()),
-        tiltsim_studies::budget::Verdict::Warn(m) => {
+    match tiltsim_rundir::budget::check(&s, &out, tiltsim_rundir::budget::Extras::default()) {
+        tiltsim_rundir::budget::Verdict::Fits => Ok(()),
+        tiltsim_rundir::budget::Verdict::Warn(m) => {
             eprintln!("warning: {}: {m}", a.scenario.display());
             Ok(())
         }
-        tiltsim_studies::budget::Verdict::Refuse(m) => {
+        tiltsim_rundir::budget::Verdict::Refuse(m) => {
             Err(CliError::Invalid(format!("{}: {m}", a.scenario.display())))
         }
     }

@@ -49,7 +49,7 @@ pub fn prepare(
     s: &mut tiltsim_scenario::scenario::Scenario,
     file: &str,
 ) -> Result<(), FalsifyError> {
-    tiltsim_report::pipeline::as_timing_replay(s);
+    tiltsim_runner::pipeline::as_timing_replay(s);
     s.run.transport = tiltsim_scenario::scenario::Transport::InProcess;
     let errors = s.validate();
     if !errors.is_empty() {

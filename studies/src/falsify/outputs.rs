@@ -152,11 +152,11 @@ pub fn nominal(s: &Scenario, spec: &Spec, out: &Path, interrupt: &Arc<AtomicBool
     opts.interrupt = interrupt.clone();
     opts.plots = false;
     opts.timing = false;
-    let mut job = tiltsim_report::pipeline::Job::new(s, s.name.clone(), opts);
+    let mut job = tiltsim_runner::pipeline::Job::new(s, s.name.clone(), opts);
     job.claim = false;
     job.outputs.rows_in_memory = true;
     let t0 = super::search::thread_cpu_s();
-    let done = tiltsim_report::pipeline::carry_out(job);
+    let done = tiltsim_runner::pipeline::carry_out(job);
     let wall = super::search::thread_cpu_s() - t0;
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_dir(out.join("evals"));
@@ -205,11 +205,11 @@ pub fn replay_worst(
     write(&path)?;
     let mut opts = RunOptions::new(dir.clone(), PathBuf::new());
     opts.interrupt = interrupt.clone();
-    let mut job = tiltsim_report::pipeline::Job::new(s, s.name.clone(), opts);
+    let mut job = tiltsim_runner::pipeline::Job::new(s, s.name.clone(), opts);
     job.claim = false;
     job.replay_trace = Some(path);
     let done =
-        tiltsim_report::pipeline::carry_out(job).map_err(|e| FalsifyError::Run(e.to_string()))?;
+        tiltsim_runner::pipeline::carry_out(job).map_err(|e| FalsifyError::Run(e.to_string()))?;
     drop(lock);
     if done.summary.status != Status::Completed {
         return Err(FalsifyError::Run(format!(

@@ -314,11 +314,11 @@ pub(crate) fn evaluate(
     opts.interrupt = interrupt.clone();
     opts.plots = false;
     opts.timing = false;
-    let mut job = tiltsim_report::pipeline::Job::new(s, s.name.clone(), opts);
+    let mut job = tiltsim_runner::pipeline::Job::new(s, s.name.clone(), opts);
     job.claim = false;
     job.outputs.rows_in_memory = true;
     job.replay_steps = Some(trace);
-    match tiltsim_report::pipeline::carry_out(job) {
+    match tiltsim_runner::pipeline::carry_out(job) {
         Ok(d) if d.summary.status == Status::Completed && d.summary.analysis_skipped.is_none() => {
             let score = judge(s, objective, &d.summary, &d.rows);
             let (valid, flags) = validity(&d.summary);

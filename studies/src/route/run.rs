@@ -231,10 +231,10 @@ fn run_segment(s: &Scenario, g: &Segment, dir: &Path, ex: &RouteExec) -> Segment
     opts.interrupt = ex.interrupt.clone();
     opts.plots = ex.keep_runs;
     opts.timing = ex.keep_runs;
-    let mut job = tiltsim_report::pipeline::Job::new(s, s.name.clone(), opts);
+    let mut job = tiltsim_runner::pipeline::Job::new(s, s.name.clone(), opts);
     job.claim = false;
     job.outputs.rows_in_memory = !ex.keep_runs;
-    let done = tiltsim_report::pipeline::carry_out(job);
+    let done = tiltsim_runner::pipeline::carry_out(job);
     let mut result = SegmentResult {
         segment: *g,
         status: String::new(),

@@ -185,13 +185,13 @@ pub(super) fn run_one(base: &Scenario, plan: &Plan, j: usize, ex: &Exec) -> Row 
     // Nor does it report wall-clock timing: no clock reads per exchange (`RunOptions::timing`).
     opts.timing = ex.keep_runs;
     let name = format!("{} (sample {j})", base.name);
-    let mut job = tiltsim_report::pipeline::Job::new(&s, name, opts);
+    let mut job = tiltsim_runner::pipeline::Job::new(&s, name, opts);
     // The sweep holds its directory; each sample's is its own.
     job.claim = false;
     // A sample whose directory is removed afterwards keeps its rows in memory: no
     // timeseries.csv to write and read back (the values are the same, f64 round-trips).
     job.outputs.rows_in_memory = !ex.keep_runs;
-    let (summary, rows) = match tiltsim_report::pipeline::carry_out(job) {
+    let (summary, rows) = match tiltsim_runner::pipeline::carry_out(job) {
         Ok(done) if !ex.keep_runs => (Ok(done.summary), done.rows),
         Ok(done) => (
             Ok(done.summary),

@@ -5,11 +5,11 @@ use std::path::PathBuf;
 
 use actuator_proc::ActuatorSettings;
 use controller_proc::ControllerSettings;
-use cosim::settings::FieldError;
-use cosim::wait::WaitStrategy;
-use cosim::Role;
 use plant_proc::SensorParams;
 use serde::{Deserialize, Serialize};
+use tiltsim_protocol::settings::FieldError;
+use tiltsim_protocol::wait::WaitStrategy;
+use tiltsim_protocol::Role;
 use vehicle_model::{TrackParams, VehicleParams};
 
 mod load;
@@ -505,7 +505,7 @@ mod tests {
         let remote = s
             .with_setting("network.remote", "[\"controller\"]")
             .unwrap();
-        assert_eq!(remote.network.remote, [cosim::Role::Controller]);
+        assert_eq!(remote.network.remote, [tiltsim_protocol::Role::Controller]);
     }
 
     #[test]

@@ -12,10 +12,10 @@
 //! outputs): the orchestrator takes it from `TILTSIM_SECRET` or `--secret-file`, or draws one
 //! and prints the command that joins with it.
 
-use cosim::settings::Checker;
-use cosim::Role;
 use serde::{Deserialize, Serialize};
 use tiltsim_protocol::address::{Address, ADDRESS_FORM};
+use tiltsim_protocol::settings::Checker;
+use tiltsim_protocol::Role;
 
 /// The default address: this host only, so that trying a remote participant on one machine
 /// needs no setting; a participant on another host needs an address it can reach.

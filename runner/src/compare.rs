@@ -9,7 +9,7 @@ use tiltsim_master::engine::{RunOptions, Status, Summary};
 use tiltsim_rundir::outdir::{self, Lock, OutDirError};
 use tiltsim_scenario::scenario::Scenario;
 
-use crate::table4::{Entry, Manifest, ManifestRun};
+use tiltsim_report::table4::{Entry, Manifest, ManifestRun};
 
 /// Why a comparison did not finish.
 #[derive(Debug, thiserror::Error)]
@@ -39,7 +39,10 @@ fn write_json<T: serde::Serialize>(path: &Path, v: &T) -> Result<(), CompareErro
 pub fn distinct(loaded: &mut [(PathBuf, Scenario)], out: &Path) -> Vec<String> {
     let names: Vec<String> = loaded.iter().map(|(_, s)| s.name.clone()).collect();
     let mut notes = Vec::new();
-    for ((file, s), name) in loaded.iter_mut().zip(crate::table4::distinct_names(&names)) {
+    for ((file, s), name) in loaded
+        .iter_mut()
+        .zip(tiltsim_report::table4::distinct_names(&names))
+    {
         if name != s.name {
             notes.push(format!(
                 "{}: `{}` is also the name of another scenario compared (or of a file of the compare): this one runs in {} and is labelled {name}",
@@ -125,8 +128,9 @@ impl Comparison {
                 return Err(CompareError::Failed(format!("{}: {why}", s.name)));
             }
         }
-        let ideal = crate::analysis::ideal_tilt(&s, &dir);
-        self.entries.push(crate::table4::entry(s, summary, ideal));
+        let ideal = tiltsim_report::analysis::ideal_tilt(&s, &dir);
+        self.entries
+            .push(tiltsim_report::table4::entry(s, summary, ideal));
         Ok(&self.entries[self.entries.len() - 1].summary)
     }
 
@@ -137,8 +141,8 @@ impl Comparison {
         let failed = |e: std::io::Error| {
             CompareError::Failed(format!("{}: {e}", out.join("plots").display()))
         };
-        self.manifest.trade_off = crate::table4::trade_off_points(&self.entries);
-        let (md, csv, columns) = crate::table4::tables(&self.entries);
+        self.manifest.trade_off = tiltsim_report::table4::trade_off_points(&self.entries);
+        let (md, csv, columns) = tiltsim_report::table4::tables(&self.entries);
         for (name, text) in [
             ("table.md", &md),
             ("table.csv", &csv),
@@ -158,8 +162,9 @@ impl Comparison {
                 )
             })
             .collect();
-        crate::analysis::write_compare_plots(&runs, out).map_err(failed)?;
-        crate::table4::write_trade_off_plot(&self.manifest.trade_off, out).map_err(failed)?;
+        tiltsim_report::analysis::write_compare_plots(&runs, out).map_err(failed)?;
+        tiltsim_report::table4::write_trade_off_plot(&self.manifest.trade_off, out)
+            .map_err(failed)?;
         write_json(&out.join("compare.json"), &self.manifest)?;
         Ok((std::mem::take(&mut self.entries), csv))
     }

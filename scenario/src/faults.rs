@@ -1,9 +1,9 @@
 //! Process faults (section `[faults]`): what happens to the participants' processes, and what
 //! the run does when one fails or sends bad data.
 
-use cosim::settings::Checker;
-use cosim::Role;
 use serde::{Deserialize, Serialize};
+use tiltsim_protocol::settings::Checker;
+use tiltsim_protocol::Role;
 
 /// What the run does when a participant fails.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]

@@ -2,7 +2,7 @@
 
 use std::ops::{Index, IndexMut};
 
-use cosim::Role;
+use tiltsim_protocol::Role;
 
 /// One `T` for each of [`Role::ALL`], in that order.
 #[derive(Debug, Clone, Default, PartialEq)]

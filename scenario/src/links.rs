@@ -8,8 +8,8 @@
 //! then bias and Gaussian noise are added; then a NaN or a fixed (out-of-range) value overrides
 //! it inside its window.
 
-use cosim::settings::Checker;
 use serde::{Deserialize, Serialize};
+use tiltsim_protocol::settings::Checker;
 
 /// A time window in simulated seconds, `[start, end)`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -170,9 +170,9 @@ pub enum LinkId {
 impl LinkId {
     /// What each link carries from the outputs `p`, `a`, `c`, in [`LinkId`] order.
     pub fn carried(
-        p: &cosim::msg::FromPlant,
-        a: &cosim::msg::FromActuator,
-        c: &cosim::msg::FromController,
+        p: &tiltsim_protocol::msg::FromPlant,
+        a: &tiltsim_protocol::msg::FromActuator,
+        c: &tiltsim_protocol::msg::FromController,
     ) -> [f64; 4] {
         [c.delta_a_cmd, a.delta_a, p.theta_v_meas, p.psi]
     }

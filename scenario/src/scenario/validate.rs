@@ -1,8 +1,8 @@
 //! Every rule of a scenario, with the field's dotted path: the name, the timeline, each
 //! section's ranges, the FMUs against their descriptions.
 
-use cosim::settings::{Checker, FieldError};
-use cosim::Role;
+use tiltsim_protocol::settings::{Checker, FieldError};
+use tiltsim_protocol::Role;
 
 use super::*;
 

@@ -196,7 +196,7 @@ struct Ran {
 enum Recording {
     LockStep(
         tiltsim_master::engine::mcap::McapRecorder,
-        tiltsim_master::events::EventLog,
+        tiltsim_formats::events::EventLog,
     ),
     Free(tiltsim_master::free::recording::FreeRecording),
 }
@@ -227,7 +227,9 @@ fn lock_step(job: &mut Job, warnings: &mut Vec<String>) -> Result<Ran, JobError>
     }
     // With `--trace`: a figure that cannot be written fails the run, as the trace would.
     if let Some(h) = ran.latency_histogram.filter(|_| job.outputs.trace) {
-        if let Err(e) = crate::analysis::latency_histogram(&opts.out_dir, &job.scenario.name, &h) {
+        if let Err(e) =
+            tiltsim_report::analysis::latency_histogram(&opts.out_dir, &job.scenario.name, &h)
+        {
             if summary.error.is_none() {
                 summary.status = Status::Failed;
                 summary.error = Some(format!("cannot write {e}"));
@@ -304,7 +306,7 @@ fn analyse(job: &Job, summary: &mut Summary, rows: &[Row]) {
         } else {
             Rows::Kept(rows)
         };
-        match crate::analysis::assess(s, source) {
+        match tiltsim_report::analysis::assess(s, source) {
             Ok(a) => {
                 // The run's own verdict on its timing (a replay's, from the free run's trace).
                 let not_real_time = summary.flags.not_real_time.take();
@@ -385,12 +387,12 @@ fn finish(job: &Job, ran: Ran, mut warnings: Vec<String>) -> Done {
     }
     let drawn = files && opts.plots && summary.analysis_skipped.is_none();
     if drawn {
-        if let Err(e) = crate::analysis::write_plots(s, &opts.out_dir) {
+        if let Err(e) = tiltsim_report::analysis::write_plots(s, &opts.out_dir) {
             warnings.push(format!("plots not written: {e}"));
         }
         if summary.execution == RunMode::Free {
             // A run that ended early has a partial trace: no timing figures (the trace stays).
-            if let Err(e) = crate::analysis::write_timing_plots(s, &opts.out_dir) {
+            if let Err(e) = tiltsim_report::analysis::write_timing_plots(s, &opts.out_dir) {
                 warnings.push(format!("timing plots not drawn: {e}"));
             }
         }
