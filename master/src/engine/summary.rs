@@ -229,7 +229,7 @@ pub struct Summary {
     /// A free run's wall-clock timing: real time kept or not, lateness, input ages (absent
     /// for lock-step runs and replays).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub free_run: Option<crate::free::run::FreeTiming>,
+    pub free_run: Option<FreeTiming>,
     /// The timing trace a free run wrote (`timing.csv`) or a replay replayed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub timing_trace: Option<String>,
@@ -508,4 +508,85 @@ mod tests {
         let c = CpuTime::new(0.5, [Some(0.25), None, Some(0.125)]);
         assert_eq!((c.orchestrator, c.participants), (0.5, 0.375));
     }
+}
+
+/// A free run is judged not real-time when one of its plant steps started later than this
+/// many base ticks after it was due.
+pub const NOT_REAL_TIME_TICKS: u64 = 10;
+
+/// One role's wall-clock timing in a free run.
+#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
+pub struct RoleFreeTiming {
+    /// Steps recorded.
+    pub steps: u64,
+    /// How long after it was due each step read its input (µs).
+    pub start_lateness_us: cosim::stats::Percentiles,
+    /// Steps that started after the next one was due.
+    pub late_starts: u64,
+    /// Steps published after the next one was due.
+    pub late_finishes: u64,
+}
+
+/// The distribution of one link's input ages over its consumer's steps (ticks; see
+/// `free::trace::age`).
+#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
+pub struct AgeDistribution {
+    /// Youngest.
+    pub min: i64,
+    /// Median.
+    pub p50: i64,
+    /// 99th percentile.
+    pub p99: i64,
+    /// Oldest.
+    pub max: i64,
+    /// `[age, steps]` pairs in increasing age.
+    pub counts: Vec<[i64; 2]>,
+}
+
+impl AgeDistribution {
+    pub(crate) fn of(h: &std::collections::BTreeMap<i64, u64>) -> Self {
+        let n: u64 = h.values().sum();
+        let at = |q: f64| {
+            let want = ((n.saturating_sub(1)) as f64 * q).round() as u64;
+            let mut seen = 0;
+            for (a, c) in h {
+                seen += c;
+                if seen > want {
+                    return *a;
+                }
+            }
+            0
+        };
+        AgeDistribution {
+            min: h.keys().next().copied().unwrap_or(0),
+            p50: at(0.5),
+            p99: at(0.99),
+            max: h.keys().next_back().copied().unwrap_or(0),
+            counts: h.iter().map(|(a, c)| [*a, *c as i64]).collect(),
+        }
+    }
+}
+
+/// The wall-clock side of a free run: whether it kept real time, each role's lateness and each
+/// link's input ages (all of it differs from one free run to the next; the replay of the trace
+/// is what repeats).
+#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
+pub struct FreeTiming {
+    /// A plant step started more than [`NOT_REAL_TIME_TICKS`] ticks after it was due: the run
+    /// did not keep real time, and its ride is not the answer to a real-time question.
+    pub not_real_time: bool,
+    /// That margin (s).
+    pub not_real_time_margin_s: f64,
+    /// The plant's largest start lateness (s).
+    pub plant_max_lateness_s: f64,
+    /// Per participant.
+    pub participants: std::collections::BTreeMap<String, RoleFreeTiming>,
+    /// Per link, by its `[links]` name.
+    pub input_age_ticks: std::collections::BTreeMap<String, AgeDistribution>,
+    /// The CPU each participant was pinned to (empty when not pinned).
+    pub cpus: std::collections::BTreeMap<String, usize>,
+    /// Where the run's processes ran among the other runs and work on the machine, and why
+    /// (`cosim::ipc::placement`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub placement: Option<cosim::ipc::placement::Placement>,
 }

@@ -36,7 +36,7 @@ use crate::engine::instruments::{RowRecorder, RowSink};
 use crate::engine::launch::Participants;
 use crate::engine::{RunError, RunMode, Status, Summary};
 
-pub use run::{run, FreeReport, FreeTiming};
+pub use run::{run, FreeReport};
 pub use timing_replay::{replay_timing, Replayed};
 pub use trace::TraceError;
 

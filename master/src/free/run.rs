@@ -25,8 +25,7 @@ use crate::engine::manipulator::FaultSchedule;
 use crate::engine::outputs::Outputs;
 use crate::engine::{RunOptions, Status};
 
-pub use super::timing::NOT_REAL_TIME_TICKS;
-pub use super::timing::{AgeDistribution, FreeReport, FreeTiming, RoleFreeTiming};
+pub use super::timing::FreeReport;
 
 /// Time from sending the start requests to the common start instant: the participants are
 /// connected and waiting, so this only has to cover the delivery of three samples.

@@ -7,11 +7,8 @@ use cosim::Role;
 use tiltsim_scenario::roles::RoleMap;
 
 use super::trace::{age, col, inputs_of, StepTrace};
+use crate::engine::summary::{AgeDistribution, FreeTiming, RoleFreeTiming, NOT_REAL_TIME_TICKS};
 use crate::engine::Status;
-
-/// A free run is judged not real-time when one of its plant steps started later than this
-/// many base ticks after it was due.
-pub const NOT_REAL_TIME_TICKS: u64 = 10;
 
 /// Per-role timing statistics of a free run (wall clock), in constant memory.
 #[derive(Default)]
@@ -19,83 +16,6 @@ struct RoleTiming {
     lateness_us: cosim::stats::Timings,
     late_start: u64,
     late_finish: u64,
-}
-
-/// One role's wall-clock timing in a free run.
-#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
-pub struct RoleFreeTiming {
-    /// Steps recorded.
-    pub steps: u64,
-    /// How long after it was due each step read its input (µs).
-    pub start_lateness_us: cosim::stats::Percentiles,
-    /// Steps that started after the next one was due.
-    pub late_starts: u64,
-    /// Steps published after the next one was due.
-    pub late_finishes: u64,
-}
-
-/// The distribution of one link's input ages over its consumer's steps (ticks; see
-/// [`super::trace::age`]).
-#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
-pub struct AgeDistribution {
-    /// Youngest.
-    pub min: i64,
-    /// Median.
-    pub p50: i64,
-    /// 99th percentile.
-    pub p99: i64,
-    /// Oldest.
-    pub max: i64,
-    /// `[age, steps]` pairs in increasing age.
-    pub counts: Vec<[i64; 2]>,
-}
-
-impl AgeDistribution {
-    fn of(h: &BTreeMap<i64, u64>) -> Self {
-        let n: u64 = h.values().sum();
-        let at = |q: f64| {
-            let want = ((n.saturating_sub(1)) as f64 * q).round() as u64;
-            let mut seen = 0;
-            for (a, c) in h {
-                seen += c;
-                if seen > want {
-                    return *a;
-                }
-            }
-            0
-        };
-        AgeDistribution {
-            min: h.keys().next().copied().unwrap_or(0),
-            p50: at(0.5),
-            p99: at(0.99),
-            max: h.keys().next_back().copied().unwrap_or(0),
-            counts: h.iter().map(|(a, c)| [*a, *c as i64]).collect(),
-        }
-    }
-}
-
-/// The wall-clock side of a free run: whether it kept real time, each role's lateness and each
-/// link's input ages (all of it differs from one free run to the next; the replay of the trace
-/// is what repeats).
-#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
-pub struct FreeTiming {
-    /// A plant step started more than [`NOT_REAL_TIME_TICKS`] ticks after it was due: the run
-    /// did not keep real time, and its ride is not the answer to a real-time question.
-    pub not_real_time: bool,
-    /// That margin (s).
-    pub not_real_time_margin_s: f64,
-    /// The plant's largest start lateness (s).
-    pub plant_max_lateness_s: f64,
-    /// Per participant.
-    pub participants: BTreeMap<String, RoleFreeTiming>,
-    /// Per link, by its `[links]` name.
-    pub input_age_ticks: BTreeMap<String, AgeDistribution>,
-    /// The CPU each participant was pinned to (empty when not pinned).
-    pub cpus: BTreeMap<String, usize>,
-    /// Where the run's processes ran among the other runs and work on the machine, and why
-    /// (`cosim::ipc::placement`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub placement: Option<cosim::ipc::placement::Placement>,
 }
 
 /// What a free run reports beyond its files.
