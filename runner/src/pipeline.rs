@@ -41,8 +41,8 @@ pub struct Job<'a> {
     /// The caller's observers of a lock-step run, told after the outputs' own, or of a timing
     /// replay (a free run takes none: [`carry_out`] refuses them).
     pub observers: Vec<Box<dyn Observer>>,
-    /// The caller's manipulators of a lock-step run, after the scenario's own (refused for a
-    /// free run and a timing replay, which repeats the trace).
+    /// The caller's manipulators of a lock-step run or a timing replay, after the scenario's
+    /// own (refused for a free run; a replay calls only their `carry`).
     pub manipulators: Vec<Box<dyn Manipulator>>,
     /// Replay this free run's timing trace in lock-step instead of running the scenario's
     /// execution (`tiltsim replay-timing`).
@@ -144,14 +144,10 @@ pub fn carry_out(mut job: Job) -> Result<Done, JobError> {
             job.scenario_file
         )));
     }
-    if job.mode() != RunMode::LockStep && !job.manipulators.is_empty() {
+    if job.mode() == RunMode::Free && !job.manipulators.is_empty() {
         return Err(JobError::Invalid(format!(
-            "{}: manipulators act on a lock-step run; this one is {}",
-            job.scenario_file,
-            match job.mode() {
-                RunMode::Free => "a free run (run.execution = \"free\")",
-                _ => "a replay of a free run's timing, which repeats what the trace says",
-            }
+            "{}: manipulators act on a lock-step run or a timing replay; this one is a free run (run.execution = \"free\")",
+            job.scenario_file
         )));
     }
     if files {
@@ -265,7 +261,10 @@ fn replay(job: &mut Job) -> Result<Ran, JobError> {
         .replay_trace
         .clone()
         .unwrap_or_else(|| PathBuf::from("(in memory)"));
-    let observers = std::mem::take(&mut job.observers);
+    let attached = tiltsim_master::free::timing_replay::Attached {
+        observers: std::mem::take(&mut job.observers),
+        manipulators: std::mem::take(&mut job.manipulators),
+    };
     let mut r = match job.replay_steps.take() {
         Some(steps) => tiltsim_master::free::timing_replay::replay_trace(
             s,
@@ -273,9 +272,9 @@ fn replay(job: &mut Job) -> Result<Ran, JobError> {
             &trace,
             &job.opts,
             &job.outputs,
-            observers,
+            attached,
         )?,
-        None => tiltsim_master::free::replay_timing(s, &trace, &job.opts, &job.outputs, observers)?,
+        None => tiltsim_master::free::replay_timing(s, &trace, &job.opts, &job.outputs, attached)?,
     };
     let trace = trace.as_path();
     let summary = tiltsim_master::free::summary_of_replay(s, &job.scenario_file, trace, &mut r);

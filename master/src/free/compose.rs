@@ -98,6 +98,8 @@ pub struct Store {
     events: [EventLog; 4],
     /// Per link, the tick of the last sample it passed.
     passed: [Option<u64>; 4],
+    /// The caller's manipulators of a replay, given every sample after the links' effects.
+    manipulators: Vec<Box<dyn crate::engine::manipulate::Manipulator>>,
     dt: f64,
 }
 
@@ -116,6 +118,7 @@ impl Store {
             arrived: Default::default(),
             events: std::array::from_fn(|_| EventLog::new(dt)),
             passed: [None; 4],
+            manipulators: Vec::new(),
             dt,
         }
     }
@@ -165,21 +168,42 @@ impl Store {
     fn pass(&mut self, id: LinkId, index: usize, k: u64, v: f64) -> Option<u64> {
         let i = id as usize;
         self.passed[i] = Some(k);
-        let got = self.links.pass(
-            id,
-            k,
-            cosim::time::tick_time(k, self.dt),
-            v,
-            &mut self.events[i],
-        );
+        let t = cosim::time::tick_time(k, self.dt);
+        let log = &mut self.events[i];
+        let got = self.links.pass(id, k, t, v, log).map(|(d, value)| {
+            let carried = self
+                .manipulators
+                .iter_mut()
+                .fold(value, |v, m| m.carry(id, k, t, v, log));
+            (d, carried)
+        });
         self.arrived[i].set(index, got.map(|(_, value)| value));
         got.map(|(d, _)| d)
     }
 
-    /// Keeps the outputs at t₀. They reach every receiver as they are, not through the links:
-    /// they are what each holds from the start (as in lock-step until a first sample arrives).
+    /// Gives every sample that arrives, after the links' effects, to `manipulators` in turn
+    /// ([`crate::engine::manipulate::Manipulator::carry`]; what they log goes with the link's
+    /// events).
+    pub fn add_manipulators(
+        &mut self,
+        manipulators: Vec<Box<dyn crate::engine::manipulate::Manipulator>>,
+    ) {
+        self.manipulators.extend(manipulators);
+    }
+
+    /// Keeps the outputs at t₀. They reach every receiver without the links' effects: they are
+    /// what each holds from the start (as in lock-step until a first sample arrives). The
+    /// caller's manipulators of a replay act on them, as on the lock-step's tick 0, which
+    /// carries them.
     pub fn put_init(&mut self, p: FromPlant, a: FromActuator, c: FromController) {
-        for (arrived, v) in self.arrived.iter_mut().zip(LinkId::carried(&p, &a, &c)) {
+        let values = LinkId::carried(&p, &a, &c);
+        for (i, (arrived, v)) in self.arrived.iter_mut().zip(values).enumerate() {
+            let id = LinkId::ALL[i];
+            let log = &mut self.events[i];
+            let v = self
+                .manipulators
+                .iter_mut()
+                .fold(v, |v, m| m.carry(id, 0, 0.0, v, log));
             arrived.set(0, Some(v));
         }
         self.init = (p, a, c);

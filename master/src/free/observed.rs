@@ -162,6 +162,31 @@ mod tests {
         }
     }
 
+    /// Rounds the measurement to `q` rad on its way, as a coarse sensor would.
+    struct Quantise {
+        q: f64,
+    }
+
+    impl crate::engine::manipulate::Manipulator for Quantise {
+        fn name(&self) -> &str {
+            "quantise"
+        }
+        fn carry(
+            &mut self,
+            link: tiltsim_scenario::links::LinkId,
+            _k: u64,
+            _t: f64,
+            v: f64,
+            _events: &mut tiltsim_formats::events::EventLog,
+        ) -> f64 {
+            if link == tiltsim_scenario::links::LinkId::Measurement {
+                (v / self.q).round() * self.q
+            } else {
+                v
+            }
+        }
+    }
+
     fn watch(name: &'static str) -> (Box<Watch>, Arc<Mutex<Vec<Seen>>>) {
         let seen = Arc::new(Mutex::new(Vec::new()));
         let w = Watch {
@@ -211,8 +236,9 @@ mod tests {
     /// A timing replay tells its observers what the lock-step tells them: replaying the
     /// timing of Gauss-Seidel's data flow, an observer sees every tick's outputs, the value
     /// each link delivered, the controller's steps and requests as the Gauss-Seidel lock-step
-    /// shows them to it, bit for bit; its part of the summary is there; two observers of one
-    /// name are refused.
+    /// shows them to it, bit for bit, with a manipulator that quantises the measurement acting
+    /// on both (every measurement the controller got is a whole number of quanta); its part of
+    /// the summary is there; two observers of one name are refused.
     #[test]
     fn a_timing_replay_tells_observers_what_the_lock_step_does() {
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -226,16 +252,22 @@ mod tests {
             rows_in_memory: true,
             ..Default::default()
         };
+        let q = 1e-4;
         let (lock, by_lock) = watch("w");
         Run::new(&s, "paper-pi.toml", &opts)
             .add_observer(lock)
+            .add_manipulator(Box::new(Quantise { q }))
             .simulate()
             .unwrap();
         let (replayed, by_replay) = watch("w");
         let path = std::path::Path::new("(gauss-seidel)");
         let trace = gauss_seidel_trace(&s);
+        let attached = crate::free::timing_replay::Attached {
+            observers: vec![replayed],
+            manipulators: vec![Box::new(Quantise { q })],
+        };
         let mut r =
-            crate::free::timing_replay::replay_trace(&s, trace, path, &opts, &out, vec![replayed])
+            crate::free::timing_replay::replay_trace(&s, trace, path, &opts, &out, attached)
                 .unwrap();
         assert_eq!(r.error, None);
         {
@@ -244,6 +276,10 @@ mod tests {
             assert_eq!(replay.len(), lock.len());
             let first = lock.iter().zip(replay.iter()).position(|(a, b)| a != b);
             assert_eq!(first, None, "first tick told otherwise");
+            for t in replay.iter().filter(|t| t.0 > 0) {
+                let v = f64::from_bits(t.6);
+                assert_eq!(v, (v / q).round() * q, "tick {}: {v} not quantised", t.0);
+            }
             let stepped = replay.iter().filter(|t| t.5).count() as u64;
             assert_eq!(stepped, s.steps().div_ceil(s.controller_period_ticks()));
         }
@@ -251,7 +287,10 @@ mod tests {
         let part = &sm.observers["w"];
         assert_eq!(part["started"], true);
         assert_eq!(part["ticks"], s.steps());
-        let twice = vec![watch("w").0 as Box<dyn Observer>, watch("w").0];
+        let twice = crate::free::timing_replay::Attached {
+            observers: vec![watch("w").0 as Box<dyn Observer>, watch("w").0],
+            manipulators: Vec::new(),
+        };
         let trace = gauss_seidel_trace(&s);
         let e = crate::free::timing_replay::replay_trace(&s, trace, path, &opts, &out, twice)
             .unwrap_err();

@@ -90,7 +90,7 @@ pub fn replay_timing(
     trace_path: &Path,
     opts: &RunOptions,
     out: &Outputs,
-    observers: Vec<Box<dyn Observer>>,
+    attached: Attached,
 ) -> Result<Replayed, FreeError> {
     let (steps, period, dt_s) = (s.steps(), s.controller_period_ticks(), s.run.dt_s);
     let mut stats = super::timing::Stats::new((dt_s * 1e9).round() as u64, period);
@@ -115,7 +115,7 @@ pub fn replay_timing(
         causal.check(&x)?;
     }
     let verdict = real_time_verdict(stats, dt_s);
-    let mut r = run_replay(s, opts, out, partial, observers, |rep| {
+    let mut r = run_replay(s, opts, out, partial, attached, |rep| {
         let mut order = ReadOrder::new(steps, period);
         let mut failed = None;
         trace::each_step_until(trace_path, dt_s, steps, period, |t| {
@@ -147,6 +147,17 @@ pub fn replay_timing(
     Ok(r)
 }
 
+/// What the caller adds to a replay, as to a lock-step [`crate::engine::Run`]: observers told
+/// every tick ([`super::observed`]) and manipulators given every sample a link delivers, after
+/// the scenario's link effects and in the order added (their `carry`; a replay repeats the
+/// trace's steps, so it injects no fault and replaces no participant: `tick_commencing` and
+/// `participant_failed` are not called).
+#[derive(Default)]
+pub struct Attached {
+    pub observers: Vec<Box<dyn Observer>>,
+    pub manipulators: Vec<Box<dyn crate::engine::manipulate::Manipulator>>,
+}
+
 /// The free run's verdict on real time, judged from its trace by the free run's own
 /// statistics ([`super::timing::Stats`]), which have seen every step.
 fn real_time_verdict(
@@ -173,7 +184,7 @@ pub fn replay_trace(
     trace_path: &Path,
     opts: &RunOptions,
     out: &Outputs,
-    observers: Vec<Box<dyn Observer>>,
+    attached: Attached,
 ) -> Result<Replayed, FreeError> {
     let period = s.controller_period_ticks();
     let mut order = trace.steps;
@@ -182,7 +193,7 @@ pub fn replay_trace(
         order.sort_by_key(|t| (t.read_ns, col(t.role)));
     }
     check_causal(trace_path, &order, period)?;
-    run_replay(s, opts, out, trace.partial, observers, |rep| {
+    run_replay(s, opts, out, trace.partial, attached, |rep| {
         for t in &order {
             if rep.interrupted() {
                 break;
@@ -200,9 +211,13 @@ fn run_replay(
     opts: &RunOptions,
     out: &Outputs,
     partial: Option<String>,
-    observers: Vec<Box<dyn Observer>>,
+    attached: Attached,
     drive: impl FnOnce(&mut Replayer<'_>) -> Result<(), String>,
 ) -> Result<Replayed, FreeError> {
+    let Attached {
+        observers,
+        manipulators,
+    } = attached;
     crate::engine::observe::distinct_names(&observers).map_err(FreeError::Run)?;
     let dir = &opts.out_dir;
     // Participants in other processes log to the directory: it is made for them.
@@ -221,6 +236,7 @@ fn run_replay(
         &s.links,
         s.run.seed,
     );
+    store.add_manipulators(manipulators);
     let mut rep = Replayer {
         steps: s.steps(),
         interrupt: &opts.interrupt,
