@@ -35,19 +35,26 @@ impl EventFeed {
         let planned = &self.planned[self.planned_given..];
         let n = planned.iter().take_while(|e| e.step <= k).count();
         let links = store.link_events_through(k, &mut self.link_given);
-        let mut merged = Vec::with_capacity(n + links.len());
-        let (mut a, mut b) = (planned[..n].iter().peekable(), links.into_iter().peekable());
-        loop {
-            let take_a = match (a.peek(), b.peek()) {
-                (Some(x), Some(y)) => x.step <= y.step,
-                (Some(_), None) => true,
-                (None, Some(_)) => false,
-                (None, None) => break,
-            };
-            merged.extend(if take_a { a.next().cloned() } else { b.next() });
-        }
+        let merged = merge_by_tick(planned[..n].to_vec(), links);
         self.planned_given += n;
         self.given += merged.len();
         merged
     }
+}
+
+/// Merges two lists of events, each in tick order, into one in tick order: at a tick, the
+/// events of `first` before those of `then` (a tick's planned events before the links').
+pub(crate) fn merge_by_tick(first: Vec<Event>, then: Vec<Event>) -> Vec<Event> {
+    let mut merged = Vec::with_capacity(first.len() + then.len());
+    let (mut a, mut b) = (first.into_iter().peekable(), then.into_iter().peekable());
+    loop {
+        let take_a = match (a.peek(), b.peek()) {
+            (Some(x), Some(y)) => x.step <= y.step,
+            (Some(_), None) => true,
+            (None, Some(_)) => false,
+            (None, None) => break,
+        };
+        merged.extend(if take_a { a.next() } else { b.next() });
+    }
+    merged
 }

@@ -113,20 +113,8 @@ pub(crate) fn run_events(
     rows: u64,
 ) -> tiltsim_formats::events::EventLog {
     let mut ev = planned_events(s, rows);
-    let links = store.events();
-    let mut merged = Vec::with_capacity(ev.events.len() + links.events.len());
-    let mut a = ev.events.into_iter().peekable();
-    let mut b = links.events.into_iter().peekable();
-    loop {
-        let take_a = match (a.peek(), b.peek()) {
-            (Some(x), Some(y)) => x.step <= y.step,
-            (Some(_), None) => true,
-            (None, Some(_)) => false,
-            (None, None) => break,
-        };
-        merged.extend(if take_a { a.next() } else { b.next() });
-    }
-    ev.events = merged;
+    let planned = std::mem::take(&mut ev.events);
+    ev.events = feed::merge_by_tick(planned, store.events().events);
     ev
 }
 
