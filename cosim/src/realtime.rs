@@ -41,3 +41,41 @@ pub fn leave() {
         libc::sched_setscheduler(0, libc::SCHED_OTHER, &p);
     }
 }
+
+/// Whether the kernel caps the CPU time of real-time threads (`kernel.sched_rt_runtime_us` of
+/// every `kernel.sched_rt_period_us`, 0.95 s of each second by default), so that processes that
+/// poll under `SCHED_FIFO` still leave a share of each CPU to everything else; the error says
+/// what the kernel has and why that is refused.
+pub fn throttled() -> Result<(), String> {
+    let read = |f: &str| {
+        let path = format!("/proc/sys/kernel/{f}");
+        std::fs::read_to_string(&path)
+            .map_err(|e| format!("{path}: {e}"))
+            .and_then(|t| t.trim().parse::<i64>().map_err(|e| format!("{path}: {e}")))
+    };
+    let (runtime, period) = (read("sched_rt_runtime_us")?, read("sched_rt_period_us")?);
+    if runtime < 0 || runtime >= period {
+        return Err(format!(
+            "the kernel does not throttle real-time threads (kernel.sched_rt_runtime_us = {runtime} of kernel.sched_rt_period_us = {period}), so the run's polling processes could hold their CPUs from everything else; set it below the period (`sysctl kernel.sched_rt_runtime_us=950000`) or pace the run (--pace)"
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    /// This machine's kernel throttles real-time threads as Linux does by default, and the
+    /// check reads it so.
+    #[test]
+    fn the_kernels_real_time_throttling_is_read() {
+        let runtime: i64 = std::fs::read_to_string("/proc/sys/kernel/sched_rt_runtime_us")
+            .unwrap()
+            .trim()
+            .parse()
+            .unwrap();
+        assert_eq!(
+            super::throttled().is_ok(),
+            (0..1_000_000).contains(&runtime)
+        );
+    }
+}

@@ -83,3 +83,55 @@ fn sixteen_concurrent_ipc_runs_under_two_cpu_hogs_all_complete_identically() {
         }
     }
 }
+
+/// An IPC run beside two CPU hogs is told the machine slowed it: other work's share of its
+/// CPUs is measured (the hogs alone keep both CPUs busy, whatever else runs), `slowed` is
+/// true, and the warning names `--realtime` and one process as what helps. Unpaced
+/// `--realtime`, where the system grants it, is reported as such (and the warning then does
+/// not suggest it); where it refuses, the refusal names the policy. Nothing reads a clock.
+#[test]
+fn an_ipc_run_beside_cpu_hogs_is_told_it_was_slowed_and_what_helps() {
+    let sc = scenario("paper-passive.toml");
+    let hogs = Hogs::start(2);
+    let dir = temp_dir("slowed").join("out");
+    let pfx = prefix("slowed");
+    let run = Tiltsim::run(&sc)
+        .out(&dir)
+        .transport_ipc()
+        .ipc_prefix(&pfx)
+        .duration(2);
+    let (code, _, err) = wait_with_limit(run.spawn(), Duration::from_secs(1200));
+    assert_eq!(code, 0, "{err}");
+    let m = &tiltsim_suite::summary(&dir)["timing"]["machine"];
+    assert_eq!(m["slowed"], true, "{m}");
+    assert!(m["others_cpu_share"].as_f64().unwrap() > 0.2, "{m}");
+    assert!(m["participants_waited_for_cpu_s"].as_f64().is_some(), "{m}");
+    assert_eq!(m["realtime"], false);
+    assert!(err.contains("`--realtime`"), "{err}");
+    assert!(err.contains("--transport in-process"), "{err}");
+    let dir = temp_dir("slowed-rt").join("out");
+    let pfx = prefix("slowed-rt");
+    let (code, _, err) = wait_with_limit(
+        Tiltsim::run(&sc)
+            .out(&dir)
+            .transport_ipc()
+            .ipc_prefix(&pfx)
+            .duration(2)
+            .realtime()
+            .spawn(),
+        Duration::from_secs(1200),
+    );
+    drop(hogs);
+    if code == 0 {
+        let m = &tiltsim_suite::summary(&dir)["timing"]["machine"];
+        assert_eq!(m["realtime"], true, "{m}");
+        assert!(!err.contains("`--realtime`"), "{err}");
+    } else {
+        assert_eq!(code, 2, "{err}");
+        assert!(
+            err.contains("SCHED_FIFO") || err.contains("mlockall") || err.contains("throttle"),
+            "{err}"
+        );
+    }
+    assert!(leftovers(&pfx).is_empty(), "{:?}", leftovers(&pfx));
+}

@@ -179,19 +179,23 @@ impl Drop for Claim {
 
 /// Places the run with `prefix`: looks at which CPUs are idle, then, under the registry's lock,
 /// reads the other runs' claims, chooses ([`choose`]) and writes this run's claim. `allowed`
-/// are the CPUs this thread may use.
+/// are the CPUs this thread may use; `realtime`: the run's processes run under SCHED_FIFO.
 pub fn place(
     prefix: &str,
     asked: WaitStrategy,
     pin: bool,
     allowed: &[usize],
+    realtime: bool,
 ) -> (Placement, Claim) {
     if !pin || allowed.len() < 2 {
         return (choose(asked, pin, allowed, &[], &[]), Claim::none());
     }
     // The look costs its length; on a machine where nothing else runs it is skipped. Tests
-    // of the registry set `TILTSIM_ASSUME_IDLE_CPUS=1`, so that other load cannot decide.
-    let assume_idle = std::env::var_os(ASSUME_IDLE).is_some_and(|v| v == "1");
+    // of the registry set `TILTSIM_ASSUME_IDLE_CPUS=1`, so that other load cannot decide. A
+    // run under SCHED_FIFO (`realtime`) does not look: ordinary work on a CPU gives way to
+    // it, so a CPU busy with such work is as good as an idle one (other runs' claims still
+    // count).
+    let assume_idle = realtime || std::env::var_os(ASSUME_IDLE).is_some_and(|v| v == "1");
     let busy = if !assume_idle && others_runnable() > 0 {
         busy_cpus(allowed, LOOK)
     } else {

@@ -353,6 +353,7 @@ fn start_processes(
         s.run.wait,
         s.run.pin_cpus,
         &cosim::ipc::allowed_cpus(),
+        opts.realtime.is_some(),
     );
     tracing::info!("placement: {placement:?}");
     let hub = IpcHub::new(IpcSettings {

@@ -407,11 +407,16 @@ fn simulate(run: Run<'_>) -> Result<Ran, RunError> {
     team.timed = opts.timing;
     let mut obs = Observers::new(s, opts, observers);
     obs.cpu_plan = cpu_plan::CpuPlanner::new(s, team.ps.placement.as_ref());
+    let pids: Vec<u32> = team.ps.pids().iter().map(|(_, p)| *p).collect();
+    let at_start = machine::Snapshot::take(&pids, session.cpus());
     let loop_started = Instant::now();
-    let waited0 = machine::runqueue_wait_ns();
     let mut outcome = lockstep(&mut team, &mut obs, &opts.interrupt);
     let wall = loop_started.elapsed().as_secs_f64();
-    let load = machine_load(waited0, wall, session.cpus().len());
+    let at_end = machine::Snapshot::take(&pids, session.cpus());
+    let load = machine::load_average().and_then(|l| {
+        let cpus = session.cpus().len();
+        machine::MachineLoad::between(&at_start, &at_end, wall, l, cpus, opts.realtime.is_some())
+    });
     // The analysis and the files after the loop run at ordinary priority.
     if opts.realtime.is_some() {
         cosim::realtime::leave();
@@ -452,24 +457,6 @@ fn simulate(run: Run<'_>) -> Result<Ran, RunError> {
         events,
         latency_histogram,
     })
-}
-
-/// How much of the loop's `wall` time (s) this process waited for a CPU, from the run
-/// queue's wait at the loop's start (`waited0`) and now, with the machine's load.
-fn machine_load(waited0: Option<u64>, wall: f64, cpus: usize) -> Option<machine::MachineLoad> {
-    match (
-        waited0,
-        machine::runqueue_wait_ns(),
-        machine::load_average(),
-    ) {
-        (Some(a), Some(b), Some(l)) => Some(machine::MachineLoad::of(
-            b.saturating_sub(a),
-            wall,
-            l,
-            cpus.max(1),
-        )),
-        _ => None,
-    }
 }
 
 /// The lock-step's own part of `summary.json`: progress, timing, latency, pacing and the

@@ -230,11 +230,12 @@ fn scenario(a: &RunArgs) -> Result<Scenario, CliError> {
             }
         }
     }
-    if a.realtime && a.pace.is_none() && !free {
-        // Unpaced, real-time processes that poll would take both cores from everything else.
-        return Err(CliError::Invalid(
-            "command line: --realtime: allowed only with --pace".into(),
-        ));
+    if a.realtime && a.pace.is_none() {
+        // Unpaced, real-time processes poll for as long as the run lasts: only the kernel's
+        // real-time throttling keeps a share of each CPU for everything else.
+        cosim::realtime::throttled().map_err(|e| {
+            CliError::Invalid(format!("command line: --realtime without --pace: {e}"))
+        })?;
     }
     Ok(s)
 }
