@@ -264,8 +264,40 @@ fn concurrent_runs_are_measured_per_count_and_hog_and_all_complete() {
             assert!(l > 0.0 && l <= w && w <= total, "{x}");
         }
     }
+    // Each row's loops are set beside the same run in one process beside the same hogs.
+    for x in rows {
+        assert_eq!(x["realtime"], false);
+        let alone = x["in_process_loop_s"].as_f64().unwrap();
+        let median = x["loop_median_s"].as_f64().unwrap();
+        let ratio = x["loop_over_in_process"].as_f64().unwrap();
+        assert!(alone > 0.0 && (ratio - median / alone).abs() < 1e-12, "{x}");
+    }
+    assert!(stdout.contains("loop over in process"), "{stdout}");
     // The runs' directories were scratch.
     assert!(!dir.join("concurrent.runs").exists());
+    // Under SCHED_FIFO where the system grants it: each run says so; where it refuses, no
+    // run completes.
+    let (code, _, err) = run(&[
+        "bench",
+        scenario("paper-passive.toml").to_str().unwrap(),
+        "--concurrent",
+        "1",
+        "--hogs",
+        "1",
+        "--realtime",
+        "--duration",
+        "0.05",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let x = &r["concurrent"][0];
+    assert_eq!(x["realtime"], true, "{x}");
+    if x["completed"] == 1 {
+        assert!(x["loop_over_in_process"].as_f64().unwrap() > 0.0, "{x}");
+    }
 }
 
 #[test]

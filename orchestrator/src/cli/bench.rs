@@ -65,6 +65,10 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', num_args = 1.., default_value = "0",
           value_parser = bounds::int(0..=64usize, ""), requires = "concurrent")]
     hogs: Vec<usize>,
+    /// With --concurrent: the runs under SCHED_FIFO (`tiltsim run --realtime`), to compare
+    /// with rows without it.
+    #[arg(long, requires = "concurrent")]
+    realtime: bool,
     /// Runs of each with --fmu.
     #[arg(long, default_value_t = 5, value_parser = bounds::int(1..=100usize, ""))]
     fmu_runs: usize,
@@ -340,15 +344,13 @@ pub fn exec(a: BenchArgs) -> CliResult {
         return super::bench_network::network(&a, &s, &exe, &a.listen);
     }
     if !a.concurrent.is_empty() {
-        return super::bench_concurrent::concurrent(
-            &a.scenario,
-            &s.name,
-            d,
-            &a.concurrent,
-            &a.hogs,
-            &exe,
-            &a.out,
-        );
+        let how = super::bench_concurrent::Runs {
+            exe: &exe,
+            scenario: &a.scenario,
+            duration: d,
+            realtime: a.realtime,
+        };
+        return super::bench_concurrent::concurrent(how, &s.name, &a.concurrent, &a.hogs, &a.out);
     }
     let scratch = tiltsim_studies::bench::scratch_dir(&a.out);
     if a.fmu {

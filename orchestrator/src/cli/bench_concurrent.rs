@@ -42,6 +42,12 @@ pub struct Row {
     pub load_before: Option<f64>,
     /// See `load_before`.
     pub load_after: Option<f64>,
+    /// Whether the runs ran under SCHED_FIFO (`--realtime`).
+    pub realtime: bool,
+    /// The loop of the same run in one process beside the same hogs, run after them (s).
+    pub in_process_loop_s: Option<f64>,
+    /// `loop_median_s` over `in_process_loop_s`: what the processes cost beside this load.
+    pub loop_over_in_process: Option<f64>,
 }
 
 /// Spinning threads until dropped.
@@ -107,29 +113,13 @@ type Started = (std::process::Child, Instant, std::path::PathBuf);
 /// How a run ended: its exit (or why it has none), and its wall time (s).
 type Ended = (std::io::Result<std::process::ExitStatus>, f64);
 
-/// Starts `runs` IPC runs of `scenario` for `duration` s, each in `dir/r<k>`; if one cannot
-/// start, those started are killed.
-fn start_runs(
-    exe: &Path,
-    scenario: &Path,
-    duration: f64,
-    runs: usize,
-    dir: &Path,
-) -> Result<Vec<Started>, CliError> {
+/// Starts `runs` IPC runs, each in `dir/r<k>`; if one cannot start, those started are
+/// killed.
+fn start_runs(how: Runs<'_>, runs: usize, dir: &Path) -> Result<Vec<Started>, CliError> {
     let mut children = Vec::new();
     for k in 0..runs {
         let out = dir.join(format!("r{k}"));
-        let child = std::process::Command::new(exe)
-            .arg("run")
-            .arg(scenario)
-            .args(["--transport", "ipc", "--duration", &duration.to_string()])
-            .arg("--out")
-            .arg(&out)
-            .arg("-q")
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn();
-        match child {
+        match how.command("ipc", &out).spawn() {
             Ok(c) => children.push((c, Instant::now(), out)),
             Err(e) => {
                 for (mut c, _, _) in children {
@@ -169,22 +159,59 @@ fn wait_for_all(children: &mut [Started], limit: std::time::Duration) -> Vec<Opt
     ends
 }
 
-/// One row: `runs` runs of `scenario` for `duration` s beside `hogs` hogs, in `dir`.
+/// How the bench starts each run.
+#[derive(Clone, Copy)]
+pub struct Runs<'a> {
+    /// The `tiltsim` program.
+    pub exe: &'a Path,
+    /// The scenario file.
+    pub scenario: &'a Path,
+    /// Simulated seconds per run.
+    pub duration: f64,
+    /// Under SCHED_FIFO (`tiltsim run --realtime`).
+    pub realtime: bool,
+}
+
+impl Runs<'_> {
+    /// The command of one run writing to `out`, over `transport`.
+    fn command(&self, transport: &str, out: &Path) -> std::process::Command {
+        let mut c = std::process::Command::new(self.exe);
+        c.arg("run")
+            .arg(self.scenario)
+            .args([
+                "--transport",
+                transport,
+                "--duration",
+                &self.duration.to_string(),
+            ])
+            .arg("--out")
+            .arg(out)
+            .args(["-q", "--no-plots"])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null());
+        if self.realtime && transport == "ipc" {
+            c.arg("--realtime");
+        }
+        c
+    }
+}
+
+/// One row: `runs` runs beside `hogs` hogs, in `dir`, then (unless `interrupt`ed) one in
+/// process beside the same hogs for reference.
 fn row(
-    exe: &Path,
-    scenario: &Path,
-    duration: f64,
+    how: Runs<'_>,
     runs: usize,
     hogs: usize,
     dir: &Path,
+    interrupt: &AtomicBool,
 ) -> Result<Row, CliError> {
     let load_before = tiltsim_master::engine::machine::load_average();
     let _hogs = Hogs::start(hogs)?;
     // A run ends by itself (its own deadlines name a participant that stalls); one that has
     // not after this long is killed and counted as not completed.
-    let limit = std::time::Duration::from_secs_f64(120.0 + 50.0 * duration * runs as f64);
+    let limit = std::time::Duration::from_secs_f64(120.0 + 50.0 * how.duration * runs as f64);
     let t0 = Instant::now();
-    let mut children = start_runs(exe, scenario, duration, runs, dir)?;
+    let mut children = start_runs(how, runs, dir)?;
     let ends = wait_for_all(&mut children, limit);
     let mut wall_s = Vec::new();
     let mut loop_s = Vec::new();
@@ -206,6 +233,14 @@ fn row(
         }
     }
     let total_s = t0.elapsed().as_secs_f64();
+    let alone = dir.join("in-process");
+    let in_process_loop_s = (!interrupt.load(Ordering::Relaxed))
+        .then(|| how.command("in-process", &alone).status().ok())
+        .flatten()
+        .filter(|st| st.success())
+        .and_then(|_| summary_of(&alone))
+        .map(|(l, _)| l);
+    let loop_median_s = median(&loop_s);
     Ok(Row {
         runs,
         hogs,
@@ -213,11 +248,17 @@ fn row(
         wall_median_s: median(&wall_s).unwrap_or(0.0),
         wall_s,
         total_s,
-        loop_median_s: median(&loop_s),
+        loop_median_s,
         loop_s,
         placements,
         load_before,
         load_after: tiltsim_master::engine::machine::load_average(),
+        realtime: how.realtime,
+        in_process_loop_s,
+        loop_over_in_process: loop_median_s
+            .zip(in_process_loop_s)
+            .filter(|(_, a)| *a > 0.0)
+            .map(|(l, a)| l / a),
     })
 }
 
@@ -226,8 +267,8 @@ fn table(scenario: &str, duration: f64, rows: &[Row]) -> String {
     use std::fmt::Write as _;
     let mut s = format!(
         "tiltsim bench --concurrent: {scenario}, {duration} s simulated per run, over IPC\n\n\
-         | runs | hogs | completed | wall per run, median (s) | total (s) | loop per run, median (s) | placements | load before / after |\n\
-         |---|---|---|---|---|---|---|---|\n"
+         | runs | hogs | realtime | completed | wall per run, median (s) | total (s) | loop per run, median (s) | loop in process (s) | loop over in process | placements | load before / after |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n"
     );
     let load = |x: Option<f64>| x.map_or("?".into(), |x| format!("{x:.1}"));
     for r in rows {
@@ -238,13 +279,18 @@ fn table(scenario: &str, duration: f64, rows: &[Row]) -> String {
             .collect();
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.2} | {:.2} | {} | {} | {} / {} |",
+            "| {} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {} | {} | {} / {} |",
             r.runs,
             r.hogs,
+            if r.realtime { "yes" } else { "no" },
             r.completed,
             r.wall_median_s,
             r.total_s,
             r.loop_median_s.map_or("-".into(), |x| format!("{x:.3}")),
+            r.in_process_loop_s
+                .map_or("-".into(), |x| format!("{x:.3}")),
+            r.loop_over_in_process
+                .map_or("-".into(), |x| format!("{x:.2}")),
             placements.join(", "),
             load(r.load_before),
             load(r.load_after)
@@ -255,14 +301,13 @@ fn table(scenario: &str, duration: f64, rows: &[Row]) -> String {
 
 /// Runs `--concurrent`: every count of runs beside every count of hogs.
 pub fn concurrent(
-    scenario: &Path,
+    how: Runs<'_>,
     name: &str,
-    duration: f64,
     counts: &[usize],
     hogs: &[usize],
-    exe: &Path,
     out: &Path,
 ) -> CliResult {
+    let duration = how.duration;
     let scratch: PathBuf = tiltsim_studies::bench::scratch_dir(out);
     // Ctrl-C reaches the runs too (they end as interrupted); the rows measured so far are
     // reported and no further row starts.
@@ -275,7 +320,7 @@ pub fn concurrent(
             }
             eprintln!("  {n} run(s) at once beside {h} hog(s) ...");
             let dir = scratch.join(format!("runs-{n}-hogs-{h}"));
-            let r = row(exe, scenario, duration, n, h, &dir);
+            let r = row(how, n, h, &dir, &interrupt);
             let _ = std::fs::remove_dir_all(&dir);
             match r {
                 Ok(r) => rows.push(r),
