@@ -139,10 +139,8 @@ pub struct CarPlace {
     pub p_ct_seated: f64,
     /// P_CT standing from whole-run peaks, the paper's evaluation (%).
     pub p_ct_paper_standing: f64,
-    /// Mean comfort index N_MV, lateral part.
+    /// Mean comfort index N_MV, lateral part (on the centre line roll adds no vertical part).
     pub n_mv_lateral: f64,
-    /// N_MV with the vertical part from roll.
-    pub n_mv_roll: f64,
     /// Largest |ÿ| (%g).
     pub lat_acc_peak_pct_g: f64,
 }
