@@ -192,27 +192,37 @@ impl Plant {
     }
 
     /// The whole car's outputs with the body centre at `s`: the half vehicle's nine states at
-    /// the car's centre (body lateral, roll and rates as they are; the bogies' lateral, roll,
-    /// rates and reservoir roll the mean of the two bogies'), and `car` (the wheel-rail forces
-    /// of every wheelset, the body's lateral acceleration over each bogie and at the centre).
+    /// the car's centre (body lateral, roll and rates as they are; the bogies' roll, roll
+    /// rate and reservoir roll the mean of the two bogies'; the bogie's lateral and its rate
+    /// those for which the half vehicle's y_v − h1 θ_v − y_b − h2 θ_b is the mean of the two
+    /// secondary deflections, the chord's versine and the body's yaw included), and `car` (the
+    /// wheel-rail forces of every wheelset, the body's lateral acceleration over each bogie and
+    /// at the centre).
     fn whole_outputs(&self, w: &Whole, s: f64) -> ([f64; 9], [f64; 23]) {
         use full_car::ix as c;
         let sim = &w.sim;
         let z = sim.state();
+        let p = &sim.car.p;
+        let inputs = inputs_from_track(p, &self.track, s, sim.v);
+        let (tb, tc) = full_car::dynamics::body_tracks(&inputs);
+        let eq = sim.car.equations(sim.v);
+        let d: [(f64, f64, f64); 2] =
+            std::array::from_fn(|i| eq.secondary_deflection(z.as_slice(), i, &tb[i], &tc));
         let mean = |f: fn(usize) -> usize| 0.5 * (z[f(0)] + z[f(1)]);
         let rate = |k: usize| z[c::rate(k)];
+        let phi_b = mean(c::phi_b);
+        let dphi_b = 0.5 * (rate(c::phi_b(0)) + rate(c::phi_b(1)));
         let x = [
             z[c::Y_C],
             z[c::PHI_C],
-            mean(c::y_b),
-            mean(c::phi_b),
+            z[c::Y_C] - p.h1 * z[c::PHI_C] - p.h2 * phi_b - 0.5 * (d[0].0 + d[1].0),
+            phi_b,
             rate(c::Y_C),
             rate(c::PHI_C),
-            0.5 * (rate(c::y_b(0)) + rate(c::y_b(1))),
-            0.5 * (rate(c::phi_b(0)) + rate(c::phi_b(1))),
+            rate(c::Y_C) - p.h1 * rate(c::PHI_C) - p.h2 * dphi_b - 0.5 * (d[0].1 + d[1].1),
+            dphi_b,
             mean(c::th_r),
         ];
-        let inputs = inputs_from_track(&sim.car.p, &self.track, s, sim.v);
         let mut car = [0.0; 23];
         for (j, f) in sim.wheel_forces(&inputs).iter().enumerate() {
             car[5 * j..5 * j + 5].copy_from_slice(&[f.sum_y, f.y_plus, f.y_minus, f.q_plus, f.q_minus]);
