@@ -173,7 +173,7 @@ impl Plant {
         }
         let noise = self.noise_value;
         let (x, car) = match &self.whole {
-            Some(w) => self.whole_outputs(w, s),
+            Some(w) => self.whole_outputs(w, t, s),
             None => (self.x.into(), [0.0; 23]),
         };
         let th_v = x[ix::TH_V];
@@ -191,14 +191,16 @@ impl Plant {
         }
     }
 
-    /// The whole car's outputs with the body centre at `s`: the half vehicle's nine states at
-    /// the car's centre (body lateral, roll and rates as they are; the bogies' roll, roll
-    /// rate and reservoir roll the mean of the two bogies'; the bogie's lateral and its rate
-    /// those for which the half vehicle's y_v − h1 θ_v − y_b − h2 θ_b is the mean of the two
-    /// secondary deflections, the chord's versine and the body's yaw included), and `car` (the
-    /// wheel-rail forces of every wheelset, the body's lateral acceleration over each bogie and
-    /// at the centre).
-    fn whole_outputs(&self, w: &Whole, s: f64) -> ([f64; 9], [f64; 23]) {
+    /// The whole car's outputs at time `t`, the body centre at `s = V t`: the half vehicle's
+    /// nine states at the car's centre, and `car` (the wheel-rail forces of every wheelset,
+    /// the body's lateral acceleration over each bogie and at the centre). The roll angles
+    /// (body, mean of the bogies, mean reservoir) and rates are taken relative to the track
+    /// plane at the centre, as the half vehicle's are, so that θ_o(s) + θ_v is the body's
+    /// roll over the horizontal (the whole car's own φ_c is relative to the mean plane of its
+    /// four wheelsets, which a cant irregularity makes differ); the bogie's lateral and its
+    /// rate are those for which the half vehicle's y_v − h1 θ_v − y_b − h2 θ_b is the mean of
+    /// the two secondary deflections, the chord's versine and the body's yaw included.
+    fn whole_outputs(&self, w: &Whole, t: f64, s: f64) -> ([f64; 9], [f64; 23]) {
         use full_car::ix as c;
         let sim = &w.sim;
         let z = sim.state();
@@ -208,20 +210,23 @@ impl Plant {
         let eq = sim.car.equations(sim.v);
         let d: [(f64, f64, f64); 2] =
             std::array::from_fn(|i| eq.secondary_deflection(z.as_slice(), i, &tb[i], &tc));
+        let shift = tc.cant - self.track.at(s).cant;
+        let dshift = tc.cant_rate - self.track.cant_rate_at_time(t, sim.v);
         let mean = |f: fn(usize) -> usize| 0.5 * (z[f(0)] + z[f(1)]);
         let rate = |k: usize| z[c::rate(k)];
-        let phi_b = mean(c::phi_b);
-        let dphi_b = 0.5 * (rate(c::phi_b(0)) + rate(c::phi_b(1)));
+        let (th_v, dth_v) = (z[c::PHI_C] + shift, rate(c::PHI_C) + dshift);
+        let th_b = mean(c::phi_b) + shift;
+        let dth_b = 0.5 * (rate(c::phi_b(0)) + rate(c::phi_b(1))) + dshift;
         let x = [
             z[c::Y_C],
-            z[c::PHI_C],
-            z[c::Y_C] - p.h1 * z[c::PHI_C] - p.h2 * phi_b - 0.5 * (d[0].0 + d[1].0),
-            phi_b,
+            th_v,
+            z[c::Y_C] - p.h1 * th_v - p.h2 * th_b - 0.5 * (d[0].0 + d[1].0),
+            th_b,
             rate(c::Y_C),
-            rate(c::PHI_C),
-            rate(c::Y_C) - p.h1 * rate(c::PHI_C) - p.h2 * dphi_b - 0.5 * (d[0].1 + d[1].1),
-            dphi_b,
-            mean(c::th_r),
+            dth_v,
+            rate(c::Y_C) - p.h1 * dth_v - p.h2 * dth_b - 0.5 * (d[0].1 + d[1].1),
+            dth_b,
+            mean(c::th_r) + shift,
         ];
         let mut car = [0.0; 23];
         for (j, f) in sim.wheel_forces(&inputs).iter().enumerate() {
