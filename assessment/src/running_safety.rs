@@ -118,7 +118,11 @@ pub fn assess(
         .max_by(|a, b| a.utilisation.total_cmp(&b.utilisation))?;
     let flag = RunningSafetyFlag {
         raised: out.iter().any(|a| a.exceeded),
-        exceeded: out.iter().filter(|a| a.exceeded).map(|a| a.quantity).collect(),
+        exceeded: out
+            .iter()
+            .filter(|a| a.exceeded)
+            .map(|a| a.quantity)
+            .collect(),
         binding: binding.quantity,
         binding_utilisation: binding.utilisation,
     };

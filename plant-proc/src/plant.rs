@@ -230,10 +230,15 @@ impl Plant {
         ];
         let mut car = [0.0; 23];
         for (j, f) in sim.wheel_forces(&inputs).iter().enumerate() {
-            car[5 * j..5 * j + 5].copy_from_slice(&[f.sum_y, f.y_plus, f.y_minus, f.q_plus, f.q_minus]);
+            car[5 * j..5 * j + 5]
+                .copy_from_slice(&[f.sum_y, f.y_plus, f.y_minus, f.q_plus, f.q_minus]);
         }
         let places = sim.standard_places();
-        for (i, q) in sim.passengers([w.delta; 2], &inputs, &places).iter().enumerate() {
+        for (i, q) in sim
+            .passengers([w.delta; 2], &inputs, &places)
+            .iter()
+            .enumerate()
+        {
             car[5 * NW + i] = q.lateral_acc;
         }
         (x, car)

@@ -52,7 +52,10 @@ fn at_rest_on_straight_smooth_track_the_safety_quantities_are_zero() {
             assert!(y.abs() < 1e-2, "wheelset {j} lateral force {k}: {y} N");
         }
         for q in &f[3..5] {
-            assert!((q - q0).abs() < 1e-6 * q0, "wheelset {j}: Q {q} N, Q0 {q0} N");
+            assert!(
+                (q - q0).abs() < 1e-6 * q0,
+                "wheelset {j}: Q {q} N, Q0 {q0} N"
+            );
         }
     }
     assert!(out.x.iter().all(|v| v.abs() < 1e-8), "{:?}", out.x);
@@ -87,8 +90,13 @@ fn on_a_steady_curve_the_rails_carry_the_uncompensated_acceleration() {
         (sum_y - hand).abs() < 1e-3 * hand.abs(),
         "ΣΣY {sum_y} N against M(V²/R − gθ) = {hand} N"
     );
-    let sum_q: f64 = (0..4).map(|j| out.car[5 * j + 3] + out.car[5 * j + 4]).sum();
-    assert!((sum_q - m * G).abs() < 1e-9 * m * G, "ΣQ {sum_q} N against Mg");
+    let sum_q: f64 = (0..4)
+        .map(|j| out.car[5 * j + 3] + out.car[5 * j + 4])
+        .sum();
+    assert!(
+        (sum_q - m * G).abs() < 1e-9 * m * G,
+        "ΣQ {sum_q} N against Mg"
+    );
     // Each wheel's Y is half its wheelset's ΣY away from the flanges (one creep coefficient
     // for both wheels).
     for j in 0..4 {

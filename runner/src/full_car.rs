@@ -67,41 +67,54 @@ fn steady_rows(s: &Scenario, n: usize) -> std::ops::Range<usize> {
 /// The places along the body the comfort is given at, in the order of `FromPlant::car`.
 const PLACES: [&str; 3] = ["leading bogie", "centre", "trailing bogie"];
 
-/// Comfort at each place: the run's rows with the passenger lateral acceleration replaced by
-/// the body's at that place (taken as it is: the form `eq13` passes it through), everything
-/// else (roll speed, references, deflection) the run's own.
+/// Comfort at each place: the run's samples for comfort (roll speed, references, deflection:
+/// the run's own) with the passenger lateral acceleration, in both forms, the body's at that
+/// place, which is what an accelerometer there measures (so the P_CT and the ride's N_MV both
+/// take it).
 fn comfort_along_car(
     s: &Scenario,
     rows: &[Row],
     car: &[[f64; CAR_VALUES]],
 ) -> std::io::Result<Vec<CarPlace>> {
-    let mut at = s.clone();
-    at.comfort.lateral_acceleration = LateralAcceleration::Eq13;
-    at.comfort.positions.clear();
+    use tiltsim_assessment::comfort::Assessor;
+    let mut settings = s.comfort.clone();
+    settings.lateral_acceleration = LateralAcceleration::Eq13;
+    settings.positions.clear();
+    let transitions = tiltsim_report::analysis::transitions(s);
+    let body = tiltsim_report::analysis::body(s);
+    let mut at: Vec<Assessor> = (0..PLACES.len())
+        .map(|_| Assessor::new(s.run.dt_s, &transitions, &settings, body))
+        .collect();
+    tiltsim_report::analysis::scan(s, Rows::Kept(rows), |r, x| {
+        if let Some(c) = car.get(r.step as usize) {
+            for (i, a) in at.iter_mut().enumerate() {
+                let acc = c[CAR_VALUES - PLACES.len() + i];
+                a.push(&tiltsim_assessment::comfort::Sample {
+                    lat_acc: acc,
+                    lat_acc_other: acc,
+                    ..*x
+                });
+            }
+        }
+    })?;
     let p = FullCarParams::from_half(&s.vehicle);
-    let mut out = Vec::new();
-    for (i, place) in PLACES.iter().enumerate() {
-        let moved: Vec<Row> = rows
-            .iter()
-            .zip(car)
-            .map(|(r, c)| Row {
-                lat_acc: c[CAR_VALUES - 3 + i],
-                ..*r
-            })
-            .collect();
-        let a = tiltsim_report::analysis::assess(&at, Rows::Kept(&moved))?;
-        let c = &a.comfort;
-        out.push(CarPlace {
-            place,
-            x_m: [p.a, 0.0, -p.a][i],
-            p_ct_standing: c.p_ct_en12299.standing,
-            p_ct_seated: c.p_ct_en12299.seated,
-            p_ct_paper_standing: c.p_ct_paper.standing,
-            n_mv_lateral: c.ride.n_mv_lateral,
-            lat_acc_peak_pct_g: c.lat_acc_peak_pct_g,
-        });
-    }
-    Ok(out)
+    Ok(at
+        .iter()
+        .zip(PLACES)
+        .zip([p.a, 0.0, -p.a])
+        .map(|((a, place), x_m)| {
+            let c = a.finish();
+            CarPlace {
+                place,
+                x_m,
+                p_ct_standing: c.p_ct_en12299.standing,
+                p_ct_seated: c.p_ct_en12299.seated,
+                p_ct_paper_standing: c.p_ct_paper.standing,
+                n_mv_lateral: c.ride.n_mv_lateral,
+                lat_acc_peak_pct_g: c.lat_acc_peak_pct_g,
+            }
+        })
+        .collect())
 }
 
 /// Fills the summary's whole-car part from the kept samples and the run's rows (on disk,
@@ -129,13 +142,9 @@ pub fn assess(s: &Scenario, summary: &mut Summary, samples: &CarSamples, rows: R
     let n = car.len().min(rows.len());
     let (car, rows) = (&car[..n], &rows[..n]);
     let q0 = FullCarParams::from_half(&s.vehicle).static_wheel_load();
-    let Some((safety, flag)) = running_safety::assess(
-        car,
-        steady_rows(s, n),
-        s.track.speed(),
-        s.run.dt_s,
-        q0,
-    ) else {
+    let Some((safety, flag)) =
+        running_safety::assess(car, steady_rows(s, n), s.track.speed(), s.run.dt_s, q0)
+    else {
         return;
     };
     match comfort_along_car(s, rows, car) {

@@ -362,20 +362,43 @@ fn a_lost_request_or_reply_is_resent_counted_and_changes_no_value() {
 #[test]
 fn the_whole_car_gives_byte_identical_timeseries_over_both_transports() {
     let full = ["--set", "vehicle.model=full"];
-    let a = run_with("full-ipc", "irregular-track.toml", "ipc", "gauss-seidel", &full);
+    let a = run_with(
+        "full-ipc",
+        "irregular-track.toml",
+        "ipc",
+        "gauss-seidel",
+        &full,
+    );
     let b = run_with(
         "full-inproc",
         "irregular-track.toml",
         "in-process",
         "gauss-seidel",
-        &["--set", "vehicle.model=full", "--set", "comfort.lateral_acceleration=with-sway"],
+        &[
+            "--set",
+            "vehicle.model=full",
+            "--set",
+            "comfort.lateral_acceleration=with-sway",
+        ],
     );
     assert!(bytes(&a) == bytes(&b), "ipc and in-process differ");
-    let half = run_with("half-inproc", "irregular-track.toml", "in-process", "gauss-seidel", &[]);
-    assert!(bytes(&a) != bytes(&half), "the whole car ran as the half vehicle");
+    let half = run_with(
+        "half-inproc",
+        "irregular-track.toml",
+        "in-process",
+        "gauss-seidel",
+        &[],
+    );
+    assert!(
+        bytes(&a) != bytes(&half),
+        "the whole car ran as the half vehicle"
+    );
     let s = summary(&a);
     let safety = s["full_car"]["running_safety"].as_array().unwrap();
-    let names: Vec<&str> = safety.iter().map(|q| q["quantity"].as_str().unwrap()).collect();
+    let names: Vec<&str> = safety
+        .iter()
+        .map(|q| q["quantity"].as_str().unwrap())
+        .collect();
     assert_eq!(names, ["(Y/Q)_2m", "(SumY)_2m", "dQ/Q0", "Y_qst", "Q_qst"]);
     for q in safety {
         let w = q["wheelset"].as_u64().unwrap();

@@ -706,9 +706,11 @@ mod tests {
                 && e.contains("`full`"),
             "{e}"
         );
-        let e = parse("[vehicle]\nmodel = \"full\"\n[run]\nexecution = \"free\"\ntransport = \"ipc\"\n")
-            .unwrap_err()
-            .to_string();
+        let e = parse(
+            "[vehicle]\nmodel = \"full\"\n[run]\nexecution = \"free\"\ntransport = \"ipc\"\n",
+        )
+        .unwrap_err()
+        .to_string();
         assert!(
             e.contains("field `vehicle.model`") && e.contains("lock-step"),
             "{e}"
