@@ -19,7 +19,7 @@ use tiltsim_fmi::ssd::{Component, Connection, Connector, ConnectorType, System};
 use tiltsim_scenario::links::{LinkEffects, LINK_NAMES};
 use tiltsim_scenario::scenario::Scenario;
 
-use crate::export_fmu::{export, ExportError, FmuOptions};
+use crate::export_fmu::{export, ExportError, Exported, FmuOptions};
 
 /// The file name of the system structure in the output directory.
 pub const SSD_FILE: &str = "SystemStructure.ssd";
@@ -159,37 +159,7 @@ pub fn export_ssp(
         let file = format!("{}.fmu", role.name());
         let path = res.join(&file);
         let e = export(s, role, &path, &options)?;
-        let kind = |t: ScalarType| match t {
-            ScalarType::F64 => ConnectorType::Real,
-            ScalarType::U32 => ConnectorType::Integer,
-        };
-        let mut connectors: Vec<Connector> = e
-            .layout
-            .inputs
-            .iter()
-            .map(|v| Connector {
-                name: v.name.clone(),
-                output: false,
-                ty: kind(v.ty),
-            })
-            .collect();
-        connectors.extend(e.layout.outputs.iter().map(|v| Connector {
-            name: v.name.clone(),
-            output: true,
-            ty: kind(v.ty),
-        }));
-        components.push(Component {
-            name: role.name().to_string(),
-            source: format!("resources/{file}"),
-            connectors,
-            parameters: e
-                .layout
-                .params
-                .iter()
-                .map(|p| (p.name.clone(), p.value.clone()))
-                .collect(),
-            step_s: s.run.dt_s,
-        });
+        components.push(component(s, role, &e, &file));
         fmus.push(path);
     }
     let connections: Vec<Connection> = WIRING
@@ -224,6 +194,36 @@ pub fn export_ssp(
         step_s: s.run.dt_s,
         stop_s: s.duration(),
     })
+}
+
+/// The SSD's component of `role`, exported as `e` to `resources/{file}`: its connectors
+/// (inputs, then outputs) and parameters.
+fn component(s: &Scenario, role: Role, e: &Exported, file: &str) -> Component {
+    let kind = |t: ScalarType| match t {
+        ScalarType::F64 => ConnectorType::Real,
+        ScalarType::U32 => ConnectorType::Integer,
+    };
+    let connector = |output: bool| {
+        move |v: &cosim::msg::ScalarInfo| Connector {
+            name: v.name.clone(),
+            output,
+            ty: kind(v.ty),
+        }
+    };
+    let mut connectors: Vec<Connector> = e.layout.inputs.iter().map(connector(false)).collect();
+    connectors.extend(e.layout.outputs.iter().map(connector(true)));
+    Component {
+        name: role.name().to_string(),
+        source: format!("resources/{file}"),
+        connectors,
+        parameters: e
+            .layout
+            .params
+            .iter()
+            .map(|p| (p.name.clone(), p.value.clone()))
+            .collect(),
+        step_s: s.run.dt_s,
+    }
 }
 
 #[cfg(test)]

@@ -467,30 +467,14 @@ fn run<'py>(
         (&|| ticks.load(Ordering::Relaxed), steps),
         progress.as_ref(),
         move || {
-            let out_dir = opts.out_dir.clone();
             let mut job = tiltsim_runner::pipeline::Job::new(&s, file, opts);
             job.replay_trace = replay_trace;
-            // Without `out` the run writes into a scratch directory removed afterwards.
-            job.claim = keep_files;
             job.outputs = Outputs {
                 record,
-                rows_in_memory: !keep_files,
                 ticks_done: Some(ticks_seen),
                 ..Outputs::default()
             };
-            tiltsim_runner::pipeline::carry_out(job).and_then(|done| {
-                if !keep_files {
-                    return Ok(done);
-                }
-                // What the run wrote is what the arrays hold.
-                let rows = tiltsim_formats::table::read_rows(&out_dir).map_err(|e| {
-                    tiltsim_runner::pipeline::JobError::Failed(format!(
-                        "{}: {e}",
-                        out_dir.display()
-                    ))
-                })?;
-                Ok(tiltsim_runner::pipeline::Done { rows, ..done })
-            })
+            carry_out(job, keep_files)
         },
     );
     drop(scratch);
@@ -501,6 +485,38 @@ fn run<'py>(
             return Err(e);
         }
     }
+    run_result(py, done, out.as_deref(), library_s)
+}
+
+/// Carries out `job`; with `keep_files` its files stay in its directory and the arrays are
+/// read back from them, otherwise the rows are kept in memory and the directory is a scratch
+/// one, removed afterwards.
+fn carry_out(
+    mut job: tiltsim_runner::pipeline::Job<'_>,
+    keep_files: bool,
+) -> Result<tiltsim_runner::pipeline::Done, tiltsim_runner::pipeline::JobError> {
+    let out_dir = job.opts.out_dir.clone();
+    job.claim = keep_files;
+    job.outputs.rows_in_memory = !keep_files;
+    let done = tiltsim_runner::pipeline::carry_out(job)?;
+    if !keep_files {
+        return Ok(done);
+    }
+    // What the run wrote is what the arrays hold.
+    let rows = tiltsim_formats::table::read_rows(&out_dir).map_err(|e| {
+        tiltsim_runner::pipeline::JobError::Failed(format!("{}: {e}", out_dir.display()))
+    })?;
+    Ok(tiltsim_runner::pipeline::Done { rows, ..done })
+}
+
+/// What `run` returns to Python: the summary's JSON text, the columns, the directory and the
+/// library's time; the run's warnings raised as Python warnings.
+fn run_result<'py>(
+    py: Python<'py>,
+    done: tiltsim_runner::pipeline::Done,
+    out: Option<&std::path::Path>,
+    library_s: f64,
+) -> PyResult<Bound<'py, PyDict>> {
     for w in &done.warnings {
         let warnings = py.import("warnings")?;
         warnings.call_method1("warn", (w.as_str(),))?;

@@ -427,48 +427,79 @@ fn position_rows(
                 about: &about,
             };
             let _ = write!(md, "| {label} |");
-            for (k, (_, c)) in ideal.iter().enumerate() {
-                match c.positions.iter().find(|p| p.name == pos.name) {
-                    // The ideal tilt has no ride (N_MV) to give.
-                    Some(p) if is_p_ct => {
-                        let v = get(p);
-                        let _ = write!(md, " {} |", fmt(v));
-                        csv.put(key, &pos.name, names.ideal(k), v, None, &[]);
-                    }
-                    _ => {
-                        let _ = write!(md, " — |");
-                    }
+            let row = PositionRow {
+                key,
+                position: &pos.name,
+                get,
+                is_p_ct,
+            };
+            row.ideal_cells(md, csv, ideal, names);
+            row.run_cells(md, csv, entries, names);
+            md.push('\n');
+        }
+    }
+}
+
+/// One quantity at one passenger position, a row of Table 4.
+struct PositionRow<'a> {
+    key: Key<'a>,
+    position: &'a str,
+    get: fn(&tiltsim_assessment::comfort::PositionComfort) -> f64,
+    is_p_ct: bool,
+}
+
+impl PositionRow<'_> {
+    /// The ideal tilts' cells (P_CT only: the ideal tilt has no ride, N_MV, to give).
+    fn ideal_cells(
+        &self,
+        md: &mut String,
+        csv: &mut Tidy,
+        ideal: &[(String, &Comfort)],
+        names: &Names,
+    ) {
+        for (k, (_, c)) in ideal.iter().enumerate() {
+            match c.positions.iter().find(|p| p.name == self.position) {
+                Some(p) if self.is_p_ct => {
+                    let v = (self.get)(p);
+                    let _ = write!(md, " {} |", fmt(v));
+                    csv.put(self.key, self.position, names.ideal(k), v, None, &[]);
+                }
+                _ => {
+                    let _ = write!(md, " — |");
                 }
             }
-            for (i, e) in entries.iter().enumerate() {
-                let Some(p) = e
-                    .summary
-                    .comfort
-                    .positions
-                    .iter()
-                    .find(|p| p.name == pos.name)
-                else {
-                    let _ = write!(md, " — |");
-                    continue;
-                };
-                let v = get(p);
-                // The run's flags, and the P_CT range for a P_CT row, as the metric rows tag.
-                let like = if is_p_ct {
-                    "p_ct_en12299_standing_pct"
-                } else {
-                    "n_mv_lateral"
-                };
-                let tags = cell_flags(e, metric(like), v);
-                let text = if tags.is_empty() {
-                    fmt(v)
-                } else {
-                    format!("⚠ {} ({})", fmt(v), words(&tags))
-                };
-                let _ = write!(md, " {text} |");
-                let who = names.entry(entries, i);
-                csv.put(key, &pos.name, who, v, None, &codes(&tags));
-            }
-            md.push('\n');
+        }
+    }
+
+    /// The runs' cells, each tagged with its run's flags (and the P_CT range for a P_CT
+    /// row), as the metric rows tag theirs.
+    fn run_cells(&self, md: &mut String, csv: &mut Tidy, entries: &[Entry], names: &Names) {
+        for (i, e) in entries.iter().enumerate() {
+            let Some(p) = e
+                .summary
+                .comfort
+                .positions
+                .iter()
+                .find(|p| p.name == self.position)
+            else {
+                let _ = write!(md, " — |");
+                continue;
+            };
+            let v = (self.get)(p);
+            let like = if self.is_p_ct {
+                "p_ct_en12299_standing_pct"
+            } else {
+                "n_mv_lateral"
+            };
+            let tags = cell_flags(e, metric(like), v);
+            let text = if tags.is_empty() {
+                fmt(v)
+            } else {
+                format!("⚠ {} ({})", fmt(v), words(&tags))
+            };
+            let _ = write!(md, " {text} |");
+            let who = names.entry(entries, i);
+            csv.put(self.key, self.position, who, v, None, &codes(&tags));
         }
     }
 }

@@ -368,39 +368,17 @@ fn start_processes(
         cosim::ipc::pin_to_cpu(own);
     }
     let startup = Duration::from_millis(s.run.startup_ms);
-    let plant: PlantEp = match remote(net, Role::Plant, opts)? {
-        Some(ep) => Box::new(ep),
-        None => Box::new(
-            hub.spawn::<ToPlant, FromPlant>(
-                Role::Plant,
-                &launch(s, opts, Role::Plant, json(&inits.plant)),
-                startup,
-            )
-            .map_err(started)?,
-        ),
+    let start = |role, init| Spawn {
+        hub: &hub,
+        s,
+        opts,
+        startup,
+        role,
+        init,
     };
-    let actuator: ActuatorEp = match remote(net, Role::Actuator, opts)? {
-        Some(ep) => Box::new(ep),
-        None => Box::new(
-            hub.spawn::<ToActuator, FromActuator>(
-                Role::Actuator,
-                &launch(s, opts, Role::Actuator, json(&inits.actuator)),
-                startup,
-            )
-            .map_err(started)?,
-        ),
-    };
-    let controller: ControllerEp = match remote(net, Role::Controller, opts)? {
-        Some(ep) => Box::new(ep),
-        None => Box::new(
-            hub.spawn::<ToController, FromController>(
-                Role::Controller,
-                &launch(s, opts, Role::Controller, json(&inits.controller)),
-                startup,
-            )
-            .map_err(started)?,
-        ),
-    };
+    let plant: PlantEp = start(Role::Plant, json(&inits.plant)).or_join(net)?;
+    let actuator: ActuatorEp = start(Role::Actuator, json(&inits.actuator)).or_join(net)?;
+    let controller: ControllerEp = start(Role::Controller, json(&inits.controller)).or_join(net)?;
     if placement.reason == placement::Reason::FreeCpuEach {
         // Spinning, each alone on one of three CPUs; the kernel spreads them. A participant on
         // another host has no process here.
@@ -428,6 +406,36 @@ fn start_processes(
         placement: Some(placement),
         _claim: claim,
     })
+}
+
+/// A participant's process to start on a run's hub, unless it joins from another host.
+struct Spawn<'a> {
+    hub: &'a IpcHub,
+    s: &'a Scenario,
+    opts: &'a RunOptions,
+    startup: Duration,
+    role: Role,
+    /// Its settings, as JSON.
+    init: String,
+}
+
+impl Spawn<'_> {
+    /// The participant's endpoint: its connection from another host through `net`, or its
+    /// process started here.
+    fn or_join<I: cosim::msg::Message + 'static, O: cosim::msg::Message + 'static>(
+        self,
+        net: &mut Option<NetHub>,
+    ) -> Result<Box<dyn Endpoint<I, O>>, RunError> {
+        if let Some(ep) = remote::<I, O>(net, self.role, self.opts)? {
+            return Ok(Box::new(ep));
+        }
+        let launch = launch(self.s, self.opts, self.role, self.init);
+        let ep = self
+            .hub
+            .spawn::<I, O>(self.role, &launch, self.startup)
+            .map_err(started)?;
+        Ok(Box::new(ep))
+    }
 }
 
 /// Ends the participant logs of the run in `out_dir` (`logs/ROLE.log`, each participant

@@ -32,16 +32,17 @@ pub mod mcap;
 pub mod observe;
 mod options;
 pub mod outputs;
+pub(crate) mod session;
 pub mod summary;
 pub(crate) mod team;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use cosim::{LinkError, Role};
+use cosim::LinkError;
 use tiltsim_formats::events::EventLog;
 use tiltsim_scenario::roles::RoleMap;
-use tiltsim_scenario::scenario::{Scenario, Transport};
+use tiltsim_scenario::scenario::Scenario;
 
 pub use launch::{finish_logs, Inits};
 pub use options::{RunError, RunOptions, Status};
@@ -56,6 +57,7 @@ use instruments::{
 };
 use launch::Held;
 use outputs::Outputs;
+use session::{Closed, Session};
 use team::Team;
 
 /// The observers of one run: the engine's own measurements, then the caller's list.
@@ -305,108 +307,6 @@ fn lockstep_pipelined(
     Ok(())
 }
 
-/// Creates the output directory and writes `scenario.toml` (the scenario as run): every
-/// mode's first step.
-pub(crate) fn prepare(s: &Scenario, opts: &RunOptions) -> Result<(), RunError> {
-    let dir = &opts.out_dir;
-    std::fs::create_dir_all(dir).map_err(RunError::io(dir.clone()))?;
-    let resolved = dir.join("scenario.toml");
-    tiltsim_rundir::files::write_atomic(&resolved, toml::to_string(s).unwrap_or_default())
-        .map_err(RunError::io(resolved))
-}
-
-/// What a finished loop leaves for the report.
-struct Ended {
-    outcome: Result<(), Stop>,
-    wall: f64,
-    cpu_orchestrator: f64,
-    exits: RoleMap<cosim::endpoint::ExitReport>,
-    pids: RoleMap<u32>,
-    counts: RoleMap<cosim::endpoint::ExchangeCounts>,
-    leftover: Vec<String>,
-    participant_logs: Vec<String>,
-    network: Option<summary::NetworkReport>,
-    degraded: bool,
-    placement: Option<cosim::ipc::placement::Placement>,
-}
-
-/// Stops every participant, removes the run's shared-memory files and the empty participant
-/// logs in `out_dir`, and restores this process's CPU set.
-fn shut_down(
-    mut team: Team,
-    out_dir: &std::path::Path,
-    prefix: &str,
-    cpus: &[usize],
-    outcome: Result<(), Stop>,
-    wall: f64,
-    cpu0: f64,
-) -> Ended {
-    let pids = team.ps.pids();
-    let counts = team.ps.counts();
-    let placement = team.ps.placement.take();
-    let degraded = team.degraded();
-    let lost = team.take_lost();
-    let exits = team.ps.shut_down(lost);
-    let network = team.ps.net.as_ref().map(summary::NetworkReport::of);
-    // FMUs unpacked by participant processes that were killed.
-    if !team.scenario().participants.is_empty() {
-        tiltsim_fmi::archive::remove_dead_unpacked();
-    }
-    let mut leftover = Vec::new();
-    let mut participant_logs = Vec::new();
-    if let Some(hub) = team.ps.hub.take() {
-        hub.cleanup_dead();
-        drop(team);
-        drop(hub);
-        cosim::ipc::remove_run_files(prefix);
-        leftover = cosim::ipc::leftover_files(prefix)
-            .iter()
-            .map(|p| p.display().to_string())
-            .collect();
-        participant_logs = finish_logs(out_dir);
-    }
-    if !cpus.is_empty() {
-        cosim::ipc::set_cpus(cpus);
-    }
-    Ended {
-        outcome,
-        wall,
-        cpu_orchestrator: launch::cpu_self() - cpu0,
-        exits,
-        pids,
-        counts,
-        leftover,
-        participant_logs,
-        network,
-        degraded,
-        placement,
-    }
-}
-
-/// Removes a run's shared-memory files when dropped: on every way out of a run (lock-step,
-/// free or a timing replay), a failed start, an error, a panic, as well as the normal end
-/// (where the shut-down has already removed them and reported any it could not).
-pub(crate) struct RunFilesGuard(pub(crate) String);
-
-/// The run's iceoryx2 prefix: the caller's, or a unique one; none in process.
-pub(crate) fn ipc_prefix(s: &Scenario, opts: &RunOptions) -> String {
-    match s.run.transport {
-        Transport::Ipc => opts
-            .ipc_prefix
-            .clone()
-            .unwrap_or_else(cosim::ipc::unique_prefix),
-        Transport::InProcess => String::new(),
-    }
-}
-
-impl Drop for RunFilesGuard {
-    fn drop(&mut self) {
-        if !self.0.is_empty() {
-            cosim::ipc::remove_run_files(&self.0);
-        }
-    }
-}
-
 /// Runs a validated scenario with its rows written to `timeseries.csv`: launch, loop, shut
 /// down, report. Always writes what it has to `out_dir` (`timeseries.csv`, `events.csv`,
 /// `columns.csv`, `scenario.toml`); the returned summary says whether the run completed. The
@@ -415,7 +315,7 @@ impl Drop for RunFilesGuard {
 /// skips the clean-up. `results`, `comfort` and `flags` are left for the caller's analysis
 /// (`tiltsim_report::analysis::analyse`). For other outputs, build a [`Run`].
 pub fn run(s: &Scenario, scenario_file: &str, opts: &RunOptions) -> Result<Summary, RunError> {
-    prepare(s, opts)?;
+    session::prepare(s, opts)?;
     let made = Outputs::default()
         .observers(s, &opts.out_dir)
         .map_err(|(path, source)| RunError::Io { path, source })?;
@@ -502,20 +402,7 @@ fn simulate(run: Run<'_>) -> Result<Ran, RunError> {
         observers,
         manipulators,
     } = run;
-    prepare(s, opts)?;
-    let prefix = ipc_prefix(s, opts);
-    let _files = RunFilesGuard(prefix.clone());
-    let cpu0 = launch::cpu_self();
-    // `start` may pin this process to one CPU for the run; the set is restored afterwards so
-    // a process that runs several scenarios (sweeps, benchmarks) starts each one alike.
-    let cpus = cosim::ipc::allowed_cpus();
-    let ps = launch::start(s, opts, &prefix).inspect_err(|_| {
-        // Participants that were started are stopped by now; the log of one that ended while
-        // starting stays (its error quotes its last line).
-        if s.run.transport == Transport::Ipc {
-            finish_logs(&opts.out_dir);
-        }
-    })?;
+    let (session, ps) = Session::start(s, opts, true)?;
     let mut team = Team::new(s, ps, manipulators);
     team.timed = opts.timing;
     let mut obs = Observers::new(s, opts, observers);
@@ -524,19 +411,7 @@ fn simulate(run: Run<'_>) -> Result<Ran, RunError> {
     let waited0 = machine::runqueue_wait_ns();
     let mut outcome = lockstep(&mut team, &mut obs, &opts.interrupt);
     let wall = loop_started.elapsed().as_secs_f64();
-    let load = match (
-        waited0,
-        machine::runqueue_wait_ns(),
-        machine::load_average(),
-    ) {
-        (Some(a), Some(b), Some(l)) => Some(machine::MachineLoad::of(
-            b.saturating_sub(a),
-            wall,
-            l,
-            cpus.len().max(1),
-        )),
-        _ => None,
-    };
+    let load = machine_load(waited0, wall, session.cpus().len());
     // The analysis and the files after the loop run at ordinary priority.
     if opts.realtime.is_some() {
         cosim::realtime::leave();
@@ -546,40 +421,32 @@ fn simulate(run: Run<'_>) -> Result<Ran, RunError> {
     for e in obs.close() {
         match outcome {
             Ok(()) => outcome = Err(Stop::Write(e)),
-            Err(_) => write_errors.push(e),
+            Err(_) => write_errors.push(e.to_string()),
         }
     }
     let rows = obs.ticks_kept();
     if let Err(Stop::Link(e)) = &outcome {
         team.log_failure(rows, e);
     }
-    let mut events = EventLog::default();
-    std::mem::swap(&mut events, &mut team.events);
-    let ended = shut_down(team, &opts.out_dir, &prefix, &cpus, outcome, wall, cpu0);
-    if let Some(n) = &ended.network {
-        n.log_attempts(&mut events);
-    }
-    if let Err(e) = events.write(&opts.out_dir.join("events.csv")) {
-        write_errors.push(e);
-    }
-    if let Err(e) = tiltsim_formats::columns::write_run(&opts.out_dir) {
-        write_errors.push(e);
-    }
+    let mut events = std::mem::take(&mut team.events);
+    let degraded = team.degraded();
+    let lost = team.take_lost();
+    let dir = session.dir();
+    let closed = session.close(team.into_participants(), lost);
+    closed.write_files(dir, &mut events, &mut write_errors);
     let latency_histogram = opts.timing.then(|| obs.latency.request_histogram());
     let mut list = std::mem::take(&mut obs.list);
-    let mut summary = report(s, scenario_file, opts, &prefix, obs, ended, rows);
+    let mut summary = Summary::blank(s, scenario_file, summary::RunMode::LockStep);
+    (summary.status, summary.error) = session::status(&outcome, degraded, &opts.interrupt);
+    closed.fill(s, &mut summary, Some(obs.compute.percentiles()));
+    report(&mut summary, obs, &closed, rows, wall);
     summary.timing.machine = load;
     for o in &mut list {
         if let Some(part) = o.finish(&summary) {
             summary.observers.insert(o.name().to_string(), part);
         }
     }
-    if let Some(e) = write_errors.first() {
-        if summary.error.is_none() {
-            summary.status = Status::Failed;
-            summary.error = Some(format!("cannot write {e}"));
-        }
-    }
+    session::fail_on_write_error(&mut summary, &write_errors);
     Ok(Ran {
         summary,
         events,
@@ -587,84 +454,36 @@ fn simulate(run: Run<'_>) -> Result<Ran, RunError> {
     })
 }
 
-/// The run's own part of `summary.json`.
-fn report(
-    s: &Scenario,
-    scenario_file: &str,
-    opts: &RunOptions,
-    prefix: &str,
-    mut obs: Observers,
-    e: Ended,
-    rows: u64,
-) -> Summary {
-    let (status, error) = status(&e, opts);
-    let mut sm = Summary::blank(s, scenario_file, summary::RunMode::LockStep);
-    sm.status = status;
-    sm.error = error;
-    sm.participants = participants(s, &mut obs, &e);
-    sm.set_progress(rows, e.wall);
-    sm.timing = timing(&mut obs, &e);
-    sm.link_latency = obs.latency.report();
-    sm.pacing = obs.pacing.as_mut().map(|p| p.report(rows, e.wall));
-    sm.controller_solver = obs.compute.solver();
-    sm.ipc_prefix = prefix.to_string();
-    sm.leftover_ipc_files = e.leftover;
-    sm.participant_logs = e.participant_logs;
-    sm.network = e.network;
-    sm
-}
-
-/// How the run ended, in the summary's words: an interrupt (even one that ended a
-/// participant first), a degraded run, a completion or a failure.
-fn status(e: &Ended, opts: &RunOptions) -> (Status, Option<String>) {
-    match &e.outcome {
-        Ok(_) if opts.interrupt.load(Ordering::Relaxed) => (
-            Status::Interrupted,
-            Some(format!(
-                "interrupted by {}",
-                tiltsim_rundir::signals::describe()
-            )),
-        ),
-        Ok(_) if e.degraded => (
-            Status::Degraded,
-            Some("a participant was lost; the run continued degraded (events.csv)".into()),
-        ),
-        Ok(_) => (Status::Completed, None),
-        // A signal to the whole process group (systemd, Slurm's scancel, a container
-        // runtime) reaches the participants too, and they end first: the run was
-        // interrupted, not failed by them.
-        Err(err) if opts.interrupt.load(Ordering::Relaxed) => (
-            Status::Interrupted,
-            Some(format!(
-                "interrupted by {} ({err})",
-                tiltsim_rundir::signals::describe()
-            )),
-        ),
-        Err(err) => (Status::Failed, Some(err.to_string())),
+/// How much of the loop's `wall` time (s) this process waited for a CPU, from the run
+/// queue's wait at the loop's start (`waited0`) and now, with the machine's load.
+fn machine_load(waited0: Option<u64>, wall: f64, cpus: usize) -> Option<machine::MachineLoad> {
+    match (
+        waited0,
+        machine::runqueue_wait_ns(),
+        machine::load_average(),
+    ) {
+        (Some(a), Some(b), Some(l)) => Some(machine::MachineLoad::of(
+            b.saturating_sub(a),
+            wall,
+            l,
+            cpus.max(1),
+        )),
+        _ => None,
     }
 }
 
-/// Each participant's part of the summary: process, period, exit, compute and exchanges.
-fn participants(s: &Scenario, obs: &mut Observers, e: &Ended) -> Vec<ParticipantReport> {
-    let periods = RoleMap::new([s.run.dt_s, s.run.dt_s, s.controller.period_s]);
-    let compute = obs.compute.percentiles();
-    Role::ALL
-        .into_iter()
-        .map(|role| ParticipantReport {
-            role,
-            process: role.process_name(),
-            pid: e.pids[role],
-            period_s: periods[role],
-            exit: e.exits[role].clone(),
-            compute_us: compute[role],
-            starved_waits: e.counts[role].starved_waits,
-            lost_samples: e.counts[role].lost_samples,
-        })
-        .collect()
+/// The lock-step's own part of `summary.json`: progress, timing, latency, pacing and the
+/// controller's solver.
+fn report(sm: &mut Summary, mut obs: Observers, closed: &Closed, rows: u64, wall: f64) {
+    sm.set_progress(rows, wall);
+    sm.timing = timing(&mut obs, closed);
+    sm.link_latency = obs.latency.report();
+    sm.pacing = obs.pacing.as_mut().map(|p| p.report(rows, wall));
+    sm.controller_solver = obs.compute.solver();
 }
 
 /// The coordination overhead, tick times, CPU plan and CPU time of the run.
-fn timing(obs: &mut Observers, e: &Ended) -> Timing {
+fn timing(obs: &mut Observers, e: &Closed) -> Timing {
     let o = obs.timing.overhead.percentiles();
     Timing {
         p50: o.p50,
@@ -675,6 +494,6 @@ fn timing(obs: &mut Observers, e: &Ended) -> Timing {
         cpu_plan: obs.cpu_plan.as_ref().and_then(|p| p.report()),
         machine: None,
         placement: e.placement.clone(),
-        cpu_s: CpuTime::new(e.cpu_orchestrator, e.exits.iter().map(|(_, x)| x.cpu_s)),
+        cpu_s: CpuTime::new(e.cpu_orchestrator_s, e.exits.iter().map(|(_, x)| x.cpu_s)),
     }
 }

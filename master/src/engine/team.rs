@@ -93,6 +93,11 @@ impl<'a> Team<'a> {
         Role::ALL.iter().any(|r| self.lost[*r].is_some())
     }
 
+    /// The participants, for their shut-down.
+    pub fn into_participants(self) -> Participants {
+        self.ps
+    }
+
     /// Exit reports of participants replaced by their stand-ins.
     pub fn take_lost(&mut self) -> RoleMap<Option<ExitReport>> {
         std::mem::take(&mut self.lost)

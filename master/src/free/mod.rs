@@ -34,7 +34,8 @@ use tiltsim_scenario::scenario::Scenario;
 
 use crate::engine::instruments::{RowRecorder, RowSink};
 use crate::engine::launch::Participants;
-use crate::engine::{RunError, RunMode, Status, Summary};
+use crate::engine::session;
+use crate::engine::{RunError, RunMode, Summary};
 
 pub use run::{run, FreeReport};
 pub use timing_replay::{replay_timing, Replayed};
@@ -58,28 +59,6 @@ impl FreeError {
             source,
         })
     }
-}
-
-pub(crate) use crate::engine::RunFilesGuard as FilesGuard;
-
-/// Stops every participant of a free run or a replay, removes the run's shared-memory files
-/// and restores this process's CPU set (`cpus`, when the run pinned it).
-pub(crate) fn shut_down(
-    mut ps: Participants,
-    prefix: &str,
-    cpus: &[usize],
-) -> tiltsim_scenario::roles::RoleMap<cosim::endpoint::ExitReport> {
-    let exits = ps.shut_down(tiltsim_scenario::roles::RoleMap::default());
-    if let Some(hub) = ps.hub.take() {
-        hub.cleanup_dead();
-        drop(ps);
-        drop(hub);
-        cosim::ipc::remove_run_files(prefix);
-    }
-    if !cpus.is_empty() {
-        cosim::ipc::set_cpus(cpus);
-    }
-    exits
 }
 
 /// The `Init` exchange of every participant, lock-step: the outputs at t₀ into `store`.
@@ -195,53 +174,21 @@ impl RowStream {
     }
 }
 
-/// Each participant's part of a free run's or a replay's summary: process, period and exit
-/// (compute, waits and lost samples are lock-step measurements).
-fn participants(
-    s: &Scenario,
-    pids: &tiltsim_scenario::roles::RoleMap<u32>,
-    exits: &tiltsim_scenario::roles::RoleMap<cosim::endpoint::ExitReport>,
-) -> Vec<crate::engine::ParticipantReport> {
-    let periods = [s.run.dt_s, s.run.dt_s, s.controller.period_s];
-    cosim::Role::ALL
-        .into_iter()
-        .zip(periods)
-        .map(|(role, period_s)| crate::engine::ParticipantReport {
-            role,
-            process: role.process_name(),
-            pid: pids[role],
-            period_s,
-            exit: exits[role].clone(),
-            compute_us: Default::default(),
-            starved_waits: 0,
-            lost_samples: Default::default(),
-        })
-        .collect()
-}
-
-/// The summary of free run `r` of `s` (not yet analysed); takes its write errors.
+/// The summary of free run `r` of `s` (not yet analysed).
 pub fn summary_of_run(s: &Scenario, scenario_file: &str, r: &mut FreeReport) -> Summary {
     let mut sm = Summary::blank(s, scenario_file, RunMode::Free);
     sm.status = r.status;
     sm.error = r.error.clone();
-    if let Some(e) = r.write_errors.first() {
-        if sm.error.is_none() {
-            sm.status = Status::Failed;
-            sm.error = Some(format!("cannot write {e}"));
-        }
-    }
-    sm.participants = participants(s, &r.pids, &r.exits);
+    session::fail_on_write_error(&mut sm, &r.write_errors);
+    r.closed.fill(s, &mut sm, None);
     sm.set_progress(r.steps_completed, r.wall_time_s);
-    sm.ipc_prefix = r.ipc_prefix.clone();
-    sm.leftover_ipc_files = r.leftover_ipc_files.clone();
-    sm.network = r.network.clone();
-    sm.participant_logs = r.participant_logs.clone();
     sm.free_run = Some(r.timing.clone());
     sm.timing_trace = Some(trace::TIMING_CSV.to_string());
     sm
 }
 
-/// The summary of replay `r` of the trace at `trace_path` with `s` (not yet analysed).
+/// The summary of replay `r` of the trace at `trace_path` with `s` (not yet analysed); its
+/// observers give their parts.
 pub fn summary_of_replay(
     s: &Scenario,
     scenario_file: &str,
@@ -249,14 +196,10 @@ pub fn summary_of_replay(
     r: &mut Replayed,
 ) -> Summary {
     let mut sm = Summary::blank(s, scenario_file, RunMode::ReplayTiming);
-    if let Some(e) = &r.error {
-        sm.status = Status::Failed;
-        sm.error = Some(e.clone());
-    }
-    sm.participants = participants(s, &r.pids, &r.exits);
+    sm.status = r.status;
+    sm.error = r.error.clone();
+    r.closed.fill(s, &mut sm, None);
     sm.set_progress(r.steps_completed, 0.0);
-    sm.ipc_prefix = r.ipc_prefix.clone();
-    sm.participant_logs = r.participant_logs.clone();
     sm.timing_trace = Some(trace_path.display().to_string());
     sm.trace_partial = r.partial.clone();
     sm.replayed_exchanges = Some(r.exchanges);

@@ -118,7 +118,7 @@ mod tests {
     use cosim::Role;
 
     use super::*;
-    use crate::engine::{Run, RunOptions, Summary};
+    use crate::engine::{Run, RunOptions, Status, Summary};
     use crate::free::trace::{StepTrace, Trace, TraceHead};
     use tiltsim_scenario::scenario::{Master, Transport};
 
@@ -269,7 +269,7 @@ mod tests {
         let mut r =
             crate::free::timing_replay::replay_trace(&s, trace, path, &opts, &out, attached)
                 .unwrap();
-        assert_eq!(r.error, None);
+        assert_eq!((r.status, r.error.as_deref()), (Status::Completed, None));
         {
             let (lock, replay) = (by_lock.lock().unwrap(), by_replay.lock().unwrap());
             assert_eq!(replay.len() as u64, s.steps());
@@ -295,6 +295,44 @@ mod tests {
         let e = crate::free::timing_replay::replay_trace(&s, trace, path, &opts, &out, twice)
             .unwrap_err();
         assert!(e.to_string().contains("two observers are named `w`"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A replay interrupted by a signal ends `interrupted` with the steps it had replayed, as
+    /// a lock-step or free run does, and its summary says so; it does not claim to have
+    /// completed.
+    #[test]
+    fn an_interrupted_timing_replay_says_it_was_interrupted() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let mut s = Scenario::load(&root.join("scenarios/paper-pi.toml")).unwrap();
+        s.run.transport = Transport::InProcess;
+        s.run.master = Master::GaussSeidel;
+        s.run.duration_s = Some(0.2);
+        let dir = std::env::temp_dir().join(format!("tiltsim-replay-int-{}", std::process::id()));
+        let opts = RunOptions::new(dir.clone(), "tiltsim".into());
+        opts.interrupt
+            .store(true, std::sync::atomic::Ordering::Relaxed);
+        let out = crate::engine::outputs::Outputs {
+            rows_in_memory: true,
+            ..Default::default()
+        };
+        let path = std::path::Path::new("(gauss-seidel)");
+        let trace = gauss_seidel_trace(&s);
+        let mut r = crate::free::timing_replay::replay_trace(
+            &s,
+            trace,
+            path,
+            &opts,
+            &out,
+            Default::default(),
+        )
+        .unwrap();
+        assert_eq!(r.status, Status::Interrupted);
+        assert!(r.steps_completed < s.steps(), "{} rows", r.steps_completed);
+        let sm = crate::free::summary_of_replay(&s, "paper-pi.toml", path, &mut r);
+        assert_eq!(sm.status, Status::Interrupted);
+        let e = sm.error.unwrap_or_default();
+        assert!(e.starts_with("interrupted by"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

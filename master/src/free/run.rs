@@ -19,11 +19,12 @@ use super::recording::{FreeRecorder, FreeRecording};
 use super::relay::{Deliveries, Relay};
 use super::timing::Stats;
 use super::trace::{StepTrace, TraceHead, TraceWriter, TIMING_CSV};
-use super::{init_all, shut_down, FilesGuard, FreeError, RowStream};
-use crate::engine::launch::{self, Participants};
+use super::{init_all, FreeError, RowStream};
+use crate::engine::launch::Participants;
 use crate::engine::manipulator::FaultSchedule;
 use crate::engine::outputs::Outputs;
-use crate::engine::{RunOptions, Status};
+use crate::engine::session::{self, Session};
+use crate::engine::RunOptions;
 
 pub use super::timing::FreeReport;
 
@@ -37,15 +38,7 @@ const HUB_NAP: Duration = Duration::from_micros(20);
 /// Runs `s` free over IPC: streams `timing.csv` and `timeseries.csv` to `opts.out_dir` as the
 /// steps come in, then writes `events.csv`, `columns.csv` and `scenario.toml`.
 pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport, FreeError> {
-    let dir = &opts.out_dir;
-    crate::engine::prepare(s, opts).map_err(FreeError::Run)?;
-    let prefix = opts
-        .ipc_prefix
-        .clone()
-        .unwrap_or_else(cosim::ipc::unique_prefix);
-    let guard = FilesGuard(prefix.clone());
-    let cpus = cosim::ipc::allowed_cpus();
-    let ps = launch::start(s, opts, &prefix).map_err(FreeError::Run)?;
+    let (session, ps) = Session::start(s, opts, true).map_err(FreeError::Run)?;
     let placement = place(s, &ps);
     let placed_as = ps.placement.clone();
     let mut hub = Hub::new(s, opts, out, ps)?;
@@ -63,46 +56,19 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
         ..
     } = hub;
     let mut write_errors = Vec::new();
-    let path = dir.join(TIMING_CSV);
+    let path = opts.out_dir.join(TIMING_CSV);
     if let Some(Err(e)) = writer.map(TraceWriter::finish) {
         write_errors.push(format!("{}: {e}", path.display()));
     }
-    let pids = ps.pids();
-    let network = ps
-        .net
-        .as_ref()
-        .map(crate::engine::summary::NetworkReport::of);
-    let exits = shut_down(ps, &prefix, &cpus);
-    drop(guard);
-    let participant_logs = crate::engine::finish_logs(dir);
-    let leftover: Vec<String> = cosim::ipc::leftover_files(&prefix)
-        .iter()
-        .map(|p| p.display().to_string())
-        .collect();
+    let dir = session.dir();
+    let (status, error) = session::status(&outcome, false, &opts.interrupt);
+    let closed = session.close(ps, Default::default());
     let (ticks, kept_rows, rows_error) = rows.finish();
     write_errors.extend(rows_error);
-    let events = write_events(s, dir, &store, ticks, network.as_ref(), &mut write_errors);
+    let mut events = super::run_events(s, &store, ticks);
+    closed.write_files(dir, &mut events, &mut write_errors);
     write_errors.extend(record_error);
     let recording = finish_recording(recorder, &store, ticks, &events, &mut write_errors);
-    let interrupted = opts.interrupt.load(Ordering::Relaxed);
-    let (status, error) = match outcome {
-        Ok(()) if interrupted => (
-            Status::Interrupted,
-            Some(format!(
-                "interrupted by {}",
-                tiltsim_rundir::signals::describe()
-            )),
-        ),
-        Ok(()) => (Status::Completed, None),
-        Err(e) if interrupted => (
-            Status::Interrupted,
-            Some(format!(
-                "interrupted by {} ({e})",
-                tiltsim_rundir::signals::describe()
-            )),
-        ),
-        Err(e) => (Status::Failed, Some(e)),
-    };
     let mut timing = stats.report(s.run.dt_s);
     timing.cpus = placement;
     timing.placement = placed_as;
@@ -112,15 +78,10 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
         steps_completed: ticks,
         wall_time_s: last_ns.saturating_sub(start_ns) as f64 * 1e-9,
         timing,
-        exits,
-        pids,
-        ipc_prefix: prefix,
-        leftover_ipc_files: leftover,
         rows: kept_rows,
         recording,
         write_errors,
-        participant_logs,
-        network,
+        closed,
     })
 }
 
@@ -137,30 +98,6 @@ fn finish_recording(
         .finish(store, ticks, events)
         .map_err(|e| write_errors.push(e.to_string()))
         .ok()
-}
-
-/// Writes the run's `events.csv` (the schedule's events and the network's attempts) and
-/// `columns.csv`, keeping each failure in `write_errors`; the events.
-fn write_events(
-    s: &Scenario,
-    dir: &std::path::Path,
-    store: &Store,
-    ticks: u64,
-    network: Option<&crate::engine::summary::NetworkReport>,
-    write_errors: &mut Vec<String>,
-) -> tiltsim_formats::events::EventLog {
-    let mut events = super::run_events(s, store, ticks);
-    if let Some(n) = network {
-        n.log_attempts(&mut events);
-    }
-    let events_csv = dir.join("events.csv");
-    if let Err(e) = events.write(&events_csv) {
-        write_errors.push(format!("{}: {e}", events_csv.display()));
-    }
-    if let Err(e) = tiltsim_formats::columns::write_run(dir) {
-        write_errors.push(format!("{}: {e}", dir.join("columns.csv").display()));
-    }
-    events
 }
 
 /// The CPU of each participant in a free run, when the run was given a pair of CPUs of its own

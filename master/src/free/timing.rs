@@ -30,25 +30,14 @@ pub struct FreeReport {
     pub wall_time_s: f64,
     /// The timing the run had.
     pub timing: FreeTiming,
-    /// Each participant's process id and exit.
-    pub exits: RoleMap<cosim::endpoint::ExitReport>,
-    /// Each participant's process id.
-    pub pids: RoleMap<u32>,
-    /// The run's iceoryx2 prefix.
-    pub ipc_prefix: String,
-    /// Shared-memory files left behind (empty unless something is wrong).
-    pub leftover_ipc_files: Vec<String>,
     /// The rows, when kept in memory (`Outputs::rows_in_memory`).
     pub rows: Option<Vec<tiltsim_formats::table::Row>>,
     /// `run.mcap` (`--record`), to be closed with the summary.
     pub recording: Option<super::recording::FreeRecording>,
     /// Files that could not be written (each named), besides the run's own outcome.
     pub write_errors: Vec<String>,
-    /// Participant logs that are not empty (`logs/<role>.log`).
-    pub participant_logs: Vec<String>,
-    /// Participants on other hosts: who joined, their clocks' offsets (`summary.json` →
-    /// `network`).
-    pub network: Option<crate::engine::summary::NetworkReport>,
+    /// What the session left: exits, process ids, prefix, leftover files, logs, network.
+    pub(crate) closed: crate::engine::session::Closed,
 }
 
 /// The link a consumer reads from a producer, by its `[links]` name.

@@ -12,15 +12,16 @@ use std::path::Path;
 
 use cosim::msg::{Kind, Message};
 use cosim::{Endpoint, LinkError, Role};
-use tiltsim_scenario::scenario::{Scenario, Transport};
+use tiltsim_scenario::scenario::Scenario;
 
 use super::compose::Store;
 use super::observed::ReplayObservers;
 use super::trace::{self, col, StepTrace, TraceError};
-use super::{init_all, FilesGuard, FreeError, RowStream};
-use crate::engine::launch::{self, Participants};
+use super::{init_all, FreeError, RowStream};
+use crate::engine::launch::Participants;
 use crate::engine::observe::Observer;
 use crate::engine::outputs::Outputs;
+use crate::engine::session::{self, Session};
 use crate::engine::RunOptions;
 
 /// What a replay did.
@@ -33,16 +34,11 @@ pub struct Replayed {
     pub partial: Option<String>,
     /// The rows, when kept in memory (`Outputs::rows_in_memory`).
     pub rows: Option<Vec<tiltsim_formats::table::Row>>,
-    /// Each participant's exit.
-    pub exits: tiltsim_scenario::roles::RoleMap<cosim::endpoint::ExitReport>,
-    /// Each participant's process id.
-    pub pids: tiltsim_scenario::roles::RoleMap<u32>,
-    /// Why the replay stopped before the end of the trace (a participant failed).
+    /// How the replay ended: an interrupt, a completion, or a failure (`error`).
+    pub status: crate::engine::Status,
+    /// Why the replay stopped before the end of the trace (a participant failed, a file
+    /// could not be written, an interrupt).
     pub error: Option<String>,
-    /// The run's iceoryx2 prefix (empty in one process).
-    pub ipc_prefix: String,
-    /// Participant logs that are not empty (`logs/<role>.log`).
-    pub participant_logs: Vec<String>,
     /// The free run's real-time verdict, as its trace file tells it (`None` for a trace made
     /// by a program, whose instants are not a run's): a replay of a run that did not keep
     /// real time is no more valid than the run.
@@ -50,6 +46,8 @@ pub struct Replayed {
     /// The caller's observers, told every tick and closed, for their part of the summary
     /// ([`super::summary_of_replay`]).
     pub observers: Vec<Box<dyn Observer>>,
+    /// What the session left: exits, process ids, prefix, logs.
+    pub(crate) closed: crate::engine::session::Closed,
 }
 
 impl std::fmt::Debug for Replayed {
@@ -219,17 +217,8 @@ fn run_replay(
         manipulators,
     } = attached;
     crate::engine::observe::distinct_names(&observers).map_err(FreeError::Run)?;
-    let dir = &opts.out_dir;
-    // Participants in other processes log to the directory: it is made for them.
-    let files = !(out.rows_in_memory && s.run.transport == Transport::InProcess);
-    if files {
-        crate::engine::prepare(s, opts).map_err(FreeError::Run)?;
-    }
-    let prefix = crate::engine::ipc_prefix(s, opts);
-    let guard = FilesGuard(prefix.clone());
-    let cpus = cosim::ipc::allowed_cpus();
+    let (session, mut ps) = Session::start(s, opts, !out.rows_in_memory).map_err(FreeError::Run)?;
     let mut rows = RowStream::create(opts, out).map_err(FreeError::Run)?;
-    let mut ps = launch::start(s, opts, &prefix).map_err(FreeError::Run)?;
     let mut store = Store::new(
         s.controller_period_ticks(),
         s.run.dt_s,
@@ -259,28 +248,32 @@ fn run_replay(
         }
         None => Vec::new(),
     };
-    let pids = ps.pids();
-    let exits = super::shut_down(ps, &prefix, &cpus);
-    drop(guard);
-    let participant_logs = if s.run.transport == Transport::Ipc {
-        crate::engine::finish_logs(dir)
-    } else {
-        Vec::new()
-    };
-    let dir = files.then_some(dir.as_path());
-    let (ticks, kept, error) = finish_files(s, dir, &store, rows, outcome.err());
+    let dir = session.dir();
+    let (mut status, mut error) = session::status(&outcome, false, &opts.interrupt);
+    let closed = session.close(ps, Default::default());
+    let (ticks, kept, row_error) = rows.finish();
+    let mut write_errors = Vec::new();
+    let mut events = super::run_events(s, &store, ticks);
+    closed.write_files(dir, &mut events, &mut write_errors);
+    let row_error = row_error.map(|e| match dir {
+        Some(_) => format!("cannot write timeseries.csv: {e}"),
+        None => format!("cannot keep the rows: {e}"),
+    });
+    let write_error = write_errors.first().map(|e| format!("cannot write {e}"));
+    if let (None, Some(e)) = (&error, row_error.or(write_error)) {
+        status = crate::engine::Status::Failed;
+        error = Some(e);
+    }
     Ok(Replayed {
         steps_completed: ticks,
         exchanges,
         partial,
         rows: kept,
-        exits,
-        pids,
+        status,
         error,
-        ipc_prefix: prefix,
-        participant_logs,
         not_real_time: None,
         observers,
+        closed,
     })
 }
 
@@ -475,41 +468,6 @@ fn replay_step(
         }
     }
     Ok(())
-}
-
-/// Finishes `timeseries.csv` and writes `events.csv` and `columns.csv` to `dir` (none: the
-/// rows are kept in memory and no file is written); returns the ticks whose rows are
-/// complete, the rows when kept in memory, and the replay's error (`error`, or else the first
-/// file that could not be written).
-fn finish_files(
-    s: &Scenario,
-    dir: Option<&Path>,
-    store: &Store,
-    rows: RowStream,
-    mut error: Option<String>,
-) -> (
-    u64,
-    Option<Vec<tiltsim_formats::table::Row>>,
-    Option<String>,
-) {
-    let (ticks, kept, row_error) = rows.finish();
-    let Some(dir) = dir else {
-        if let Some(e) = row_error {
-            error.get_or_insert(format!("cannot keep the rows: {e}"));
-        }
-        return (ticks, kept, error);
-    };
-    let events_csv = dir.join("events.csv");
-    if let Err(e) = super::run_events(s, store, ticks).write(&events_csv) {
-        error.get_or_insert(format!("cannot write {}: {e}", events_csv.display()));
-    }
-    if let Err(e) = tiltsim_formats::columns::write_run(dir) {
-        error.get_or_insert(format!("cannot write columns.csv: {e}"));
-    }
-    if let Some(e) = row_error {
-        error.get_or_insert(format!("cannot write timeseries.csv: {e}"));
-    }
-    (ticks, kept, error)
 }
 
 /// Every input a step names was produced by a step read earlier (a trace edited by hand, or

@@ -101,21 +101,21 @@ fn summary_of(out: &Path) -> Option<(f64, String)> {
     Some((s["wall_time_s"].as_f64()?, placement))
 }
 
-/// One row: `runs` runs of `scenario` for `duration` s beside `hogs` hogs, in `dir`.
-fn row(
+/// A run started by the bench: its process, when it started, and its directory.
+type Started = (std::process::Child, Instant, std::path::PathBuf);
+
+/// How a run ended: its exit (or why it has none), and its wall time (s).
+type Ended = (std::io::Result<std::process::ExitStatus>, f64);
+
+/// Starts `runs` IPC runs of `scenario` for `duration` s, each in `dir/r<k>`; if one cannot
+/// start, those started are killed.
+fn start_runs(
     exe: &Path,
     scenario: &Path,
     duration: f64,
     runs: usize,
-    hogs: usize,
     dir: &Path,
-) -> Result<Row, CliError> {
-    let load_before = tiltsim_master::engine::machine::load_average();
-    let _hogs = Hogs::start(hogs)?;
-    // A run ends by itself (its own deadlines name a participant that stalls); one that has
-    // not after this long is killed and counted as not completed.
-    let limit = std::time::Duration::from_secs_f64(120.0 + 50.0 * duration * runs as f64);
-    let t0 = Instant::now();
+) -> Result<Vec<Started>, CliError> {
     let mut children = Vec::new();
     for k in 0..runs {
         let out = dir.join(format!("r{k}"));
@@ -140,9 +140,13 @@ fn row(
             }
         }
     }
-    // Each run's exit is taken when it happens (polled every 10 ms), whatever the order.
-    let mut ends: Vec<Option<(std::io::Result<std::process::ExitStatus>, f64)>> =
-        children.iter().map(|_| None).collect();
+    Ok(children)
+}
+
+/// Each run's end, taken when it happens (polled every 10 ms), whatever the order; a run
+/// still going after `limit` is killed and ends with an error.
+fn wait_for_all(children: &mut [Started], limit: std::time::Duration) -> Vec<Option<Ended>> {
+    let mut ends: Vec<Option<Ended>> = children.iter().map(|_| None).collect();
     while ends.iter().any(Option::is_none) {
         for (i, (c, started, _)) in children.iter_mut().enumerate() {
             if ends[i].is_some() {
@@ -162,6 +166,26 @@ fn row(
         }
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
+    ends
+}
+
+/// One row: `runs` runs of `scenario` for `duration` s beside `hogs` hogs, in `dir`.
+fn row(
+    exe: &Path,
+    scenario: &Path,
+    duration: f64,
+    runs: usize,
+    hogs: usize,
+    dir: &Path,
+) -> Result<Row, CliError> {
+    let load_before = tiltsim_master::engine::machine::load_average();
+    let _hogs = Hogs::start(hogs)?;
+    // A run ends by itself (its own deadlines name a participant that stalls); one that has
+    // not after this long is killed and counted as not completed.
+    let limit = std::time::Duration::from_secs_f64(120.0 + 50.0 * duration * runs as f64);
+    let t0 = Instant::now();
+    let mut children = start_runs(exe, scenario, duration, runs, dir)?;
+    let ends = wait_for_all(&mut children, limit);
     let mut wall_s = Vec::new();
     let mut loop_s = Vec::new();
     let mut placements = std::collections::BTreeMap::new();

@@ -287,6 +287,15 @@ pub fn print_report(
     for (k, s, r) in falsify::outputs::checkpoints(evals, o.budget) {
         println!("| {k} | {s:.4} | {r:.4} |");
     }
+    print_worst(o);
+    print_requirements(o, evals.len());
+    print_sensitivity(o);
+    print_evidence(o, out);
+    print_cost(evals.len(), o, out, jobs);
+}
+
+/// The nominal and the worst timing's metric, and whether the worst run is valid.
+fn print_worst(o: &falsify::Outcome) {
     println!(
         "nominal (lock-step timing) {}: {:.4}; worst found ({} evaluation {}, {}): {:.4}{}",
         o.metric,
@@ -308,6 +317,10 @@ pub fn print_report(
             )
         }
     );
+}
+
+/// Each requirement at the worst timing, and the verdict on all of them.
+fn print_requirements(o: &falsify::Outcome, evaluations: usize) {
     for j in o.requirements.iter().flatten() {
         println!(
             "requirement `{}` at the worst timing: {}, margin {:.4}",
@@ -324,12 +337,14 @@ pub fn print_report(
                 "requirements {} not falsified within {} evaluations: margin {m:.4} at the \
                  worst timing found (the timings evaluated keep them; that is not a proof that \
                  every admissible one does)",
-                o.objective,
-                evals.len()
+                o.objective, evaluations
             );
         }
     }
-    print_sensitivity(o);
+}
+
+/// The evidence beyond the worst found: the timing margin and the random sampling's bound.
+fn print_evidence(o: &falsify::Outcome, out: &Path) {
     if let Some(m) = &o.timing_margin {
         let k = |v: Option<f64>| v.map_or("none".to_string(), |k| format!("{k}"));
         println!(
@@ -353,13 +368,17 @@ pub fn print_report(
              Clopper-Pearson)"
         );
     }
+}
+
+/// What the search cost, and the files it wrote.
+fn print_cost(evaluations: usize, o: &falsify::Outcome, out: &Path, jobs: Option<usize>) {
     let parallel = jobs.map_or_else(
         || "summed over the shards".into(),
         |j| format!("with {j} parallel"),
     );
     println!(
         "{} evaluations in {:.1} s wall {parallel} ({:.3} s CPU per evaluation; a plain in-process run: {:.3} s CPU){}",
-        evals.len(),
+        evaluations,
         o.search_s,
         o.evaluation_cpu_s,
         o.plain_run_cpu_s,

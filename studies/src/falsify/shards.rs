@@ -445,6 +445,23 @@ pub fn merge(
     })?;
     check_worst_claim(&src.dir, &spec.objective, &we, &replayed)?;
     write_merged_progress(out, &s, &spec, &evals)?;
+    let o = merged_outcome(&s, &spec, &shards, &evals, (worst_shard, &we), &replayed);
+    write_result(out, &spec, &o)?;
+    Ok((evals, o))
+}
+
+/// The result of the merged search: the shards' evaluations `evals` joined, the worst
+/// (`worst`: its shard and evaluation) and its replay here, their costs summed.
+fn merged_outcome(
+    s: &Scenario,
+    spec: &Spec,
+    shards: &[ShardDir],
+    evals: &[(usize, Eval)],
+    worst: (usize, &Eval),
+    replayed: &Score,
+) -> Outcome {
+    let (worst_shard, we) = worst;
+    let first = &shards[0];
     let best = |m: Method| {
         evals
             .iter()
@@ -458,7 +475,7 @@ pub fn merge(
     let requirement = spec.objective.is_requirement();
     let sampled = requirement
         .then(|| super::evidence::sampled(&spec.objective, evals.iter().map(|(_, e)| e)));
-    let o = Outcome {
+    Outcome {
         scenario: s.name.clone(),
         objective: spec.objective.describe(),
         metric: spec.objective.key().to_string(),
@@ -481,7 +498,7 @@ pub fn merge(
         worst_run_metric: replayed.metric,
         violated: requirement.then_some(we.violated),
         margin: requirement.then_some(we.margin),
-        requirements: super::outputs::judgements(&spec, &replayed),
+        requirements: super::outputs::judgements(spec, replayed),
         sensitivity: None,
         timing_margin: None,
         verdict: super::outputs::verdict(requirement.then_some(we.violated)),
@@ -489,16 +506,14 @@ pub fn merge(
         random_broken: sampled.map(|e| e.broken),
         random_broken_upper_95: sampled.map(|e| e.upper_95),
         failed_evaluations: evals.iter().filter(|(_, e)| !e.error.is_empty()).count(),
-        evaluation_cpu_s: mean_evaluation_cpu(&shards),
+        evaluation_cpu_s: mean_evaluation_cpu(shards),
         plain_run_cpu_s: sum(&|r| r.plain_run_cpu_s) / n,
         search_s: sum(&|r| r.search_s),
         resumed_evaluations: shards.iter().map(|s| s.result.resumed_evaluations).sum(),
         shard: None,
         merged_shards: Some(shards.len()),
         worst_shard: Some(worst_shard),
-    };
-    write_result(out, &spec, &o)?;
-    Ok((evals, o))
+    }
 }
 
 /// The mean CPU time of the evaluations the shards' last invocations ran: each shard's mean
