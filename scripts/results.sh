@@ -17,6 +17,24 @@ python3 scripts/rankings.py "$o/paper"
 "$t" compare scenarios/irregular-track.toml scenarios/pi-drive-irregular.toml \
     scenarios/lqg-irregular.toml scenarios/mpc-irregular.toml \
     --out "$o/irregular" --transport in-process
+# The headline controllers on the whole car beside the half vehicle.
+for sc in paper-passive pi-drive paper-lqg paper-mpc irregular-track pi-drive-irregular \
+    lqg-irregular mpc-irregular; do
+    for m in half full; do
+        "$t" run "scenarios/$sc.toml" --set "vehicle.model=$m" --transport in-process \
+            --no-plots --out "$o/full-car/$sc-$m" -q
+    done
+done
+python3 scripts/full_car_table.py "$o/full-car" > "$o/full-car/table.md"
+# The whole car's running safety against speed on the paper's curve, each tilting vehicle.
+for v in passive pi-drive lqg mpc; do
+    for kmh in 150 160 170 180 190 200 210 220 230 240; do
+        "$t" run "scenarios/tilting-$v.toml" --set vehicle.model=full --set "track.speed_kmh=$kmh" \
+            --transport in-process --no-plots --out "$o/full-car-speed/$v-$kmh" -q
+    done
+done
+python3 scripts/full_car_speed.py "$o/full-car-speed" passive pi-drive lqg mpc \
+    > "$o/full-car/speed.md"
 # A tilting train's operating point: the tilting-* scenarios compared at 190 km/h, and each
 # vehicle's speed swept on the paper's curve against the passive vehicle at its design speed.
 "$t" compare scenarios/tilting-passive.toml scenarios/tilting-pi-drive.toml \

@@ -9,6 +9,9 @@
 //!   `finish` for the [`comfort::Comfort`].
 //! * [`validity`]: whether a run's numbers mean what they say ([`validity::Flagger`], the
 //!   same `push` / `finish` shape, giving [`validity::Flags`]).
+//! * [`running_safety`]: the whole car's running safety from its wheel-rail forces, against
+//!   EN 14363's limits, and the report of comfort along the car.
 
 pub mod comfort;
+pub mod running_safety;
 pub mod validity;

@@ -201,6 +201,10 @@ pub struct Flags {
     /// depend on time).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub not_real_time: Option<NotRealTime>,
+    /// The whole car's running safety against EN 14363's limits (absent for the half
+    /// vehicle, which has no wheelsets).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub running_safety: Option<crate::running_safety::RunningSafetyFlag>,
 }
 
 /// One row's inputs to the flags.
@@ -390,6 +394,7 @@ impl Flagger {
                 largest_pct: largest,
             },
             not_real_time: None,
+            running_safety: None,
         }
     }
 }
@@ -407,6 +412,10 @@ impl Flags {
             (
                 self.not_real_time.as_ref().is_some_and(|n| n.raised),
                 "not real-time",
+            ),
+            (
+                self.running_safety.as_ref().is_some_and(|r| r.raised),
+                "running safety",
             ),
         ]
         .into_iter()

@@ -8,7 +8,7 @@ use core::mem::{offset_of, size_of};
 use crate::msg::*;
 
 /// The protocol version the tables below describe.
-const PINNED_VERSION: u32 = 6;
+const PINNED_VERSION: u32 = 7;
 
 /// One sample: its size and its data fields' offsets, in declaration order (the header is
 /// at offset 0 of every sample).
@@ -101,7 +101,7 @@ fn every_sample_layout_is_pinned() {
         sample!(ToPlant, 96, [(delta_a, 88)]),
         sample!(
             FromPlant,
-            216,
+            400,
             [
                 (t, 88),
                 (s, 96),
@@ -110,7 +110,8 @@ fn every_sample_layout_is_pinned() {
                 (x, 120),
                 (psi, 192),
                 (lat_acc, 200),
-                (theta_v_meas, 208)
+                (theta_v_meas, 208),
+                (car, 216)
             ]
         ),
         sample!(ToActuator, 104, [(delta_a_cmd, 88), (psi, 96)]),

@@ -16,12 +16,12 @@ use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 /// Version of the sample layouts below. Bumped whenever a field changes; the layout tests
 /// (`layout_tests.rs`) pin every size and offset against it, so a layout change without a new
 /// version fails them.
-pub const PROTOCOL_VERSION: u32 = 6;
+pub const PROTOCOL_VERSION: u32 = 7;
 
 /// [`PROTOCOL_VERSION`] as a literal, for the type names ports are matched by.
 macro_rules! protocol_version {
     () => {
-        "6"
+        "7"
     };
 }
 
@@ -508,6 +508,15 @@ message!(
         lat_acc: f64 => ["m/s2"],
         /// Measured body roll θ_v with sensor noise (rad), eq 15.
         theta_v_meas: f64 => ["rad"],
+        /// The whole car's wheel-rail forces and passengers (zero for the half vehicle): for
+        /// each wheelset j = 0..4, leading first, at 5j..5j+5: ΣY, Y on the +y wheel, Y on the
+        /// −y wheel (rails on wheels, towards +y), Q_+y, Q_−y (N); then at 20..23 the body's
+        /// lateral acceleration over the leading bogie, at the centre and over the trailing
+        /// bogie (m/s²).
+        car: [f64; 23] => [
+            "N", "N", "N", "N", "N", "N", "N", "N", "N", "N", "N", "N", "N", "N", "N", "N",
+            "N", "N", "N", "N", "m/s2", "m/s2", "m/s2"
+        ],
     }
 );
 

@@ -69,7 +69,7 @@ pub fn assess(s: &Scenario, rows: Rows) -> std::io::Result<Assessment> {
 }
 
 /// The body a run's comfort is assessed on.
-fn body(s: &Scenario) -> tiltsim_assessment::comfort::Body {
+pub fn body(s: &Scenario) -> tiltsim_assessment::comfort::Body {
     tiltsim_assessment::comfort::Body {
         bump_stop_m: s.vehicle.bump_stop_m,
         cog_height_m: s.vehicle.h_gv,
@@ -128,7 +128,7 @@ fn section_times(tp: &vehicle_model::TrackParams) -> [f64; 4] {
 }
 
 /// The curve transitions of the scenario's track as (start, end) times (s).
-fn transitions(s: &Scenario) -> [(f64, f64); 2] {
+pub fn transitions(s: &Scenario) -> [(f64, f64); 2] {
     let [t1, t2, t3, t4] = section_times(&s.track);
     [(t1, t2), (t3, t4)]
 }

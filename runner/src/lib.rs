@@ -7,9 +7,11 @@
 //! * [`pipeline::carry_out`] with a [`pipeline::Job`]: run a scenario into a directory (or
 //!   with its rows in memory), with the observers and manipulators it adds, then fill the
 //!   summary's quick look, comfort and flags from its rows, write `summary.json` and
-//!   `perf.json` and draw its figures;
+//!   `perf.json` and draw its figures (with the whole car, [`full_car`]'s running safety and
+//!   comfort along the car);
 //! * [`compare`]: a comparison run into a directory (`tiltsim compare`): each scenario run
 //!   through the pipeline, then the Table 4 tables and figures.
 
 pub mod compare;
+pub mod full_car;
 pub mod pipeline;

@@ -186,6 +186,8 @@ struct Ran {
     summary: Summary,
     rows: Vec<Row>,
     recording: Option<Recording>,
+    /// The whole car's samples (`vehicle.model = "full"`).
+    car: Option<crate::full_car::CarSamples>,
 }
 
 /// `run.mcap`, open until the summary closes it.
@@ -209,6 +211,12 @@ fn lock_step(job: &mut Job, warnings: &mut Vec<String>) -> Result<Ran, JobError>
     let mut run = tiltsim_master::engine::Run::new(s, &job.scenario_file, opts);
     for o in made.observers.into_iter().chain(job.observers.drain(..)) {
         run = run.add_observer(o);
+    }
+    let mut car = None;
+    if s.vehicle.model == vehicle_model::VehicleModel::Full {
+        let (o, samples) = crate::full_car::CarObserver::new();
+        run = run.add_observer(Box::new(o));
+        car = Some(samples);
     }
     for m in job.manipulators.drain(..) {
         run = run.add_manipulator(m);
@@ -241,6 +249,7 @@ fn lock_step(job: &mut Job, warnings: &mut Vec<String>) -> Result<Ran, JobError>
             .recording
             .and_then(|h| h.take())
             .map(|r| Recording::LockStep(r, ran.events)),
+        car,
     })
 }
 
@@ -252,6 +261,7 @@ fn free(job: &Job) -> Result<Ran, JobError> {
         summary,
         rows: r.rows.take().unwrap_or_default(),
         recording: r.recording.take().map(Recording::Free),
+        car: None,
     })
 }
 
@@ -282,6 +292,7 @@ fn replay(job: &mut Job) -> Result<Ran, JobError> {
         summary,
         rows: r.rows.take().unwrap_or_default(),
         recording: None,
+        car: None,
     })
 }
 
@@ -345,8 +356,17 @@ fn finish(job: &Job, ran: Ran, mut warnings: Vec<String>) -> Done {
         mut summary,
         rows,
         recording,
+        car,
     } = ran;
     analyse(job, &mut summary, &rows);
+    if let Some(car) = car.filter(|_| summary.analysis_skipped.is_none()) {
+        let source = if files {
+            Rows::File(&opts.out_dir)
+        } else {
+            Rows::Kept(&rows)
+        };
+        crate::full_car::assess(s, &mut summary, &car, source);
+    }
     summary.comfort_valid =
         summary.analysis_skipped.is_none() && !summary.flags.comfort_not_valid();
     if files {

@@ -147,7 +147,7 @@ fn flood(
     answered: &AtomicU64,
     stop: &std::sync::mpsc::Receiver<()>,
 ) -> u64 {
-    let forged = vec![0xA5u8; 216];
+    let forged = vec![0xA5u8; 400];
     let mut sent = 0u64;
     loop {
         for p in &held.publishers {

@@ -351,3 +351,86 @@ fn a_lost_request_or_reply_is_resent_counted_and_changes_no_value() {
         }
     }
 }
+
+/// The whole car (`vehicle.model = "full"`) over both transports: the same bytes; a series
+/// other than the half vehicle's; the summary's running safety (five quantities, each with its
+/// wheelset and limit) and comfort at three places, with the flag beside the other flags.
+/// The centre's P_CT from the whole car's own body acceleration (its equations of motion)
+/// agrees with the `with-sway` form, which the assessment builds from the secondary
+/// suspension's forces on the car-centre states of the same run, within 3 %: two derivations
+/// of the body's acceleration, one from the whole car's equations of motion, one from the
+/// secondary suspension's deflection the plant reports at the centre.
+#[test]
+fn the_whole_car_gives_byte_identical_timeseries_over_both_transports() {
+    let full = ["--set", "vehicle.model=full"];
+    let a = run_with(
+        "full-ipc",
+        "irregular-track.toml",
+        "ipc",
+        "gauss-seidel",
+        &full,
+    );
+    let b = run_with(
+        "full-inproc",
+        "irregular-track.toml",
+        "in-process",
+        "gauss-seidel",
+        &[
+            "--set",
+            "vehicle.model=full",
+            "--set",
+            "comfort.lateral_acceleration=with-sway",
+        ],
+    );
+    assert!(bytes(&a) == bytes(&b), "ipc and in-process differ");
+    let half = run_with(
+        "half-inproc",
+        "irregular-track.toml",
+        "in-process",
+        "gauss-seidel",
+        &[],
+    );
+    assert!(
+        bytes(&a) != bytes(&half),
+        "the whole car ran as the half vehicle"
+    );
+    let s = summary(&a);
+    let safety = s["full_car"]["running_safety"].as_array().unwrap();
+    let names: Vec<&str> = safety
+        .iter()
+        .map(|q| q["quantity"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["(Y/Q)_2m", "(SumY)_2m", "dQ/Q0", "Y_qst", "Q_qst"]);
+    for q in safety {
+        let w = q["wheelset"].as_u64().unwrap();
+        assert!((1..=4).contains(&w), "{q}");
+        let (v, l) = (q["value"].as_f64().unwrap(), q["limit"].as_f64().unwrap());
+        assert_eq!(q["exceeded"].as_bool().unwrap(), v > l, "{q}");
+    }
+    let flag = &s["flags"]["running_safety"];
+    assert_eq!(
+        flag["raised"].as_bool().unwrap(),
+        safety.iter().any(|q| q["exceeded"].as_bool().unwrap())
+    );
+    let places = s["full_car"]["comfort_along_car"].as_array().unwrap();
+    assert_eq!(places.len(), 3);
+    assert!(summary(&half).get("full_car").is_none());
+    // Same run, in process, with the other form as the headline.
+    let sway = summary(&b)["comfort"]["p_ct_en12299"]["standing_pct"]
+        .as_f64()
+        .unwrap();
+    let centre = places[1]["p_ct_standing"].as_f64().unwrap();
+    assert_eq!(places[1]["place"], "centre");
+    assert!(
+        (centre - sway).abs() < 0.03 * centre,
+        "centre {centre} %, with-sway {sway} %"
+    );
+    // The straight-track ride likewise: N_MV's lateral part at the centre from the body's own
+    // acceleration against the summary's, from the secondary forces (measured 1.7 % apart).
+    let n_centre = places[1]["n_mv_lateral"].as_f64().unwrap();
+    let n_sway = s["comfort"]["ride"]["n_mv_lateral"].as_f64().unwrap();
+    assert!(
+        (n_centre - n_sway).abs() < 0.03 * n_centre,
+        "centre {n_centre}, with-sway {n_sway}"
+    );
+}

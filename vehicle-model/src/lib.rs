@@ -17,7 +17,8 @@ pub mod track;
 pub mod vehicle;
 
 pub use params::{
-    IrregularityModel, IrregularityParams, TrackParams, TransitionShape, VehicleParams,
+    IrregularityModel, IrregularityParams, TrackParams, TransitionShape, VehicleModel,
+    VehicleParams,
 };
 pub use track::Track;
 pub use vehicle::{TrackInput, Vehicle};

@@ -61,6 +61,36 @@ pub struct VehicleParams {
     pub k_bump: f64,
     /// Bump-stop progression per side (N/m³), the cubic part of its force.
     pub k3_bump: f64,
+    /// Which model the plant steps: the paper's half vehicle (the default) or the whole car
+    /// built on these values ([`crate::full_car::FullCarParams::from_half`]). Written out only
+    /// when it is the whole car, so a half vehicle's settings serialise as before.
+    #[serde(skip_serializing_if = "VehicleModel::is_half")]
+    pub model: VehicleModel,
+}
+
+/// The vehicle model a plant steps (`[vehicle] model`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum VehicleModel {
+    /// The paper's one-bogie half vehicle, 9 states (eqs 9-13).
+    #[default]
+    Half,
+    /// The whole car: body, two bogies, four wheelsets on linear creep ([`crate::full_car`]).
+    Full,
+}
+
+impl VehicleModel {
+    /// Whether it is the half vehicle.
+    pub fn is_half(&self) -> bool {
+        *self == VehicleModel::Half
+    }
+    /// Its name in scenario files.
+    pub fn name(self) -> &'static str {
+        match self {
+            VehicleModel::Half => "half",
+            VehicleModel::Full => "full",
+        }
+    }
 }
 
 impl Default for VehicleParams {
@@ -92,6 +122,7 @@ impl Default for VehicleParams {
             bump_stop_m: 0.060,
             k_bump: 1.0e6,
             k3_bump: 1.0e10,
+            model: VehicleModel::Half,
         }
     }
 }

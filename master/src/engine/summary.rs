@@ -226,6 +226,10 @@ pub struct Summary {
     /// finished, by observer name. Absent when there were none.
     #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub observers: std::collections::BTreeMap<String, serde_json::Value>,
+    /// The whole car's running safety and comfort along the car (`vehicle.model = "full"`;
+    /// absent for the half vehicle).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub full_car: Option<tiltsim_assessment::running_safety::FullCarReport>,
     /// A free run's wall-clock timing: real time kept or not, lateness, input ages (absent
     /// for lock-step runs and replays).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -297,6 +301,7 @@ impl Summary {
             participant_logs: Vec::new(),
             network: None,
             observers: std::collections::BTreeMap::new(),
+            full_car: None,
             free_run: None,
             timing_trace: None,
             trace_partial: None,

@@ -686,4 +686,38 @@ mod tests {
             "{e}"
         );
     }
+
+    #[test]
+    fn the_vehicle_model_is_half_or_full_and_the_whole_car_runs_lock_step() {
+        let s = parse("").unwrap();
+        assert_eq!(s.vehicle.model, vehicle_model::VehicleModel::Half);
+        let s = parse("[vehicle]\nmodel = \"full\"\n").unwrap();
+        assert_eq!(s.vehicle.model, vehicle_model::VehicleModel::Full);
+        // The half vehicle's settings serialise as before: no `model` key.
+        let half = serde_json::to_string(&parse("").unwrap().vehicle).unwrap();
+        assert!(!half.contains("model"), "{half}");
+        let e = parse("[vehicle]\nmodel = \"whole\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("x.toml:")
+                && e.contains("field `vehicle.model`")
+                && e.contains("`half`")
+                && e.contains("`full`"),
+            "{e}"
+        );
+        let e = parse(
+            "[vehicle]\nmodel = \"full\"\n[run]\nexecution = \"free\"\ntransport = \"ipc\"\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("field `vehicle.model`") && e.contains("lock-step"),
+            "{e}"
+        );
+        let e = parse("[design_vehicle]\nmodel = \"full\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("field `design_vehicle.model`"), "{e}");
+    }
 }

@@ -154,6 +154,7 @@ impl Scenario {
         if let Some(v) = &self.design_vehicle {
             all.merge(v.validate("design_vehicle"));
         }
+        all.merge(self.validate_vehicle_model());
         all.errors.extend(self.validate_fmus());
         let mut c = Checker::new("controller");
         let ratio = self.controller.period_s / r.dt_s;
@@ -220,6 +221,37 @@ impl Scenario {
             "\"free\"",
             "\"lock-step\" when faults.on_failure = \"degrade\" (a free run ends, naming the participant, when one fails; stand-ins replace participants in lock-step only)",
         );
+    }
+
+    /// The rules of `vehicle.model`: the whole car is stepped by tiltsim's own plant and
+    /// assessed from a lock-step run's samples; the controller is designed on the half vehicle.
+    fn validate_vehicle_model(&self) -> Checker {
+        let mut c = Checker::new("vehicle");
+        if self.vehicle.model == vehicle_model::VehicleModel::Full {
+            c.require(
+                self.run.execution == Execution::LockStep,
+                "model",
+                "\"full\"",
+                "\"half\" with run.execution = \"free\": the whole car's running safety and comfort along the car are assessed in lock-step runs only",
+            );
+            c.require(
+                self.participants.get(Role::Plant).is_none(),
+                "model",
+                "\"full\"",
+                "\"half\" when the plant is an FMU ([participants.plant]): the whole car is tiltsim's own plant",
+            );
+        }
+        if let Some(v) = &self.design_vehicle {
+            let mut d = Checker::new("design_vehicle");
+            d.require(
+                v.model.is_half(),
+                "model",
+                format!("\"{}\"", v.model.name()),
+                "\"half\": the controllers are designed on the half vehicle (vehicle.model chooses what the plant steps)",
+            );
+            c.merge(d);
+        }
+        c
     }
 
     /// Every FMU checked against its description: the file, the library for this platform,

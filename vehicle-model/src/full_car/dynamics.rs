@@ -139,17 +139,11 @@ impl Equations<'_> {
         let p = self.p;
         let d = p.bogie_x(i);
         let r = ix::rate;
-        let (yb, psib, phib) = (ix::y_b(i), ix::psi_b(i), ix::phi_b(i));
-        // Body lateral at the bogie in the bogie's track frame, at the body c.o.g. height.
-        let e = d * d * (2.0 * tc.curvature + tb.curvature) / 6.0;
-        let de = d * d * (2.0 * tc.curvature_rate + tb.curvature_rate) / 6.0;
+        let (psib, phib) = (ix::psi_b(i), ix::phi_b(i));
         let twist = tc.cant - tb.cant;
         let dtwist = tc.cant_rate - tb.cant_rate;
-        let y_c = x[ix::Y_C] + d * x[ix::PSI_C] - e;
-        let dy_c = x[r(ix::Y_C)] + d * x[r(ix::PSI_C)] - de;
-        let z_s = p.h_gv - p.h1;
-        let ds = y_c - p.h1 * x[ix::PHI_C] - x[yb] - p.h2 * x[phib] + z_s * twist;
-        let dds = dy_c - p.h1 * x[r(ix::PHI_C)] - x[r(yb)] - p.h2 * x[r(phib)] + z_s * dtwist;
+        let (ds, dds, y_c) = self.secondary_deflection(x, i, tb, tc);
+        let yb = ix::y_b(i);
         // Body roll relative to the bogie's track plane, and to the bogie.
         let phi_c = x[ix::PHI_C] + twist;
         let dphi_c = x[r(ix::PHI_C)] + dtwist;
@@ -168,6 +162,32 @@ impl Equations<'_> {
             weight: 0.5 * p.m_c * G * (y_c + p.h_gv * twist - x[yb]),
             dth_r: x[r(phib)] + (p.k_sz * (phi_c - th_r) - p.k_rz * (th_r - x[phib])) / p.c_rz,
         }
+    }
+
+    /// The secondary lateral deflection of bogie `i` Δs (m), its rate (m/s), and the body's
+    /// lateral at the bogie in the bogie's track frame (m, at the body c.o.g. height: the
+    /// chord's versine taken off).
+    pub fn secondary_deflection(
+        &self,
+        x: &[f64],
+        i: usize,
+        tb: &WheelsetInput,
+        tc: &WheelsetInput,
+    ) -> (f64, f64, f64) {
+        let p = self.p;
+        let d = p.bogie_x(i);
+        let r = ix::rate;
+        let (yb, phib) = (ix::y_b(i), ix::phi_b(i));
+        let e = d * d * (2.0 * tc.curvature + tb.curvature) / 6.0;
+        let de = d * d * (2.0 * tc.curvature_rate + tb.curvature_rate) / 6.0;
+        let twist = tc.cant - tb.cant;
+        let dtwist = tc.cant_rate - tb.cant_rate;
+        let y_c = x[ix::Y_C] + d * x[ix::PSI_C] - e;
+        let dy_c = x[r(ix::Y_C)] + d * x[r(ix::PSI_C)] - de;
+        let z_s = p.h_gv - p.h1;
+        let ds = y_c - p.h1 * x[ix::PHI_C] - x[yb] - p.h2 * x[phib] + z_s * twist;
+        let dds = dy_c - p.h1 * x[r(ix::PHI_C)] - x[r(yb)] - p.h2 * x[r(phib)] + z_s * dtwist;
+        (ds, dds, y_c)
     }
 
     /// Primary suspension and contact of wheelset `j` under bogie `j / 2`.
