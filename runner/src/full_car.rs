@@ -7,7 +7,7 @@ use std::sync::{Arc, Mutex};
 
 use tiltsim_assessment::comfort::LateralAcceleration;
 use tiltsim_assessment::running_safety::{self, CarPlace, FullCarReport, CAR_VALUES};
-use tiltsim_formats::table::{Row, Rows};
+use tiltsim_formats::table::Rows;
 use tiltsim_master::engine::observe::{Observer, Start, Tick};
 use tiltsim_master::engine::Summary;
 use tiltsim_scenario::scenario::Scenario;
@@ -73,7 +73,7 @@ const PLACES: [&str; 3] = ["leading bogie", "centre", "trailing bogie"];
 /// take it).
 fn comfort_along_car(
     s: &Scenario,
-    rows: &[Row],
+    rows: Rows<'_>,
     car: &[[f64; CAR_VALUES]],
 ) -> std::io::Result<Vec<CarPlace>> {
     use tiltsim_assessment::comfort::Assessor;
@@ -85,7 +85,7 @@ fn comfort_along_car(
     let mut at: Vec<Assessor> = (0..PLACES.len())
         .map(|_| Assessor::new(s.run.dt_s, &transitions, &settings, body))
         .collect();
-    tiltsim_report::analysis::scan(s, Rows::Kept(rows), |r, x| {
+    tiltsim_report::analysis::scan(s, rows, |r, x| {
         if let Some(c) = car.get(r.step as usize) {
             for (i, a) in at.iter_mut().enumerate() {
                 let acc = c[CAR_VALUES - PLACES.len() + i];
@@ -120,27 +120,14 @@ fn comfort_along_car(
 /// Fills the summary's whole-car part from the kept samples and the run's rows (on disk,
 /// or `rows` when kept in memory); a note in `analysis_skipped` when they cannot be read.
 pub fn assess(s: &Scenario, summary: &mut Summary, samples: &CarSamples, rows: Rows<'_>) {
+    // The rows are streamed from the file (or read where kept): only the car's own values
+    // are held, one per row (docs/limits.md).
     let car = match samples.lock() {
-        Ok(c) => c.clone(),
+        Ok(mut c) => std::mem::take(&mut *c),
         Err(_) => return,
     };
-    let read;
-    let rows: &[Row] = match rows {
-        Rows::Kept(r) => r,
-        Rows::File(dir) => match tiltsim_formats::table::read_rows(dir) {
-            Ok(r) => {
-                read = r;
-                &read
-            }
-            Err(e) => {
-                summary.analysis_skipped =
-                    Some(format!("the whole car's running safety not computed: {e}"));
-                return;
-            }
-        },
-    };
-    let n = car.len().min(rows.len());
-    let (car, rows) = (&car[..n], &rows[..n]);
+    let n = car.len();
+    let car = &car[..];
     let q0 = FullCarParams::from_half(&s.vehicle).static_wheel_load();
     let Some((safety, flag)) =
         running_safety::assess(car, steady_rows(s, n), s.track.speed(), s.run.dt_s, q0)
