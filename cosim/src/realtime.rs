@@ -53,7 +53,12 @@ pub fn throttled() -> Result<(), String> {
             .map_err(|e| format!("{path}: {e}"))
             .and_then(|t| t.trim().parse::<i64>().map_err(|e| format!("{path}: {e}")))
     };
-    let (runtime, period) = (read("sched_rt_runtime_us")?, read("sched_rt_period_us")?);
+    throttling(read("sched_rt_runtime_us")?, read("sched_rt_period_us")?)
+}
+
+/// The verdict on a kernel whose real-time threads may run `runtime` µs of every `period` µs
+/// (`runtime` −1: without limit).
+fn throttling(runtime: i64, period: i64) -> Result<(), String> {
     if runtime < 0 || runtime >= period {
         return Err(format!(
             "the kernel does not throttle real-time threads (kernel.sched_rt_runtime_us = {runtime} of kernel.sched_rt_period_us = {period}), so the run's polling processes could hold their CPUs from everything else; set it below the period (`sysctl kernel.sched_rt_runtime_us=950000`) or pace the run (--pace)"
@@ -64,18 +69,22 @@ pub fn throttled() -> Result<(), String> {
 
 #[cfg(test)]
 mod tests {
-    /// This machine's kernel throttles real-time threads as Linux does by default, and the
-    /// check reads it so.
+    /// Linux's default (0.95 s of each second) throttles; no limit (−1) or a limit of the
+    /// whole period does not, and the refusal says what to set.
     #[test]
-    fn the_kernels_real_time_throttling_is_read() {
-        let runtime: i64 = std::fs::read_to_string("/proc/sys/kernel/sched_rt_runtime_us")
-            .unwrap()
-            .trim()
-            .parse()
-            .unwrap();
-        assert_eq!(
-            super::throttled().is_ok(),
-            (0..1_000_000).contains(&runtime)
-        );
+    fn only_a_kernel_that_caps_real_time_threads_is_accepted_unpaced() {
+        assert!(super::throttling(950_000, 1_000_000).is_ok());
+        assert!(super::throttling(0, 1_000_000).is_ok());
+        for (runtime, period) in [(-1, 1_000_000), (1_000_000, 1_000_000)] {
+            let e = super::throttling(runtime, period).unwrap_err();
+            assert!(
+                e.contains("sysctl kernel.sched_rt_runtime_us=950000"),
+                "{e}"
+            );
+            assert!(e.contains(&format!("= {runtime} of")), "{e}");
+        }
+        // This machine's kernel answers one way or the other, never with an unreadable file.
+        let e = super::throttled().err().unwrap_or_default();
+        assert!(!e.contains("/proc/sys"), "{e}");
     }
 }
