@@ -10,7 +10,11 @@ use vehicle_model::full_car::{WheelForces, NW};
 
 /// Values per sample in `FromPlant::car`: five forces per wheelset, then the body's lateral
 /// acceleration at three places.
-pub const CAR_VALUES: usize = 5 * NW + 3;
+pub use tiltsim_protocol::msg::CAR_VALUES;
+const _: () = assert!(
+    CAR_VALUES == 5 * NW + 3,
+    "FromPlant::car holds the whole car's values"
+);
 
 /// The wheel-rail forces of one sample's `car` values.
 pub fn wheel_forces(car: &[f64; CAR_VALUES]) -> [WheelForces; NW] {

@@ -19,7 +19,7 @@
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use tiltsim_protocol::msg::{FromPlant, ToPlant};
+use tiltsim_protocol::msg::{FromPlant, ToPlant, CAR_VALUES};
 use tiltsim_protocol::time::tick_time;
 use tiltsim_protocol::{Participant, Role};
 
@@ -174,7 +174,7 @@ impl Plant {
         let noise = self.noise_value;
         let (x, car) = match &self.whole {
             Some(w) => self.whole_outputs(w, t, s),
-            None => (self.x.into(), [0.0; 23]),
+            None => (self.x.into(), [0.0; CAR_VALUES]),
         };
         let th_v = x[ix::TH_V];
         FromPlant {
@@ -200,7 +200,7 @@ impl Plant {
     /// four wheelsets, which a cant irregularity makes differ); the bogie's lateral and its
     /// rate are those for which the half vehicle's y_v − h1 θ_v − y_b − h2 θ_b is the mean of
     /// the two secondary deflections, the chord's versine and the body's yaw included.
-    fn whole_outputs(&self, w: &Whole, t: f64, s: f64) -> ([f64; 9], [f64; 23]) {
+    fn whole_outputs(&self, w: &Whole, t: f64, s: f64) -> ([f64; 9], [f64; CAR_VALUES]) {
         use full_car::ix as c;
         let sim = &w.sim;
         let z = sim.state();
@@ -228,7 +228,7 @@ impl Plant {
             dth_b,
             mean(c::th_r) + shift,
         ];
-        let mut car = [0.0; 23];
+        let mut car = [0.0; CAR_VALUES];
         for (j, f) in sim.wheel_forces(&inputs).iter().enumerate() {
             car[5 * j..5 * j + 5]
                 .copy_from_slice(&[f.sum_y, f.y_plus, f.y_minus, f.q_plus, f.q_minus]);

@@ -513,12 +513,16 @@ message!(
         /// −y wheel (rails on wheels, towards +y), Q_+y, Q_−y (N); then at 20..23 the body's
         /// lateral acceleration over the leading bogie, at the centre and over the trailing
         /// bogie (m/s²).
-        car: [f64; 23] => [
+        car: [f64; CAR_VALUES] => [
             "N", "N", "N", "N", "N", "N", "N", "N", "N", "N", "N", "N", "N", "N", "N", "N",
             "N", "N", "N", "N", "m/s2", "m/s2", "m/s2"
         ],
     }
 );
+
+/// Values in [`FromPlant::car`]: five per wheelset of the whole car's four (ΣY, two Y, two
+/// Q), then the body's lateral acceleration at three places along it.
+pub const CAR_VALUES: usize = 23;
 
 message!(
     /// Orchestrator → actuator: tilt command and the bar's twist.

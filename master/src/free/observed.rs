@@ -233,6 +233,16 @@ mod tests {
         }
     }
 
+    /// paper-pi in process under Gauss-Seidel for `duration_s`.
+    fn paper_pi_gauss_seidel(duration_s: f64) -> Scenario {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let mut s = Scenario::load(&root.join("scenarios/paper-pi.toml")).unwrap();
+        s.run.transport = Transport::InProcess;
+        s.run.master = Master::GaussSeidel;
+        s.run.duration_s = Some(duration_s);
+        s
+    }
+
     /// A timing replay tells its observers what the lock-step tells them: replaying the
     /// timing of Gauss-Seidel's data flow, an observer sees every tick's outputs, the value
     /// each link delivered, the controller's steps and requests as the Gauss-Seidel lock-step
@@ -241,11 +251,7 @@ mod tests {
     /// the summary is there; two observers of one name are refused.
     #[test]
     fn a_timing_replay_tells_observers_what_the_lock_step_does() {
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-        let mut s = Scenario::load(&root.join("scenarios/paper-pi.toml")).unwrap();
-        s.run.transport = Transport::InProcess;
-        s.run.master = Master::GaussSeidel;
-        s.run.duration_s = Some(0.6);
+        let s = paper_pi_gauss_seidel(0.6);
         let dir = std::env::temp_dir().join(format!("tiltsim-replay-obs-{}", std::process::id()));
         let opts = RunOptions::new(dir.clone(), "tiltsim".into());
         let out = crate::engine::outputs::Outputs {
@@ -303,11 +309,7 @@ mod tests {
     /// completed.
     #[test]
     fn an_interrupted_timing_replay_says_it_was_interrupted() {
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-        let mut s = Scenario::load(&root.join("scenarios/paper-pi.toml")).unwrap();
-        s.run.transport = Transport::InProcess;
-        s.run.master = Master::GaussSeidel;
-        s.run.duration_s = Some(0.2);
+        let s = paper_pi_gauss_seidel(0.2);
         let dir = std::env::temp_dir().join(format!("tiltsim-replay-int-{}", std::process::id()));
         let opts = RunOptions::new(dir.clone(), "tiltsim".into());
         opts.interrupt
