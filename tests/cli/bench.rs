@@ -348,6 +348,22 @@ fn bench_sets_the_real_time_ipc_runs_beside_hogs_against_one_process() {
     );
     let dir = temp_dir("bench-realtime");
     let out = dir.join("bench.json");
+    // Without the right to SCHED_FIFO (CAP_SYS_NICE dropped from the bounding set, so even
+    // root lacks it): refused by name before any run, not after the runs that need no right.
+    let refused = std::process::Command::new("setpriv")
+        .args(["--bounding-set", "-sys_nice"])
+        .arg(tiltsim_suite::tiltsim())
+        .args(["bench", sc.to_str().unwrap(), "--realtime", "--out"])
+        .arg(&out)
+        .output()
+        .expect("setpriv (util-linux) runs the bench without CAP_SYS_NICE");
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--realtime") && err.contains("SCHED_FIFO"),
+        "{err}"
+    );
+    assert!(!err.contains("measuring") && !out.exists(), "{err}");
     let (code, stdout, err) = run(&[
         "bench",
         sc.to_str().unwrap(),

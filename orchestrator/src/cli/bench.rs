@@ -348,8 +348,13 @@ fn check_realtime(a: &BenchArgs) -> Result<(), CliError> {
     if !a.realtime {
         return Ok(());
     }
-    cosim::realtime::throttled()
-        .map_err(|e| CliError::Invalid(format!("command line: --realtime: {e}")))
+    let refused = |e: String| CliError::Invalid(format!("command line: --realtime: {e}"));
+    cosim::realtime::throttled().map_err(refused)?;
+    // Asked now, so that a refusal comes before the runs without it, not after them.
+    cosim::realtime::enter(cosim::realtime::PRIORITY).map_err(refused)?;
+    cosim::realtime::leave();
+    cosim::realtime::unlock_memory();
+    Ok(())
 }
 
 /// Runs the command.
