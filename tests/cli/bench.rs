@@ -432,3 +432,35 @@ fn bench_sets_the_real_time_ipc_runs_beside_hogs_against_one_process() {
         1
     );
 }
+
+#[test]
+fn an_interrupted_bench_ends_its_run_and_writes_nothing() {
+    let dir = temp_dir("bench-interrupted");
+    let out = dir.join("b.json");
+    let sc = scenario("paper-passive.toml");
+    let child = spawn(&[
+        "bench",
+        sc.to_str().unwrap(),
+        "--duration",
+        "300",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    // The second configuration (IPC, Gauss-Seidel) under way: Ctrl-C.
+    let second = dir.join("b.runs").join("config-1");
+    let started = wait_for(std::time::Duration::from_secs(300), || {
+        second.exists().then_some(())
+    });
+    assert!(started.is_some(), "the second configuration did not start");
+    // SAFETY: signalling a child this test started.
+    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+    let (code, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
+    assert_eq!(code, 130, "{err}");
+    assert!(
+        err.contains("interrupted while measuring ipc gauss-seidel adaptive"),
+        "{err}"
+    );
+    // The run ended as interrupted (not the 300 s it was asked for) and no other started.
+    assert!(!err.contains("measuring ipc gauss-seidel spin"), "{err}");
+    assert!(!out.exists() && !dir.join("b.runs").exists());
+}
