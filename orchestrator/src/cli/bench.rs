@@ -459,7 +459,7 @@ pub fn exec(a: BenchArgs) -> CliResult {
     report.machine_floors = Some(machine_floors(&exe)?);
     eprintln!("  measuring iceoryx2's floor for the scenario's ticks ...");
     report.set_exchange_floors(exchange_floors(&exe, &s)?);
-    println!("{}", tiltsim_studies::bench::table(&report));
+    println!("{}", tiltsim_studies::bench_table::table(&report));
     if let Some(dir) = a.out.parent() {
         let _ = std::fs::create_dir_all(dir);
     }
