@@ -111,12 +111,7 @@ impl CarObserver {
             None => Accelerations::Kept(Vec::new()),
         };
         let stream = Arc::new(Mutex::new(CarStream {
-            safety: running_safety::Stream::new(
-                steady_rows(s),
-                s.track.speed(),
-                s.run.dt_s,
-                q0,
-            ),
+            safety: running_safety::Stream::new(steady_rows(s), s.track.speed(), s.run.dt_s, q0),
             along,
         }));
         Ok((
@@ -256,7 +251,9 @@ fn comfort_from(
             if let Some(e) = error {
                 return Err(format!("cannot write {e}"));
             }
-            let flushed = file.take().map(|f| f.into_inner().map_err(|e| e.into_error()));
+            let flushed = file
+                .take()
+                .map(|f| f.into_inner().map_err(|e| e.into_error()));
             if let Some(Err(e)) = flushed {
                 return Err(format!("cannot write {}: {e}", path.display()));
             }
@@ -352,7 +349,8 @@ mod tests {
             q0,
         )
         .unwrap();
-        let mut stream = running_safety::Stream::new(steady.clone(), s.track.speed(), s.run.dt_s, q0);
+        let mut stream =
+            running_safety::Stream::new(steady.clone(), s.track.speed(), s.run.dt_s, q0);
         for c in &car {
             stream.push(c);
         }

@@ -255,7 +255,13 @@ fn lock_step(job: &mut Job, warnings: &mut Vec<String>) -> Result<Ran, JobError>
 /// through after the run; none for the half vehicle.
 fn car_observer(
     job: &Job,
-) -> Result<(Option<Box<dyn Observer>>, Option<crate::full_car::CarSamples>), JobError> {
+) -> Result<
+    (
+        Option<Box<dyn Observer>>,
+        Option<crate::full_car::CarSamples>,
+    ),
+    JobError,
+> {
     let s = job.scenario;
     if s.vehicle.model != vehicle_model::VehicleModel::Full {
         return Ok((None, None));

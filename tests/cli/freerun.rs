@@ -136,7 +136,10 @@ fn a_free_whole_car_run_reports_its_running_safety_as_its_replay_does() {
     assert!(bytes(&dir.join("timeseries.csv")) == bytes(&out.join("timeseries.csv")));
     let again = summary(&out);
     assert_eq!(again["full_car"], sm["full_car"]);
-    assert_eq!(again["flags"]["running_safety"], sm["flags"]["running_safety"]);
+    assert_eq!(
+        again["flags"]["running_safety"],
+        sm["flags"]["running_safety"]
+    );
     for d in [&dir, &out] {
         let left: Vec<_> = std::fs::read_dir(d)
             .unwrap()

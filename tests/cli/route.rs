@@ -180,7 +180,10 @@ fn a_route_run_with_the_whole_car_reports_running_safety_on_every_segment() {
         let y_qst = get("Y_qst").expect("Y_qst on a curve")["value"]
             .as_f64()
             .unwrap();
-        assert!(y_qst > 0.9 * least, "curve {curve}: Y_qst {y_qst} N, at least {least} N");
+        assert!(
+            y_qst > 0.9 * least,
+            "curve {curve}: Y_qst {y_qst} N, at least {least} N"
+        );
         assert!(get("Q_qst").is_some());
     }
     assert_eq!(curve, 2);
@@ -198,8 +201,7 @@ fn a_route_run_with_the_whole_car_reports_running_safety_on_every_segment() {
         .contains("running safety of the whole car"));
     let half = go("half", &scenario("tilting-pi-drive.toml"));
     let j: serde_json::Value =
-        serde_json::from_str(&String::from_utf8(read(&half.join("route.json"))).unwrap())
-            .unwrap();
+        serde_json::from_str(&String::from_utf8(read(&half.join("route.json"))).unwrap()).unwrap();
     assert!(j["variants"][0].get("running_safety").is_none());
     assert!(!half.join("safety.csv").exists());
 }

@@ -279,8 +279,7 @@ fn run_segment(s: &Scenario, g: &Segment, dir: &Path, ex: &RouteExec) -> Segment
         .map(|f| f.to_string())
         .collect();
     result.simulated_s = done.summary.simulated_time_s;
-    if let (Some(car), Some(flag)) = (&done.summary.full_car, &done.summary.flags.running_safety)
-    {
+    if let (Some(car), Some(flag)) = (&done.summary.full_car, &done.summary.flags.running_safety) {
         result.running_safety = Some(SegmentSafety {
             values: car.running_safety.clone(),
             flag: flag.clone(),

@@ -353,7 +353,12 @@ impl DynamicStream {
     }
     /// Values held in the windows.
     pub fn held(&self) -> usize {
-        self.y_q.iter().flatten().chain(&self.sum_y).map(SlidingMeanMax::held).sum()
+        self.y_q
+            .iter()
+            .flatten()
+            .chain(&self.sum_y)
+            .map(SlidingMeanMax::held)
+            .sum()
     }
 }
 
