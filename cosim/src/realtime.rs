@@ -42,6 +42,15 @@ pub fn leave() {
     }
 }
 
+/// Unlocks the process's memory locked by [`enter`], for a process that goes on after a
+/// real-time run (`tiltsim bench --realtime`).
+pub fn unlock_memory() {
+    // SAFETY: a plain system call on this process.
+    unsafe {
+        libc::munlockall();
+    }
+}
+
 /// Whether the kernel caps the CPU time of real-time threads (`kernel.sched_rt_runtime_us` of
 /// every `kernel.sched_rt_period_us`, 0.95 s of each second by default), so that processes that
 /// poll under `SCHED_FIFO` still leave a share of each CPU to everything else; the error says

@@ -29,6 +29,8 @@ pub struct Config {
     pub master: &'static str,
     /// Wait strategy.
     pub wait: &'static str,
+    /// Whether the run's processes ran under SCHED_FIFO (`tiltsim run --realtime`).
+    pub realtime: bool,
     /// Ticks run.
     pub ticks: u64,
     /// Coordination overhead per tick, p50 (µs).
@@ -86,6 +88,14 @@ pub struct Report {
     pub wall_ipc_jacobi_s: f64,
     /// `wall_ipc_jacobi_s / wall_in_process_s`; `None` when withheld.
     pub jacobi_ipc_over_in_process: Option<f64>,
+    /// With `--realtime`: wall time across processes under SCHED_FIFO (s), Gauss-Seidel and
+    /// Jacobi, adaptive wait, the medians of their rounds, and each over `wall_in_process_s`
+    /// (the in-process run keeps the ordinary policy: what the real-time policy buys an IPC
+    /// run, beside the same hogs).
+    pub realtime: Option<RealtimeWalls>,
+    /// CPU hogs (spinning threads) that ran beside every configuration (`--hogs`); the floors
+    /// are measured after they stopped.
+    pub hogs: usize,
     /// Why the wall-time ratios are not drawn: a configuration's rounds spread too widely
     /// (the load the machine ran under is in `load_average`).
     pub ratio_withheld: Option<String>,
@@ -171,19 +181,92 @@ pub struct WallRounds {
     pub ipc_gauss_seidel_s: Vec<f64>,
     /// IPC, Jacobi, adaptive wait.
     pub ipc_jacobi_s: Vec<f64>,
+    /// IPC, Gauss-Seidel, adaptive wait, under SCHED_FIFO (with `--realtime`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub ipc_gauss_seidel_realtime_s: Vec<f64>,
+    /// IPC, Jacobi, adaptive wait, under SCHED_FIFO (with `--realtime`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub ipc_jacobi_realtime_s: Vec<f64>,
 }
 
 impl WallRounds {
-    fn add(&mut self, t: Transport, m: Master, w: WaitStrategy, wall_s: f64) {
-        let list = match (t, m, w) {
-            (Transport::InProcess, _, _) => &mut self.in_process_s,
-            (Transport::Ipc, Master::GaussSeidel, WaitStrategy::Adaptive) => {
+    fn add(&mut self, p: Plan, wall_s: f64) {
+        let list = match (p.transport, p.master, p.wait, p.realtime) {
+            (Transport::InProcess, _, _, _) => &mut self.in_process_s,
+            (Transport::Ipc, Master::GaussSeidel, WaitStrategy::Adaptive, false) => {
                 &mut self.ipc_gauss_seidel_s
             }
-            (Transport::Ipc, Master::Jacobi, WaitStrategy::Adaptive) => &mut self.ipc_jacobi_s,
+            (Transport::Ipc, Master::Jacobi, WaitStrategy::Adaptive, false) => {
+                &mut self.ipc_jacobi_s
+            }
+            (Transport::Ipc, Master::GaussSeidel, WaitStrategy::Adaptive, true) => {
+                &mut self.ipc_gauss_seidel_realtime_s
+            }
+            (Transport::Ipc, Master::Jacobi, WaitStrategy::Adaptive, true) => {
+                &mut self.ipc_jacobi_realtime_s
+            }
             _ => return,
         };
         list.push(wall_s);
+    }
+
+    /// Every compared configuration's name and rounds.
+    fn named(&self) -> [(&'static str, &Vec<f64>); 5] {
+        [
+            ("in-process", &self.in_process_s),
+            ("IPC gauss-seidel", &self.ipc_gauss_seidel_s),
+            ("IPC jacobi", &self.ipc_jacobi_s),
+            (
+                "IPC gauss-seidel realtime",
+                &self.ipc_gauss_seidel_realtime_s,
+            ),
+            ("IPC jacobi realtime", &self.ipc_jacobi_realtime_s),
+        ]
+    }
+}
+
+/// The IPC runs under SCHED_FIFO against the same run in one process under the ordinary
+/// policy, beside the same hogs (`tiltsim bench --realtime`).
+#[derive(Debug, Clone, Serialize)]
+pub struct RealtimeWalls {
+    /// Gauss-Seidel, adaptive wait: the median of its rounds (s).
+    pub wall_ipc_s: f64,
+    /// `wall_ipc_s / wall_in_process_s`; `None` when withheld.
+    pub ipc_over_in_process: Option<f64>,
+    /// Jacobi, adaptive wait: the median of its rounds (s).
+    pub wall_ipc_jacobi_s: f64,
+    /// `wall_ipc_jacobi_s / wall_in_process_s`; `None` when withheld.
+    pub jacobi_ipc_over_in_process: Option<f64>,
+}
+
+/// One configuration to measure.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Plan {
+    pub transport: Transport,
+    pub master: Master,
+    pub wait: WaitStrategy,
+    /// Under SCHED_FIFO (IPC only).
+    pub realtime: bool,
+}
+
+impl Plan {
+    fn new(transport: Transport, master: Master, wait: WaitStrategy, realtime: bool) -> Plan {
+        Plan {
+            transport,
+            master,
+            wait,
+            realtime,
+        }
+    }
+
+    fn name(&self) -> String {
+        format!(
+            "{} {} {}{}",
+            self.transport.name(),
+            self.master.name(),
+            self.wait.name(),
+            if self.realtime { " realtime" } else { "" }
+        )
     }
 }
 
@@ -219,13 +302,7 @@ fn spread(v: &[f64]) -> Option<f64> {
 /// but not used here: it trails the last minute, so a quiet measurement just after a busy
 /// spell would be refused for it.
 fn withheld(walls: &WallRounds) -> Option<String> {
-    let names = ["in-process", "IPC gauss-seidel", "IPC jacobi"];
-    let lists = [
-        &walls.in_process_s,
-        &walls.ipc_gauss_seidel_s,
-        &walls.ipc_jacobi_s,
-    ];
-    names.iter().zip(lists).find_map(|(name, v)| {
+    walls.named().into_iter().find_map(|(name, v)| {
         spread(v).filter(|s| *s > MAX_SPREAD).map(|s| {
             format!(
                 "the {name} rounds spread over {:.0} % of their median (more than {:.0} %)",
@@ -277,10 +354,30 @@ pub enum BenchError {
     },
 }
 
-fn measure(s: &Scenario, exe: &Path, dir: &Path, config: &str) -> Result<Summary, BenchError> {
+/// One run of `s` in `dir`, its files removed after; `realtime`: this thread and the
+/// participants under SCHED_FIFO for the run (as `tiltsim run --realtime`), ordinary after.
+pub(crate) fn measure(
+    s: &Scenario,
+    exe: &Path,
+    dir: &Path,
+    config: &str,
+    realtime: bool,
+) -> Result<Summary, BenchError> {
     let mut opts = RunOptions::new(dir.to_path_buf(), exe.to_path_buf());
     opts.plots = false;
-    let sum = engine::run(s, &s.name, &opts).map_err(|source| BenchError::Start {
+    if realtime {
+        cosim::realtime::enter(cosim::realtime::PRIORITY).map_err(|why| BenchError::Run {
+            config: config.to_string(),
+            why,
+        })?;
+        opts.realtime = Some(cosim::realtime::PRIORITY);
+    }
+    let sum = engine::run(s, &s.name, &opts);
+    if realtime {
+        cosim::realtime::leave();
+        cosim::realtime::unlock_memory();
+    }
+    let sum = sum.map_err(|source| BenchError::Start {
         config: config.to_string(),
         source,
     })?;
@@ -294,14 +391,26 @@ fn measure(s: &Scenario, exe: &Path, dir: &Path, config: &str) -> Result<Summary
     Ok(sum)
 }
 
-/// Runs every configuration once, then `rounds − 1` more rounds of the three that the wall-time
-/// ratios compare (in-process, IPC Gauss-Seidel and IPC Jacobi, adaptive wait), one after the
-/// other, so that a shared machine's drift falls on all three alike; the ratios are those of
-/// the median walls. `progress` is told each run's name.
+/// What `tiltsim bench` measures besides the scenario and its duration.
+#[derive(Debug, Clone, Copy)]
+pub struct Setup {
+    /// Rounds of the configurations the wall-time ratios compare.
+    pub rounds: usize,
+    /// Also the IPC runs under SCHED_FIFO (`--realtime`).
+    pub realtime: bool,
+    /// CPU hogs the caller runs beside every configuration (`--hogs`), for the report.
+    pub hogs: usize,
+}
+
+/// Runs every configuration once, then `rounds − 1` more rounds of those that the wall-time
+/// ratios compare (in-process, IPC Gauss-Seidel and IPC Jacobi with the adaptive wait, and
+/// with `realtime` the two IPC ones under SCHED_FIFO), one after the other, so that a shared
+/// machine's drift falls on all alike; the ratios are those of the median walls. `progress`
+/// is told each run's name.
 pub fn run(
     base: &Scenario,
     duration: f64,
-    rounds: usize,
+    setup: Setup,
     exe: &Path,
     scratch: &Path,
     mut progress: impl FnMut(&str),
@@ -309,33 +418,35 @@ pub fn run(
     let mut configs = Vec::new();
     let mut walls = WallRounds::default();
     let load_before = tiltsim_master::engine::machine::load_average();
-    for (i, (t, m, w)) in configurations().into_iter().enumerate() {
+    for (i, p) in configurations(setup.realtime).into_iter().enumerate() {
         // Spinning waiters on a 2-CPU machine starve each other (a tick costs whole
         // scheduler slices), so spin gets a tenth of the ticks; the table shows how many.
-        let d = if w == WaitStrategy::Spin && t == Transport::Ipc {
+        let d = if p.wait == WaitStrategy::Spin && p.transport == Transport::Ipc {
             (duration / 10.0).max(base.run.dt_s * 100.0)
         } else {
             duration
         };
-        let s = configured(base, d, (t, m, w));
-        let name = format!("{} {} {}", t.name(), m.name(), w.name());
+        let s = configured(base, d, p);
+        let name = p.name();
         progress(&name);
-        let sum = measure(&s, exe, &scratch.join(format!("config-{i}")), &name)?;
-        walls.add(t, m, w, sum.wall_time_s);
-        configs.push(Config::of(t, m, w, &sum));
+        let sum = measure(
+            &s,
+            exe,
+            &scratch.join(format!("config-{i}")),
+            &name,
+            p.realtime,
+        )?;
+        walls.add(p, sum.wall_time_s);
+        configs.push(Config::of(p, &sum));
     }
-    for round in 1..rounds {
-        for (t, m) in [
-            (Transport::InProcess, Master::GaussSeidel),
-            (Transport::Ipc, Master::GaussSeidel),
-            (Transport::Ipc, Master::Jacobi),
-        ] {
-            let s = configured(base, duration, (t, m, WaitStrategy::Adaptive));
-            let name = format!("{} {} adaptive, round {}", t.name(), m.name(), round + 1);
+    for round in 1..setup.rounds {
+        for p in compared(setup.realtime) {
+            let s = configured(base, duration, p);
+            let name = format!("{}, round {}", p.name(), round + 1);
             progress(&name);
-            let dir = scratch.join(format!("round-{round}-{}-{}", t.name(), m.name()));
-            let sum = measure(&s, exe, &dir, &name)?;
-            walls.add(t, m, WaitStrategy::Adaptive, sum.wall_time_s);
+            let dir = scratch.join(format!("round-{round}-{}", p.name().replace(' ', "-")));
+            let sum = measure(&s, exe, &dir, &name, p.realtime)?;
+            walls.add(p, sum.wall_time_s);
         }
     }
     let floor = configs
@@ -355,6 +466,18 @@ pub fn run(
     };
     let ratio_withheld = withheld(&walls);
     let ratio = |w: f64| (wall_local > 0.0 && ratio_withheld.is_none()).then(|| w / wall_local);
+    let realtime = setup.realtime.then(|| {
+        let (gs, jacobi) = (
+            median(&walls.ipc_gauss_seidel_realtime_s),
+            median(&walls.ipc_jacobi_realtime_s),
+        );
+        RealtimeWalls {
+            wall_ipc_s: gs,
+            ipc_over_in_process: ratio(gs),
+            wall_ipc_jacobi_s: jacobi,
+            jacobi_ipc_over_in_process: ratio(jacobi),
+        }
+    });
     Ok(Report {
         scenario: base.name.clone(),
         duration_s: duration,
@@ -367,6 +490,8 @@ pub fn run(
         ipc_over_in_process: ratio(wall_ipc),
         wall_ipc_jacobi_s: wall_jacobi,
         jacobi_ipc_over_in_process: ratio(wall_jacobi),
+        realtime,
+        hogs: setup.hogs,
         wall_spread: [
             spread(&walls.in_process_s),
             spread(&walls.ipc_gauss_seidel_s),
@@ -380,12 +505,14 @@ pub fn run(
     })
 }
 
-/// The configurations measured: in-process, then IPC under each master and wait strategy.
-fn configurations() -> Vec<(Transport, Master, WaitStrategy)> {
-    let mut plan = vec![(
+/// The configurations measured: in-process, then IPC under each master and wait strategy,
+/// then with `realtime` the adaptive IPC runs of each master under SCHED_FIFO.
+fn configurations(realtime: bool) -> Vec<Plan> {
+    let mut plan = vec![Plan::new(
         Transport::InProcess,
         Master::GaussSeidel,
         WaitStrategy::Adaptive,
+        false,
     )];
     for m in [Master::GaussSeidel, Master::Jacobi] {
         for w in [
@@ -393,30 +520,45 @@ fn configurations() -> Vec<(Transport, Master, WaitStrategy)> {
             WaitStrategy::Spin,
             WaitStrategy::Sleep,
         ] {
-            plan.push((Transport::Ipc, m, w));
+            plan.push(Plan::new(Transport::Ipc, m, w, false));
+        }
+    }
+    plan.extend(compared(realtime).into_iter().filter(|p| p.realtime));
+    plan
+}
+
+/// The configurations the wall-time ratios compare, in the order each round runs them.
+fn compared(realtime: bool) -> Vec<Plan> {
+    let mut plan = vec![Plan::new(
+        Transport::InProcess,
+        Master::GaussSeidel,
+        WaitStrategy::Adaptive,
+        false,
+    )];
+    let policies: &[bool] = if realtime { &[false, true] } else { &[false] };
+    for &rt in policies {
+        for m in [Master::GaussSeidel, Master::Jacobi] {
+            plan.push(Plan::new(Transport::Ipc, m, WaitStrategy::Adaptive, rt));
         }
     }
     plan
 }
 
-/// `base` run for `duration` (s) on transport, master and wait strategy `(t, m, w)`.
-fn configured(
-    base: &Scenario,
-    duration: f64,
-    (t, m, w): (Transport, Master, WaitStrategy),
-) -> Scenario {
+/// `base` run for `duration` (s) as configuration `p`.
+fn configured(base: &Scenario, duration: f64, p: Plan) -> Scenario {
     let mut s = base.clone();
     s.run.duration_s = Some(duration);
-    s.run.transport = t;
-    s.run.master = m;
-    s.run.wait = w;
+    s.run.transport = p.transport;
+    s.run.master = p.master;
+    s.run.wait = p.wait;
     s
 }
 
 impl Config {
     /// The row of configuration `(t, m, w)` from the summary of its run (floors not yet set,
     /// [`Report::set_exchange_floors`]).
-    fn of(t: Transport, m: Master, w: WaitStrategy, sum: &Summary) -> Config {
+    fn of(p: Plan, sum: &Summary) -> Config {
+        let (t, m, w) = (p.transport, p.master, p.wait);
         let plant = &sum.link_latency[0];
         let compute = sum.participants[0].compute_us.p50;
         Config {
@@ -427,6 +569,7 @@ impl Config {
             } else {
                 w.name()
             },
+            realtime: p.realtime,
             ticks: sum.steps_completed,
             overhead_p50_us: sum.timing.p50,
             overhead_p99_us: sum.timing.p99,
@@ -478,19 +621,28 @@ impl Machine {
 pub fn table(r: &Report) -> String {
     use std::fmt::Write as _;
     let mut s = format!(
-        "tiltsim bench: {} for {} s simulated per configuration on {} CPUs\n\
+        "tiltsim bench: {} for {} s simulated per configuration on {} CPUs{}\n\
          machine: {}, {} logical CPUs, Linux {}\n\n\
-         | transport | master | wait | placement | ticks | overhead p50 (µs) | p99 (µs) | iceoryx2 floor per tick, best–worst set (µs) | overhead / best | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
-        r.scenario, r.duration_s, r.cpus, r.machine.cpu_model, r.machine.logical_cpus, r.machine.kernel
+         | transport | master | wait | realtime | placement | ticks | overhead p50 (µs) | p99 (µs) | iceoryx2 floor per tick, best–worst set (µs) | overhead / best | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        r.scenario,
+        r.duration_s,
+        r.cpus,
+        if r.hogs > 0 {
+            format!(", beside {} CPU hog(s)", r.hogs)
+        } else {
+            String::new()
+        },
+        r.machine.cpu_model, r.machine.logical_cpus, r.machine.kernel
     );
     for c in &r.configs {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {:.2} | {:.2} | {:.3} | {:.2} |",
+            "| {} | {} | {} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {:.2} | {:.2} | {:.3} | {:.2} |",
             c.transport,
             c.master,
             c.wait,
+            if c.realtime { "yes" } else { "-" },
             c.placement.map_or("-", Reason::name),
             c.ticks,
             c.overhead_p50_us,
@@ -525,6 +677,19 @@ pub fn table(r: &Report) -> String {
         r.wall_ipc_jacobi_s,
         ratio(r.jacobi_ipc_over_in_process)
     );
+    if let Some(rt) = &r.realtime {
+        let _ = writeln!(
+            s,
+            "under SCHED_FIFO (--realtime), median of {} round(s): IPC (gauss-seidel, adaptive) \
+             {:.3} s, ratio {}; IPC (jacobi, adaptive) {:.3} s, ratio {} (to the in-process run \
+             under the ordinary policy)",
+            r.wall_rounds.ipc_gauss_seidel_realtime_s.len(),
+            rt.wall_ipc_s,
+            ratio(rt.ipc_over_in_process),
+            rt.wall_ipc_jacobi_s,
+            ratio(rt.jacobi_ipc_over_in_process)
+        );
+    }
     if let Some(why) = &r.ratio_withheld {
         let _ = writeln!(
             s,
@@ -560,126 +725,6 @@ pub fn table(r: &Report) -> String {
 /// Where the scratch runs go.
 pub fn scratch_dir(out: &Path) -> PathBuf {
     out.with_extension("runs")
-}
-
-/// The cost of one participant as an FMU against the native participant.
-#[derive(Debug, Clone, Serialize)]
-pub struct FmuCost {
-    /// The role replaced by its exported FMU.
-    pub role: &'static str,
-    /// Median wall time per tick with the native participant (µs).
-    pub native_us_per_tick: f64,
-    /// Median wall time per tick with the FMU (µs).
-    pub fmu_us_per_tick: f64,
-    /// `fmu_us_per_tick / native_us_per_tick`.
-    pub ratio: f64,
-    /// The participant's own compute per step, p50 (µs): native, FMU (load, FMI calls and
-    /// model).
-    pub native_compute_p50_us: f64,
-    /// See `native_compute_p50_us`.
-    pub fmu_compute_p50_us: f64,
-    /// Every run's wall time per tick (µs), native and FMU alternating.
-    pub native_runs_us: Vec<f64>,
-    /// See `native_runs_us`.
-    pub fmu_runs_us: Vec<f64>,
-}
-
-/// `tiltsim bench --fmu`: each role of `base` in turn as its own exported FMU (FMI 3.0, in
-/// its own process over the scenario's transport) against the native participant, `rounds`
-/// runs of each, alternating so that the machine's drift hits both alike.
-pub fn fmu(
-    base: &Scenario,
-    duration: f64,
-    rounds: usize,
-    exe: &Path,
-    scratch: &Path,
-    mut progress: impl FnMut(&str),
-) -> Result<Vec<FmuCost>, BenchError> {
-    let mut s = base.clone();
-    s.run.duration_s = Some(duration);
-    let _ = std::fs::create_dir_all(scratch);
-    let median = |v: &[f64]| {
-        let mut w = v.to_vec();
-        w.sort_by(f64::total_cmp);
-        w[w.len() / 2]
-    };
-    let mut out = Vec::new();
-    for role in cosim::Role::ALL {
-        let path = scratch.join(format!("{}.fmu", role.name()));
-        tiltsim_master::export_fmu::export(
-            &s,
-            role,
-            &path,
-            &tiltsim_master::export_fmu::FmuOptions {
-                version: tiltsim_fmi::description::FmiVersion::V3,
-                stepping: tiltsim_fmi::layout::Stepping::Tick,
-                library: None,
-            },
-        )
-        .map_err(|e| BenchError::Run {
-            config: format!("export {role}"),
-            why: e.to_string(),
-        })?;
-        let mut with = s.clone();
-        let settings = tiltsim_fmi::FmuSettings {
-            fmu: path,
-            inputs: Default::default(),
-            outputs: Default::default(),
-            parameters: Default::default(),
-            preload: Vec::new(),
-        };
-        match role {
-            cosim::Role::Plant => with.participants.plant = Some(settings),
-            cosim::Role::Actuator => with.participants.actuator = Some(settings),
-            cosim::Role::Controller => with.participants.controller = Some(settings),
-        }
-        let (mut nat, mut fmu, mut nat_c, mut fmu_c) = (vec![], vec![], vec![], vec![]);
-        for r in 0..rounds {
-            for (label, sc, walls, comp) in [
-                ("native", &s, &mut nat, &mut nat_c),
-                ("fmu", &with, &mut fmu, &mut fmu_c),
-            ] {
-                let name = format!("{role} {label} run {}", r + 1);
-                progress(&name);
-                let sum = measure(sc, exe, &scratch.join(format!("{role}-{label}-{r}")), &name)?;
-                walls.push(sum.wall_time_s / sum.steps_completed.max(1) as f64 * 1e6);
-                comp.push(sum.participants[role as usize].compute_us.p50);
-            }
-        }
-        let (n, f) = (median(&nat), median(&fmu));
-        out.push(FmuCost {
-            role: role.name(),
-            native_us_per_tick: n,
-            fmu_us_per_tick: f,
-            ratio: f / n,
-            native_compute_p50_us: median(&nat_c),
-            fmu_compute_p50_us: median(&fmu_c),
-            native_runs_us: nat,
-            fmu_runs_us: fmu,
-        });
-    }
-    Ok(out)
-}
-
-/// The `--fmu` table.
-pub fn fmu_table(scenario: &str, transport: &str, rows: &[FmuCost]) -> String {
-    let mut t = format!(
-        "each participant of {scenario} as its exported FMU vs native ({transport}; medians of alternating runs)\n\n\
-         | role | native (us/tick) | FMU (us/tick) | FMU / native | compute p50 native (us) | compute p50 FMU (us) |\n\
-         |---|---|---|---|---|---|\n"
-    );
-    for r in rows {
-        t.push_str(&format!(
-            "| {} | {:.2} | {:.2} | {:.3} | {:.2} | {:.2} |\n",
-            r.role,
-            r.native_us_per_tick,
-            r.fmu_us_per_tick,
-            r.ratio,
-            r.native_compute_p50_us,
-            r.fmu_compute_p50_us
-        ));
-    }
-    t
 }
 
 #[cfg(test)]

@@ -7,6 +7,7 @@ fn ratios_are_withheld_when_the_rounds_spread() {
         in_process_s: vec![1.0, 1.1, 1.05],
         ipc_gauss_seidel_s: ipc,
         ipc_jacobi_s: vec![1.2, 1.25, 1.3],
+        ..WallRounds::default()
     };
     // Rounds within a tenth of each other: drawn.
     assert_eq!(withheld(&walls(vec![1.5, 1.6, 1.55])), None);
@@ -28,6 +29,7 @@ fn row(transport: Transport, master: Master, wait: WaitStrategy, reason: Option<
         transport: transport.name(),
         master: master.name(),
         wait: wait.name(),
+        realtime: false,
         placement: reason,
         ticks: 100,
         overhead_p50_us: 10.0,
@@ -116,6 +118,8 @@ fn run_report(configs: Vec<Config>) -> Report {
         ipc_over_in_process: None,
         wall_ipc_jacobi_s: 0.2,
         jacobi_ipc_over_in_process: None,
+        realtime: None,
+        hogs: 0,
         ratio_withheld: None,
         load_average: LoadSpan {
             before: None,
@@ -126,4 +130,42 @@ fn run_report(configs: Vec<Config>) -> Report {
         machine_floors: None,
         exchange_floors: None,
     }
+}
+
+#[test]
+fn the_real_time_runs_are_measured_and_compared_only_when_asked_for() {
+    let names = |v: Vec<Plan>| v.iter().map(Plan::name).collect::<Vec<_>>();
+    // Without --realtime: in-process, then six IPC rows, none under SCHED_FIFO.
+    let plain = configurations(false);
+    assert_eq!(plain.len(), 7);
+    assert!(plain.iter().all(|p| !p.realtime));
+    assert_eq!(
+        names(compared(false)),
+        [
+            "in-process gauss-seidel adaptive",
+            "ipc gauss-seidel adaptive",
+            "ipc jacobi adaptive"
+        ]
+    );
+    // With it: the two adaptive IPC rows again under SCHED_FIFO, measured and compared.
+    let rt = configurations(true);
+    assert_eq!(
+        names(rt[7..].to_vec()),
+        [
+            "ipc gauss-seidel adaptive realtime",
+            "ipc jacobi adaptive realtime"
+        ]
+    );
+    assert_eq!(compared(true).len(), 5);
+    // Their rounds are kept apart from the ordinary ones, and judged for spread by name.
+    let mut walls = WallRounds::default();
+    for (p, w) in compared(true).into_iter().zip([1.0, 2.0, 3.0, 4.0, 5.0]) {
+        walls.add(p, w);
+    }
+    assert_eq!(walls.ipc_gauss_seidel_s, [2.0]);
+    assert_eq!(walls.ipc_gauss_seidel_realtime_s, [4.0]);
+    assert_eq!(walls.ipc_jacobi_realtime_s, [5.0]);
+    walls.ipc_jacobi_realtime_s = vec![1.0, 1.0, 9.0];
+    let why = withheld(&walls).unwrap();
+    assert!(why.starts_with("the IPC jacobi realtime rounds"), "{why}");
 }

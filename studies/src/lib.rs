@@ -10,6 +10,7 @@
 //! `tiltsim_rundir::budget`.
 
 pub mod bench;
+pub mod bench_fmu;
 pub mod falsify;
 pub mod parallel;
 pub mod route;

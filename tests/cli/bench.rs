@@ -335,3 +335,84 @@ fn an_interrupted_concurrent_bench_reports_the_rows_it_measured_and_starts_no_ot
     assert_eq!(rows[0]["completed"], 1, "{r}");
     assert!(!dir.join("c.runs").exists(), "scratch runs removed");
 }
+
+#[test]
+fn bench_sets_the_real_time_ipc_runs_beside_hogs_against_one_process() {
+    let sc = scenario("paper-passive.toml");
+    // Several counts of hogs mean several tables: only --concurrent has them.
+    let (code, _, err) = run(&["bench", sc.to_str().unwrap(), "--hogs", "1,2"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--hogs 1,2") && err.contains("--concurrent"),
+        "{err}"
+    );
+    let dir = temp_dir("bench-realtime");
+    let out = dir.join("bench.json");
+    let (code, stdout, err) = run(&[
+        "bench",
+        sc.to_str().unwrap(),
+        "--duration",
+        "0.2",
+        "--repeat",
+        "1",
+        "--realtime",
+        "--hogs",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    if code != 0 {
+        // Refused by the system (no SCHED_FIFO, or a kernel without real-time throttling):
+        // said so by name, before anything ran.
+        assert_eq!(code, 2, "{err}");
+        assert!(
+            err.contains("--realtime")
+                && (err.contains("SCHED_FIFO") || err.contains("sched_rt_runtime_us")),
+            "{err}"
+        );
+        assert!(!out.exists());
+        return;
+    }
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(r["hogs"], 1);
+    assert!(stdout.contains("beside 1 CPU hog(s)"), "{stdout}");
+    let configs = r["configs"].as_array().unwrap();
+    // The seven ordinary rows, then the adaptive IPC runs of both masters under SCHED_FIFO.
+    assert_eq!(configs.len(), 9);
+    assert!(configs[..7].iter().all(|c| c["realtime"] == false));
+    for (c, master) in configs[7..].iter().zip(["gauss-seidel", "jacobi"]) {
+        assert_eq!(c["realtime"], true, "{c}");
+        assert_eq!(c["transport"], "ipc", "{c}");
+        assert_eq!(c["master"], master, "{c}");
+        assert_eq!(c["wait"], "adaptive", "{c}");
+        assert_eq!(c["ticks"], 200, "{c}");
+        // Where it ran is reported beside its figures.
+        assert!(c["placement"].is_string(), "{c}");
+    }
+    // One round each: the walls are the rows' own, and each ratio is IPC over in-process.
+    let rt = &r["realtime"];
+    let in_process = r["wall_in_process_s"].as_f64().unwrap();
+    assert_eq!(in_process, configs[0]["wall_s"].as_f64().unwrap());
+    for (c, wall, ratio) in [
+        (&configs[7], "wall_ipc_s", "ipc_over_in_process"),
+        (
+            &configs[8],
+            "wall_ipc_jacobi_s",
+            "jacobi_ipc_over_in_process",
+        ),
+    ] {
+        let w = rt[wall].as_f64().unwrap();
+        assert_eq!(w, c["wall_s"].as_f64().unwrap(), "{rt}");
+        let q = rt[ratio].as_f64().unwrap();
+        assert!((q - w / in_process).abs() <= 1e-12 * q, "{rt}");
+    }
+    assert!(stdout.contains("under SCHED_FIFO (--realtime)"), "{stdout}");
+    assert_eq!(
+        r["wall_rounds"]["ipc_jacobi_realtime_s"]
+            .as_array()
+            .unwrap()
+            .len(),
+        1
+    );
+}

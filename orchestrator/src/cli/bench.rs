@@ -61,13 +61,15 @@ pub struct BenchArgs {
           value_parser = bounds::int(1..=256usize, ""),
           conflicts_with_all = ["ping_pong", "fmu", "network"])]
     concurrent: Vec<usize>,
-    /// With --concurrent: CPU hogs (spinning threads) beside the runs, for each count given.
+    /// CPU hogs (spinning threads) beside the runs: one count for the configurations (the
+    /// floors are measured after the hogs stop), or with --concurrent each count given.
     #[arg(long, value_delimiter = ',', num_args = 1.., default_value = "0",
-          value_parser = bounds::int(0..=64usize, ""), requires = "concurrent")]
+          value_parser = bounds::int(0..=64usize, ""),
+          conflicts_with_all = ["ping_pong", "fmu", "network"])]
     hogs: Vec<usize>,
-    /// With --concurrent: the runs under SCHED_FIFO (`tiltsim run --realtime`), to compare
-    /// with rows without it.
-    #[arg(long, requires = "concurrent")]
+    /// Also measure the IPC runs under SCHED_FIFO (`tiltsim run --realtime`) beside the
+    /// others (with --concurrent: the runs under it, to compare with rows without it).
+    #[arg(long, conflicts_with_all = ["ping_pong", "fmu", "network"])]
     realtime: bool,
     /// Runs of each with --fmu.
     #[arg(long, default_value_t = 5, value_parser = bounds::int(1..=100usize, ""))]
@@ -325,6 +327,31 @@ const EXCHANGE_SETS: usize = 4;
 /// Ticks of each set.
 const EXCHANGE_TICKS: usize = 5_000;
 
+/// The one count of hogs the configurations run beside (several only with --concurrent).
+fn single_hog_count(hogs: &[usize]) -> Result<usize, CliError> {
+    match hogs {
+        [] => Ok(0),
+        [n] => Ok(*n),
+        _ => Err(CliError::Invalid(format!(
+            "command line: --hogs {}: one count without --concurrent",
+            hogs.iter()
+                .map(usize::to_string)
+                .collect::<Vec<_>>()
+                .join(",")
+        ))),
+    }
+}
+
+/// Unpaced real-time runs poll for as long as they last: only the kernel's real-time
+/// throttling keeps a share of each CPU for everything else (as `tiltsim run --realtime`).
+fn check_realtime(a: &BenchArgs) -> Result<(), CliError> {
+    if !a.realtime {
+        return Ok(());
+    }
+    cosim::realtime::throttled()
+        .map_err(|e| CliError::Invalid(format!("command line: --realtime: {e}")))
+}
+
 /// Runs the command.
 pub fn exec(a: BenchArgs) -> CliResult {
     let exe = std::env::current_exe().map_err(|_| {
@@ -343,6 +370,7 @@ pub fn exec(a: BenchArgs) -> CliResult {
     if a.network {
         return super::bench_network::network(&a, &s, &exe, &a.listen);
     }
+    check_realtime(&a)?;
     if !a.concurrent.is_empty() {
         let how = super::bench_concurrent::Runs {
             exe: &exe,
@@ -360,14 +388,14 @@ pub fn exec(a: BenchArgs) -> CliResult {
                 a.fmu_runs
             )));
         }
-        let rows = tiltsim_studies::bench::fmu(&s, d, a.fmu_runs, &exe, &scratch, |name| {
+        let rows = tiltsim_studies::bench_fmu::fmu(&s, d, a.fmu_runs, &exe, &scratch, |name| {
             eprintln!("  measuring {name} ...");
         });
         let _ = std::fs::remove_dir_all(&scratch);
         let rows = rows.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
         println!(
             "{}",
-            tiltsim_studies::bench::fmu_table(&s.name, s.run.transport.name(), &rows)
+            tiltsim_studies::bench_fmu::fmu_table(&s.name, s.run.transport.name(), &rows)
         );
         if let Some(dir) = a.out.parent() {
             let _ = std::fs::create_dir_all(dir);
@@ -386,9 +414,16 @@ pub fn exec(a: BenchArgs) -> CliResult {
             a.repeat
         )));
     }
-    let report = tiltsim_studies::bench::run(&s, d, a.repeat, &exe, &scratch, |name| {
+    let setup = tiltsim_studies::bench::Setup {
+        rounds: a.repeat,
+        realtime: a.realtime,
+        hogs: single_hog_count(&a.hogs)?,
+    };
+    let hogs = super::bench_concurrent::Hogs::start(setup.hogs)?;
+    let report = tiltsim_studies::bench::run(&s, d, setup, &exe, &scratch, |name| {
         eprintln!("  measuring {name} ...");
     });
+    drop(hogs);
     let _ = std::fs::remove_dir_all(&scratch);
     let mut report = report.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
     eprintln!("  measuring the machine's ping-pong floors ...");

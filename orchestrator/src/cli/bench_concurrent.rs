@@ -51,13 +51,13 @@ pub struct Row {
 }
 
 /// Spinning threads until dropped.
-struct Hogs {
+pub(super) struct Hogs {
     stop: Arc<AtomicBool>,
     threads: Vec<std::thread::JoinHandle<()>>,
 }
 
 impl Hogs {
-    fn start(n: usize) -> Result<Hogs, CliError> {
+    pub(super) fn start(n: usize) -> Result<Hogs, CliError> {
         let mut hogs = Hogs {
             stop: Arc::new(AtomicBool::new(false)),
             threads: Vec::new(),
