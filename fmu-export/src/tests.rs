@@ -26,7 +26,7 @@ fn instance(file: &str, role: Role, dir: &Path) -> Instance {
 /// An instance of `role` of scenario `s` (named `file` in its resources' directory), its
 /// resources written under `dir`.
 fn instance_of(s: &Scenario, file: &str, role: Role, dir: &Path) -> Instance {
-    let inits = Inits::from(&s);
+    let inits = Inits::from(s);
     let settings = match role {
         Role::Plant => serde_json::to_value(&inits.plant),
         Role::Actuator => serde_json::to_value(&inits.actuator),

@@ -251,17 +251,15 @@ fn lock_step(job: &mut Job, warnings: &mut Vec<String>) -> Result<Ran, JobError>
     })
 }
 
+/// The whole car's observer and the handle its assessment is read through after the run.
+type CarObserved = (
+    Option<Box<dyn Observer>>,
+    Option<crate::full_car::CarSamples>,
+);
+
 /// The whole car's observer (`vehicle.model = "full"`) and the handle its assessment is read
 /// through after the run; none for the half vehicle.
-fn car_observer(
-    job: &Job,
-) -> Result<
-    (
-        Option<Box<dyn Observer>>,
-        Option<crate::full_car::CarSamples>,
-    ),
-    JobError,
-> {
+fn car_observer(job: &Job) -> Result<CarObserved, JobError> {
     let s = job.scenario;
     if s.vehicle.model != vehicle_model::VehicleModel::Full {
         return Ok((None, None));
