@@ -273,22 +273,26 @@ fn gather(route: &Route, v: &Variant, profile: &Profile, segs: &[SegmentResult])
         n_mv_p95: percentile(&nmv, 0.95),
         sickness,
         flags,
-        running_safety: segs
-            .iter()
-            .filter_map(|r| {
-                let s = r.running_safety.as_ref()?;
-                Some(SafetyRow {
-                    section: r.segment.section + 1,
-                    curve: r.segment.curve,
-                    from_m: r.segment.from_m,
-                    to_m: r.segment.to_m,
-                    speed_kmh: r.segment.speed_m_s * 3.6,
-                    values: s.values.clone(),
-                    flag: s.flag.clone(),
-                })
-            })
-            .collect(),
+        running_safety: safety_rows(segs),
     }
+}
+
+/// The whole car's running safety of every segment that has it, in route order.
+fn safety_rows(segs: &[SegmentResult]) -> Vec<SafetyRow> {
+    segs.iter()
+        .filter_map(|r| {
+            let s = r.running_safety.as_ref()?;
+            Some(SafetyRow {
+                section: r.segment.section + 1,
+                curve: r.segment.curve,
+                from_m: r.segment.from_m,
+                to_m: r.segment.to_m,
+                speed_kmh: r.segment.speed_m_s * 3.6,
+                values: s.values.clone(),
+                flag: s.flag.clone(),
+            })
+        })
+        .collect()
 }
 
 /// The variants a study runs beyond its scenarios: the compensation factors and tilting cant
