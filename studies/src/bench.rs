@@ -12,6 +12,8 @@
 //! seconds; nothing is modelled. Results print as a table and go to JSON.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use cosim::ipc::placement::Reason;
 use cosim::wait::WaitStrategy;
@@ -344,6 +346,12 @@ pub enum BenchError {
         /// Why.
         source: tiltsim_master::engine::RunError,
     },
+    /// Ctrl-C (SIGINT, SIGTERM or SIGHUP) came while measuring.
+    #[error("interrupted while measuring {config}; nothing written")]
+    Interrupted {
+        /// Transport, master and wait.
+        config: String,
+    },
     /// The run did not complete.
     #[error("{config}: {why}")]
     Run {
@@ -362,9 +370,17 @@ pub(crate) fn measure(
     dir: &Path,
     config: &str,
     realtime: bool,
+    interrupt: &Arc<AtomicBool>,
 ) -> Result<Summary, BenchError> {
+    let interrupted = || BenchError::Interrupted {
+        config: config.to_string(),
+    };
+    if interrupt.load(Ordering::Relaxed) {
+        return Err(interrupted());
+    }
     let mut opts = RunOptions::new(dir.to_path_buf(), exe.to_path_buf());
     opts.plots = false;
+    opts.interrupt = interrupt.clone();
     if realtime {
         cosim::realtime::enter(cosim::realtime::PRIORITY).map_err(|why| BenchError::Run {
             config: config.to_string(),
@@ -377,11 +393,15 @@ pub(crate) fn measure(
         cosim::realtime::leave();
         cosim::realtime::unlock_memory();
     }
+    let _ = std::fs::remove_dir_all(dir);
+    // Interrupted while starting or running: either way the bench ends here.
+    if interrupt.load(Ordering::Relaxed) {
+        return Err(interrupted());
+    }
     let sum = sum.map_err(|source| BenchError::Start {
         config: config.to_string(),
         source,
     })?;
-    let _ = std::fs::remove_dir_all(dir);
     if sum.status != Status::Completed {
         return Err(BenchError::Run {
             config: config.to_string(),
@@ -392,7 +412,7 @@ pub(crate) fn measure(
 }
 
 /// What `tiltsim bench` measures besides the scenario and its duration.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Setup {
     /// Rounds of the configurations the wall-time ratios compare.
     pub rounds: usize,
@@ -400,6 +420,8 @@ pub struct Setup {
     pub realtime: bool,
     /// CPU hogs the caller runs beside every configuration (`--hogs`), for the report.
     pub hogs: usize,
+    /// Set by Ctrl-C: the run under way ends, and no other starts.
+    pub interrupt: Arc<AtomicBool>,
 }
 
 /// Runs every configuration once, then `rounds − 1` more rounds of those that the wall-time
@@ -410,7 +432,7 @@ pub struct Setup {
 pub fn run(
     base: &Scenario,
     duration: f64,
-    setup: Setup,
+    setup: &Setup,
     exe: &Path,
     scratch: &Path,
     mut progress: impl FnMut(&str),
@@ -429,13 +451,8 @@ pub fn run(
         let s = configured(base, d, p);
         let name = p.name();
         progress(&name);
-        let sum = measure(
-            &s,
-            exe,
-            &scratch.join(format!("config-{i}")),
-            &name,
-            p.realtime,
-        )?;
+        let dir = scratch.join(format!("config-{i}"));
+        let sum = measure(&s, exe, &dir, &name, p.realtime, &setup.interrupt)?;
         walls.add(p, sum.wall_time_s);
         configs.push(Config::of(p, &sum));
     }
@@ -445,7 +462,7 @@ pub fn run(
             let name = format!("{}, round {}", p.name(), round + 1);
             progress(&name);
             let dir = scratch.join(format!("round-{round}-{}", p.name().replace(' ', "-")));
-            let sum = measure(&s, exe, &dir, &name, p.realtime)?;
+            let sum = measure(&s, exe, &dir, &name, p.realtime, &setup.interrupt)?;
             walls.add(p, sum.wall_time_s);
         }
     }

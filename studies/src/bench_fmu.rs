@@ -1,6 +1,8 @@
 //! `tiltsim bench --fmu`: each participant as its exported FMU against the native one.
 
 use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 
 use serde::Serialize;
 
@@ -39,6 +41,7 @@ pub fn fmu(
     rounds: usize,
     exe: &Path,
     scratch: &Path,
+    interrupt: &Arc<AtomicBool>,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<FmuCost>, BenchError> {
     let mut s = base.clone();
@@ -88,7 +91,7 @@ pub fn fmu(
                 let name = format!("{role} {label} run {}", r + 1);
                 progress(&name);
                 let dir = scratch.join(format!("{role}-{label}-{r}"));
-                let sum = measure(sc, exe, &dir, &name, false)?;
+                let sum = measure(sc, exe, &dir, &name, false, interrupt)?;
                 walls.push(sum.wall_time_s / sum.steps_completed.max(1) as f64 * 1e6);
                 comp.push(sum.participants[role as usize].compute_us.p50);
             }

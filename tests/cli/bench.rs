@@ -348,6 +348,22 @@ fn bench_sets_the_real_time_ipc_runs_beside_hogs_against_one_process() {
     );
     let dir = temp_dir("bench-realtime");
     let out = dir.join("bench.json");
+    // Without the right to SCHED_FIFO (CAP_SYS_NICE dropped from the bounding set, so even
+    // root lacks it): refused by name before any run, not after the runs that need no right.
+    let refused = std::process::Command::new("setpriv")
+        .args(["--bounding-set", "-sys_nice"])
+        .arg(tiltsim_suite::tiltsim())
+        .args(["bench", sc.to_str().unwrap(), "--realtime", "--out"])
+        .arg(&out)
+        .output()
+        .expect("setpriv (util-linux) runs the bench without CAP_SYS_NICE");
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--realtime") && err.contains("SCHED_FIFO"),
+        "{err}"
+    );
+    assert!(!err.contains("measuring") && !out.exists(), "{err}");
     let (code, stdout, err) = run(&[
         "bench",
         sc.to_str().unwrap(),
@@ -415,4 +431,36 @@ fn bench_sets_the_real_time_ipc_runs_beside_hogs_against_one_process() {
             .len(),
         1
     );
+}
+
+#[test]
+fn an_interrupted_bench_ends_its_run_and_writes_nothing() {
+    let dir = temp_dir("bench-interrupted");
+    let out = dir.join("b.json");
+    let sc = scenario("paper-passive.toml");
+    let child = spawn(&[
+        "bench",
+        sc.to_str().unwrap(),
+        "--duration",
+        "300",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    // The second configuration (IPC, Gauss-Seidel) under way: Ctrl-C.
+    let second = dir.join("b.runs").join("config-1");
+    let started = wait_for(std::time::Duration::from_secs(300), || {
+        second.exists().then_some(())
+    });
+    assert!(started.is_some(), "the second configuration did not start");
+    // SAFETY: signalling a child this test started.
+    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+    let (code, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
+    assert_eq!(code, 130, "{err}");
+    assert!(
+        err.contains("interrupted while measuring ipc gauss-seidel adaptive"),
+        "{err}"
+    );
+    // The run ended as interrupted (not the 300 s it was asked for) and no other started.
+    assert!(!err.contains("measuring ipc gauss-seidel spin"), "{err}");
+    assert!(!out.exists() && !dir.join("b.runs").exists());
 }

@@ -327,6 +327,16 @@ const EXCHANGE_SETS: usize = 4;
 /// Ticks of each set.
 const EXCHANGE_TICKS: usize = 5_000;
 
+/// A bench's failure: exit 130 for Ctrl-C, 1 otherwise.
+fn bench_error(e: tiltsim_studies::bench::BenchError) -> CliError {
+    match e {
+        tiltsim_studies::bench::BenchError::Interrupted { .. } => {
+            CliError::Interrupted(format!("bench: {e}"))
+        }
+        e => CliError::Failed(format!("bench: {e}")),
+    }
+}
+
 /// The one count of hogs the configurations run beside (several only with --concurrent).
 fn single_hog_count(hogs: &[usize]) -> Result<usize, CliError> {
     match hogs {
@@ -348,8 +358,13 @@ fn check_realtime(a: &BenchArgs) -> Result<(), CliError> {
     if !a.realtime {
         return Ok(());
     }
-    cosim::realtime::throttled()
-        .map_err(|e| CliError::Invalid(format!("command line: --realtime: {e}")))
+    let refused = |e: String| CliError::Invalid(format!("command line: --realtime: {e}"));
+    cosim::realtime::throttled().map_err(refused)?;
+    // Asked now, so that a refusal comes before the runs without it, not after them.
+    cosim::realtime::enter(cosim::realtime::PRIORITY).map_err(refused)?;
+    cosim::realtime::leave();
+    cosim::realtime::unlock_memory();
+    Ok(())
 }
 
 /// Runs the command.
@@ -388,11 +403,18 @@ pub fn exec(a: BenchArgs) -> CliResult {
                 a.fmu_runs
             )));
         }
-        let rows = tiltsim_studies::bench_fmu::fmu(&s, d, a.fmu_runs, &exe, &scratch, |name| {
-            eprintln!("  measuring {name} ...");
-        });
+        let interrupt = tiltsim_rundir::signals::install();
+        let rows = tiltsim_studies::bench_fmu::fmu(
+            &s,
+            d,
+            a.fmu_runs,
+            &exe,
+            &scratch,
+            &interrupt,
+            |name| eprintln!("  measuring {name} ..."),
+        );
         let _ = std::fs::remove_dir_all(&scratch);
-        let rows = rows.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
+        let rows = rows.map_err(bench_error)?;
         println!(
             "{}",
             tiltsim_studies::bench_fmu::fmu_table(&s.name, s.run.transport.name(), &rows)
@@ -414,18 +436,25 @@ pub fn exec(a: BenchArgs) -> CliResult {
             a.repeat
         )));
     }
+    // Ctrl-C ends the run under way (as interrupted) and starts no other.
     let setup = tiltsim_studies::bench::Setup {
         rounds: a.repeat,
         realtime: a.realtime,
         hogs: single_hog_count(&a.hogs)?,
+        interrupt: tiltsim_rundir::signals::install(),
     };
     let hogs = super::bench_concurrent::Hogs::start(setup.hogs)?;
-    let report = tiltsim_studies::bench::run(&s, d, setup, &exe, &scratch, |name| {
+    let report = tiltsim_studies::bench::run(&s, d, &setup, &exe, &scratch, |name| {
         eprintln!("  measuring {name} ...");
     });
     drop(hogs);
     let _ = std::fs::remove_dir_all(&scratch);
-    let mut report = report.map_err(|e| CliError::Failed(format!("bench: {e}")))?;
+    let mut report = report.map_err(bench_error)?;
+    if setup.interrupt.load(std::sync::atomic::Ordering::Relaxed) {
+        return Err(CliError::Interrupted(
+            "bench: interrupted before the floors; nothing written".into(),
+        ));
+    }
     eprintln!("  measuring the machine's ping-pong floors ...");
     report.machine_floors = Some(machine_floors(&exe)?);
     eprintln!("  measuring iceoryx2's floor for the scenario's ticks ...");
