@@ -5,7 +5,10 @@
 //! whole run, the quasi-static ones (Y_qst, Q_qst, medians) over the steady curve.
 
 use serde::Serialize;
-use vehicle_model::full_car::safety::{Assessed, RunningSafety, SafetyLimits};
+use vehicle_model::full_car::safety::{
+    assessed, window_samples, Assessed, DynamicStream, QuasiStaticStream, RunningSafety,
+    SafetyLimits,
+};
 use vehicle_model::full_car::{WheelForces, NW};
 
 /// Values per sample in `FromPlant::car`: five forces per wheelset, then the body's lateral
@@ -87,7 +90,8 @@ const QUASI_STATIC: [&str; 2] = ["Y_qst", "Q_qst"];
 
 /// Assesses the samples `car` taken every `dt` (s) at speed `v` (m/s), static wheel load `q0`
 /// (N): the dynamic quantities over all of them, the quasi-static ones over `steady` (the
-/// samples on the steady curve; none when it is empty). None without samples.
+/// samples on the steady curve; none when it is empty). None without samples. The whole
+/// record at once: [`Stream`] gives the same values holding a bounded part of it.
 pub fn assess(
     car: &[[f64; CAR_VALUES]],
     steady: std::ops::Range<usize>,
@@ -104,12 +108,22 @@ pub fn assess(
         rs.assess(&lim, v, dt, q0)
     };
     let all = collect(car)?;
+    let curve = car.get(steady).and_then(collect);
+    report(&all, curve.as_deref())
+}
+
+/// The summary's values and the flag: the dynamic quantities of `all`, the quasi-static ones
+/// of `curve`.
+fn report(
+    all: &[Assessed],
+    curve: Option<&[Assessed]>,
+) -> Option<(Vec<SafetyValue>, RunningSafetyFlag)> {
     let mut out: Vec<SafetyValue> = all
         .iter()
         .filter(|a| DYNAMIC.contains(&a.name))
         .map(|a| SafetyValue::of(a, "whole run"))
         .collect();
-    if let Some(curve) = car.get(steady).and_then(collect) {
+    if let Some(curve) = curve {
         out.extend(
             curve
                 .iter()
@@ -131,6 +145,63 @@ pub fn assess(
         binding_utilisation: binding.utilisation,
     };
     Some((out, flag))
+}
+
+/// The running safety of a run assessed as its samples arrive: [`assess`]'s values, bit for
+/// bit, holding the 2 m windows (a few dozen samples per wheel) and the steady curve's
+/// samples (for its exact medians), not the run's.
+#[derive(Debug, Clone)]
+pub struct Stream {
+    dynamic: DynamicStream,
+    curve: QuasiStaticStream,
+    steady: std::ops::Range<usize>,
+    k: usize,
+    q0: f64,
+}
+
+impl Stream {
+    /// An assessment at speed `v` (m/s), tick `dt` (s), static wheel load `q0` (N), the
+    /// quasi-static values over the samples whose index is in `steady`.
+    pub fn new(steady: std::ops::Range<usize>, v: f64, dt: f64, q0: f64) -> Self {
+        let n = window_samples(&SafetyLimits::default(), v, dt);
+        Stream {
+            dynamic: DynamicStream::new(n, q0),
+            curve: QuasiStaticStream::new(),
+            steady,
+            k: 0,
+            q0,
+        }
+    }
+    /// Adds the next sample.
+    pub fn push(&mut self, car: &[f64; CAR_VALUES]) {
+        let f = wheel_forces(car);
+        self.dynamic.push(&f);
+        if self.steady.contains(&self.k) {
+            self.curve.push(&f);
+        }
+        self.k += 1;
+    }
+    /// Samples handed over.
+    pub fn len(&self) -> usize {
+        self.k
+    }
+    /// Whether none was handed over.
+    pub fn is_empty(&self) -> bool {
+        self.k == 0
+    }
+    /// Values held (window and steady-curve samples): bounded by the window and the curve,
+    /// whatever the run's length.
+    pub fn held(&self) -> usize {
+        self.dynamic.held() + self.curve.held()
+    }
+    /// The summary's values and the flag, as [`assess`] gives them; None without samples.
+    pub fn finish(&self) -> Option<(Vec<SafetyValue>, RunningSafetyFlag)> {
+        let [y_q, sum_y, dq] = self.dynamic.finish()?;
+        let qst = self.curve.finish();
+        let [y, q] = qst.unwrap_or([(f64::NAN, 0); 2]);
+        let all = assessed(&SafetyLimits::default(), self.q0, [y_q, sum_y, dq, y, q]);
+        report(&all, qst.map(|_| &all[..]))
+    }
 }
 
 /// Comfort at one place along the car (`[comfort]`'s measures with the body's lateral
@@ -207,5 +278,63 @@ mod tests {
         assert!(yq.exceeded && flag.raised && flag.exceeded.contains(&"(Y/Q)_2m"));
         // No steady curve: no quasi-static values.
         assert!(v.iter().all(|q| q.over == "whole run"));
+    }
+
+    /// Forces from a fixed pseudo-random sequence (a 64-bit LCG), wheels lifted now and then
+    /// (Q ≤ 0: infinite Y/Q), records shorter and longer than the window, steady sections
+    /// empty, inside and running past the record: the streamed assessment gives the
+    /// whole-record one's values bit for bit.
+    #[test]
+    fn the_stream_gives_the_whole_record_values() {
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let q0 = 50e3;
+        for (len, steady, lifted) in [
+            (7, 0..7, 0.0),
+            (400, 100..300, 0.0),
+            (400, 0..0, 0.0),
+            (1000, 600..2000, 0.002),
+            (1000, 200..900, 0.01),
+        ] {
+            let car: Vec<[f64; CAR_VALUES]> = (0..len)
+                .map(|_| {
+                    std::array::from_fn(|i| {
+                        let x = next();
+                        if i % 5 >= 3 && i < 5 * NW {
+                            if x < lifted {
+                                -1e3
+                            } else {
+                                q0 * (0.5 + x)
+                            }
+                        } else {
+                            40e3 * (x - 0.4)
+                        }
+                    })
+                })
+                .collect();
+            // 40 m/s, 1 ms: windows of 50 samples.
+            let batch = assess(
+                &car,
+                steady.start.min(len)..steady.end.min(len),
+                40.0,
+                1e-3,
+                q0,
+            );
+            let mut stream = Stream::new(steady.clone(), 40.0, 1e-3, q0);
+            for c in &car {
+                stream.push(c);
+            }
+            assert_eq!(
+                format!("{:?}", stream.finish()),
+                format!("{batch:?}"),
+                "{len} samples, steady {steady:?}"
+            );
+        }
+        assert!(Stream::new(0..1, 40.0, 1e-3, q0).finish().is_none());
     }
 }

@@ -179,3 +179,28 @@ def test_nothing_is_printed_to_standard_output(capfd: pytest.CaptureFixture[str]
     tiltsim.sweep("scenarios/paper-lqg.toml", samples=2, seed=3, jobs=1)
     out, _ = capfd.readouterr()
     assert out == ""
+
+
+def test_the_whole_car_from_python_is_the_command_lines_and_not_the_half_vehicle(
+    tmp_path: Path,
+) -> None:
+    """`vehicle.model = "full"` set from Python steps the whole car: its summary carries the
+    running safety of the four wheelsets and the comfort along the car, the command line's key
+    for key; the half vehicle's run has neither and another body roll."""
+    tiltsim_cli("run", "scenarios/paper-mpc.toml", "--transport", "in-process", "--set",
+                "vehicle.model=full", "--set", "run.duration_s=8", "--out",
+                str(tmp_path / "cli"), "--quiet")
+    full = tiltsim.run("scenarios/paper-mpc.toml",
+                       set={"vehicle.model": "full", "run.duration_s": 8.0},
+                       transport="in-process")
+    half = tiltsim.run("scenarios/paper-mpc.toml", set={"run.duration_s": 8.0},
+                       transport="in-process")
+    safety = full.summary["full_car"]["running_safety"]
+    assert [q["quantity"] for q in safety] == ["(Y/Q)_2m", "(SumY)_2m", "dQ/Q0", "Y_qst", "Q_qst"]
+    # Eight seconds reach 2.6 s into the steady curve: every wheel force is there.
+    assert all(q["value"] > 0 for q in safety), safety
+    assert len(full.summary["full_car"]["comfort_along_car"]) == 3
+    assert "full_car" not in half.summary
+    assert not np.array_equal(full["theta_v"], half["theta_v"])
+    cli_summary = json.loads((tmp_path / "cli" / "summary.json").read_text())
+    assert deterministic(full.summary) == deterministic(cli_summary)

@@ -27,6 +27,9 @@ pub const RECORD_BYTES_PER_TICK: u64 = 640;
 /// the actuator's step of each tick and one per controller period (about 150 B a tick at a
 /// 1 ms tick); a third above that.
 pub const TIMING_BYTES_PER_TICK: u64 = 200;
+/// Bytes per tick of the whole car's accelerations along the body, kept in the run's
+/// directory until the analysis (three f64 a row).
+pub const CAR_BYTES_PER_TICK: u64 = 24;
 /// What every run writes whatever its length: figures (about 1 MB), summary, perf, events,
 /// scenario.
 pub const FIXED_BYTES: u64 = 2 << 20;
@@ -77,6 +80,11 @@ pub fn estimate(s: &Scenario, extras: Extras) -> Estimate {
         }
         + if s.run.execution == tiltsim_scenario::scenario::Execution::Free {
             TIMING_BYTES_PER_TICK
+        } else {
+            0
+        }
+        + if !s.vehicle.model.is_half() {
+            CAR_BYTES_PER_TICK
         } else {
             0
         };

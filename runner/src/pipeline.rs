@@ -212,11 +212,9 @@ fn lock_step(job: &mut Job, warnings: &mut Vec<String>) -> Result<Ran, JobError>
     for o in made.observers.into_iter().chain(job.observers.drain(..)) {
         run = run.add_observer(o);
     }
-    let mut car = None;
-    if s.vehicle.model == vehicle_model::VehicleModel::Full {
-        let (o, samples) = crate::full_car::CarObserver::new();
-        run = run.add_observer(Box::new(o));
-        car = Some(samples);
+    let (car_observer, car) = car_observer(job)?;
+    if let Some(o) = car_observer {
+        run = run.add_observer(o);
     }
     for m in job.manipulators.drain(..) {
         run = run.add_manipulator(m);
@@ -253,15 +251,40 @@ fn lock_step(job: &mut Job, warnings: &mut Vec<String>) -> Result<Ran, JobError>
     })
 }
 
+/// The whole car's observer and the handle its assessment is read through after the run.
+type CarObserved = (
+    Option<Box<dyn Observer>>,
+    Option<crate::full_car::CarSamples>,
+);
+
+/// The whole car's observer (`vehicle.model = "full"`) and the handle its assessment is read
+/// through after the run; none for the half vehicle.
+fn car_observer(job: &Job) -> Result<CarObserved, JobError> {
+    let s = job.scenario;
+    if s.vehicle.model != vehicle_model::VehicleModel::Full {
+        return Ok((None, None));
+    }
+    let dir = &job.opts.out_dir;
+    let spill = job.writes_files().then_some(dir.as_path());
+    if spill.is_some() {
+        std::fs::create_dir_all(dir).map_err(RunError::io(dir.clone()))?;
+    }
+    let (o, samples) = crate::full_car::CarObserver::new(s, spill)
+        .map_err(RunError::io(dir.join(crate::full_car::SPILL_FILE)))?;
+    Ok((Some(Box::new(o)), Some(samples)))
+}
+
 fn free(job: &Job) -> Result<Ran, JobError> {
     let s = job.scenario;
-    let mut r = tiltsim_master::free::run(s, &job.opts, &job.outputs)?;
+    let (car_observer, car) = car_observer(job)?;
+    let observers = car_observer.into_iter().collect();
+    let mut r = tiltsim_master::free::run(s, &job.opts, &job.outputs, observers)?;
     let summary = tiltsim_master::free::summary_of_run(s, &job.scenario_file, &mut r);
     Ok(Ran {
         summary,
         rows: r.rows.take().unwrap_or_default(),
         recording: r.recording.take().map(Recording::Free),
-        car: None,
+        car,
     })
 }
 
@@ -271,8 +294,11 @@ fn replay(job: &mut Job) -> Result<Ran, JobError> {
         .replay_trace
         .clone()
         .unwrap_or_else(|| PathBuf::from("(in memory)"));
+    let (car_observer, car) = car_observer(job)?;
+    let mut observers = std::mem::take(&mut job.observers);
+    observers.extend(car_observer);
     let attached = tiltsim_master::free::timing_replay::Attached {
-        observers: std::mem::take(&mut job.observers),
+        observers,
         manipulators: std::mem::take(&mut job.manipulators),
     };
     let mut r = match job.replay_steps.take() {
@@ -292,7 +318,7 @@ fn replay(job: &mut Job) -> Result<Ran, JobError> {
         summary,
         rows: r.rows.take().unwrap_or_default(),
         recording: None,
-        car: None,
+        car,
     })
 }
 

@@ -103,6 +103,54 @@ fn a_free_run_is_replayed_byte_for_byte_in_process_and_over_ipc_and_with_another
     replayed::a_foreign_or_gapped_trace_is_refused(&dir, &root);
 }
 
+/// The whole car (`vehicle.model = "full"`) runs free: the run completes and reports its
+/// running safety (the five quantities, the quasi-static ones over the 1.6 s of steady curve
+/// the 7 s reach) and the comfort at three places; its lock-step replay gives the same rows
+/// and the same whole-car assessment to the bit, so the free run's assessment is that of its
+/// own rows. The accelerations kept for the comfort along the car are not left behind.
+#[test]
+fn a_free_whole_car_run_reports_its_running_safety_as_its_replay_does() {
+    let (dir, _) = free_run("freerun-full", "7", &["--set", "vehicle.model=full"]);
+    let sm = summary(&dir);
+    assert_eq!(sm["status"], "completed", "{sm}");
+    let safety = sm["full_car"]["running_safety"]
+        .as_array()
+        .unwrap_or_else(|| panic!("no running safety: {sm}"));
+    let names: Vec<&str> = safety
+        .iter()
+        .map(|q| q["quantity"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["(Y/Q)_2m", "(SumY)_2m", "dQ/Q0", "Y_qst", "Q_qst"]);
+    // On the curve the rails push the wheelsets inwards: no quantity is zero.
+    for q in safety {
+        assert!(q["value"].as_f64().unwrap() > 0.0, "{q}");
+    }
+    assert_eq!(
+        sm["full_car"]["comfort_along_car"].as_array().map(Vec::len),
+        Some(3)
+    );
+    assert!(sm["flags"]["running_safety"]["raised"].is_boolean());
+    let out = dir.parent().unwrap().join("replayed");
+    let (code, err) = replay(&dir, &out, &[]);
+    assert_eq!(code, 0, "{err}");
+    assert!(bytes(&dir.join("timeseries.csv")) == bytes(&out.join("timeseries.csv")));
+    let again = summary(&out);
+    assert_eq!(again["full_car"], sm["full_car"]);
+    assert_eq!(
+        again["flags"]["running_safety"],
+        sm["flags"]["running_safety"]
+    );
+    for d in [&dir, &out] {
+        let left: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with('.'))
+            .collect();
+        assert!(left.is_empty(), "{}: {left:?}", d.display());
+    }
+}
+
 #[test]
 fn an_injected_controller_delay_shows_in_the_input_ages_and_is_replayed() {
     // A 10 ms controller given 4 ms of extra compute per step.

@@ -118,3 +118,90 @@ fn the_shipped_lines_are_long_and_tilting_saves_time_on_them() {
         assert!(c > length / line_speed, "{line}: {c} s for {length} m");
     }
 }
+
+/// The whole car over a route (`[vehicle] model = "full"`): every segment reports its running
+/// safety in `route.json`, `safety.csv` and `route.md`, flagged like comfort (the variant's
+/// flags name `running safety` exactly when a segment's limit is exceeded). On each curve the
+/// quasi-static lateral wheel force is at least the share of the car's uncompensated weight
+/// one wheel must carry: the rails push the car inwards with M (V²/R − g θ) in all, over four
+/// wheelsets, and a wheelset's ΣY is the sum of its two wheels' Y, so the most loaded wheel
+/// carries at least an eighth, M = 8 Q0/g with Q0 from the track shift force's limit
+/// α(10 + 2 Q0/3000) kN (α = 1). 10 % below it for the irregularity's spread of the median.
+/// The half vehicle, with no wheelsets, writes none of it.
+#[test]
+fn a_route_run_with_the_whole_car_reports_running_safety_on_every_segment() {
+    let dir = temp_dir("route-full-car");
+    let f = dir.join("line.csv");
+    std::fs::write(&f, LINE).unwrap();
+    let text = std::fs::read_to_string(scenario("tilting-pi-drive.toml")).unwrap();
+    let full = dir.join("full.toml");
+    std::fs::write(&full, text + "\n[vehicle]\nmodel = \"full\"\n").unwrap();
+    let go = |name: &str, s: &std::path::Path| {
+        let out = dir.join(name);
+        let (code, _, err) = run(&[
+            "route",
+            f.to_str().unwrap(),
+            s.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "-q",
+        ]);
+        assert_eq!(code, 0, "{err}");
+        out
+    };
+    let out = go("full", &full);
+    let j: serde_json::Value =
+        serde_json::from_str(&String::from_utf8(read(&out.join("route.json"))).unwrap()).unwrap();
+    let v = &j["variants"][0];
+    let rows = v["running_safety"].as_array().expect("running_safety");
+    assert_eq!(rows.len() as u64, v["segments"].as_u64().unwrap());
+    // The two curves of LINE: radius (m) and cant (mm).
+    let curves = [(1100.0, 130.0), (800.0, 150.0)];
+    let mut curve = 0;
+    let mut raised = false;
+    for r in rows {
+        let values = r["values"].as_array().unwrap();
+        let get = |q: &str| values.iter().find(|x| x["quantity"] == q);
+        for x in values {
+            let (value, limit) = (x["value"].as_f64().unwrap(), x["limit"].as_f64().unwrap());
+            assert_eq!(x["exceeded"].as_bool().unwrap(), value > limit, "{x}");
+        }
+        raised |= r["flag"]["raised"].as_bool().unwrap();
+        if !r["curve"].as_bool().unwrap() {
+            continue;
+        }
+        let (radius, cant) = curves[curve];
+        curve += 1;
+        let speed = r["speed_kmh"].as_f64().unwrap() / 3.6;
+        let limit = get("(SumY)_2m").unwrap()["limit"].as_f64().unwrap();
+        let q0 = (limit / 1000.0 - 10.0) * 1500.0;
+        let unbalanced = speed * speed / radius - 9.81 * (cant / 1500.0f64).asin();
+        let least = q0 * unbalanced.abs() / 9.81;
+        let y_qst = get("Y_qst").expect("Y_qst on a curve")["value"]
+            .as_f64()
+            .unwrap();
+        assert!(
+            y_qst > 0.9 * least,
+            "curve {curve}: Y_qst {y_qst} N, at least {least} N"
+        );
+        assert!(get("Q_qst").is_some());
+    }
+    assert_eq!(curve, 2);
+    let flags: Vec<&str> = v["flags"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    assert_eq!(flags.contains(&"running safety"), raised, "{flags:?}");
+    let csv = csv_table(&String::from_utf8(read(&out.join("safety.csv"))).unwrap());
+    assert_eq!(csv.len(), rows.len() + 1);
+    assert!(String::from_utf8(read(&out.join("route.md")))
+        .unwrap()
+        .contains("running safety of the whole car"));
+    let half = go("half", &scenario("tilting-pi-drive.toml"));
+    let j: serde_json::Value =
+        serde_json::from_str(&String::from_utf8(read(&half.join("route.json"))).unwrap()).unwrap();
+    assert!(j["variants"][0].get("running_safety").is_none());
+    assert!(!half.join("safety.csv").exists());
+}

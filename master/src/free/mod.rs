@@ -174,7 +174,7 @@ impl RowStream {
     }
 }
 
-/// The summary of free run `r` of `s` (not yet analysed).
+/// The summary of free run `r` of `s` (not yet analysed); its observers give their parts.
 pub fn summary_of_run(s: &Scenario, scenario_file: &str, r: &mut FreeReport) -> Summary {
     let mut sm = Summary::blank(s, scenario_file, RunMode::Free);
     sm.status = r.status;
@@ -184,6 +184,11 @@ pub fn summary_of_run(s: &Scenario, scenario_file: &str, r: &mut FreeReport) -> 
     sm.set_progress(r.steps_completed, r.wall_time_s);
     sm.free_run = Some(r.timing.clone());
     sm.timing_trace = Some(trace::TIMING_CSV.to_string());
+    for mut o in r.observers.drain(..) {
+        if let Some(part) = o.finish(&sm) {
+            sm.observers.insert(o.name().to_string(), part);
+        }
+    }
     sm
 }
 

@@ -1,6 +1,6 @@
-//! The caller's observers of a timing replay ([`crate::engine::observe`]): a replay is a
-//! deterministic lock-step run, so it tells observers what the lock-step does, from the rows
-//! it composes.
+//! The caller's observers of a timing replay or a free run ([`crate::engine::observe`]): a
+//! replay is a deterministic lock-step run, so it tells observers what the lock-step does,
+//! from the rows it composes; a free run tells them the same from the rows it writes.
 //!
 //! Tick k is told once row k + 1 of `timeseries.csv` is: its plant, actuator and controller
 //! outputs are the row's (the plant's output of the tick, the actuator output that step read,

@@ -15,6 +15,7 @@ use tiltsim_scenario::roles::RoleMap;
 use tiltsim_scenario::scenario::Scenario;
 
 use super::compose::Store;
+use super::observed::ReplayObservers;
 use super::recording::{FreeRecorder, FreeRecording};
 use super::relay::{Deliveries, Relay};
 use super::timing::Stats;
@@ -22,6 +23,7 @@ use super::trace::{StepTrace, TraceHead, TraceWriter, TIMING_CSV};
 use super::{init_all, FreeError, RowStream};
 use crate::engine::launch::Participants;
 use crate::engine::manipulator::FaultSchedule;
+use crate::engine::observe::Observer;
 use crate::engine::outputs::Outputs;
 use crate::engine::session::{self, Session};
 use crate::engine::RunOptions;
@@ -36,13 +38,23 @@ const START_MARGIN: Duration = Duration::from_millis(50);
 const HUB_NAP: Duration = Duration::from_micros(20);
 
 /// Runs `s` free over IPC: streams `timing.csv` and `timeseries.csv` to `opts.out_dir` as the
-/// steps come in, then writes `events.csv`, `columns.csv` and `scenario.toml`.
-pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport, FreeError> {
+/// steps come in, then writes `events.csv`, `columns.csv` and `scenario.toml`. `observers`
+/// are told each row as it is written, as a timing replay tells them
+/// ([`super::observed`]), and closed; the report hands them back for their part of the
+/// summary.
+pub fn run(
+    s: &Scenario,
+    opts: &RunOptions,
+    out: &Outputs,
+    observers: Vec<Box<dyn Observer>>,
+) -> Result<FreeReport, FreeError> {
+    crate::engine::observe::distinct_names(&observers).map_err(FreeError::Run)?;
     let (session, ps) = Session::start(s, opts, true).map_err(FreeError::Run)?;
     let placement = place(s, &ps);
     let placed_as = ps.placement.clone();
     let mut hub = Hub::new(s, opts, out, ps)?;
-    let outcome = hub.run();
+    hub.observers = (!observers.is_empty()).then(|| ReplayObservers::new(s, observers));
+    let mut outcome = hub.run();
     let last_ns = now_ns();
     let Hub {
         ps,
@@ -53,8 +65,18 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
         recorder,
         record_error,
         start_ns,
+        observers,
         ..
     } = hub;
+    let observers = match observers {
+        Some(mut o) => {
+            if let Some(e) = o.close().into_iter().next() {
+                outcome = outcome.and(Err(e));
+            }
+            o.into_list()
+        }
+        None => Vec::new(),
+    };
     let mut write_errors = Vec::new();
     let path = opts.out_dir.join(TIMING_CSV);
     if let Some(Err(e)) = writer.map(TraceWriter::finish) {
@@ -82,6 +104,7 @@ pub fn run(s: &Scenario, opts: &RunOptions, out: &Outputs) -> Result<FreeReport,
         recording,
         write_errors,
         closed,
+        observers,
     })
 }
 
@@ -165,6 +188,8 @@ struct Hub<'a> {
     last_heard: RoleMap<u64>,
     start_ns: u64,
     dt_ns: u64,
+    /// The caller's observers, told each row as it is written.
+    observers: Option<ReplayObservers>,
 }
 
 /// An output as it came in, by role. Kept by value (the plant's, 400 bytes, is the largest):
@@ -244,6 +269,7 @@ impl<'a> Hub<'a> {
             last_heard: RoleMap::new([start_ns; 3]),
             start_ns,
             dt_ns,
+            observers: None,
         })
     }
 
@@ -254,6 +280,10 @@ impl<'a> Hub<'a> {
         self.rows
             .start(&self.store)
             .map_err(|e| format!("cannot write timeseries.csv: {e}"))?;
+        if let Some(o) = &mut self.observers {
+            o.start(&self.store)
+                .map_err(|e| format!("an observer: {e}"))?;
+        }
         self.start_ns = now_ns() + START_MARGIN.as_nanos() as u64;
         self.last_heard = RoleMap::new([self.start_ns; 3]);
         if let Some(r) = &mut self.recorder {
@@ -411,9 +441,16 @@ impl<'a> Hub<'a> {
                 for (l, d) in [(LinkId::Measurement, meas), (LinkId::BarTwist, twist)] {
                     deliveries.send(l, q, d, now, *dt_ns, ps, store, relays)?;
                 }
+                let told = self.rows.written();
                 self.rows
                     .advance(&self.store, self.totals[Role::Plant])
                     .map_err(|e| format!("cannot write timeseries.csv: {e}"))?;
+                if let Some(obs) = &mut self.observers {
+                    for k in told..self.rows.written() {
+                        obs.tick(&self.store, k)
+                            .map_err(|e| format!("an observer at tick {k}: {e}"))?;
+                    }
+                }
                 // The world's clock has reached tick q + 1: the faults scheduled for it happen.
                 inject(
                     &self.faults,

@@ -38,6 +38,8 @@ pub struct FreeReport {
     pub write_errors: Vec<String>,
     /// What the session left: exits, process ids, prefix, leftover files, logs, network.
     pub(crate) closed: crate::engine::session::Closed,
+    /// The caller's observers, closed, for their part of the summary.
+    pub observers: Vec<Box<dyn crate::engine::observe::Observer>>,
 }
 
 /// The link a consumer reads from a producer, by its `[links]` name.

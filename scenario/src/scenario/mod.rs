@@ -688,7 +688,7 @@ mod tests {
     }
 
     #[test]
-    fn the_vehicle_model_is_half_or_full_and_the_whole_car_runs_lock_step() {
+    fn the_vehicle_model_is_half_or_full_and_an_fmu_plant_refuses_the_whole_car() {
         let s = parse("").unwrap();
         assert_eq!(s.vehicle.model, vehicle_model::VehicleModel::Half);
         let s = parse("[vehicle]\nmodel = \"full\"\n").unwrap();
@@ -706,13 +706,21 @@ mod tests {
                 && e.contains("`full`"),
             "{e}"
         );
-        let e = parse(
+        // The whole car runs free too.
+        let free = parse(
             "[vehicle]\nmodel = \"full\"\n[run]\nexecution = \"free\"\ntransport = \"ipc\"\n",
         )
-        .unwrap_err()
-        .to_string();
+        .unwrap();
+        assert_eq!(free.vehicle.model, vehicle_model::VehicleModel::Full);
+        // An FMU plant is the user's own model: no wheelsets, so no whole car.
+        let e = parse("[vehicle]\nmodel = \"full\"\n[participants.plant]\nfmu = \"plant.fmu\"\n")
+            .unwrap_err()
+            .to_string();
         assert!(
-            e.contains("field `vehicle.model`") && e.contains("lock-step"),
+            e.contains("field `vehicle.model`")
+                && e.contains("FMU plant is your own model")
+                && e.contains("no wheelsets")
+                && e.contains("[participants.plant]"),
             "{e}"
         );
         let e = parse("[design_vehicle]\nmodel = \"full\"\n")

@@ -223,22 +223,17 @@ impl Scenario {
         );
     }
 
-    /// The rules of `vehicle.model`: the whole car is stepped by tiltsim's own plant and
-    /// assessed from a lock-step run's samples; the controller is designed on the half vehicle.
+    /// The rules of `vehicle.model`: the whole car is stepped by tiltsim's own plant (an FMU
+    /// plant is the user's own model, with no wheelsets to assess); the controller is designed
+    /// on the half vehicle.
     fn validate_vehicle_model(&self) -> Checker {
         let mut c = Checker::new("vehicle");
         if self.vehicle.model == vehicle_model::VehicleModel::Full {
             c.require(
-                self.run.execution == Execution::LockStep,
-                "model",
-                "\"full\"",
-                "\"half\" with run.execution = \"free\": the whole car's running safety and comfort along the car are assessed in lock-step runs only",
-            );
-            c.require(
                 self.participants.get(Role::Plant).is_none(),
                 "model",
                 "\"full\"",
-                "\"half\" when the plant is an FMU ([participants.plant]): the whole car is tiltsim's own plant",
+                "\"half\" when the plant is an FMU ([participants.plant]): an FMU plant is your own model, which has no wheelsets for the whole car's running safety; remove [participants.plant] to run the whole car on tiltsim's own plant",
             );
         }
         if let Some(v) = &self.design_vehicle {

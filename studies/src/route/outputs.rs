@@ -87,6 +87,9 @@ pub fn write(
         put(out, "variants.csv", &variants_csv(results))?,
         put(out, "profile.csv", &profile_csv(route, limits))?,
     ];
+    if results.iter().any(|r| !r.running_safety.is_empty()) {
+        files.push(put(out, "safety.csv", &safety_csv(results))?);
+    }
     let json = RouteJson {
         route: &route.name,
         file: route.file.display().to_string(),
@@ -173,6 +176,88 @@ fn straights_csv(results: &[VariantResult]) -> String {
                 num(x.n_mv_lateral)
             );
         }
+    }
+    s
+}
+
+/// The quantities of the running safety, in the order each segment's values give them.
+const SAFETY: [(&str, &str); 5] = [
+    ("(Y/Q)_2m", "y_q_2m"),
+    ("(SumY)_2m", "sum_y_2m_n"),
+    ("dQ/Q0", "dq_q0"),
+    ("Y_qst", "y_qst_n"),
+    ("Q_qst", "q_qst_n"),
+];
+
+/// `safety.csv`: the whole car's running safety on every segment of every variant, each
+/// quantity's worst value and utilisation (empty where not assessed: the quasi-static ones on
+/// a straight), the binding quantity and the flag.
+fn safety_csv(results: &[VariantResult]) -> String {
+    let mut s = String::from("variant,section,kind,from_m,to_m,speed_kmh");
+    for (_, col) in SAFETY {
+        let _ = write!(s, ",{col},{col}_utilisation");
+    }
+    s.push_str(",binding,binding_utilisation,flag,exceeded\n");
+    for r in results {
+        for x in &r.running_safety {
+            let _ = write!(
+                s,
+                "{},{},{},{},{},{}",
+                r.label,
+                x.section,
+                if x.curve { "curve" } else { "straight" },
+                num(x.from_m),
+                num(x.to_m),
+                num(x.speed_kmh)
+            );
+            for (name, _) in SAFETY {
+                match x.values.iter().find(|v| v.quantity == name) {
+                    Some(v) => {
+                        let _ = write!(s, ",{},{}", num(v.value), num(v.utilisation));
+                    }
+                    None => s.push_str(",,"),
+                }
+            }
+            let _ = writeln!(
+                s,
+                ",{},{},{},{}",
+                quote(x.flag.binding),
+                num(x.flag.binding_utilisation),
+                if x.flag.raised { "raised" } else { "" },
+                quote(&x.flag.exceeded.join(";"))
+            );
+        }
+    }
+    s
+}
+
+/// `route.md`'s running-safety table of one variant: every segment's binding quantity, its
+/// utilisation and the limits exceeded.
+fn safety_table(r: &VariantResult) -> String {
+    let mut s = format!(
+        "\n## {} ({}, {} running): running safety of the whole car\n\n| section | kind | from (m) | to (m) | speed (km/h) | binding | utilisation | flag |\n|---|---|---|---|---|---|---|---|\n",
+        r.label,
+        r.controller,
+        r.running.name()
+    );
+    for x in &r.running_safety {
+        let flag = if x.flag.raised {
+            format!("**exceeded: {}**", x.flag.exceeded.join(", "))
+        } else {
+            String::new()
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.0} | {:.0} | {:.1} | {} | {:.3} | {} |",
+            x.section,
+            if x.curve { "curve" } else { "straight" },
+            x.from_m,
+            x.to_m,
+            x.speed_kmh,
+            x.flag.binding,
+            x.flag.binding_utilisation,
+            flag
+        );
     }
     s
 }
@@ -302,6 +387,9 @@ pub fn markdown(route: &Route, limits: &Limits, j: &Journey, results: &[VariantR
                 t.comfort.p_ct.seated,
                 t.binding
             );
+        }
+        if !r.running_safety.is_empty() {
+            s.push_str(&safety_table(r));
         }
     }
     s

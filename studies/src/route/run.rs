@@ -182,6 +182,17 @@ pub struct SegmentResult {
     pub flags: Vec<String>,
     /// Simulated time (s).
     pub simulated_s: f64,
+    /// The whole car's running safety over the segment (`vehicle.model = "full"`).
+    pub running_safety: Option<SegmentSafety>,
+}
+
+/// The whole car's running safety over one segment, as its run's `summary.json` gives it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SegmentSafety {
+    /// Each quantity's worst value, wheelset and limit.
+    pub values: Vec<tiltsim_assessment::running_safety::SafetyValue>,
+    /// The flag: raised, the quantities exceeded, the binding one.
+    pub flag: tiltsim_assessment::running_safety::RunningSafetyFlag,
 }
 
 /// How to run a route's segments.
@@ -244,6 +255,7 @@ fn run_segment(s: &Scenario, g: &Segment, dir: &Path, ex: &RouteExec) -> Segment
         met: Met::default(),
         flags: Vec::new(),
         simulated_s: 0.0,
+        running_safety: None,
     };
     let done = match done {
         Ok(d) => d,
@@ -267,6 +279,12 @@ fn run_segment(s: &Scenario, g: &Segment, dir: &Path, ex: &RouteExec) -> Segment
         .map(|f| f.to_string())
         .collect();
     result.simulated_s = done.summary.simulated_time_s;
+    if let (Some(car), Some(flag)) = (&done.summary.full_car, &done.summary.flags.running_safety) {
+        result.running_safety = Some(SegmentSafety {
+            values: car.running_safety.clone(),
+            flag: flag.clone(),
+        });
+    }
     let assessed = if ex.keep_runs {
         assess(s, g, tiltsim_formats::table::Rows::File(dir))
     } else {

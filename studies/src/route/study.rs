@@ -103,6 +103,31 @@ pub struct VariantResult {
     pub sickness: Vec<(String, Sickness)>,
     /// Validity flags raised on any segment, each once.
     pub flags: Vec<String>,
+    /// The whole car's running safety on every segment (`vehicle.model = "full"`; empty for
+    /// the half vehicle, which has no wheelsets).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub running_safety: Vec<SafetyRow>,
+}
+
+/// The whole car's running safety on one segment of the route.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SafetyRow {
+    /// The route section (1-based, in route order) and whether it is a curve (with its leads)
+    /// or a piece of straight.
+    pub section: usize,
+    #[allow(missing_docs)]
+    pub curve: bool,
+    /// Start and end chainage of the segment (m).
+    pub from_m: f64,
+    #[allow(missing_docs)]
+    pub to_m: f64,
+    /// Running speed (km/h).
+    pub speed_kmh: f64,
+    /// Each quantity's worst value, wheelset, limit and source.
+    pub values: Vec<tiltsim_assessment::running_safety::SafetyValue>,
+    /// Whether a limit is exceeded, which, and the quantity closest to (or furthest beyond)
+    /// its limit with its utilisation.
+    pub flag: tiltsim_assessment::running_safety::RunningSafetyFlag,
 }
 
 /// The readings of one transition, in the order of [`VariantResult::p_ct_worst`].
@@ -248,7 +273,26 @@ fn gather(route: &Route, v: &Variant, profile: &Profile, segs: &[SegmentResult])
         n_mv_p95: percentile(&nmv, 0.95),
         sickness,
         flags,
+        running_safety: safety_rows(segs),
     }
+}
+
+/// The whole car's running safety of every segment that has it, in route order.
+fn safety_rows(segs: &[SegmentResult]) -> Vec<SafetyRow> {
+    segs.iter()
+        .filter_map(|r| {
+            let s = r.running_safety.as_ref()?;
+            Some(SafetyRow {
+                section: r.segment.section + 1,
+                curve: r.segment.curve,
+                from_m: r.segment.from_m,
+                to_m: r.segment.to_m,
+                speed_kmh: r.segment.speed_m_s * 3.6,
+                values: s.values.clone(),
+                flag: s.flag.clone(),
+            })
+        })
+        .collect()
 }
 
 /// The variants a study runs beyond its scenarios: the compensation factors and tilting cant
