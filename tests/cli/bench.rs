@@ -452,10 +452,14 @@ fn an_interrupted_bench_ends_its_run_and_writes_nothing() {
         second.exists().then_some(())
     });
     assert!(started.is_some(), "the second configuration did not start");
+    let pid = child.id();
     // SAFETY: signalling a child this test started.
-    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+    unsafe { libc::kill(pid as i32, libc::SIGINT) };
     let (code, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
     assert_eq!(code, 130, "{err}");
+    // The run's shared-memory files (its prefix starts with the bench's pid) are gone.
+    let left = tiltsim_suite::leftovers(&format!("tiltsim_{pid}_"));
+    assert!(left.is_empty(), "{left:?}");
     assert!(
         err.contains("interrupted while measuring ipc gauss-seidel adaptive"),
         "{err}"
