@@ -430,6 +430,18 @@ pub fn exec(a: BenchArgs) -> CliResult {
         println!("wrote {}", a.out.display());
         return Ok(());
     }
+    main_table(&a, &s, &exe, &scratch)
+}
+
+/// The main table: every configuration of `s`, the rounds the ratios compare, then the
+/// machine's floors and iceoryx2's floor for the scenario's ticks.
+fn main_table(
+    a: &BenchArgs,
+    s: &tiltsim_scenario::scenario::Scenario,
+    exe: &std::path::Path,
+    scratch: &std::path::Path,
+) -> CliResult {
+    let d = a.duration;
     if !(1..=100).contains(&a.repeat) {
         return Err(CliError::Invalid(format!(
             "command line: --repeat {}: allowed 1 to 100",
@@ -444,21 +456,28 @@ pub fn exec(a: BenchArgs) -> CliResult {
         interrupt: tiltsim_rundir::signals::install(),
     };
     let hogs = super::bench_concurrent::Hogs::start(setup.hogs)?;
-    let report = tiltsim_studies::bench::run(&s, d, &setup, &exe, &scratch, |name| {
+    let report = tiltsim_studies::bench::run(s, d, &setup, exe, scratch, |name| {
         eprintln!("  measuring {name} ...");
     });
     drop(hogs);
-    let _ = std::fs::remove_dir_all(&scratch);
+    let _ = std::fs::remove_dir_all(scratch);
     let mut report = report.map_err(bench_error)?;
-    if setup.interrupt.load(std::sync::atomic::Ordering::Relaxed) {
-        return Err(CliError::Interrupted(
-            "bench: interrupted before the floors; nothing written".into(),
-        ));
-    }
+    // The floors' processes end on their own within seconds; Ctrl-C is looked at between them.
+    let stop_if_interrupted = |what: &str| {
+        if setup.interrupt.load(std::sync::atomic::Ordering::Relaxed) {
+            return Err(CliError::Interrupted(format!(
+                "bench: interrupted {what}; nothing written"
+            )));
+        }
+        Ok(())
+    };
+    stop_if_interrupted("before the floors")?;
     eprintln!("  measuring the machine's ping-pong floors ...");
-    report.machine_floors = Some(machine_floors(&exe)?);
+    report.machine_floors = Some(machine_floors(exe)?);
+    stop_if_interrupted("while measuring the ping-pong floors")?;
     eprintln!("  measuring iceoryx2's floor for the scenario's ticks ...");
-    report.set_exchange_floors(exchange_floors(&exe, &s)?);
+    report.set_exchange_floors(exchange_floors(exe, s)?);
+    stop_if_interrupted("while measuring the exchange floors")?;
     println!("{}", tiltsim_studies::bench_table::table(&report));
     if let Some(dir) = a.out.parent() {
         let _ = std::fs::create_dir_all(dir);
