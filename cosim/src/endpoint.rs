@@ -236,13 +236,21 @@ pub trait Endpoint<I: Message, O: Message> {
     /// Sends a request; its header says which step and kind (version, size and send time are
     /// stamped here).
     fn send(&mut self, req: &I) -> Result<(), LinkError>;
+    /// Sends the participant's next step request while its current one is still to be answered,
+    /// where the transport queues it behind that one: the participant takes it as soon as it
+    /// has answered, without waiting for the orchestrator. `Ok(false)`: not sent (the default;
+    /// in one process a request is answered as it is sent), to be sent with
+    /// [`Endpoint::send`] once the current reply is in. Changes when a participant computes,
+    /// never what.
+    fn send_ahead(&mut self, _req: &I) -> Result<bool, LinkError> {
+        Ok(false)
+    }
     /// Waits for the reply to the request for `step` of `kind` and checks it.
     fn receive(&mut self, step: u64, kind: Kind) -> Result<O, LinkError>;
     /// Injects a process fault.
     fn inject(&mut self, fault: ProcessFault);
     /// Asks the participant to end, waits for it (bounded), reports how it ended.
     fn shutdown(&mut self) -> ExitReport;
-    /// Starved waits, re-sent requests and discarded repeats so far ([`ExchangeCounts`]).
     /// Free running: appends every reply that has arrived, in arrival order, without waiting
     /// and without the lock-step's step checks (the caller checks the order). A participant
     /// whose process has ended is an error. Only the IPC transport runs free; in-process
@@ -253,6 +261,7 @@ pub trait Endpoint<I: Message, O: Message> {
             what: "no free-running mode in one process".into(),
         })
     }
+    /// Starved waits, re-sent requests and discarded repeats so far ([`ExchangeCounts`]).
     fn counts(&self) -> ExchangeCounts {
         ExchangeCounts::default()
     }

@@ -114,6 +114,52 @@ fn a_killed_participant_is_detected_named_and_the_run_ends_cleanly() {
 }
 
 #[test]
+fn an_actuator_killed_with_its_next_request_queued_is_replaced_and_the_run_goes_on() {
+    // Under Jacobi over IPC the actuator's next request waits in its queue while it computes
+    // the current one; killed from outside, it dies with both. The stand-in answers both and
+    // the run goes on, degraded, until Ctrl-C.
+    let (child, kids, dir, pfx) = start_long_run("killed-ahead", |c| {
+        c.master("jacobi").set("faults.on_failure", "degrade")
+    });
+    let victim = pid_of(&kids, "actuator-proc");
+    let csv = dir.join("timeseries.csv");
+    let size = || std::fs::metadata(&csv).map_or(0, |m| m.len());
+    let at_kill = size();
+    unsafe { libc::kill(victim as i32, libc::SIGKILL) };
+    // Rows go on after the loss; a run that failed on it has ended.
+    let mut child = child;
+    let went_on = wait_for(Duration::from_secs(600), || {
+        if matches!(child.try_wait(), Ok(Some(_))) {
+            return Some(false);
+        }
+        (size() > at_kill + 1_000_000).then_some(true)
+    });
+    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+    let (code, _, err) = wait_with_limit(child, ENDS_WITHIN);
+    assert_eq!(went_on, Some(true), "no rows after the loss; stderr: {err}");
+    assert_eq!(code, 130, "stderr: {err}");
+    let events = dir.join("events.csv");
+    let rows = assert_clean_end(&dir, &pfx, &kids, "interrupted");
+    let s = summary(&dir);
+    assert!(
+        s["participants"][1]["exit"]["status"]
+            .as_str()
+            .unwrap()
+            .contains("signal 9"),
+        "{s}"
+    );
+    // The stand-in's rows follow the loss: the tick it was lost at is recorded, and more.
+    let e = std::fs::read_to_string(&events).unwrap();
+    let at: u64 = e
+        .lines()
+        .find(|l| l.contains("actuator,participant-lost"))
+        .and_then(|l| l.split(',').nth(1)?.parse().ok())
+        .unwrap_or_else(|| panic!("{e}"));
+    assert!(rows > at, "rows {rows}, lost at tick {at}");
+    assert!(e.contains("actuator,degraded,,bar ramps to neutral"), "{e}");
+}
+
+#[test]
 fn a_stalled_participant_is_declared_at_its_deadline() {
     let (child, kids, dir, pfx) = start_long_run("stalled", |c| c.deadline_ms(200));
     let victim = pid_of(&kids, "plant-proc");

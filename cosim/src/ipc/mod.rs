@@ -242,6 +242,11 @@ pub(crate) struct DropPlan {
 }
 
 impl DropPlan {
+    /// Whether it drops nothing.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.steps.is_empty()
+    }
+
     /// The variable's name.
     pub(crate) const VAR: &'static str = "TILTSIM_DROP_SAMPLES";
 

@@ -4,10 +4,13 @@
 //! * [`GaussSeidel`]: controller (when due), actuator, plant in turn, each with the newest
 //!   output of the one before. No delay on the forward links.
 //! * [`Jacobi`]: every request from the previous tick's outputs first, then every reply. One
-//!   tick on every link; the participants compute in parallel.
+//!   tick on every link; the participants compute in parallel. Its replies are taken in the
+//!   order controller, plant, actuator, so that the next tick can begin before the actuator's
+//!   is in: the actuator's next request then waits in its queue ([`Algorithm::finish_early`]).
 
 use cosim::msg::{Header, ToActuator, ToController, ToPlant};
-use cosim::{Kind, LinkError};
+use cosim::{Kind, LinkError, Role};
+use tiltsim_formats::events::EventLog;
 use tiltsim_scenario::links::LinkId;
 use tiltsim_scenario::roles::RoleMap;
 use tiltsim_scenario::scenario::Master;
@@ -41,6 +44,23 @@ pub(crate) trait Algorithm {
 
     /// Completes a started tick: its replies and any requests that depend on them.
     fn finish(&self, team: &mut Team, p: Pending) -> Result<TickIo, LinkError>;
+
+    /// [`Algorithm::finish`], beginning tick `next` before the last reply is taken where the
+    /// algorithm can (Jacobi: the requests that do not depend on the actuator's reply); the
+    /// begun tick is then started with [`Algorithm::resume`], its faults already injected.
+    fn finish_early(
+        &self,
+        team: &mut Team,
+        p: Pending,
+        _next: Option<Next<'_>>,
+    ) -> Result<(TickIo, Option<Begun>), LinkError> {
+        Ok((self.finish(team, p)?, None))
+    }
+
+    /// Starts a tick begun by [`Algorithm::finish_early`].
+    fn resume(&self, _team: &mut Team, _b: Begun) -> Result<Pending, LinkError> {
+        unreachable!("only an algorithm that begins ticks early resumes them")
+    }
 
     /// Steps every participant due at tick `k` through `team`.
     fn tick(&self, team: &mut Team, k: u64, controller_due: bool) -> Result<TickIo, LinkError> {
@@ -170,38 +190,92 @@ pub(crate) struct Posted {
     tp: Option<u64>,
 }
 
+/// The first half of a Jacobi tick: what depends only on the controller's and the plant's
+/// outputs of the tick before (the link carries in their usual order up to the actuator's
+/// command, the controller's request sent, the actuator's sent ahead when its transport can).
+pub(crate) struct Begun {
+    k: u64,
+    due: bool,
+    io: TickIo,
+    to_a: ToActuator,
+    tc: Option<u64>,
+    /// `Some(Some(t0))`: the actuator's request went ahead at `t0`; `None`: still to send.
+    ta: Option<Option<u64>>,
+    /// Whether the actuator had been replaced when its request went ahead.
+    a_replaced: bool,
+}
+
 impl Jacobi {
     /// Sends tick `k`'s requests, built from the outputs held after tick `k − 1`.
     pub(crate) fn post(team: &mut Team, k: u64, controller_due: bool) -> Result<Posted, LinkError> {
+        let b = Jacobi::begin(team, k, controller_due, false)?;
+        Jacobi::complete(team, b)
+    }
+
+    /// The first half of tick `k` ([`Begun`]); the actuator's request is sent ahead when
+    /// `ahead` and its transport queues it behind the one it is computing.
+    fn begin(team: &mut Team, k: u64, due: bool, ahead: bool) -> Result<Begun, LinkError> {
         let mut io = TickIo::default();
         let step = Header::new(k, Kind::Step);
         let to_c = plant_outputs(team, k, &mut io);
         io.to_controller = to_c;
         io.tx[LinkId::ActuatorCommand as usize] = team.held.c.delta_a_cmd;
-        io.tx[LinkId::BarAngle as usize] = team.held.a.delta_a;
         let cmd = team.carry(LinkId::ActuatorCommand, k, team.held.c.delta_a_cmd);
-        let bar = team.carry(LinkId::BarAngle, k, team.held.a.delta_a);
         io.rx[LinkId::ActuatorCommand as usize] = cmd;
-        io.rx[LinkId::BarAngle as usize] = bar;
         let to_a = ToActuator {
             header: step,
             delta_a_cmd: cmd,
             psi: io.rx[LinkId::BarTwist as usize],
         };
-        let to_p = ToPlant {
-            header: step,
-            delta_a: bar,
-        };
-        let tc = if controller_due {
+        let tc = if due {
             team.post_step(controller, to_c)?
         } else {
             None
         };
-        let ta = team.post_step(actuator, to_a)?;
+        let ta = if ahead {
+            team.post_ahead(actuator, to_a).map(Some)
+        } else {
+            None
+        };
+        Ok(Begun {
+            k,
+            due,
+            io,
+            to_a,
+            tc,
+            ta,
+            a_replaced: team.replaced(Role::Actuator),
+        })
+    }
+
+    /// The second half of a begun tick, once the actuator's reply of the tick before is in:
+    /// the bar angle carried, the actuator's request sent (again, to its stand-in, if it was
+    /// replaced since it went ahead), the plant's.
+    fn complete(team: &mut Team, b: Begun) -> Result<Posted, LinkError> {
+        let Begun {
+            k,
+            due,
+            mut io,
+            to_a,
+            tc,
+            ta,
+            a_replaced,
+        } = b;
+        io.tx[LinkId::BarAngle as usize] = team.held.a.delta_a;
+        let bar = team.carry(LinkId::BarAngle, k, team.held.a.delta_a);
+        io.rx[LinkId::BarAngle as usize] = bar;
+        let to_p = ToPlant {
+            header: Header::new(k, Kind::Step),
+            delta_a: bar,
+        };
+        let ta = match ta {
+            Some(sent) if team.replaced(Role::Actuator) == a_replaced => sent,
+            _ => team.post_step(actuator, to_a)?,
+        };
         let tp = team.post_step(plant, to_p)?;
         Ok(Posted {
             k,
-            due: controller_due,
+            due,
             io,
             to_a,
             to_p,
@@ -211,8 +285,14 @@ impl Jacobi {
         })
     }
 
-    /// Collects the replies to `p`'s requests into the held outputs.
-    pub(crate) fn collect(team: &mut Team, p: Posted) -> Result<TickIo, LinkError> {
+    /// Collects the replies to `p`'s requests into the held outputs: the controller's and the
+    /// plant's, then (when `next` is given and nothing acts at its start) the first half of
+    /// the next tick with its events kept aside in `next`, then the actuator's.
+    pub(crate) fn collect(
+        team: &mut Team,
+        p: Posted,
+        next: Option<Next<'_>>,
+    ) -> Result<(TickIo, Option<Begun>), LinkError> {
         debug_assert_eq!(p.to_p.header.step, p.k);
         // Participants on the orchestrator's CPU answer while a heavy one computes on its own;
         // the replies are then taken in this fixed order, whatever the placement.
@@ -224,10 +304,29 @@ impl Jacobi {
         if p.due {
             team.held.c = team.answer(controller, p.io.to_controller, p.tc)?;
         }
-        team.held.a = team.answer(actuator, p.to_a, p.ta)?;
         team.held.p = team.answer(plant, p.to_p, p.tp)?;
-        Ok(p.io)
+        let begun = match next {
+            Some(n) if team.may_start_early(n.k) => {
+                std::mem::swap(&mut team.events, n.events);
+                team.inject_faults(n.k);
+                let b = Jacobi::begin(team, n.k, n.due, true);
+                std::mem::swap(&mut team.events, n.events);
+                Some(b?)
+            }
+            _ => None,
+        };
+        team.held.a = team.answer(actuator, p.to_a, p.ta)?;
+        Ok((p.io, begun))
     }
+}
+
+/// The tick after the one being finished, for an algorithm that may begin it early: its index,
+/// whether the controller is due, and the event log its events are kept in until the tick
+/// being finished is recorded.
+pub(crate) struct Next<'e> {
+    pub k: u64,
+    pub due: bool,
+    pub events: &'e mut EventLog,
 }
 
 impl Algorithm for Jacobi {
@@ -236,10 +335,23 @@ impl Algorithm for Jacobi {
     }
 
     fn finish(&self, team: &mut Team, p: Pending) -> Result<TickIo, LinkError> {
+        self.finish_early(team, p, None).map(|(io, _)| io)
+    }
+
+    fn finish_early(
+        &self,
+        team: &mut Team,
+        p: Pending,
+        next: Option<Next<'_>>,
+    ) -> Result<(TickIo, Option<Begun>), LinkError> {
         let Pending::Jacobi(p) = p else {
             unreachable!("a Jacobi tick is finished by Jacobi");
         };
-        Jacobi::collect(team, p)
+        Jacobi::collect(team, p, next)
+    }
+
+    fn resume(&self, team: &mut Team, b: Begun) -> Result<Pending, LinkError> {
+        Jacobi::complete(team, b).map(Pending::Jacobi)
     }
 
     fn critical_path(&self, c: [u64; 3]) -> u64 {

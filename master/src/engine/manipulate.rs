@@ -38,6 +38,15 @@ pub trait Manipulator: Send {
         v
     }
 
+    /// Whether tick `k` may begin before tick `k − 1`'s last reply is taken: `tick_commencing(k)`
+    /// does nothing, and `carry` of tick `k`'s values does not depend on that reply or on a
+    /// failure it may bring. The engine then overlaps the two ticks (under Jacobi over IPC, the
+    /// actuator's next request waits in its queue while it computes); the values are the same
+    /// either way. Default `false`: the engine takes every reply of `k − 1` first.
+    fn lets_tick_start_early(&self, _k: u64) -> bool {
+        false
+    }
+
     /// Participant `e.role()` failed at tick `k`: replace it through `ctl` and return `Ok`, or
     /// hand the error on.
     fn participant_failed(

@@ -74,6 +74,9 @@ impl Manipulator for FaultSchedule {
     fn name(&self) -> &str {
         "faults"
     }
+    fn lets_tick_start_early(&self, k: u64) -> bool {
+        !self.due.iter().any(|(at, _)| *at == k)
+    }
     fn tick_commencing(&mut self, k: u64, ctl: &mut Control<'_>) {
         for (_, f) in self.due.iter().filter(|(at, _)| *at == k) {
             let role = f.participant;
@@ -97,6 +100,10 @@ impl Manipulator for FaultSchedule {
 impl Manipulator for LinkSet {
     fn name(&self) -> &str {
         "links"
+    }
+    /// Each link draws from a random stream of its own, in the order of its own values.
+    fn lets_tick_start_early(&self, _k: u64) -> bool {
+        true
     }
     fn carry(&mut self, link: LinkId, k: u64, t: f64, v: f64, events: &mut EventLog) -> f64 {
         LinkSet::carry(self, link, k, t, v, events)
@@ -128,6 +135,12 @@ impl Degrader {
 impl Manipulator for Degrader {
     fn name(&self) -> &str {
         "degraded"
+    }
+
+    /// Nothing at a tick's start; a stand-in is built from the outputs held at the failure,
+    /// which the tick begun early does not change.
+    fn lets_tick_start_early(&self, _k: u64) -> bool {
+        true
     }
 
     /// Replaces the participant that failed with `e` when the scenario says so (never the

@@ -225,7 +225,8 @@ fn lockstep(team: &mut Team, obs: &mut Observers, interrupt: &AtomicBool) -> Res
 }
 
 /// Pipelined: as soon as tick `k`'s replies are in, tick `k + 1`'s first requests (which
-/// depend only on them: Jacobi's every request, Gauss-Seidel's first of the chain) go out,
+/// depend only on them: Jacobi's every request, Gauss-Seidel's first of the chain) go out
+/// (under Jacobi those that need no actuator reply already before it, `finish_early`),
 /// and tick `k` is recorded while the participants compute. Every value, row and event is the one the plain loop gives, in the same order
 /// (events of posting `k + 1`, link effects and faults, are kept aside and logged after tick
 /// `k`'s); only wall-clock placement changes. Not used when paced: a paced tick's requests
@@ -258,16 +259,26 @@ fn lockstep_pipelined(
     for k in 0..steps {
         let now = Instant::now();
         let started = now.checked_sub(post_time).unwrap_or(now);
-        let io = algorithm.finish(team, posted)?;
+        // The next tick's requests, with their events kept for after this tick's; the
+        // algorithm may begin them before this tick's last reply is in.
+        let more = k + 1 < steps && !interrupt.load(Ordering::Relaxed);
+        let mut next_events = team.events.aside();
+        let ahead = more.then(|| algorithm::Next {
+            k: k + 1,
+            due: due(k + 1),
+            events: &mut next_events,
+        });
+        let (io, begun) = algorithm.finish_early(team, posted, ahead)?;
         let h = team.held;
         let tick_exchanges = std::mem::take(&mut team.exchanges);
-        // The next tick's requests, with their events kept for after this tick's.
         let mut next = None;
-        let mut next_events = team.events.aside();
         let next_started = Instant::now();
-        if k + 1 < steps && !interrupt.load(Ordering::Relaxed) {
+        if more {
             std::mem::swap(&mut team.events, &mut next_events);
-            next = Some(post(team, k + 1));
+            next = Some(match begun {
+                Some(b) => algorithm.resume(team, b),
+                None => post(team, k + 1),
+            });
             std::mem::swap(&mut team.events, &mut next_events);
         }
         let next_post_time = next_started.elapsed();

@@ -115,6 +115,17 @@ impl<'a> Team<'a> {
         (ctl, &mut self.manipulators)
     }
 
+    /// Whether every manipulator lets tick `k` begin before the last reply of `k − 1` is taken
+    /// ([`Manipulator::lets_tick_start_early`]).
+    pub fn may_start_early(&self, k: u64) -> bool {
+        self.manipulators.iter().all(|m| m.lets_tick_start_early(k))
+    }
+
+    /// Whether participant `r` was replaced by its stand-in.
+    pub fn replaced(&self, r: Role) -> bool {
+        self.lost[r].is_some()
+    }
+
     /// Tells the manipulators that tick `k` begins (the scheduled faults act here).
     pub fn inject_faults(&mut self, k: u64) {
         let (mut ctl, ms) = self.control();
@@ -272,6 +283,28 @@ impl<'a> Team<'a> {
                 Ok(None)
             }
         }
+    }
+
+    /// Sends a step request to a participant whose previous request is still being answered,
+    /// where its transport queues it behind that one (`Endpoint::send_ahead`); returns the send
+    /// time, or `None` when it was not sent (send it with [`Team::post_step`] once the previous
+    /// reply is in). The request's flags are those of a start with no fault due.
+    pub fn post_ahead<I: Message, O: Message>(
+        &mut self,
+        pick: Pick<I, O>,
+        mut req: I,
+    ) -> Option<u64> {
+        if self.s.faults.on_bad_data == OnBadData::Hold {
+            req.header_mut().flags |= FLAG_HOLD_BAD_INPUT;
+        }
+        let ep = pick(&mut self.ps);
+        if self.flags[ep.role()] != 0 {
+            return None;
+        }
+        let t0 = clock_ns(self.timed);
+        // A request that could not be sent ahead is sent the usual way, which reports (and
+        // recovers from) a failure.
+        matches!(ep.send_ahead(&req), Ok(true)).then_some(t0)
     }
 
     /// The reply to a request posted with [`Team::post_step`].

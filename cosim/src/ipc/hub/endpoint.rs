@@ -50,6 +50,11 @@ pub struct IpcEndpoint<I: Message, O: Message> {
     /// In a free run, the step after the newest sample taken from the participant: the one it
     /// was at when it is found gone (0 before its first).
     pub(super) free_pending: u64,
+    /// The request sent ahead of the one pending ([`Endpoint::send_ahead`]): it becomes the
+    /// request last sent once the pending reply is taken.
+    pub(super) ahead: Option<I>,
+    /// A reply to the request sent ahead that came while the pending one was waited for.
+    pub(super) early: Option<O>,
 }
 
 /// Silence after which a pending exchange is looked into (the participant's status read) and
@@ -61,6 +66,28 @@ pub struct IpcEndpoint<I: Message, O: Message> {
 pub const RESEND_AFTER: Duration = Duration::from_micros(500);
 
 impl<I: Message, O: Message> IpcEndpoint<I, O> {
+    /// Stamps and publishes a request (unless the drop plan loses it).
+    fn publish_request(&mut self, mut req: I) -> Result<(), LinkError> {
+        req.stamp();
+        if self.drops.drops(true, req.header()) {
+            return Ok(());
+        }
+        let undelivered =
+            crate::ipc::publish(&self.publisher, req).map_err(|what| LinkError::Transport {
+                role: self.role,
+                what,
+            })?;
+        self.counts.lost_samples.undelivered_requests += undelivered;
+        Ok(())
+    }
+
+    /// After the reply `h` was taken: a request sent ahead of it is now the one pending.
+    fn took(&mut self, h: &Header) {
+        if self.ahead.is_some_and(|a| a.header().step > h.step) {
+            self.last_request = self.ahead.take();
+        }
+    }
+
     /// How the process ended, if it has, with the last line of its standard error (why it
     /// ended is usually the last thing it wrote).
     fn exited(&mut self) -> Option<String> {
@@ -171,6 +198,15 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
                 }
             }
             let got = h.step;
+            if self.early.is_none()
+                && self
+                    .ahead
+                    .is_some_and(|a| a.header().step == got && a.header().kind == h.kind)
+            {
+                // The request sent ahead is answered already: kept for its own receive.
+                self.early = Some(value);
+                continue;
+            }
             if got < step {
                 return Err(LinkError::Stale {
                     role,
@@ -255,6 +291,11 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
         let taken = w.taken.load(Ordering::Acquire);
         let polls = w.empty_polls.load(Ordering::Acquire);
         let repeats = w.repeats.load(Ordering::Acquire);
+        if taken > key + 1 {
+            // Past this request (it took the one sent ahead), so its reply was published
+            // first: the next drain takes it. Nothing is re-sent.
+            return Ok(false);
+        }
         if answered == key + 1 {
             // Published before the load above, so a drain now finds it unless it was lost.
             self.drain(step, kind, found)?;
@@ -330,17 +371,18 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         let mut req = *req;
         req.header_mut().attempt = 0;
         self.last_request = Some(req);
-        req.stamp();
-        if self.drops.drops(true, req.header()) {
-            return Ok(());
+        self.publish_request(req)
+    }
+    fn send_ahead(&mut self, req: &I) -> Result<bool, LinkError> {
+        // Not with samples dropped on purpose: a re-sent request must be the last one sent.
+        if self.ahead.is_some() || self.exit.is_some() || !self.drops.is_empty() {
+            return Ok(false);
         }
-        let undelivered =
-            crate::ipc::publish(&self.publisher, req).map_err(|what| LinkError::Transport {
-                role: self.role,
-                what,
-            })?;
-        self.counts.lost_samples.undelivered_requests += undelivered;
-        Ok(())
+        let mut req = *req;
+        req.header_mut().attempt = 0;
+        self.ahead = Some(req);
+        self.publish_request(req)?;
+        Ok(true)
     }
     fn receive(&mut self, step: u64, kind: Kind) -> Result<O, LinkError> {
         let mut backoff = Backoff::with_spin(self.wait, self.spin_polls);
@@ -350,6 +392,12 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         let mut silence = Silence::default();
         let mut look_at = self.deadline;
         let mut looks = Looks::default();
+        if let Some(reply) = self.early.take() {
+            // The reply to a request sent ahead, taken while the one before was waited for.
+            check_reply::<I, O>(self.role, &reply, step, kind)?;
+            self.took(reply.header());
+            return Ok(reply);
+        }
         if let Some(r) = &self.exit {
             // Already known to be gone (a kill fault reaps at once).
             return Err(LinkError::Exited {
@@ -363,6 +411,7 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
             self.drain(step, kind, &mut found)?;
             if let Some(reply) = found {
                 check_reply::<I, O>(self.role, &reply, step, kind)?;
+                self.took(reply.header());
                 return Ok(reply);
             }
             // A dead process is noticed within ~1k polls. After a short silence the status

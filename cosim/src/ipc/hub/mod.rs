@@ -172,6 +172,8 @@ impl IpcHub {
             drops: DropPlan::from_env(role),
             log: Some(log),
             free_pending: 0,
+            ahead: None,
+            early: None,
         };
         let connected = ep.await_connection(startup, self.interrupt.as_deref())?;
         if !connected {
@@ -213,6 +215,8 @@ impl IpcHub {
             drops: DropPlan::default(),
             log: None,
             free_pending: 0,
+            ahead: None,
+            early: None,
         })
     }
 

@@ -87,3 +87,88 @@ fn a_lost_request_and_a_lost_reply_are_resent_and_the_model_steps_once_each() {
     super::super::remove_run_files(&prefix);
     assert!(super::super::leftover_files(&prefix).is_empty());
 }
+
+/// Doubles the measurement, taking its time: a step lasts long enough for the next request
+/// to be waiting behind it.
+struct SlowDoubler;
+impl Participant for SlowDoubler {
+    type Input = ToController;
+    type Output = FromController;
+    const ROLE: Role = Role::Controller;
+    fn initial_output(&mut self) -> FromController {
+        FromController::default()
+    }
+    fn step(&mut self, i: &ToController) -> FromController {
+        std::thread::sleep(Duration::from_millis(2));
+        FromController {
+            theta_v_hat: 2.0 * i.theta_v_meas,
+            ..Default::default()
+        }
+    }
+}
+
+#[test]
+fn a_request_sent_ahead_is_answered_after_the_pending_one_and_each_reply_goes_to_its_receive() {
+    let prefix = super::super::unique_prefix();
+    let hub = IpcHub::new(IpcSettings {
+        prefix: prefix.clone(),
+        wait: WaitStrategy::Adaptive,
+        deadline: Duration::from_millis(500),
+        ceiling: Duration::from_secs(600),
+        participant_cpu: None,
+    })
+    .unwrap();
+    let mut ep = hub
+        .attach::<ToController, FromController>(Role::Controller)
+        .unwrap();
+    let pfx = prefix.clone();
+    let served = std::thread::spawn(move || {
+        super::super::serve::serve(
+            SlowDoubler,
+            &pfx,
+            WaitStrategy::Adaptive,
+            crate::wait::SPIN_POLLS,
+            super::super::IDLE_LIMIT,
+        )
+    });
+    assert!(ep.await_connection(Duration::from_secs(600), None).unwrap());
+    let req = |k: u64| ToController {
+        header: Header::new(k, Kind::Step),
+        theta_v_meas: k as f64,
+        ..Default::default()
+    };
+    ep.send(&req(0)).unwrap();
+    for k in 0..6u64 {
+        // Step k + 1 goes while k is pending; only one may wait ahead.
+        assert!(ep.send_ahead(&req(k + 1)).unwrap(), "step {}", k + 1);
+        assert!(!ep.send_ahead(&req(k + 2)).unwrap());
+        if k % 2 == 1 {
+            // Both replies are in before k's is taken: k + 1's is kept for its own receive.
+            while ep.status.words().answered.load(Ordering::Acquire) < 2 * (k + 1) + 2 {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        }
+        let reply = ep.receive(k, Kind::Step).unwrap();
+        assert_eq!(reply.theta_v_hat, 2.0 * k as f64, "step {k}");
+    }
+    let reply = ep.receive(6, Kind::Step).unwrap();
+    assert_eq!(reply.theta_v_hat, 12.0);
+    let c = ep.counts().lost_samples;
+    assert_eq!(
+        (c.lost_requests, c.lost_replies, c.resends),
+        (0, 0, 0),
+        "{c:?}"
+    );
+    let _ = super::super::publish(
+        &ep.publisher,
+        ToController {
+            header: Header::new(u64::MAX, Kind::Stop),
+            ..Default::default()
+        },
+    );
+    served.join().unwrap().unwrap();
+    drop(ep);
+    drop(hub);
+    super::super::remove_run_files(&prefix);
+    assert!(super::super::leftover_files(&prefix).is_empty());
+}
