@@ -468,3 +468,41 @@ fn an_interrupted_bench_ends_its_run_and_writes_nothing() {
     assert!(!err.contains("measuring ipc gauss-seidel spin"), "{err}");
     assert!(!out.exists() && !dir.join("b.runs").exists());
 }
+
+#[test]
+fn an_interrupted_ping_pong_ends_its_echo_and_writes_nothing() {
+    let dir = temp_dir("ping-pong-interrupted");
+    let out = dir.join("p.json");
+    // Ten million round trips of each size: far longer than the test waits.
+    let child = spawn(&[
+        "bench",
+        "--ping-pong",
+        "--rounds",
+        "10000000",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let pid = child.id();
+    let echo = wait_for(std::time::Duration::from_secs(300), || {
+        tiltsim_suite::children_of(pid).into_iter().next()
+    });
+    let Some((echo, _)) = echo else {
+        let (_, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
+        panic!("no echo process started: {err}");
+    };
+    // SAFETY: signalling a child this test started.
+    unsafe { libc::kill(pid as i32, libc::SIGINT) };
+    let (code, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
+    assert_eq!(code, 130, "{err}");
+    assert!(
+        err.contains("interrupted while measuring the ping-pong floor"),
+        "{err}"
+    );
+    assert!(
+        !std::path::Path::new(&format!("/proc/{echo}")).exists(),
+        "the echo process {echo} is left"
+    );
+    let left = tiltsim_suite::leftovers(&format!("tiltsim_{pid}_"));
+    assert!(left.is_empty(), "{left:?}");
+    assert!(!out.exists());
+}

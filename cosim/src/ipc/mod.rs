@@ -83,6 +83,9 @@ pub enum IpcError {
     /// stopped, whatever it was doing: unpacking a large FMU, designing a controller).
     #[error("interrupted while participant {role} was starting")]
     Interrupted { role: Role },
+    /// The caller's stop flag was set during a measurement (`pingpong::measure`).
+    #[error("stopped")]
+    Stopped,
 }
 
 fn iox<E: core::fmt::Debug>(what: &str) -> impl FnOnce(E) -> IpcError + '_ {

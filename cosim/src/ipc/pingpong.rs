@@ -11,6 +11,8 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use super::{config, iox, node, IpcError};
 
 macro_rules! payload {
@@ -118,11 +120,21 @@ pub enum Waiting {
     Yield,
 }
 
-/// Polls until a sample arrives; returns its sequence number.
-fn receive<T: Sized_>(s: &Subscriber<ipc::Service, T, ()>, w: Waiting) -> Result<u64, IpcError> {
+/// Polls until a sample arrives; returns its sequence number. With `stop`, gives up once it
+/// is set (looked at every [`LOOK_EVERY`] polls, so the measured path stays a poll).
+fn receive<T: Sized_>(
+    s: &Subscriber<ipc::Service, T, ()>,
+    w: Waiting,
+    stop: Option<&AtomicBool>,
+) -> Result<u64, IpcError> {
+    let mut polls = 0u32;
     loop {
         if let Some(sample) = s.receive().map_err(iox("receive"))? {
             return Ok(sample.payload().seq());
+        }
+        polls = polls.wrapping_add(1);
+        if polls % LOOK_EVERY == 0 && stop.is_some_and(|f| f.load(Ordering::Relaxed)) {
+            return Err(IpcError::Stopped);
         }
         match w {
             Waiting::Spin => core::hint::spin_loop(),
@@ -131,10 +143,13 @@ fn receive<T: Sized_>(s: &Subscriber<ipc::Service, T, ()>, w: Waiting) -> Result
     }
 }
 
+/// Polls between two looks at the caller's stop flag.
+const LOOK_EVERY: u32 = 1024;
+
 fn echo_one<T: Sized_>(node: &Node<ipc::Service>, w: Waiting) -> Result<(), IpcError> {
     let (publisher, subscriber) = ports::<T>(node, "pong", "ping")?;
     loop {
-        let seq = receive(&subscriber, w)?;
+        let seq = receive(&subscriber, w, None)?;
         send(&publisher, seq)?;
         if seq == DONE {
             return Ok(());
@@ -157,6 +172,7 @@ fn measure_one<T: Sized_>(
     node: &Node<ipc::Service>,
     rounds: usize,
     w: Waiting,
+    stop: &AtomicBool,
 ) -> Result<Vec<f64>, IpcError> {
     let (publisher, subscriber) = ports::<T>(node, "ping", "pong")?;
     // Handshake: samples sent before the echo subscribes are lost; ping until a pong comes.
@@ -174,6 +190,9 @@ fn measure_one<T: Sized_>(
                 std::thread::yield_now();
             }
         }
+        if stop.load(Ordering::Relaxed) {
+            return Err(IpcError::Stopped);
+        }
         if started.elapsed() > std::time::Duration::from_secs(10) {
             return Err(IpcError::Iceoryx(
                 "ping-pong: the echo process does not answer".into(),
@@ -188,9 +207,9 @@ fn measure_one<T: Sized_>(
     for i in 1..=(rounds + rounds / 10) as u64 {
         let t0 = std::time::Instant::now();
         send(&publisher, i)?;
-        let mut got = receive(&subscriber, w)?;
+        let mut got = receive(&subscriber, w, Some(stop))?;
         while got == 0 {
-            got = receive(&subscriber, w)?;
+            got = receive(&subscriber, w, Some(stop))?;
         }
         let rtt = t0.elapsed().as_nanos() as f64;
         if got != i {
@@ -204,19 +223,25 @@ fn measure_one<T: Sized_>(
         }
     }
     send(&publisher, DONE)?;
-    let _ = receive(&subscriber, w);
+    let _ = receive(&subscriber, w, Some(stop));
     Ok(out)
 }
 
 /// The measuring side: one-way latencies (ns) per size in [`SIZES`], `rounds` each; the echo
-/// process must be running with the same `prefix` and waiting `w`.
-pub fn measure(prefix: &str, rounds: usize, w: Waiting) -> Result<Vec<Vec<f64>>, IpcError> {
+/// process must be running with the same `prefix` and waiting `w`. Ends with
+/// [`IpcError::Stopped`] once `stop` is set (Ctrl-C), whether or not the echo still answers.
+pub fn measure(
+    prefix: &str,
+    rounds: usize,
+    w: Waiting,
+    stop: &AtomicBool,
+) -> Result<Vec<Vec<f64>>, IpcError> {
     let cfg = config(prefix)?;
     let node = node(&cfg, "pingpong")?;
     Ok(vec![
-        measure_one::<P64>(&node, rounds, w)?,
-        measure_one::<P256>(&node, rounds, w)?,
-        measure_one::<P1024>(&node, rounds, w)?,
-        measure_one::<P4096>(&node, rounds, w)?,
+        measure_one::<P64>(&node, rounds, w, stop)?,
+        measure_one::<P256>(&node, rounds, w, stop)?,
+        measure_one::<P1024>(&node, rounds, w, stop)?,
+        measure_one::<P4096>(&node, rounds, w, stop)?,
     ])
 }

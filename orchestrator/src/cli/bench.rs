@@ -119,6 +119,7 @@ fn ping_pong_latencies(
     exe: &std::path::Path,
     rounds: usize,
     same_cpu: bool,
+    stop: &std::sync::atomic::AtomicBool,
 ) -> Result<Vec<Vec<f64>>, CliError> {
     let cpus = cosim::ipc::allowed_cpus();
     let prefix = cosim::ipc::unique_prefix();
@@ -140,14 +141,19 @@ fn ping_pong_latencies(
     let mut child = cmd
         .spawn()
         .map_err(|e| CliError::Failed(format!("bench: cannot start the echo process: {e}")))?;
-    let result = cosim::ipc::pingpong::measure(&prefix, rounds, w);
+    let result = cosim::ipc::pingpong::measure(&prefix, rounds, w, stop);
     if result.is_err() {
         let _ = child.kill();
     }
     let _ = child.wait();
     cosim::ipc::set_cpus(&cpus);
     cosim::ipc::remove_run_files(&prefix);
-    result.map_err(|e| CliError::Failed(format!("bench: {e}")))
+    result.map_err(|e| match e {
+        cosim::ipc::IpcError::Stopped => CliError::Interrupted(
+            "bench: interrupted while measuring the ping-pong floor; nothing written".into(),
+        ),
+        e => CliError::Failed(format!("bench: {e}")),
+    })
 }
 
 /// The wall time (ns) of each of `ticks` ticks of iceoryx2 exchanges alone in `order`, one echo
@@ -233,7 +239,9 @@ fn ping_pong(a: &BenchArgs, exe: &std::path::Path) -> CliResult {
             a.rounds
         )));
     }
-    let lat = ping_pong_latencies(exe, a.rounds, a.same_cpu)?;
+    // Ctrl-C ends the measurement, the echo process and its files.
+    let stop = tiltsim_rundir::signals::install();
+    let lat = ping_pong_latencies(exe, a.rounds, a.same_cpu, &stop)?;
     let machine = tiltsim_studies::bench::Machine::this();
     let placement = if a.same_cpu {
         "both processes on one CPU, yielding it while they wait"
@@ -273,6 +281,7 @@ fn ping_pong(a: &BenchArgs, exe: &std::path::Path) -> CliResult {
 /// tiltsim's (256 B), 20 000 round trips each, across CPUs busy-waiting and on one CPU yielding.
 fn machine_floors(
     exe: &std::path::Path,
+    stop: &std::sync::atomic::AtomicBool,
 ) -> Result<tiltsim_studies::bench::MachineFloors, CliError> {
     const ROUNDS: usize = 20_000;
     let size = cosim::ipc::pingpong::SIZES
@@ -280,7 +289,7 @@ fn machine_floors(
         .position(|&b| b == 256)
         .expect("256 B is a ping-pong size");
     let p50_us = |same_cpu| -> Result<f64, CliError> {
-        let mut v = ping_pong_latencies(exe, ROUNDS, same_cpu)?.swap_remove(size);
+        let mut v = ping_pong_latencies(exe, ROUNDS, same_cpu, stop)?.swap_remove(size);
         Ok(cosim::stats::percentiles(&mut v).p50 * 1e-3)
     };
     Ok(tiltsim_studies::bench::MachineFloors {
@@ -473,7 +482,7 @@ fn main_table(
     };
     stop_if_interrupted("before the floors")?;
     eprintln!("  measuring the machine's ping-pong floors ...");
-    report.machine_floors = Some(machine_floors(exe)?);
+    report.machine_floors = Some(machine_floors(exe, &setup.interrupt)?);
     stop_if_interrupted("while measuring the ping-pong floors")?;
     eprintln!("  measuring iceoryx2's floor for the scenario's ticks ...");
     report.set_exchange_floors(exchange_floors(exe, s)?);
