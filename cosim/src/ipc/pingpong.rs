@@ -133,7 +133,7 @@ fn receive<T: Sized_>(
             return Ok(sample.payload().seq());
         }
         polls = polls.wrapping_add(1);
-        if polls % LOOK_EVERY == 0 && stop.is_some_and(|f| f.load(Ordering::Relaxed)) {
+        if polls.is_multiple_of(LOOK_EVERY) && stop.is_some_and(|f| f.load(Ordering::Relaxed)) {
             return Err(IpcError::Stopped);
         }
         match w {
