@@ -199,8 +199,8 @@ pub(crate) struct Begun {
     io: TickIo,
     to_a: ToActuator,
     tc: Option<u64>,
-    /// `Some(Some(t0))`: the actuator's request went ahead at `t0`; `None`: still to send.
-    ta: Option<Option<u64>>,
+    /// When the actuator's request went ahead (`None`: still to send).
+    ta_ahead: Option<u64>,
     /// Whether the actuator had been replaced when its request went ahead.
     a_replaced: bool,
 }
@@ -232,8 +232,8 @@ impl Jacobi {
         } else {
             None
         };
-        let ta = if ahead {
-            team.post_ahead(actuator, to_a).map(Some)
+        let ta_ahead = if ahead {
+            team.post_ahead(actuator, to_a)
         } else {
             None
         };
@@ -243,7 +243,7 @@ impl Jacobi {
             io,
             to_a,
             tc,
-            ta,
+            ta_ahead,
             a_replaced: team.replaced(Role::Actuator),
         })
     }
@@ -258,7 +258,7 @@ impl Jacobi {
             mut io,
             to_a,
             tc,
-            ta,
+            ta_ahead,
             a_replaced,
         } = b;
         io.tx[LinkId::BarAngle as usize] = team.held.a.delta_a;
@@ -268,8 +268,8 @@ impl Jacobi {
             header: Header::new(k, Kind::Step),
             delta_a: bar,
         };
-        let ta = match ta {
-            Some(sent) if team.replaced(Role::Actuator) == a_replaced => sent,
+        let ta = match ta_ahead {
+            Some(t0) if team.replaced(Role::Actuator) == a_replaced => Some(t0),
             _ => team.post_step(actuator, to_a)?,
         };
         let tp = team.post_step(plant, to_p)?;

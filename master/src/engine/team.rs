@@ -178,15 +178,20 @@ impl<'a> Team<'a> {
         pick: Pick<I, O>,
         mut req: I,
     ) -> Result<u64, LinkError> {
-        let ep = pick(&mut self.ps);
-        let role = ep.role();
+        let role = pick(&mut self.ps).role();
+        self.flag(role, &mut req);
+        let t0 = clock_ns(self.timed);
+        pick(&mut self.ps).send(&req)?;
+        Ok(t0)
+    }
+
+    /// Sets on `role`'s request the flags due to it: those of this tick's faults (taken), and
+    /// the bad-data policy's.
+    fn flag<I: Message>(&mut self, role: Role, req: &mut I) {
         req.header_mut().flags |= std::mem::take(&mut self.flags[role]);
         if self.s.faults.on_bad_data == OnBadData::Hold {
             req.header_mut().flags |= FLAG_HOLD_BAD_INPUT;
         }
-        let t0 = clock_ns(self.timed);
-        ep.send(&req)?;
-        Ok(t0)
     }
 
     /// Receives the reply to a request sent at `t0`; logs held bad data and the exchange.
@@ -288,23 +293,21 @@ impl<'a> Team<'a> {
     /// Sends a step request to a participant whose previous request is still being answered,
     /// where its transport queues it behind that one (`Endpoint::send_ahead`); returns the send
     /// time, or `None` when it was not sent (send it with [`Team::post_step`] once the previous
-    /// reply is in). The request's flags are those of a start with no fault due.
+    /// reply is in). Not one that a fault flags: a crash is asked of the request in turn.
     pub fn post_ahead<I: Message, O: Message>(
         &mut self,
         pick: Pick<I, O>,
         mut req: I,
     ) -> Option<u64> {
-        if self.s.faults.on_bad_data == OnBadData::Hold {
-            req.header_mut().flags |= FLAG_HOLD_BAD_INPUT;
-        }
-        let ep = pick(&mut self.ps);
-        if self.flags[ep.role()] != 0 {
+        let role = pick(&mut self.ps).role();
+        if self.flags[role] != 0 {
             return None;
         }
+        self.flag(role, &mut req);
         let t0 = clock_ns(self.timed);
         // A request that could not be sent ahead is sent the usual way, which reports (and
         // recovers from) a failure.
-        matches!(ep.send_ahead(&req), Ok(true)).then_some(t0)
+        matches!(pick(&mut self.ps).send_ahead(&req), Ok(true)).then_some(t0)
     }
 
     /// The reply to a request posted with [`Team::post_step`].

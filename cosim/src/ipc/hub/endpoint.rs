@@ -66,7 +66,7 @@ pub struct IpcEndpoint<I: Message, O: Message> {
 pub const RESEND_AFTER: Duration = Duration::from_micros(500);
 
 impl<I: Message, O: Message> IpcEndpoint<I, O> {
-    /// Stamps and publishes a request (unless the drop plan loses it).
+    /// Stamps and publishes a request (unless the drop plan loses its first sending).
     fn publish_request(&mut self, mut req: I) -> Result<(), LinkError> {
         req.stamp();
         if self.drops.drops(true, req.header()) {
@@ -338,14 +338,8 @@ impl<I: Message, O: Message> IpcEndpoint<I, O> {
         });
         self.last_request = Some(req);
         self.counts.lost_samples.resends += 1;
-        req.stamp();
-        let undelivered =
-            crate::ipc::publish(&self.publisher, req).map_err(|what| LinkError::Transport {
-                role: self.role,
-                what,
-            })?;
-        self.counts.lost_samples.undelivered_requests += undelivered;
-        Ok(())
+        // A repeat (attempt 1 or more) is never in the drop plan.
+        self.publish_request(req)
     }
 }
 

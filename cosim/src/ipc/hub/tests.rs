@@ -9,8 +9,11 @@ use crate::msg::{FromController, Header, Kind, ToController};
 use crate::participant::Participant;
 use crate::wait::WaitStrategy;
 
-/// Doubles the measurement and counts its steps.
-struct Doubler(Arc<AtomicU64>);
+/// Doubles the measurement, counts its steps and takes `pause` over each.
+struct Doubler {
+    steps: Arc<AtomicU64>,
+    pause: Duration,
+}
 impl Participant for Doubler {
     type Input = ToController;
     type Output = FromController;
@@ -19,7 +22,8 @@ impl Participant for Doubler {
         FromController::default()
     }
     fn step(&mut self, i: &ToController) -> FromController {
-        self.0.fetch_add(1, Ordering::Relaxed);
+        self.steps.fetch_add(1, Ordering::Relaxed);
+        std::thread::sleep(self.pause);
         FromController {
             theta_v_hat: 2.0 * i.theta_v_meas,
             ..Default::default()
@@ -27,8 +31,19 @@ impl Participant for Doubler {
     }
 }
 
-#[test]
-fn a_lost_request_and_a_lost_reply_are_resent_and_the_model_steps_once_each() {
+type ControllerEndpoint = IpcEndpoint<ToController, FromController>;
+
+/// A hub under a prefix of its own and its endpoint to the controller, served by `model` in a
+/// thread with the participant's side losing what `drops` says; returns the hub, the endpoint,
+/// connected, and the serving thread.
+fn served(
+    model: Doubler,
+    drops: DropPlan,
+) -> (
+    IpcHub,
+    ControllerEndpoint,
+    std::thread::JoinHandle<Result<(), IpcError>>,
+) {
     let prefix = super::super::unique_prefix();
     let hub = IpcHub::new(IpcSettings {
         prefix: prefix.clone(),
@@ -41,30 +56,64 @@ fn a_lost_request_and_a_lost_reply_are_resent_and_the_model_steps_once_each() {
     let mut ep = hub
         .attach::<ToController, FromController>(Role::Controller)
         .unwrap();
-    // The orchestrator loses its first sending of step 3's request, the participant its
-    // first sending of step 5's reply.
-    ep.drops = DropPlan::new(vec![(Role::Controller, true, 3)]);
-    let steps = Arc::new(AtomicU64::new(0));
-    let (model, pfx) = (Doubler(steps.clone()), prefix.clone());
-    let served = std::thread::spawn(move || {
+    let serving = std::thread::spawn(move || {
         super::super::serve::serve_dropping(
             model,
-            &pfx,
+            &prefix,
             WaitStrategy::Adaptive,
             crate::wait::SPIN_POLLS,
             super::super::IDLE_LIMIT,
             |_| {},
-            DropPlan::new(vec![(Role::Controller, false, 5)]),
+            drops,
         )
     });
     assert!(ep.await_connection(Duration::from_secs(600), None).unwrap());
-    for k in 0..8u64 {
-        let req = ToController {
-            header: Header::new(k, Kind::Step),
-            theta_v_meas: k as f64,
+    (hub, ep, serving)
+}
+
+/// Stops the participant, waits for its thread and checks that no file of the run is left.
+fn stop(
+    hub: IpcHub,
+    ep: ControllerEndpoint,
+    serving: std::thread::JoinHandle<Result<(), IpcError>>,
+) {
+    let prefix = hub.settings.prefix.clone();
+    let _ = super::super::publish(
+        &ep.publisher,
+        ToController {
+            header: Header::new(u64::MAX, Kind::Stop),
             ..Default::default()
-        };
-        ep.send(&req).unwrap();
+        },
+    );
+    serving.join().unwrap().unwrap();
+    drop(ep);
+    drop(hub);
+    super::super::remove_run_files(&prefix);
+    assert!(super::super::leftover_files(&prefix).is_empty());
+}
+
+/// Step `k`'s request, measuring `k`.
+fn request(k: u64) -> ToController {
+    ToController {
+        header: Header::new(k, Kind::Step),
+        theta_v_meas: k as f64,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn a_lost_request_and_a_lost_reply_are_resent_and_the_model_steps_once_each() {
+    let steps = Arc::new(AtomicU64::new(0));
+    let model = Doubler {
+        steps: steps.clone(),
+        pause: Duration::ZERO,
+    };
+    // The orchestrator loses its first sending of step 3's request, the participant its
+    // first sending of step 5's reply.
+    let (hub, mut ep, serving) = served(model, DropPlan::new(vec![(Role::Controller, false, 5)]));
+    ep.drops = DropPlan::new(vec![(Role::Controller, true, 3)]);
+    for k in 0..8u64 {
+        ep.send(&request(k)).unwrap();
         let reply = ep.receive(k, Kind::Step).unwrap();
         assert_eq!(reply.theta_v_hat, 2.0 * k as f64, "step {k}");
     }
@@ -74,74 +123,22 @@ fn a_lost_request_and_a_lost_reply_are_resent_and_the_model_steps_once_each() {
     assert_eq!((c.lost_requests, c.lost_replies), (1, 1), "{c:?}");
     // One re-send per loss; more only if a slow answer met a look under heavy load.
     assert!(c.resends >= 2 && c.repeats_answered >= 1, "{c:?}");
-    let _ = super::super::publish(
-        &ep.publisher,
-        ToController {
-            header: Header::new(u64::MAX, Kind::Stop),
-            ..Default::default()
-        },
-    );
-    served.join().unwrap().unwrap();
-    drop(ep);
-    drop(hub);
-    super::super::remove_run_files(&prefix);
-    assert!(super::super::leftover_files(&prefix).is_empty());
-}
-
-/// Doubles the measurement, taking its time: a step lasts long enough for the next request
-/// to be waiting behind it.
-struct SlowDoubler;
-impl Participant for SlowDoubler {
-    type Input = ToController;
-    type Output = FromController;
-    const ROLE: Role = Role::Controller;
-    fn initial_output(&mut self) -> FromController {
-        FromController::default()
-    }
-    fn step(&mut self, i: &ToController) -> FromController {
-        std::thread::sleep(Duration::from_millis(2));
-        FromController {
-            theta_v_hat: 2.0 * i.theta_v_meas,
-            ..Default::default()
-        }
-    }
+    stop(hub, ep, serving);
 }
 
 #[test]
 fn a_request_sent_ahead_is_answered_after_the_pending_one_and_each_reply_goes_to_its_receive() {
-    let prefix = super::super::unique_prefix();
-    let hub = IpcHub::new(IpcSettings {
-        prefix: prefix.clone(),
-        wait: WaitStrategy::Adaptive,
-        deadline: Duration::from_millis(500),
-        ceiling: Duration::from_secs(600),
-        participant_cpu: None,
-    })
-    .unwrap();
-    let mut ep = hub
-        .attach::<ToController, FromController>(Role::Controller)
-        .unwrap();
-    let pfx = prefix.clone();
-    let served = std::thread::spawn(move || {
-        super::super::serve::serve(
-            SlowDoubler,
-            &pfx,
-            WaitStrategy::Adaptive,
-            crate::wait::SPIN_POLLS,
-            super::super::IDLE_LIMIT,
-        )
-    });
-    assert!(ep.await_connection(Duration::from_secs(600), None).unwrap());
-    let req = |k: u64| ToController {
-        header: Header::new(k, Kind::Step),
-        theta_v_meas: k as f64,
-        ..Default::default()
+    // Each step lasts long enough for the next request to wait behind it.
+    let model = Doubler {
+        steps: Arc::default(),
+        pause: Duration::from_millis(2),
     };
-    ep.send(&req(0)).unwrap();
+    let (hub, mut ep, serving) = served(model, DropPlan::default());
+    ep.send(&request(0)).unwrap();
     for k in 0..6u64 {
         // Step k + 1 goes while k is pending; only one may wait ahead.
-        assert!(ep.send_ahead(&req(k + 1)).unwrap(), "step {}", k + 1);
-        assert!(!ep.send_ahead(&req(k + 2)).unwrap());
+        assert!(ep.send_ahead(&request(k + 1)).unwrap(), "step {}", k + 1);
+        assert!(!ep.send_ahead(&request(k + 2)).unwrap());
         if k % 2 == 1 {
             // Both replies are in before k's is taken: k + 1's is kept for its own receive.
             while ep.status.words().answered.load(Ordering::Acquire) < 2 * (k + 1) + 2 {
@@ -159,16 +156,5 @@ fn a_request_sent_ahead_is_answered_after_the_pending_one_and_each_reply_goes_to
         (0, 0, 0),
         "{c:?}"
     );
-    let _ = super::super::publish(
-        &ep.publisher,
-        ToController {
-            header: Header::new(u64::MAX, Kind::Stop),
-            ..Default::default()
-        },
-    );
-    served.join().unwrap().unwrap();
-    drop(ep);
-    drop(hub);
-    super::super::remove_run_files(&prefix);
-    assert!(super::super::leftover_files(&prefix).is_empty());
+    stop(hub, ep, serving);
 }
