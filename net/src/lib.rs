@@ -89,6 +89,9 @@ pub enum NetError {
     /// The participant's side could not join or serve.
     #[error("{0}")]
     Participant(String),
+    /// The caller's stop flag was set during a measurement (`pingpong`).
+    #[error("stopped at the caller's request")]
+    Stopped,
 }
 
 pub(crate) fn zenoh_error<E: std::fmt::Display>(what: &str) -> impl FnOnce(E) -> NetError + '_ {

@@ -11,6 +11,7 @@
 
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use zenoh::handlers::FifoChannel;
@@ -110,13 +111,23 @@ pub fn echo(f: &Floor, run: &str, idle: Duration) -> Result<(), NetError> {
     Ok(())
 }
 
+/// [`NetError::Stopped`] once the caller's `stop` flag is set.
+fn check(stop: &AtomicBool) -> Result<(), NetError> {
+    if stop.load(Ordering::Relaxed) {
+        return Err(NetError::Stopped);
+    }
+    Ok(())
+}
+
 /// The listening side: `rounds` round trips (ns each) with the echo of bench `run`, after
-/// waiting up to `startup` for it to connect.
+/// waiting up to `startup` for it to connect. Ends with [`NetError::Stopped`] within a round
+/// trip (or 0.7 s while connecting) once `stop` is set.
 pub fn measure(
     f: &Floor,
     run: &str,
     rounds: usize,
     startup: Duration,
+    stop: &AtomicBool,
 ) -> Result<Vec<u64>, NetError> {
     let s = session::open(
         &session::End::Listen(f.address.clone()),
@@ -138,6 +149,7 @@ pub fn measure(
     let start = Instant::now();
     // Connected once the echo's token shows and a first ping comes back.
     loop {
+        check(stop)?;
         let present = s
             .liveliness()
             .get(echo_token(run))
@@ -167,6 +179,7 @@ pub fn measure(
     let mut out = Vec::with_capacity(rounds);
     let mut buf = vec![0u8; BYTES];
     for i in 0..rounds as u64 {
+        check(stop)?;
         buf[..8].copy_from_slice(&i.to_le_bytes());
         let t0 = now_ns();
         pings
@@ -226,22 +239,30 @@ pub fn raw_tcp_echo(address: &Address, startup: Duration) -> Result<(), NetError
     }
 }
 
-/// The raw TCP floor: listens on `address`, starts the echo with `start_echo`, and measures
-/// `rounds` round trips of [`BYTES`] bytes (ns each), TCP_NODELAY at both ends.
+/// The raw TCP floor: listens on `address`, starts the echo with `start_echo`, waits up to
+/// `startup` for it to connect, and measures `rounds` round trips of [`BYTES`] bytes (ns each),
+/// TCP_NODELAY at both ends. Ends with [`NetError::Stopped`] within a round trip (or 20 ms
+/// while waiting for the echo) once `stop` is set; an echo silent for 5 s is an error.
 pub fn raw_tcp_measure(
     address: &Address,
     rounds: usize,
+    startup: Duration,
+    stop: &AtomicBool,
     start_echo: impl FnOnce() -> Result<(), NetError>,
 ) -> Result<Vec<u64>, NetError> {
     let listener = TcpListener::bind(address.to_string()).map_err(io_error("listening"))?;
     start_echo()?;
-    let (mut stream, _) = listener.accept().map_err(io_error("accepting"))?;
+    let mut stream = accept(&listener, address, startup, stop)?;
     stream.set_nodelay(true).map_err(io_error("TCP_NODELAY"))?;
+    stream
+        .set_read_timeout(Some(Duration::from_secs(5)))
+        .map_err(io_error("setting the read timeout"))?;
     let mut buf = [0u8; BYTES];
     let mut back = [0u8; BYTES];
     let mut out = Vec::with_capacity(rounds);
     // A few round trips first, as the Zenoh floor's connection check does.
     for i in 0..(rounds + 16) as u64 {
+        check(stop)?;
         buf[..8].copy_from_slice(&i.to_le_bytes());
         let t0 = now_ns();
         stream.write_all(&buf).map_err(io_error("writing"))?;
@@ -257,4 +278,39 @@ pub fn raw_tcp_measure(
         }
     }
     Ok(out)
+}
+
+/// The echo's connection, polled every 20 ms for up to `startup` so that an echo that never
+/// connects (or a stop) does not leave the bench waiting for ever.
+fn accept(
+    listener: &TcpListener,
+    address: &Address,
+    startup: Duration,
+    stop: &AtomicBool,
+) -> Result<TcpStream, NetError> {
+    listener
+        .set_nonblocking(true)
+        .map_err(io_error("listening"))?;
+    let start = Instant::now();
+    loop {
+        check(stop)?;
+        match listener.accept() {
+            Ok((stream, _)) => {
+                stream
+                    .set_nonblocking(false)
+                    .map_err(io_error("accepting"))?;
+                return Ok(stream);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                if start.elapsed() > startup {
+                    return Err(NetError::Participant(format!(
+                        "bench raw TCP: the echo did not connect to {address} within {} s",
+                        startup.as_secs()
+                    )));
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            Err(e) => return Err(io_error("accepting")(e)),
+        }
+    }
 }

@@ -506,3 +506,66 @@ fn an_interrupted_ping_pong_ends_its_echo_and_writes_nothing() {
     assert!(left.is_empty(), "{left:?}");
     assert!(!out.exists());
 }
+
+/// `tiltsim bench --network` interrupted while it waits for an echo that never connects (a
+/// `--remote-via` command that sleeps instead of starting it): first the raw TCP floor's
+/// echo, then, with the raw TCP echo let through, the first Zenoh floor's. Each time the bench
+/// ends the echo's process, exits 130 naming what it was measuring, and writes nothing.
+#[test]
+fn an_interrupted_network_bench_ends_its_echo_and_writes_nothing() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = temp_dir("network-interrupted");
+    let cases = [
+        ("never", "exec sleep 600", 23_611, "the raw TCP floor"),
+        (
+            "raw-only",
+            "case \"$*\" in *--raw-tcp*) exec \"$@\";; esac\nexec sleep 600",
+            23_621,
+            "a Zenoh floor",
+        ),
+    ];
+    for (name, body, port, what) in cases {
+        let via = dir.join(name);
+        std::fs::write(&via, format!("#!/bin/sh\n{body}\n")).unwrap();
+        std::fs::set_permissions(&via, std::fs::Permissions::from_mode(0o755)).unwrap();
+        let out = dir.join(format!("{name}.json"));
+        let listen = format!("127.0.0.1:{port}");
+        let child = spawn(&[
+            "bench",
+            "--network",
+            "--listen",
+            &listen,
+            "--remote-via",
+            via.to_str().unwrap(),
+            "--rounds",
+            "200",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let pid = child.id();
+        let sleeper = wait_for(std::time::Duration::from_secs(300), || {
+            tiltsim_suite::children_of(pid)
+                .into_iter()
+                .find(|(_, comm)| comm == "sleep")
+        });
+        let Some((sleeper, _)) = sleeper else {
+            let (_, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
+            panic!("{name}: the echo's command never started: {err}");
+        };
+        // SAFETY: signalling a child this test started.
+        unsafe { libc::kill(pid as i32, libc::SIGINT) };
+        let (code, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
+        assert_eq!(code, 130, "{name}: {err}");
+        assert!(
+            err.contains(&format!(
+                "interrupted while measuring {what}; nothing written"
+            )),
+            "{name}: {err}"
+        );
+        assert!(
+            !std::path::Path::new(&format!("/proc/{sleeper}")).exists(),
+            "{name}: the echo's process {sleeper} is left"
+        );
+        assert!(!out.exists(), "{name}");
+    }
+}

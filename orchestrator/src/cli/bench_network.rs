@@ -14,6 +14,8 @@
 
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 
 use cosim::stats::Percentiles;
@@ -88,6 +90,30 @@ fn failed(e: impl std::fmt::Display) -> CliError {
     CliError::Failed(format!("bench --network: {e}"))
 }
 
+/// Ctrl-C (or SIGTERM, SIGHUP) while measuring `what`: exit 130, nothing written.
+fn interrupted(what: &str) -> CliError {
+    CliError::Interrupted(format!(
+        "bench --network: interrupted while measuring {what}; nothing written"
+    ))
+}
+
+/// A floor's failure, or its stop at Ctrl-C.
+fn floor_error(what: &str) -> impl FnOnce(tiltsim_net::NetError) -> CliError + '_ {
+    move |e| match e {
+        tiltsim_net::NetError::Stopped => interrupted(what),
+        e => failed(e),
+    }
+}
+
+/// Ends an echo: it ends on its own once measured, and is killed when the measurement failed
+/// or was stopped (it would otherwise wait for pings until its idle limit).
+fn end_echo(mut echo: Child, measured: bool) {
+    if !measured {
+        let _ = echo.kill();
+    }
+    let _ = echo.wait();
+}
+
 /// `listen` with its port moved up by `n` (each measurement listens on a port of its own).
 fn port_plus(listen: &Address, n: u16) -> Result<Address, CliError> {
     let port = listen.port.checked_add(n).ok_or_else(|| {
@@ -105,6 +131,8 @@ fn port_plus(listen: &Address, n: u16) -> Result<Address, CliError> {
 struct Spawner<'a> {
     exe: &'a Path,
     via: Vec<String>,
+    /// Set by Ctrl-C: every measurement ends at it.
+    stop: Arc<AtomicBool>,
 }
 
 impl Spawner<'_> {
@@ -139,6 +167,7 @@ fn wall(
     let mut s = s.clone();
     let mut opts = RunOptions::new(dir.to_path_buf(), sp.exe.to_path_buf());
     opts.plots = false;
+    opts.interrupt = sp.stop.clone();
     let mut child = None;
     if let Some(listen) = listen {
         let secret = tiltsim_net::new_secret().map_err(failed)?;
@@ -166,6 +195,14 @@ fn wall(
         let _ = c.wait();
     }
     let _ = std::fs::remove_dir_all(dir);
+    let what = if listen.is_some() {
+        "a run with a remote plant"
+    } else {
+        "a run in one process"
+    };
+    if sp.stop.load(Ordering::Relaxed) {
+        return Err(interrupted(what));
+    }
     let sum = sum.map_err(failed)?;
     if sum.status != Status::Completed {
         return Err(failed(sum.error.unwrap_or_else(|| "run failed".into())));
@@ -194,7 +231,8 @@ fn percentiles(v: Vec<u64>) -> Percentiles {
 fn raw_floor(sp: &Spawner<'_>, at: &Address, rounds: usize) -> Result<Percentiles, CliError> {
     let target = at.to_string();
     let mut echo = None;
-    let rtts = tiltsim_net::pingpong::raw_tcp_measure(at, rounds, || {
+    let startup = Duration::from_secs(30);
+    let rtts = tiltsim_net::pingpong::raw_tcp_measure(at, rounds, startup, &sp.stop, || {
         echo = Some(
             sp.spawn(
                 &[
@@ -211,10 +249,10 @@ fn raw_floor(sp: &Spawner<'_>, at: &Address, rounds: usize) -> Result<Percentile
         );
         Ok(())
     });
-    if let Some(mut e) = echo {
-        let _ = e.wait();
+    if let Some(e) = echo {
+        end_echo(e, rtts.is_ok());
     }
-    Ok(percentiles(rtts.map_err(failed)?))
+    Ok(percentiles(rtts.map_err(floor_error("the raw TCP floor"))?))
 }
 
 /// A Zenoh floor at `at`: QUIC with a run's credentials unless `plain`.
@@ -238,7 +276,7 @@ fn zenoh_floor(
     if lowlatency {
         args.push("--lowlatency");
     }
-    let mut echo = sp.spawn(&args, secret.as_deref())?;
+    let echo = sp.spawn(&args, secret.as_deref())?;
     let floor = Floor {
         address: at.clone(),
         secret,
@@ -247,9 +285,10 @@ fn zenoh_floor(
             ..Tuning::default()
         },
     };
-    let rtts = tiltsim_net::pingpong::measure(&floor, &key, rounds, Duration::from_secs(30));
-    let _ = echo.wait();
-    Ok(percentiles(rtts.map_err(failed)?))
+    let rtts =
+        tiltsim_net::pingpong::measure(&floor, &key, rounds, Duration::from_secs(30), &sp.stop);
+    end_echo(echo, rtts.is_ok());
+    Ok(percentiles(rtts.map_err(floor_error("a Zenoh floor"))?))
 }
 
 /// The floors, in the order they are printed: the wire's, then Zenoh's variants.
@@ -309,6 +348,9 @@ pub fn network(a: &BenchArgs, base: &Scenario, exe: &Path, listen: &str) -> CliR
             .as_deref()
             .map(|v| v.split_whitespace().map(String::from).collect())
             .unwrap_or_default(),
+        // Ctrl-C ends the measurement under way and its echo or participant; nothing is
+        // written.
+        stop: tiltsim_rundir::signals::install(),
     };
     let rounds = a.rounds.min(20_000);
     eprintln!("  measuring the raw TCP floor ({rounds} round trips) ...");
