@@ -269,6 +269,10 @@ pub trait Endpoint<I: Message, O: Message> {
     /// waiter that shares a CPU with the process it waits for yields at once, since spinning
     /// would only delay that process. Changes how the orchestrator waits, never what it gets.
     fn set_shares_cpu(&mut self, _shared: bool) {}
+    /// Names, before the next request is sent, the participant asked after this one and for
+    /// which step, for this one to cue once it has answered (`cosim::ipc::supervise::CueWords`);
+    /// `None`: nobody. Changes which process runs, never what it computes.
+    fn set_cue_next(&mut self, _next: Option<(Role, u64)>) {}
     /// Waits (yielding the CPU) until a reply is pending, the participant is gone, or the
     /// deadline or 2 ms have passed, without taking the reply. The orchestrator lets
     /// participants that share its CPU answer first while another computes elsewhere;

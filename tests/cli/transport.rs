@@ -22,19 +22,20 @@ fn run_with_env(name: &str, scen: &str, extra: &[&str], env: (&str, &str)) -> Pa
 }
 
 /// A one-second Jacobi run of `scen` over IPC that got a pair of CPUs to place its
+/// participants on ([`on_a_pair_with`]).
+fn on_a_pair(name: &str, scen: &str) -> PathBuf {
+    on_a_pair_with(name, scen, &["--master", "jacobi", "--duration", "1"])
+}
+
+/// A run of `scen` over IPC with `extra` arguments that got a pair of CPUs to place its
 /// participants on. While other runs of this suite claim the machine's CPUs a run takes none
 /// (`contended`) and the kernel balances it, with no plan; other load does not decide (every
 /// unclaimed CPU is taken for idle). The run is repeated until it gets a pair: the other runs
 /// end.
-fn on_a_pair(name: &str, scen: &str) -> PathBuf {
+fn on_a_pair_with(name: &str, scen: &str, extra: &[&str]) -> PathBuf {
     let mut dir = PathBuf::new();
     for attempt in 0..=100 {
-        dir = run_with_env(
-            name,
-            scen,
-            &["--master", "jacobi", "--duration", "1"],
-            (cosim::ipc::placement::ASSUME_IDLE, "1"),
-        );
+        dir = run_with_env(name, scen, extra, (cosim::ipc::placement::ASSUME_IDLE, "1"));
         let sm = summary(&dir);
         if sm["timing"]["placement"]["reason"] == "free-pair" || attempt == 100 {
             break;
@@ -115,6 +116,37 @@ fn both_transports_give_byte_identical_timeseries_for_each_master() {
             assert!(s["timing"][k].as_f64().unwrap() >= 0.0);
         }
     }
+}
+
+/// Gauss-Seidel over IPC with its participants pinned together on one CPU, cued (the
+/// default) or yielding: the bytes of one process either way, and `summary.json` says which
+/// hand-over ran.
+#[test]
+fn gauss_seidel_participants_cued_or_yielding_give_the_bytes_of_one_process() {
+    let one = run_with(
+        "gs-one-process",
+        "irregular-track.toml",
+        "in-process",
+        "gauss-seidel",
+        &["--duration", "1"],
+    );
+    for how in ["cue", "yield"] {
+        let set = format!("run.hand_over={how}");
+        let dir = on_a_pair_with(
+            &format!("gs-{how}"),
+            "irregular-track.toml",
+            &["--master", "gauss-seidel", "--duration", "1", "--set", &set],
+        );
+        let timing = &summary(&dir)["timing"];
+        assert_eq!(timing["placement"]["reason"], "free-pair", "{timing}");
+        assert_eq!(timing["hand_over"], how, "{timing}");
+        assert!(
+            bytes(&dir) == bytes(&one),
+            "{how}: ipc and in-process differ"
+        );
+    }
+    // In one process nobody hands a CPU over.
+    assert!(summary(&one)["timing"]["hand_over"].is_null());
 }
 
 #[test]

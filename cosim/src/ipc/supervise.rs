@@ -1,6 +1,6 @@
 //! Supervision of participant processes: reaping them and reporting how they ended.
 
-use std::sync::atomic::AtomicU64;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::endpoint::ExitReport;
 use crate::participant::Role;
@@ -52,6 +52,39 @@ pub(crate) struct StatusWords {
     pub repeats: AtomicU64,
     /// Replies whose sending reached no subscriber and were sent again.
     pub undelivered: AtomicU64,
+    /// The cue ([`CueWords`]), on a cache line of its own.
+    pub cue: CueWords,
+}
+
+/// The cue among participants that share a CPU and yield it while they wait: the orchestrator
+/// names, with each step request, the participant of that CPU it will ask next and for which
+/// step; once this one has answered it cues that one, which then polls for its request without
+/// yielding (for a bounded number of polls) instead of handing the CPU on. Whatever order the
+/// kernel cycles the waiting processes in, the request then finds its participant polling.
+/// Changes which process runs, never what any computes.
+#[repr(C, align(64))]
+#[derive(Default)]
+pub(crate) struct CueWords {
+    /// Written by the orchestrator: who is asked after this participant's current request,
+    /// [`encode_next`]; 0 for nobody.
+    pub next: AtomicU64,
+    /// Written by the participant asked before this one: 1 + the step it will be asked for.
+    pub cue: AtomicU64,
+}
+
+/// The `next` word naming participant `role` (its index in [`Role::ALL`]) asked for `step`.
+pub(crate) fn encode_next(next: Option<(Role, u64)>) -> u64 {
+    next.and_then(|(r, step)| {
+        let i = Role::ALL.iter().position(|&x| x == r)? as u64;
+        (step < 1 << 56).then_some(((i + 1) << 56) | step)
+    })
+    .unwrap_or(0)
+}
+
+/// The participant and step a `next` word names.
+pub(crate) fn decode_next(word: u64) -> Option<(Role, u64)> {
+    let i = (word >> 56).checked_sub(1)? as usize;
+    Some((*Role::ALL.get(i)?, word & ((1 << 56) - 1)))
 }
 
 /// A participant's status words, mapped from shared memory (or private when the orchestrator
@@ -98,14 +131,8 @@ impl Status {
 
     /// The participant's side: opens the status its orchestrator created, or private words.
     pub(crate) fn open(prefix: &str, role: Role) -> Status {
-        let fd = status_name(prefix, role)
-            // SAFETY: a NUL-terminated name.
-            .map(|n| unsafe { libc::shm_open(n.as_ptr(), libc::O_RDWR, 0) })
-            .unwrap_or(-1);
-        if fd >= 0 {
-            if let Ok(s) = Self::map(fd, None) {
-                return s;
-            }
+        if let Some(s) = Self::open_shared(prefix, role) {
+            return s;
         }
         let private = Box::<StatusWords>::default();
         Status {
@@ -113,6 +140,18 @@ impl Status {
             owned: None,
             _private: Some(private),
         }
+    }
+
+    /// The status the orchestrator created for `role`, if there is one.
+    pub(crate) fn open_shared(prefix: &str, role: Role) -> Option<Status> {
+        let fd = status_name(prefix, role)
+            // SAFETY: a NUL-terminated name.
+            .map(|n| unsafe { libc::shm_open(n.as_ptr(), libc::O_RDWR, 0) })
+            .unwrap_or(-1);
+        if fd < 0 {
+            return None;
+        }
+        Self::map(fd, None).ok()
     }
 
     fn map(fd: libc::c_int, owned: Option<std::ffi::CString>) -> std::io::Result<Status> {
@@ -154,6 +193,11 @@ impl Status {
 
 impl Drop for Status {
     fn drop(&mut self) {
+        if self.owned.is_some() {
+            // The participant is gone or replaced: it names nobody to the others, whose
+            // mappings outlive this one, and nobody steps aside for it.
+            self.words().cue.next.store(0, Ordering::Release);
+        }
         if self._private.is_none() {
             // SAFETY: the mapping made in `map`, of STATUS_BYTES, unmapped once.
             unsafe { libc::munmap(self.words as *mut libc::c_void, STATUS_BYTES) };

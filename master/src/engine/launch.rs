@@ -17,7 +17,7 @@ use serde::Serialize;
 use tiltsim_fmi::{ActuatorIo, ControllerIo, PlantIo};
 use tiltsim_net::{NetHub, NetSettings};
 use tiltsim_scenario::roles::RoleMap;
-use tiltsim_scenario::scenario::{Scenario, Transport};
+use tiltsim_scenario::scenario::{Execution, HandOver, Master, Scenario, Transport};
 
 use super::{RunError, RunOptions};
 
@@ -85,6 +85,11 @@ pub(crate) struct Participants {
     pub net: Option<NetHub>,
     /// Which participants run on the orchestrator's CPU (set by the CPU plan).
     shares_cpu: RoleMap<bool>,
+    /// Which participants share one CPU of their own, yield it while they wait, and are asked
+    /// one after the other: each cues the one asked after it (`cosim::ipc::supervise::CueWords`).
+    cued: RoleMap<bool>,
+    /// How the participants pinned together hand their CPU over while they wait, if they are.
+    pub hand_over: Option<HandOver>,
     /// Where the processes run and how they wait (IPC only), for `timing.placement`.
     pub placement: Option<Placement>,
     /// The run's claim on its CPUs, released when the participants are dropped.
@@ -108,7 +113,15 @@ impl Participants {
         self.plant.set_shares_cpu(shared[Role::Plant]);
         self.actuator.set_shares_cpu(shared[Role::Actuator]);
         self.controller.set_shares_cpu(shared[Role::Controller]);
+        for r in Role::ALL {
+            self.cued[r] &= !shared[r];
+        }
         self.shares_cpu = shared;
+    }
+
+    /// Which participants cue each other.
+    pub fn cued(&self) -> &RoleMap<bool> {
+        &self.cued
     }
 
     /// Lets the participants among `pending` that share the orchestrator's CPU answer first
@@ -326,6 +339,8 @@ fn start_in_process(
         hub: None,
         net: None,
         shares_cpu: RoleMap::default(),
+        cued: RoleMap::default(),
+        hand_over: None,
         placement: None,
         _claim: Claim::none(),
     })
@@ -397,6 +412,13 @@ fn start_processes(
         // Its naps end on time (the participants do the same).
         cosim::wait::tight_timer_slack();
     }
+    // Under Gauss-Seidel each request waits for the previous answer, so the participant
+    // asked next is known when one answers; under Jacobi the requests are out together.
+    let together = placement.shared_participant_cpu().is_some()
+        && placement.wait == WaitStrategy::Adaptive
+        && s.run.execution == Execution::LockStep;
+    let cue = together && s.run.master == Master::GaussSeidel && s.run.hand_over == HandOver::Cue;
+    let hand_over = together.then_some(if cue { HandOver::Cue } else { HandOver::Yield });
     Ok(Participants {
         plant,
         actuator,
@@ -404,6 +426,8 @@ fn start_processes(
         hub: Some(hub),
         net: None,
         shares_cpu: RoleMap::default(),
+        cued: RoleMap::new([cue; 3]),
+        hand_over,
         placement: Some(placement),
         _claim: claim,
     })

@@ -492,6 +492,7 @@ fn timing(obs: &mut Observers, e: &Closed) -> Timing {
         cpu_plan: obs.cpu_plan.as_ref().and_then(|p| p.report()),
         machine: None,
         placement: e.placement.clone(),
+        hand_over: e.hand_over,
         cpu_s: CpuTime::new(e.cpu_orchestrator_s, e.exits.iter().map(|(_, x)| x.cpu_s)),
     }
 }

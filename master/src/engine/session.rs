@@ -49,6 +49,8 @@ pub(crate) struct Closed {
     pub network: Option<NetworkReport>,
     /// Where the run placed its processes.
     pub placement: Option<cosim::ipc::placement::Placement>,
+    /// How the participants pinned together handed their CPU over.
+    pub hand_over: Option<tiltsim_scenario::scenario::HandOver>,
     /// Shared-memory files left behind (empty unless something is wrong).
     pub leftover: Vec<String>,
     /// Participant logs that are not empty.
@@ -101,6 +103,7 @@ impl<'a> Session<'a> {
         let pids = ps.pids();
         let counts = ps.counts();
         let placement = ps.placement.take();
+        let hand_over = ps.hand_over;
         let exits = ps.shut_down(lost);
         let network = ps.net.as_ref().map(NetworkReport::of);
         if !self.s.participants.is_empty() {
@@ -128,6 +131,7 @@ impl<'a> Session<'a> {
             counts,
             network,
             placement,
+            hand_over,
             leftover,
             participant_logs,
             cpu_orchestrator_s: launch::cpu_self() - self.cpu0,

@@ -111,6 +111,10 @@ pub struct Timing {
     /// how they waited (IPC only; `cosim::ipc::placement`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub placement: Option<cosim::ipc::placement::Placement>,
+    /// How the participants pinned together on one CPU handed it over while they waited
+    /// (`cue` or `yield`, `run.hand_over`; IPC lock-step waiting adaptively only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hand_over: Option<tiltsim_scenario::scenario::HandOver>,
     /// How long the loop waited for a CPU and the load average (when the kernel reports
     /// them): whether other work on the machine slowed the run.
     #[serde(skip_serializing_if = "Option::is_none")]

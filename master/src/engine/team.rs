@@ -37,6 +37,33 @@ pub(crate) fn controller(
     &mut ps.controller
 }
 
+/// The participant asked after `role`'s step request for tick `k` among those `cued`, and for
+/// which step, if another: a Gauss-Seidel tick asks the controller (when due, every
+/// `controller_period` ticks), the actuator and the plant in that order, and the plant's
+/// successor is the first asked in the next tick.
+pub(crate) fn asked_after(
+    role: Role,
+    k: u64,
+    controller_period: u64,
+    cued: impl Fn(Role) -> bool,
+) -> Option<(Role, u64)> {
+    const ORDER: [Role; 3] = [Role::Controller, Role::Actuator, Role::Plant];
+    let mut i = ORDER.iter().position(|&r| r == role)?;
+    let mut tick = k;
+    for _ in 1..ORDER.len() {
+        i += 1;
+        if i == ORDER.len() {
+            i = 0;
+            tick += 1;
+        }
+        let r = ORDER[i];
+        if (r != Role::Controller || tick.is_multiple_of(controller_period)) && cued(r) {
+            return Some((r, tick));
+        }
+    }
+    None
+}
+
 /// The participants with everything that acts on the way to and from them.
 pub(crate) struct Team<'a> {
     s: &'a Scenario,
@@ -180,6 +207,12 @@ impl<'a> Team<'a> {
     ) -> Result<u64, LinkError> {
         let role = pick(&mut self.ps).role();
         self.flag(role, &mut req);
+        let h = *req.header();
+        if self.ps.cued()[role] && Kind::from_raw(h.kind) == Some(Kind::Step) {
+            let cued = |r: Role| self.ps.cued()[r] && self.lost[r].is_none();
+            let next = asked_after(role, h.step, self.s.controller_period_ticks(), cued);
+            pick(&mut self.ps).set_cue_next(next);
+        }
         let t0 = clock_ns(self.timed);
         pick(&mut self.ps).send(&req)?;
         Ok(t0)
@@ -340,5 +373,33 @@ impl<'a> Team<'a> {
             f64::NAN,
             e.cause(),
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::asked_after;
+    use cosim::Role::{Actuator, Controller, Plant};
+
+    #[test]
+    fn the_one_asked_next_follows_the_gauss_seidel_order_across_ticks() {
+        let all = |_| true;
+        // The MPC every 50 ticks: due at 100, not at 101.
+        assert_eq!(asked_after(Controller, 100, 50, all), Some((Actuator, 100)));
+        assert_eq!(asked_after(Actuator, 100, 50, all), Some((Plant, 100)));
+        assert_eq!(asked_after(Plant, 100, 50, all), Some((Actuator, 101)));
+        assert_eq!(asked_after(Plant, 149, 50, all), Some((Controller, 150)));
+        // A controller asked every tick.
+        assert_eq!(asked_after(Plant, 7, 1, all), Some((Controller, 8)));
+    }
+
+    #[test]
+    fn a_participant_not_cued_is_passed_over_and_nobody_named_when_none_is_left() {
+        let no_plant = |r| r != Plant;
+        assert_eq!(asked_after(Actuator, 3, 1, no_plant), Some((Controller, 4)));
+        // Itself next (the controller not due): nobody else to cue.
+        assert_eq!(asked_after(Actuator, 3, 50, no_plant), None);
+        let only_actuator = |r| r == Actuator;
+        assert_eq!(asked_after(Actuator, 3, 1, only_actuator), None);
     }
 }

@@ -92,6 +92,9 @@ pub struct RunSettings {
     /// Under Jacobi over IPC, give the participant measured heaviest a CPU of its own after a
     /// warm-up (`measured`, default) or keep every participant on one CPU (`fixed`).
     pub cpu_plan: CpuPlanMode,
+    /// How participants pinned together on one CPU hand it to each other under Gauss-Seidel
+    /// over IPC while they wait adaptively: `cue` (default) or `yield`.
+    pub hand_over: HandOver,
     /// Lock-step (default) or free running over IPC (docs/architecture.md, "Execution modes").
     pub execution: Execution,
     /// Free running only: a busy wait added to each controller step (s), for studies of a
@@ -121,6 +124,20 @@ pub enum CpuPlanMode {
     Fixed,
 }
 
+/// How participants that share a CPU hand it over (`run.hand_over`; docs/performance.md,
+/// "The exchange against iceoryx2's floor").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum HandOver {
+    /// Each that has answered cues the one asked after it, which polls without yielding
+    /// until its request comes; one found in front of the cued one steps out of the CPU's
+    /// queue for a moment, so that the kernel cycles them in the order they are asked.
+    #[default]
+    Cue,
+    /// Each polls and yields the CPU while it waits.
+    Yield,
+}
+
 impl Default for RunSettings {
     fn default() -> Self {
         RunSettings {
@@ -135,6 +152,7 @@ impl Default for RunSettings {
             startup_ms: 5000,
             pin_cpus: true,
             cpu_plan: CpuPlanMode::Measured,
+            hand_over: HandOver::Cue,
             execution: Execution::LockStep,
             controller_busy_wait_s: 0.0,
         }

@@ -467,6 +467,10 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
     fn set_shares_cpu(&mut self, shared: bool) {
         self.spin_polls = if shared { 0 } else { crate::wait::SPIN_POLLS };
     }
+    fn set_cue_next(&mut self, next: Option<(Role, u64)>) {
+        let word = crate::ipc::supervise::encode_next(next);
+        self.status.words().cue.next.store(word, Ordering::Release);
+    }
     fn await_pending(&mut self) {
         // Bounded well below the deadline: a participant that does not answer soon is left
         // to `receive`, which tells a dead, stalled or starved one apart.

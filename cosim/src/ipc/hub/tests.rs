@@ -158,3 +158,31 @@ fn a_request_sent_ahead_is_answered_after_the_pending_one_and_each_reply_goes_to
     );
     stop(hub, ep, serving);
 }
+
+#[test]
+fn a_participant_cues_the_one_named_next_once_it_has_answered() {
+    let model = Doubler {
+        steps: Arc::new(AtomicU64::new(0)),
+        pause: Duration::ZERO,
+    };
+    let (hub, mut ep, serving) = served(model, DropPlan::default());
+    let plant = Status::create(&hub.settings.prefix, Role::Plant).unwrap();
+    let cue = || plant.words().cue.cue.load(Ordering::Acquire);
+    for k in 0..4u64 {
+        // The plant asked after the controller, for the same tick, on even ticks only.
+        ep.set_cue_next((k % 2 == 0).then_some((Role::Plant, k)));
+        ep.send(&request(k)).unwrap();
+        ep.receive(k, Kind::Step).unwrap();
+        if k % 2 == 0 {
+            // Cued after the reply is sent: bounded only by the test's own limit.
+            let started = std::time::Instant::now();
+            while cue() != k + 1 && started.elapsed() < Duration::from_secs(600) {
+                std::thread::yield_now();
+            }
+        }
+        let want = if k % 2 == 0 { k + 1 } else { k };
+        assert_eq!(cue(), want, "step {k}");
+    }
+    drop(plant);
+    stop(hub, ep, serving);
+}
