@@ -197,6 +197,27 @@ pub struct ExchangeCounts {
     pub starved_waits: u64,
     /// Requests re-sent and repeats discarded: what lost samples cost.
     pub lost_samples: LostSamples,
+    /// How the participant handed its CPU over among those it shares it with.
+    pub cue: CueCounts,
+}
+
+/// The cue among participants that share a CPU (docs/architecture.md, "The cue"), as one
+/// participant counted it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct CueCounts {
+    /// Cues it gave the participant asked after it, once it had answered.
+    pub given: u64,
+    /// Waits in which it was cued and polled without yielding.
+    pub cued_waits: u64,
+    /// Times it found itself in front of a cued participant and stepped aside.
+    pub steps_aside: u64,
+}
+
+impl CueCounts {
+    /// No cue given, taken or stepped aside for: the participant was not cued.
+    pub fn is_zero(&self) -> bool {
+        *self == CueCounts::default()
+    }
 }
 
 /// How lost samples were repaired for one participant (docs/architecture.md, "Lost samples").

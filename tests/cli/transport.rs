@@ -120,7 +120,9 @@ fn both_transports_give_byte_identical_timeseries_for_each_master() {
 
 /// Gauss-Seidel over IPC with its participants pinned together on one CPU, cued (the
 /// default) or yielding: the bytes of one process either way, and `summary.json` says which
-/// hand-over ran.
+/// hand-over ran. Cued, each participant cues the one asked after it once per step it
+/// answers: the actuator the plant every tick, the plant the next tick's first every tick,
+/// the controller the actuator at each of its updates.
 #[test]
 fn gauss_seidel_participants_cued_or_yielding_give_the_bytes_of_one_process() {
     let one = run_with(
@@ -137,13 +139,25 @@ fn gauss_seidel_participants_cued_or_yielding_give_the_bytes_of_one_process() {
             "irregular-track.toml",
             &["--master", "gauss-seidel", "--duration", "1", "--set", &set],
         );
-        let timing = &summary(&dir)["timing"];
+        let sm = summary(&dir);
+        let timing = &sm["timing"];
         assert_eq!(timing["placement"]["reason"], "free-pair", "{timing}");
         assert_eq!(timing["hand_over"], how, "{timing}");
         assert!(
             bytes(&dir) == bytes(&one),
             "{how}: ipc and in-process differ"
         );
+        let ticks = sm["steps_completed"].as_u64().unwrap();
+        let dt = sm["dt_s"].as_f64().unwrap();
+        for p in sm["participants"].as_array().unwrap() {
+            let cue = &p["cue"];
+            if how == "yield" {
+                assert!(cue.is_null(), "{p}");
+                continue;
+            }
+            let every = (p["period_s"].as_f64().unwrap() / dt).round() as u64;
+            assert_eq!(cue["given"].as_u64(), Some(ticks.div_ceil(every)), "{p}");
+        }
     }
     // In one process nobody hands a CPU over.
     assert!(summary(&one)["timing"]["hand_over"].is_null());

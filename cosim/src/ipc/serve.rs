@@ -98,6 +98,9 @@ pub(crate) fn serve_dropping<P: Participant>(
         if let Some(k) = key {
             words.taken.store(k + 1, Ordering::Release);
         }
+        // Whom to cue once answered: named with this request, read before the orchestrator
+        // can name another for the next one.
+        let cue_next = words.cue.next.load(Ordering::Acquire);
         // A repeat of the request last answered: its reply again, the model not stepped.
         if let Some(again) = repeat.answer(&h) {
             let undelivered = super::publish(&publisher, again).map_err(IpcError::Iceoryx)?;
@@ -136,7 +139,7 @@ pub(crate) fn serve_dropping<P: Participant>(
             words.answered.store(k + 1, Ordering::Release);
         }
         if matches!(Kind::from_raw(h.kind), Some(Kind::Step)) {
-            peers.cue(words);
+            peers.cue(words, cue_next);
         }
     }
 }
@@ -199,11 +202,12 @@ impl<'a> Peers<'a> {
         false
     }
 
-    /// Cues the participant the orchestrator named in this one's `words` as asked next, if
-    /// any (`supervise::CueWords`).
+    /// Cues the participant the orchestrator named as asked next in the `next` word it wrote
+    /// into this one's `words` with the request just answered, if any
+    /// (`supervise::CueWords`).
     #[inline]
-    fn cue(&mut self, words: &StatusWords) {
-        let Some((role, step)) = decode_next(words.cue.next.load(Ordering::Acquire)) else {
+    fn cue(&mut self, words: &StatusWords, next: u64) {
+        let Some((role, step)) = decode_next(next) else {
             return;
         };
         let Some(i) = Role::ALL.iter().position(|&r| r == role) else {
@@ -211,6 +215,7 @@ impl<'a> Peers<'a> {
         };
         if let Some(w) = self.words(i) {
             w.cue.cue.store(step + 1, Ordering::Release);
+            words.cue.given.fetch_add(1, Ordering::Relaxed);
         }
     }
 }
@@ -274,12 +279,16 @@ impl Waiting {
             *empty_polls += 1;
             words.empty_polls.store(*empty_polls, Ordering::Release);
             if cued_polls < CUED_POLLS && words.cue.cue.load(Ordering::Acquire) > after {
+                if cued_polls == 0 {
+                    words.cue.cued_waits.fetch_add(1, Ordering::Relaxed);
+                }
                 cued_polls += 1;
                 std::hint::spin_loop();
                 continue;
             }
             if peers.ahead_of_cued(self.role, last_step.unwrap_or(0)) {
                 // Out of the queue for a moment: back in it, behind the one cued.
+                words.cue.steps_aside.fetch_add(1, Ordering::Relaxed);
                 std::thread::sleep(STEP_ASIDE);
                 continue;
             }
@@ -593,16 +602,14 @@ mod tests {
         let (prefix, made) = statuses(&[Role::Actuator, Role::Plant]);
         let (actuator, plant) = (made[0].words(), made[1].words());
         let mut peers = Peers::new(&prefix);
-        actuator.cue.next.store(
-            super::super::supervise::encode_next(Some((Role::Plant, 41))),
-            Ordering::Release,
-        );
-        peers.cue(actuator);
+        let next = super::super::supervise::encode_next(Some((Role::Plant, 41)));
+        peers.cue(actuator, next);
         assert_eq!(plant.cue.cue.load(Ordering::Acquire), 42);
-        actuator.cue.next.store(0, Ordering::Release);
+        assert_eq!(actuator.cue.given.load(Ordering::Acquire), 1);
         plant.cue.cue.store(0, Ordering::Release);
-        peers.cue(actuator);
+        peers.cue(actuator, 0);
         assert_eq!(plant.cue.cue.load(Ordering::Acquire), 0);
+        assert_eq!(actuator.cue.given.load(Ordering::Acquire), 1);
     }
 
     #[test]

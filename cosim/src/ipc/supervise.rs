@@ -35,7 +35,9 @@ pub(crate) fn try_reap(pid: u32, block: bool) -> Option<ExitReport> {
 /// of shared memory (`/dev/shm/<prefix>status_<role>`, removed with the run's files): the
 /// request it last took, the reply it last published, and how many times it polled and found
 /// nothing. Written by the participant only (plain stores, no waiting), read by the
-/// orchestrator only when an exchange has gone silent, so it costs nothing on the normal path.
+/// orchestrator only when an exchange has gone silent, so it costs nothing on the normal path
+/// (the cue's words, [`CueWords`], are also written by the orchestrator and by the other
+/// participants).
 /// With it a silent exchange is told apart: the reply was sent but not seen (lost reply), the
 /// participant polls but never took the request (lost request), it took the request and
 /// computes, or it does nothing at all (stalled).
@@ -70,6 +72,13 @@ pub(crate) struct CueWords {
     pub next: AtomicU64,
     /// Written by the participant asked before this one: 1 + the step it will be asked for.
     pub cue: AtomicU64,
+    /// Written by this participant: the cues it gave.
+    pub given: AtomicU64,
+    /// Written by this participant: the waits in which it was cued and polled without
+    /// yielding.
+    pub cued_waits: AtomicU64,
+    /// Written by this participant: the times it stepped aside for a cued one.
+    pub steps_aside: AtomicU64,
 }
 
 /// The `next` word naming participant `role` (its index in [`Role::ALL`]) asked for `step`.
@@ -149,6 +158,17 @@ impl Status {
             .map(|n| unsafe { libc::shm_open(n.as_ptr(), libc::O_RDWR, 0) })
             .unwrap_or(-1);
         if fd < 0 {
+            return None;
+        }
+        // Mapped only once its orchestrator has sized it, or touching it would fault.
+        // SAFETY: `fd` is open; `st` is written by fstat.
+        let sized = unsafe {
+            let mut st: libc::stat = std::mem::zeroed();
+            libc::fstat(fd, &mut st) == 0 && st.st_size as usize >= STATUS_BYTES
+        };
+        if !sized {
+            // SAFETY: `fd` is open and closed once.
+            unsafe { libc::close(fd) };
             return None;
         }
         Self::map(fd, None).ok()

@@ -426,7 +426,8 @@ fn start_processes(
         hub: Some(hub),
         net: None,
         shares_cpu: RoleMap::default(),
-        cued: RoleMap::new([cue; 3]),
+        // A participant on another host has no status words here to be cued in.
+        cued: RoleMap::new(Role::ALL.map(|r| cue && !s.network.is_remote(r))),
         hand_over,
         placement: Some(placement),
         _claim: claim,

@@ -234,6 +234,10 @@ impl Closed {
                     .as_ref()
                     .map(|_| self.counts[role].lost_samples)
                     .unwrap_or_default(),
+                cue: compute
+                    .as_ref()
+                    .map(|_| self.counts[role].cue)
+                    .unwrap_or_default(),
             })
             .collect()
     }

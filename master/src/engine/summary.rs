@@ -3,7 +3,7 @@
 //! fills `results`, `comfort` and `flags` from the recorded series (`tiltsim_report::analysis`).
 
 use cosim::endpoint::ExitReport;
-use cosim::endpoint::LostSamples;
+use cosim::endpoint::{CueCounts, LostSamples};
 use cosim::stats::Percentiles;
 use cosim::wait::WaitStrategy;
 use cosim::Role;
@@ -82,6 +82,9 @@ pub struct ParticipantReport {
     pub starved_waits: u64,
     /// Requests re-sent and repeats discarded: what lost samples cost.
     pub lost_samples: LostSamples,
+    /// How it handed its CPU over, when it was cued (`run.hand_over = "cue"`).
+    #[serde(skip_serializing_if = "CueCounts::is_zero")]
+    pub cue: CueCounts,
 }
 
 /// Timing of the run.
@@ -335,6 +338,7 @@ pub const WALL_CLOCK_FIELDS: &[&str] = &[
     "participants.compute_us",
     "participants.starved_waits",
     "participants.lost_samples",
+    "participants.cue",
     "wall_time_s",
     "realtime_factor",
     "timing",
@@ -390,6 +394,7 @@ impl Summary {
                         "compute_us": p.compute_us,
                         "starved_waits": p.starved_waits,
                         "lost_samples": p.lost_samples,
+                        "cue": p.cue,
                     }),
                 )
             })

@@ -97,20 +97,39 @@ fn interrupted(what: &str) -> CliError {
     ))
 }
 
-/// A floor's failure, or its stop at Ctrl-C.
-fn floor_error(what: &str) -> impl FnOnce(tiltsim_net::NetError) -> CliError + '_ {
-    move |e| match e {
-        tiltsim_net::NetError::Stopped => interrupted(what),
-        e => failed(e),
+/// A floor's failure, or its stop at Ctrl-C (whatever the measurement saw then: an echo
+/// that a terminal's Ctrl-C reached too ends its side).
+fn floor_error<'a>(
+    what: &'a str,
+    stop: &'a AtomicBool,
+) -> impl FnOnce(tiltsim_net::NetError) -> CliError + 'a {
+    move |e| {
+        if stop.load(Ordering::Relaxed) || matches!(e, tiltsim_net::NetError::Stopped) {
+            interrupted(what)
+        } else {
+            failed(e)
+        }
     }
 }
 
-/// Ends an echo: it ends on its own once measured, and is killed when the measurement failed
-/// or was stopped (it would otherwise wait for pings until its idle limit).
+/// How long an echo that was measured is given to end on its own (it ends at the bench's
+/// one-byte goodbye, or when its connection closes).
+const ECHO_END: Duration = Duration::from_secs(5);
+
+/// Ends an echo: one measured is given [`ECHO_END`] to end on its own; it is killed then, at
+/// once when the measurement failed or was stopped (it would otherwise wait for pings until its
+/// idle limit).
 fn end_echo(mut echo: Child, measured: bool) {
-    if !measured {
-        let _ = echo.kill();
+    if measured {
+        let started = std::time::Instant::now();
+        while started.elapsed() < ECHO_END {
+            if !matches!(echo.try_wait(), Ok(None)) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
     }
+    let _ = echo.kill();
     let _ = echo.wait();
 }
 
@@ -145,6 +164,8 @@ impl Spawner<'_> {
             }
             None => Command::new(self.exe),
         };
+        // A process group of its own: a terminal's Ctrl-C reaches the bench, which ends it.
+        std::os::unix::process::CommandExt::process_group(&mut c, 0);
         c.args(args)
             .stdin(Stdio::null())
             .stdout(Stdio::null())
@@ -252,7 +273,8 @@ fn raw_floor(sp: &Spawner<'_>, at: &Address, rounds: usize) -> Result<Percentile
     if let Some(e) = echo {
         end_echo(e, rtts.is_ok());
     }
-    Ok(percentiles(rtts.map_err(floor_error("the raw TCP floor"))?))
+    let rtts = rtts.map_err(floor_error("the raw TCP floor", &sp.stop))?;
+    Ok(percentiles(rtts))
 }
 
 /// A Zenoh floor at `at`: QUIC with a run's credentials unless `plain`.
@@ -288,7 +310,8 @@ fn zenoh_floor(
     let rtts =
         tiltsim_net::pingpong::measure(&floor, &key, rounds, Duration::from_secs(30), &sp.stop);
     end_echo(echo, rtts.is_ok());
-    Ok(percentiles(rtts.map_err(floor_error("a Zenoh floor"))?))
+    let rtts = rtts.map_err(floor_error("a Zenoh floor", &sp.stop))?;
+    Ok(percentiles(rtts))
 }
 
 /// The floors, in the order they are printed: the wire's, then Zenoh's variants.

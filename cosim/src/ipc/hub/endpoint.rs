@@ -462,6 +462,12 @@ impl<I: Message, O: Message> Endpoint<I, O> for IpcEndpoint<I, O> {
         c.lost_samples.repeats_answered = self.status.words().repeats.load(Ordering::Relaxed);
         c.lost_samples.undelivered_replies =
             self.status.words().undelivered.load(Ordering::Relaxed);
+        let cue = &self.status.words().cue;
+        c.cue = crate::endpoint::CueCounts {
+            given: cue.given.load(Ordering::Relaxed),
+            cued_waits: cue.cued_waits.load(Ordering::Relaxed),
+            steps_aside: cue.steps_aside.load(Ordering::Relaxed),
+        };
         c
     }
     fn set_shares_cpu(&mut self, shared: bool) {
