@@ -153,6 +153,8 @@ struct Peers<'a> {
     mapped: [Option<Status>; 3],
     /// Whether each was looked for.
     looked: [bool; 3],
+    /// The last cue this participant gave: the peer's index and the cue word written.
+    gave: Option<(usize, u64)>,
     /// The step at which this participant last stepped aside.
     steered: u64,
 }
@@ -163,6 +165,7 @@ impl<'a> Peers<'a> {
             prefix,
             mapped: [None, None, None],
             looked: [false; 3],
+            gave: None,
             steered: 0,
         }
     }
@@ -178,11 +181,13 @@ impl<'a> Peers<'a> {
     /// Whether `me`, polling in vain, runs before a participant that is cued and has not yet
     /// taken its request though the orchestrator asks `me` after it: the processes that yield
     /// their CPU cycle in an order that puts `me` in front of it, and every request of the tick
-    /// then waits for one more process switch. True at most once every [`STEER_EVERY`] steps.
+    /// then waits for one more process switch. Not when `me` gave that cue: it has only just
+    /// answered and not yet handed the CPU on. True at most once every [`STEER_EVERY`] steps.
     fn ahead_of_cued(&mut self, me: Role, my_step: u64) -> bool {
         if my_step < self.steered + STEER_EVERY {
             return false;
         }
+        let gave = self.gave;
         for (i, r) in Role::ALL.iter().enumerate() {
             if *r == me {
                 continue;
@@ -191,7 +196,7 @@ impl<'a> Peers<'a> {
                 continue;
             };
             let cue = w.cue.cue.load(Ordering::Acquire);
-            if cue == 0 || w.taken.load(Ordering::Acquire) >= 2 * cue {
+            if cue == 0 || w.taken.load(Ordering::Acquire) >= 2 * cue || gave == Some((i, cue)) {
                 continue;
             }
             if decode_next(w.cue.next.load(Ordering::Acquire)).map(|(r, _)| r) == Some(me) {
@@ -216,6 +221,7 @@ impl<'a> Peers<'a> {
         if let Some(w) = self.words(i) {
             w.cue.cue.store(step + 1, Ordering::Release);
             words.cue.given.fetch_add(1, Ordering::Relaxed);
+            self.gave = Some((i, step + 1));
         }
     }
 }
@@ -638,6 +644,27 @@ mod tests {
         // Named nobody: nobody steps aside.
         actuator.cue.next.store(0, Ordering::Release);
         assert!(!peers.ahead_of_cued(Role::Plant, 10 * STEER_EVERY));
+    }
+
+    #[test]
+    fn a_participant_that_has_just_cued_the_next_does_not_step_aside_for_it() {
+        // Two left (the actuator replaced): the plant and the controller ask each other next.
+        let (prefix, made) = statuses(&[Role::Plant, Role::Controller]);
+        let (plant, controller) = (made[0].words(), made[1].words());
+        let encode = super::super::supervise::encode_next;
+        controller
+            .cue
+            .next
+            .store(encode(Some((Role::Plant, 700))), Ordering::Release);
+        controller.taken.store(2 * 698 + 2, Ordering::Release);
+        // The plant answers step 699 and cues the controller for 700, then polls in vain
+        // before it has yielded: not in front of the one it cued.
+        let mut peers = Peers::new(&prefix);
+        peers.cue(plant, encode(Some((Role::Controller, 700))));
+        assert!(!peers.ahead_of_cued(Role::Plant, 699));
+        // The same cue given by another: the plant is in front of the controller.
+        let mut other = Peers::new(&prefix);
+        assert!(other.ahead_of_cued(Role::Plant, 699));
     }
 
     #[test]
