@@ -97,8 +97,8 @@ fn interrupted(what: &str) -> CliError {
     ))
 }
 
-/// A floor's failure, or its stop at Ctrl-C (whatever the measurement saw then: an echo
-/// that a terminal's Ctrl-C reached too ends its side).
+/// A floor's failure, or its stop at Ctrl-C (whatever the measurement saw then: the echo,
+/// started through a `--remote-via` command, may have been ended by the same signal).
 fn floor_error<'a>(
     what: &'a str,
     stop: &'a AtomicBool,
