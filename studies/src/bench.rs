@@ -50,16 +50,35 @@ pub struct Config {
     /// Where the run's processes ran (IPC only): a pair of CPUs of its own, or left to the
     /// kernel among other work (`cosim::ipc::placement`).
     pub placement: Option<cosim::ipc::placement::Reason>,
-    /// iceoryx2's floor for this tick's exchanges (µs): the p50 tick of the same pattern,
-    /// placement and wait with nothing of tiltsim's in between ([`ExchangeFloors`]). Only
-    /// for the IPC rows with the adaptive wait that had a pair of CPUs of their own (the
-    /// floor's placement), once the floors are measured.
+    /// iceoryx2's floor for this tick's exchanges (µs): the best set's p50 tick of the same
+    /// pattern, placement and wait with nothing of tiltsim's in between ([`ExchangeFloors`]),
+    /// over every round. Only for the IPC rows with the adaptive wait that had a pair of CPUs
+    /// of their own (the floor's placement) in at least one round, once the floors are
+    /// measured.
     pub exchange_floor_us: Option<f64>,
     /// The worst set's p50 of the same floor (µs): the cost of the same exchanges when the
     /// kernel cycles the processes sharing a CPU in the least favourable order.
     pub exchange_floor_worst_us: Option<f64>,
-    /// `overhead_p50_us / exchange_floor_us`: how far tiltsim's coordination is from the
-    /// transport's floor for the same pattern.
+    /// How far tiltsim's coordination is from the transport's floor for the same pattern: the
+    /// median over the rounds of each round's overhead over the floor measured right after it
+    /// ([`Round::overhead_over_floor`]).
+    pub overhead_over_floor: Option<f64>,
+    /// Every round of this configuration in run order, the first its own run above (one for
+    /// the configurations the wall-time ratios do not compare).
+    pub rounds: Vec<Round>,
+}
+
+/// One round of a configuration.
+#[derive(Debug, Clone, Serialize)]
+pub struct Round {
+    /// Coordination overhead per tick, p50 (µs).
+    pub overhead_p50_us: f64,
+    /// Where the round's processes ran (IPC only).
+    pub placement: Option<cosim::ipc::placement::Reason>,
+    /// `overhead_p50_us` over the best set of iceoryx2's floor measured right after this
+    /// round's runs: the two taken in the same state of the machine, whose latency between
+    /// CPUs changes over minutes (docs/performance.md). Only where the row is set beside a
+    /// floor and this round had a pair of CPUs of its own.
     pub overhead_over_floor: Option<f64>,
 }
 
@@ -95,8 +114,8 @@ pub struct Report {
     /// (the in-process run keeps the ordinary policy: what the real-time policy buys an IPC
     /// run, beside the same hogs).
     pub realtime: Option<RealtimeWalls>,
-    /// CPU hogs (spinning threads) that ran beside every configuration (`--hogs`); the floors
-    /// are measured after they stopped.
+    /// CPU hogs (spinning threads) that ran beside every configuration (`--hogs`); they are
+    /// stopped while the floors are measured.
     pub hogs: usize,
     /// Why the wall-time ratios are not drawn: a configuration's rounds spread too widely
     /// (the load the machine ran under is in `load_average`).
@@ -111,7 +130,7 @@ pub struct Report {
     /// The machine's ping-pong floors, measured after the configurations (`tiltsim bench`).
     pub machine_floors: Option<MachineFloors>,
     /// iceoryx2's floor for the scenario's tick pattern under each master, measured after
-    /// the configurations (`tiltsim bench`).
+    /// each round of the configurations (`tiltsim bench`).
     pub exchange_floors: Option<ExchangeFloors>,
 }
 
@@ -120,13 +139,16 @@ pub struct Report {
 /// as an adaptive IPC run, each echo asked as often as its participant, 256-byte samples.
 /// Measured in several sets of fresh processes: processes that yield one CPU are cycled in
 /// an order fixed when they start, and a tick costs a hand-over more for each request that
-/// finds another process at the front of that cycle.
+/// finds another process at the front of that cycle. `tiltsim bench` measures
+/// `sets_per_round` sets of each pattern right after each round of the runs it compares.
 #[derive(Debug, Clone, Serialize)]
 pub struct ExchangeFloors {
     /// Every how many ticks each echo is asked (plant, actuator, controller).
     pub every: Vec<u64>,
     /// Ticks measured per set.
     pub ticks: usize,
+    /// Sets of each pattern measured after each round, in round order below.
+    pub sets_per_round: usize,
     /// Per tick, one exchange after the other (Gauss-Seidel), µs, each set.
     pub in_turn_sets_us: Vec<cosim::stats::Percentiles>,
     /// Per tick, every request and then every answer (Jacobi), µs, each set.
@@ -149,26 +171,60 @@ impl ExchangeFloors {
     pub fn all_at_once_us(&self) -> (f64, f64) {
         p50_range(&self.all_at_once_sets_us)
     }
+    /// Rounds measured.
+    pub fn rounds(&self) -> usize {
+        self.in_turn_sets_us
+            .len()
+            .checked_div(self.sets_per_round)
+            .unwrap_or(0)
+    }
+    /// The sets of `master`'s pattern.
+    fn sets(&self, master: &str) -> &[cosim::stats::Percentiles] {
+        if master == Master::Jacobi.name() {
+            &self.all_at_once_sets_us
+        } else {
+            &self.in_turn_sets_us
+        }
+    }
+    /// The best p50 of `master`'s pattern among the sets measured after round `r` (µs).
+    pub fn round_best_us(&self, master: &str, r: usize) -> Option<f64> {
+        let k = self.sets_per_round;
+        let sets = self.sets(master).get(r * k..(r + 1) * k)?;
+        let (best, _) = p50_range(sets);
+        (best.is_finite() && best > 0.0).then_some(best)
+    }
+    /// Appends the sets of one more round, measured as these.
+    fn append(&mut self, next: ExchangeFloors) {
+        self.in_turn_sets_us.extend(next.in_turn_sets_us);
+        self.all_at_once_sets_us.extend(next.all_at_once_sets_us);
+    }
 }
 
 impl Report {
-    /// Sets the exchange floors and each adaptive IPC row's ratio to its master's floor.
+    /// Sets the exchange floors and each adaptive IPC row beside its master's floor, round by
+    /// round: each round's overhead over the best set measured right after that round.
     pub fn set_exchange_floors(&mut self, f: ExchangeFloors) {
         for c in self.configs.iter_mut() {
-            let comparable = c.transport == Transport::Ipc.name()
-                && c.wait == WaitStrategy::Adaptive.name()
-                && c.placement == Some(Reason::FreePair);
+            let comparable =
+                c.transport == Transport::Ipc.name() && c.wait == WaitStrategy::Adaptive.name();
             if !comparable {
                 continue;
             }
-            let (floor, worst) = if c.master == Master::Jacobi.name() {
-                f.all_at_once_us()
-            } else {
-                f.in_turn_us()
-            };
+            let mut ratios = Vec::new();
+            for (i, round) in c.rounds.iter_mut().enumerate() {
+                round.overhead_over_floor = f
+                    .round_best_us(c.master, i)
+                    .filter(|_| round.placement == Some(Reason::FreePair))
+                    .map(|best| round.overhead_p50_us / best);
+                ratios.extend(round.overhead_over_floor);
+            }
+            if ratios.is_empty() {
+                continue;
+            }
+            let (floor, worst) = p50_range(f.sets(c.master));
             c.exchange_floor_us = Some(floor);
             c.exchange_floor_worst_us = Some(worst);
-            c.overhead_over_floor = (floor > 0.0).then(|| c.overhead_p50_us / floor);
+            c.overhead_over_floor = Some(median(&ratios));
         }
         self.exchange_floors = Some(f);
     }
@@ -424,48 +480,80 @@ pub struct Setup {
     pub interrupt: Arc<AtomicBool>,
 }
 
-/// Runs every configuration once, then `rounds − 1` more rounds of those that the wall-time
-/// ratios compare (in-process, IPC Gauss-Seidel and IPC Jacobi with the adaptive wait, and
-/// with `realtime` the two IPC ones under SCHED_FIFO), one after the other, so that a shared
-/// machine's drift falls on all alike; the ratios are those of the median walls. `progress`
-/// is told each run's name.
+/// Runs `rounds` rounds of the configurations that the wall-time ratios compare (in-process,
+/// IPC Gauss-Seidel and IPC Jacobi with the adaptive wait, and with `realtime` the two IPC ones
+/// under SCHED_FIFO), one after the other, so that a shared machine's drift falls on all
+/// alike; the ratios are those of the median walls. After each round `floors` measures
+/// iceoryx2's floor for the scenario's ticks (given the round's index), so that each round's
+/// overhead is set beside a floor taken in the same state of the machine. The other
+/// configurations run once, after the first round's floor. `progress` is told each run's name.
 pub fn run(
     base: &Scenario,
     duration: f64,
     setup: &Setup,
     exe: &Path,
     scratch: &Path,
+    mut floors: impl FnMut(usize) -> Result<ExchangeFloors, BenchError>,
     mut progress: impl FnMut(&str),
 ) -> Result<Report, BenchError> {
-    let mut configs = Vec::new();
+    let plans = configurations(setup.realtime);
+    let mut rows: Vec<Option<Config>> = vec![None; plans.len()];
     let mut walls = WallRounds::default();
+    let mut measured: Option<ExchangeFloors> = None;
     let load_before = tiltsim_master::engine::machine::load_average();
-    for (i, p) in configurations(setup.realtime).into_iter().enumerate() {
-        // Spinning waiters on a 2-CPU machine starve each other (a tick costs whole
-        // scheduler slices), so spin gets a tenth of the ticks; the table shows how many.
-        let d = if p.wait == WaitStrategy::Spin && p.transport == Transport::Ipc {
-            (duration / 10.0).max(base.run.dt_s * 100.0)
-        } else {
-            duration
-        };
-        let s = configured(base, d, p);
-        let name = p.name();
-        progress(&name);
-        let dir = scratch.join(format!("config-{i}"));
-        let sum = measure(&s, exe, &dir, &name, p.realtime, &setup.interrupt)?;
-        walls.add(p, sum.wall_time_s);
-        configs.push(Config::of(p, &sum));
-    }
-    for round in 1..setup.rounds {
+    for round in 0..setup.rounds.max(1) {
         for p in compared(setup.realtime) {
             let s = configured(base, duration, p);
-            let name = format!("{}, round {}", p.name(), round + 1);
+            let name = if round == 0 {
+                p.name()
+            } else {
+                format!("{}, round {}", p.name(), round + 1)
+            };
             progress(&name);
-            let dir = scratch.join(format!("round-{round}-{}", p.name().replace(' ', "-")));
+            let i = plans
+                .iter()
+                .position(|q| *q == p)
+                .expect("compared is measured");
+            let dir = if round == 0 {
+                scratch.join(format!("config-{i}"))
+            } else {
+                scratch.join(format!("round-{round}-{}", p.name().replace(' ', "-")))
+            };
             let sum = measure(&s, exe, &dir, &name, p.realtime, &setup.interrupt)?;
             walls.add(p, sum.wall_time_s);
+            match &mut rows[i] {
+                Some(row) => row.rounds.push(Round::of(&sum)),
+                row => *row = Some(Config::of(p, &sum)),
+            }
+        }
+        let f = floors(round)?;
+        match &mut measured {
+            Some(all) => all.append(f),
+            all => *all = Some(f),
+        }
+        if round > 0 {
+            continue;
+        }
+        for (i, p) in plans.iter().enumerate() {
+            if rows[i].is_some() {
+                continue;
+            }
+            // Spinning waiters on a 2-CPU machine starve each other (a tick costs whole
+            // scheduler slices), so spin gets a tenth of the ticks; the table shows how many.
+            let d = if p.wait == WaitStrategy::Spin && p.transport == Transport::Ipc {
+                (duration / 10.0).max(base.run.dt_s * 100.0)
+            } else {
+                duration
+            };
+            let s = configured(base, d, *p);
+            let name = p.name();
+            progress(&name);
+            let dir = scratch.join(format!("config-{i}"));
+            let sum = measure(&s, exe, &dir, &name, p.realtime, &setup.interrupt)?;
+            rows[i] = Some(Config::of(*p, &sum));
         }
     }
+    let configs: Vec<Config> = rows.into_iter().flatten().collect();
     let floor = configs
         .iter()
         .filter(|c| c.transport == Transport::Ipc.name())
@@ -495,7 +583,7 @@ pub fn run(
             jacobi_ipc_over_in_process: ratio(jacobi),
         }
     });
-    Ok(Report {
+    let mut report = Report {
         scenario: base.name.clone(),
         duration_s: duration,
         cpus,
@@ -519,7 +607,11 @@ pub fn run(
         wall_rounds: walls,
         machine_floors: None,
         exchange_floors: None,
-    })
+    };
+    if let Some(f) = measured {
+        report.set_exchange_floors(f);
+    }
+    Ok(report)
 }
 
 /// The configurations measured: in-process, then IPC under each master and wait strategy,
@@ -572,8 +664,8 @@ fn configured(base: &Scenario, duration: f64, p: Plan) -> Scenario {
 }
 
 impl Config {
-    /// The row of configuration `(t, m, w)` from the summary of its run (floors not yet set,
-    /// [`Report::set_exchange_floors`]).
+    /// The row of configuration `(t, m, w)` from the summary of its first run (floors not yet
+    /// set, [`Report::set_exchange_floors`]).
     fn of(p: Plan, sum: &Summary) -> Config {
         let (t, m, w) = (p.transport, p.master, p.wait);
         let plant = &sum.link_latency[0];
@@ -597,6 +689,18 @@ impl Config {
             placement: sum.timing.placement.as_ref().map(|p| p.reason),
             exchange_floor_us: None,
             exchange_floor_worst_us: None,
+            overhead_over_floor: None,
+            rounds: vec![Round::of(sum)],
+        }
+    }
+}
+
+impl Round {
+    /// The round measured by the run whose summary is `sum` (not yet set beside a floor).
+    fn of(sum: &Summary) -> Round {
+        Round {
+            overhead_p50_us: sum.timing.p50,
+            placement: sum.timing.placement.as_ref().map(|p| p.reason),
             overhead_over_floor: None,
         }
     }

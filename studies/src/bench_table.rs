@@ -11,7 +11,7 @@ pub fn table(r: &Report) -> String {
     let mut s = format!(
         "tiltsim bench: {} for {} s simulated per configuration on {} CPUs{}\n\
          machine: {}, {} logical CPUs, Linux {}\n\n\
-         | transport | master | wait | realtime | placement | ticks | overhead p50 (µs) | p99 (µs) | iceoryx2 floor per tick, best–worst set (µs) | overhead / best | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
+         | transport | master | wait | realtime | placement | ticks | overhead p50 (µs) | p99 (µs) | iceoryx2 floor per tick, best–worst set (µs) | overhead / floor, median of rounds | plant round trip − compute p50 (µs) | round trip p99 (µs) | wall (s) | CPU (s) |\n\
          |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         r.scenario,
         r.duration_s,
@@ -106,12 +106,39 @@ fn footer(s: &mut String, r: &Report) {
         let _ = writeln!(
             s,
             "iceoryx2 floor per tick (an echo per participant, asked every {} ticks, placed and \
-             waiting as an adaptive run; {} sets of fresh processes, {} ticks each): p50 \
-             {a:.2}-{b:.2} µs one exchange after the other (gauss-seidel), {c:.2}-{d:.2} µs all \
-             at once (jacobi)",
+             waiting as an adaptive run; {} sets of fresh processes after each of {} round(s), \
+             {} ticks each): p50 {a:.2}-{b:.2} µs one exchange after the other (gauss-seidel), \
+             {c:.2}-{d:.2} µs all at once (jacobi)",
             every.join("/"),
-            f.in_turn_sets_us.len(),
+            f.sets_per_round,
+            f.rounds(),
             f.ticks,
+        );
+        round_ratios(s, r);
+    }
+}
+
+/// Each round's overhead over the best floor set measured right after it, per row set beside
+/// a floor.
+fn round_ratios(s: &mut String, r: &Report) {
+    use std::fmt::Write as _;
+    for c in r.configs.iter().filter(|c| c.overhead_over_floor.is_some()) {
+        let each: Vec<String> = c
+            .rounds
+            .iter()
+            .map(|round| {
+                round
+                    .overhead_over_floor
+                    .map_or("-".into(), |x| format!("{x:.2}"))
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "overhead over the floor measured right after it, {} {}{}, each round: {}",
+            c.transport,
+            c.master,
+            if c.realtime { " realtime" } else { "" },
+            each.join(", ")
         );
     }
 }

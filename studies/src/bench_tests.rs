@@ -41,27 +41,37 @@ fn row(transport: Transport, master: Master, wait: WaitStrategy, reason: Option<
         exchange_floor_us: None,
         exchange_floor_worst_us: None,
         overhead_over_floor: None,
+        rounds: vec![Round {
+            overhead_p50_us: 10.0,
+            placement: reason,
+            overhead_over_floor: None,
+        }],
     }
 }
 
-#[test]
-fn only_adaptive_rows_with_a_pair_of_cpus_are_set_beside_their_masters_floor() {
-    let p50 = |p50: f64| cosim::stats::Percentiles {
+fn p50(p50: f64) -> cosim::stats::Percentiles {
+    cosim::stats::Percentiles {
         n: 10,
         p50,
         p99: 2.0 * p50,
         max: 3.0 * p50,
         mean: p50,
-    };
+    }
+}
+
+#[test]
+fn only_adaptive_rows_with_a_pair_of_cpus_are_set_beside_their_masters_floor() {
     let floors = ExchangeFloors {
         every: vec![1, 1, 1],
         ticks: 10,
+        sets_per_round: 3,
         in_turn_sets_us: vec![p50(8.0), p50(5.0), p50(6.0)],
-        all_at_once_sets_us: vec![p50(4.0), p50(2.5)],
+        all_at_once_sets_us: vec![p50(4.0), p50(2.5), p50(3.0)],
     };
     // The floor of a pattern is its best set's p50, beside its worst.
     assert_eq!(floors.in_turn_us(), (5.0, 8.0));
     assert_eq!(floors.all_at_once_us(), (2.5, 4.0));
+    assert_eq!(floors.rounds(), 1);
     use Master::*;
     use WaitStrategy::*;
     let pair = Some(Reason::FreePair);
@@ -102,6 +112,66 @@ fn only_adaptive_rows_with_a_pair_of_cpus_are_set_beside_their_masters_floor() {
         ]
     );
     assert!(r.exchange_floors.is_some());
+}
+
+/// The machine's latency between CPUs changes over minutes (docs/performance.md): a round run
+/// while it was high is set beside the floor measured right after it, not beside the best set
+/// of another round, and the row's ratio is the median of its rounds'.
+#[test]
+fn each_round_is_set_beside_the_floor_measured_right_after_it() {
+    let floors = ExchangeFloors {
+        every: vec![1, 1, 1],
+        ticks: 10,
+        sets_per_round: 2,
+        // Round 1 fast (best 5), round 2 slow (best 7), round 3 fast (best 4.5; 9 in the
+        // slow rotation).
+        in_turn_sets_us: vec![p50(5.0), p50(5.5), p50(7.0), p50(7.5), p50(9.0), p50(4.5)],
+        all_at_once_sets_us: vec![p50(5.0), p50(5.0), p50(7.0), p50(6.8), p50(5.0), p50(5.2)],
+    };
+    assert_eq!(floors.rounds(), 3);
+    assert_eq!(floors.round_best_us("gauss-seidel", 1), Some(7.0));
+    assert_eq!(floors.round_best_us("jacobi", 1), Some(6.8));
+    assert_eq!(floors.round_best_us("jacobi", 3), None);
+    let round = |overhead: f64, placement| Round {
+        overhead_p50_us: overhead,
+        placement,
+        overhead_over_floor: None,
+    };
+    let pair = Some(Reason::FreePair);
+    let mut gs = row(
+        Transport::Ipc,
+        Master::GaussSeidel,
+        WaitStrategy::Adaptive,
+        pair,
+    );
+    gs.rounds = vec![round(5.0, pair), round(7.7, pair), round(4.95, pair)];
+    let mut jacobi = row(Transport::Ipc, Master::Jacobi, WaitStrategy::Adaptive, pair);
+    // Its second round left to the kernel among other work: no ratio for it.
+    jacobi.rounds = vec![
+        round(5.5, pair),
+        round(30.0, Some(Reason::Contended)),
+        round(4.0, pair),
+    ];
+    let mut r = run_report(vec![gs, jacobi]);
+    r.set_exchange_floors(floors);
+    let each = |c: &Config| {
+        c.rounds
+            .iter()
+            .map(|x| x.overhead_over_floor.map(|v| (v * 1000.0).round() / 1000.0))
+            .collect::<Vec<_>>()
+    };
+    let (gs, jacobi) = (&r.configs[0], &r.configs[1]);
+    assert_eq!(each(gs), [Some(1.0), Some(1.1), Some(1.1)]);
+    // The median of 1.0, 1.1, 1.1 (against the best set of all rounds, 4.5 µs, the slow
+    // round alone would read 1.71).
+    assert!((gs.overhead_over_floor.unwrap() - 1.1).abs() < 1e-12);
+    assert_eq!(
+        (gs.exchange_floor_us, gs.exchange_floor_worst_us),
+        (Some(4.5), Some(9.0))
+    );
+    assert_eq!(each(jacobi), [Some(1.1), None, Some(0.8)]);
+    // Two rounds: the lower of the middle two.
+    assert!((jacobi.overhead_over_floor.unwrap() - 0.8).abs() < 1e-12);
 }
 
 /// A report holding `configs` and nothing measured besides.

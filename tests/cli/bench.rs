@@ -54,9 +54,10 @@ fn walls_are_medians_and_floors_the_best_round_trip(
 
 /// iceoryx2's floor for the scenario's ticks: the passive controller is stepped every tick, so
 /// an echo for each of three participants asked every tick, in several sets of fresh processes
-/// of the ticks named. Each adaptive IPC row that had a pair of CPUs of its own is set beside
-/// its master's floor; the others (in-process, spin, sleep, a run left to the kernel among
-/// other work) are not.
+/// of the ticks named after each of the three rounds. Each round of an adaptive IPC row that
+/// had a pair of CPUs of its own is set beside its master's best set of that round, and the
+/// row's ratio is the median of its rounds'; the others (in-process, spin, sleep, a run left
+/// to the kernel among other work) are not.
 fn exchange_floors_follow_the_pattern_and_set_the_ratios(
     r: &serde_json::Value,
     configs: &[serde_json::Value],
@@ -64,49 +65,74 @@ fn exchange_floors_follow_the_pattern_and_set_the_ratios(
     let f = &r["exchange_floors"];
     assert_eq!(f["every"], serde_json::json!([1, 1, 1]), "{f}");
     let ticks = f["ticks"].as_u64().unwrap();
-    // Each pattern in several sets of fresh processes; its floor is the best set's p50.
-    let range = |key: &str| -> (f64, f64) {
+    let per_round = f["sets_per_round"].as_u64().unwrap() as usize;
+    assert!(per_round >= 2, "{f}");
+    // Each pattern's sets, round after round; the floor of a round is its best set's p50.
+    let sets = |key: &str| -> Vec<f64> {
         let sets = f[key].as_array().unwrap();
-        assert!(sets.len() >= 2, "{f}");
-        let mut lo = f64::INFINITY;
-        let mut hi = 0.0_f64;
-        for p in sets {
-            assert_eq!(p["n"].as_u64().unwrap(), ticks, "{f}");
-            let (p50, p99) = (p["p50"].as_f64().unwrap(), p["p99"].as_f64().unwrap());
-            assert!(p50.is_finite() && p50 > 0.0 && p99 >= p50, "{f}");
-            lo = lo.min(p50);
-            hi = hi.max(p50);
-        }
-        (lo, hi)
+        assert_eq!(sets.len(), 3 * per_round, "{f}");
+        sets.iter()
+            .map(|p| {
+                assert_eq!(p["n"].as_u64().unwrap(), ticks, "{f}");
+                let (p50, p99) = (p["p50"].as_f64().unwrap(), p["p99"].as_f64().unwrap());
+                assert!(p50.is_finite() && p50 > 0.0 && p99 >= p50, "{f}");
+                p50
+            })
+            .collect()
     };
-    let (in_turn, at_once) = (range("in_turn_sets_us"), range("all_at_once_sets_us"));
+    let best = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+    let worst = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    let (in_turn, at_once) = (sets("in_turn_sets_us"), sets("all_at_once_sets_us"));
     for c in configs {
-        let comparable =
-            c["transport"] == "ipc" && c["wait"] == "adaptive" && c["placement"] == "free-pair";
-        if !comparable {
+        let rounds = c["rounds"].as_array().unwrap();
+        // The runs the ratios compare ran three rounds, the others one; the first round is the
+        // row's own run.
+        let compared = c["wait"] == "adaptive" || c["transport"] == "in-process";
+        assert_eq!(rounds.len(), if compared { 3 } else { 1 }, "{c}");
+        assert_eq!(rounds[0]["overhead_p50_us"], c["overhead_p50_us"], "{c}");
+        let paired = rounds.iter().any(|x| x["placement"] == "free-pair");
+        if !(c["transport"] == "ipc" && c["wait"] == "adaptive" && paired) {
             assert!(c["exchange_floor_us"].is_null(), "{c}");
             assert!(c["exchange_floor_worst_us"].is_null(), "{c}");
             assert!(c["overhead_over_floor"].is_null(), "{c}");
+            assert!(
+                rounds.iter().all(|x| x["overhead_over_floor"].is_null()),
+                "{c}"
+            );
             continue;
         }
-        let want = if c["master"] == "jacobi" {
-            at_once
+        let pattern = if c["master"] == "jacobi" {
+            &at_once
         } else {
-            in_turn
+            &in_turn
         };
-        let floor = c["exchange_floor_us"].as_f64().unwrap();
-        assert_eq!(floor, want.0, "{c}");
+        assert_eq!(
+            c["exchange_floor_us"].as_f64().unwrap(),
+            best(pattern),
+            "{c}"
+        );
         assert_eq!(
             c["exchange_floor_worst_us"].as_f64().unwrap(),
-            want.1,
+            worst(pattern),
             "{c}"
         );
+        let mut ratios = Vec::new();
+        for (i, x) in rounds.iter().enumerate() {
+            if x["placement"] != "free-pair" {
+                assert!(x["overhead_over_floor"].is_null(), "{c}");
+                continue;
+            }
+            let floor = best(&pattern[i * per_round..(i + 1) * per_round]);
+            let want = x["overhead_p50_us"].as_f64().unwrap() / floor;
+            let got = x["overhead_over_floor"].as_f64().unwrap();
+            assert!((got - want).abs() <= 1e-9 * want, "round {i}: {c}");
+            ratios.push(want);
+        }
+        // The lower of the middle two, as every median of the bench.
+        ratios.sort_by(f64::total_cmp);
+        let median = ratios[(ratios.len() - 1) / 2];
         let ratio = c["overhead_over_floor"].as_f64().unwrap();
-        let overhead = c["overhead_p50_us"].as_f64().unwrap();
-        assert!(
-            (ratio - overhead / floor).abs() <= 1e-9 * ratio.max(1.0),
-            "{c}"
-        );
+        assert!((ratio - median).abs() <= 1e-9 * median, "{c}");
     }
 }
 
@@ -161,6 +187,29 @@ fn bench_measures_every_master_and_wait_strategy_and_both_transports() {
     }
     assert!(stdout.contains("machine floors"), "{stdout}");
     exchange_floors_follow_the_pattern_and_set_the_ratios(&r, configs);
+    // Each round's floor right after that round's runs; the configurations the ratios do not
+    // compare after the first round's floor, before the second round.
+    let at = |what: &str| {
+        err.find(&format!("measuring {what} ..."))
+            .unwrap_or_else(|| panic!("{what}: {err}"))
+    };
+    let floor = |n: usize| {
+        at(&format!(
+            "iceoryx2's floor for the scenario's ticks, round {n}"
+        ))
+    };
+    assert!(at("ipc jacobi adaptive") < floor(1), "{err}");
+    assert!(floor(1) < at("ipc gauss-seidel spin"), "{err}");
+    assert!(
+        at("ipc jacobi sleep") < at("in-process gauss-seidel adaptive, round 2"),
+        "{err}"
+    );
+    assert!(at("ipc jacobi adaptive, round 2") < floor(2), "{err}");
+    assert!(
+        floor(2) < at("in-process gauss-seidel adaptive, round 3"),
+        "{err}"
+    );
+    assert!(at("ipc jacobi adaptive, round 3") < floor(3), "{err}");
 }
 
 #[test]
@@ -466,6 +515,60 @@ fn an_interrupted_bench_ends_its_run_and_writes_nothing() {
     );
     // The run ended as interrupted (not the 300 s it was asked for) and no other started.
     assert!(!err.contains("measuring ipc gauss-seidel spin"), "{err}");
+    assert!(!out.exists() && !dir.join("b.runs").exists());
+}
+
+/// Ctrl-C while iceoryx2's floor is measured between the bench's rounds, with the floor's
+/// three echoes stopped (SIGSTOP) so that the floor cannot end on its own: the bench ends at
+/// once, naming the floor, ends the echoes, and writes nothing.
+#[test]
+fn an_interrupted_exchange_floor_ends_its_echoes_and_writes_nothing() {
+    let dir = temp_dir("exchange-floor-interrupted");
+    let out = dir.join("b.json");
+    let sc = scenario("paper-passive.toml");
+    let child = spawn(&[
+        "bench",
+        sc.to_str().unwrap(),
+        "--duration",
+        "5",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let pid = child.id();
+    // The floor's echoes are the bench's only children named as the bench (the runs'
+    // participants have their own names; the ping-pong floor, at the end, has one echo).
+    let echoes = wait_for(std::time::Duration::from_secs(300), || {
+        let v: Vec<u32> = tiltsim_suite::children_of(pid)
+            .into_iter()
+            .filter(|(_, comm)| comm == "tiltsim")
+            .map(|(p, _)| p)
+            .collect();
+        (v.len() == 3).then_some(v)
+    });
+    let Some(echoes) = echoes else {
+        let (_, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
+        panic!("no exchange floor started: {err}");
+    };
+    for e in &echoes {
+        // SAFETY: signalling a grandchild this test's child started.
+        unsafe { libc::kill(*e as i32, libc::SIGSTOP) };
+    }
+    // SAFETY: signalling a child this test started.
+    unsafe { libc::kill(pid as i32, libc::SIGINT) };
+    let (code, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
+    assert_eq!(code, 130, "{err}");
+    assert!(
+        err.contains("interrupted while measuring iceoryx2's floor"),
+        "{err}"
+    );
+    for e in echoes {
+        assert!(
+            !std::path::Path::new(&format!("/proc/{e}")).exists(),
+            "the echo process {e} is left"
+        );
+    }
+    let left = tiltsim_suite::leftovers(&format!("tiltsim_{pid}_"));
+    assert!(left.is_empty(), "{left:?}");
     assert!(!out.exists() && !dir.join("b.runs").exists());
 }
 

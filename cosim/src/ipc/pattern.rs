@@ -12,6 +12,8 @@
 //! Jacobi tick). What an IPC run's coordination costs per tick beyond this is tiltsim's own:
 //! its bookkeeping, its relay and its checks.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
@@ -112,10 +114,18 @@ pub fn echo(prefix: &str, index: usize) -> Result<(), IpcError> {
 /// How long the measurer waits for one answer before it takes the echo for dead.
 const SILENCE: std::time::Duration = std::time::Duration::from_secs(30);
 
-/// Waits for the answer `seq` on `s`, dropping late handshake answers (0).
-fn answer(s: &Subscriber<ipc::Service, Exchange, ()>, seq: u64) -> Result<(), IpcError> {
+/// Waits for the answer `seq` on `s`, dropping late handshake answers (0);
+/// [`IpcError::Stopped`] once `stop` is set.
+fn answer(
+    s: &Subscriber<ipc::Service, Exchange, ()>,
+    seq: u64,
+    stop: &AtomicBool,
+) -> Result<(), IpcError> {
     let mut backoff = Backoff::new(WaitStrategy::Adaptive);
     loop {
+        if stop.load(Ordering::Relaxed) {
+            return Err(IpcError::Stopped);
+        }
         if backoff.elapsed() > SILENCE {
             return Err(IpcError::Iceoryx(format!(
                 "exchange floor: no answer to request {seq} in {} s",
@@ -139,11 +149,15 @@ fn answer(s: &Subscriber<ipc::Service, Exchange, ()>, seq: u64) -> Result<(), Ip
 }
 
 /// Sends handshakes on every port until each echo has answered one (samples sent before an
-/// echo subscribes are lost), then drops the answers at hand.
-fn handshake(ports: &[Ports]) -> Result<(), IpcError> {
+/// echo subscribes are lost), then drops the answers at hand; [`IpcError::Stopped`] once
+/// `stop` is set.
+fn handshake(ports: &[Ports], stop: &AtomicBool) -> Result<(), IpcError> {
     let started = std::time::Instant::now();
     for (p, s) in ports {
         'hand: loop {
+            if stop.load(Ordering::Relaxed) {
+                return Err(IpcError::Stopped);
+            }
             send(p, 0)?;
             let t = std::time::Instant::now();
             while t.elapsed() < std::time::Duration::from_millis(1) {
@@ -169,19 +183,21 @@ fn handshake(ports: &[Ports]) -> Result<(), IpcError> {
 
 /// The wall time (ns) of each of `ticks` ticks in `order`, after a tenth more to warm up;
 /// echo `i` is asked on the ticks that are multiples of `every[i]`. The echo processes must be
-/// running with the same `prefix`, one per entry of `every`.
+/// running with the same `prefix`, one per entry of `every`. [`IpcError::Stopped`] once `stop`
+/// is set (Ctrl-C), whether or not the echoes still answer.
 pub fn measure(
     prefix: &str,
     every: &[u64],
     order: Order,
     ticks: usize,
+    stop: &AtomicBool,
 ) -> Result<Vec<f64>, IpcError> {
     let cfg = config(prefix)?;
     let node = node(&cfg, "pattern")?;
     let ports = (0..every.len())
         .map(|i| ports(&node, i, false))
         .collect::<Result<Vec<_>, _>>()?;
-    handshake(&ports)?;
+    handshake(&ports, stop)?;
     let warm = ticks / 10;
     let mut out = Vec::with_capacity(ticks);
     for k in 0..(ticks + warm) as u64 {
@@ -192,7 +208,7 @@ pub fn measure(
             Order::InTurn => {
                 for i in (0..ports.len()).filter(due) {
                     send(&ports[i].0, seq)?;
-                    answer(&ports[i].1, seq)?;
+                    answer(&ports[i].1, seq, stop)?;
                 }
             }
             Order::AllAtOnce => {
@@ -200,7 +216,7 @@ pub fn measure(
                     send(&ports[i].0, seq)?;
                 }
                 for i in (0..ports.len()).filter(due) {
-                    answer(&ports[i].1, seq)?;
+                    answer(&ports[i].1, seq, stop)?;
                 }
             }
         }
@@ -210,7 +226,7 @@ pub fn measure(
     }
     for (p, s) in &ports {
         send(p, DONE)?;
-        answer(s, DONE)?;
+        answer(s, DONE, stop)?;
     }
     Ok(out)
 }

@@ -161,11 +161,13 @@ fn ping_pong_latencies(
 /// with a pair of CPUs places its processes: this one on the first allowed CPU, the echoes
 /// together on the second, the pair an unclaimed machine gives the first run
 /// (`cosim::ipc::pattern`, `cosim::ipc::placement`).
+/// Ctrl-C (`stop`) ends it with its echoes at once.
 pub(super) fn exchange_floor(
     exe: &std::path::Path,
     every: &[u64],
     order: cosim::ipc::pattern::Order,
     ticks: usize,
+    stop: &std::sync::atomic::AtomicBool,
 ) -> Result<Vec<f64>, CliError> {
     let cpus = cosim::ipc::allowed_cpus();
     let prefix = cosim::ipc::unique_prefix();
@@ -201,16 +203,30 @@ pub(super) fn exchange_floor(
         if let Some((own, _)) = pinned {
             cosim::ipc::pin_to_cpu(own);
         }
-        cosim::ipc::pattern::measure(&prefix, every, order, ticks)
-            .map_err(|e| CliError::Failed(format!("bench: {e}")))
+        // A stop counts as an interruption whatever iceoryx2 saw at that moment (a service
+        // being opened reports the signal as its own error).
+        cosim::ipc::pattern::measure(&prefix, every, order, ticks, stop).map_err(|e| {
+            if stop.load(std::sync::atomic::Ordering::Relaxed) {
+                CliError::Interrupted(
+                    "bench: interrupted while measuring iceoryx2's floor; nothing written".into(),
+                )
+            } else {
+                CliError::Failed(format!("bench: {e}"))
+            }
+        })
     });
     // An echo that answered the end leaves at once; one that did not is killed after a while
-    // (it would otherwise wait for this process to go).
+    // (it would otherwise wait for this process to go), at once if the measurement failed.
     let started = std::time::Instant::now();
+    let grace = if result.is_ok() {
+        ECHO_EXIT
+    } else {
+        std::time::Duration::ZERO
+    };
     for mut c in children {
         loop {
             match c.try_wait() {
-                Ok(None) if started.elapsed() < ECHO_EXIT => {
+                Ok(None) if started.elapsed() < grace => {
                     std::thread::sleep(std::time::Duration::from_millis(5));
                 }
                 Ok(None) => {
@@ -308,13 +324,14 @@ fn machine_floors(
 fn exchange_floors(
     exe: &std::path::Path,
     s: &tiltsim_scenario::scenario::Scenario,
+    stop: &std::sync::atomic::AtomicBool,
 ) -> Result<tiltsim_studies::bench::ExchangeFloors, CliError> {
     use cosim::ipc::pattern::Order;
     let every = vec![1, 1, s.controller_period_ticks()];
     let mut sets = [Vec::new(), Vec::new()];
     for _ in 0..EXCHANGE_SETS {
         for (i, order) in [Order::InTurn, Order::AllAtOnce].into_iter().enumerate() {
-            let mut v: Vec<f64> = exchange_floor(exe, &every, order, EXCHANGE_TICKS)?
+            let mut v: Vec<f64> = exchange_floor(exe, &every, order, EXCHANGE_TICKS, stop)?
                 .into_iter()
                 .map(|ns| ns * 1e-3)
                 .collect();
@@ -327,14 +344,51 @@ fn exchange_floors(
         all_at_once_sets_us,
         every,
         ticks: EXCHANGE_TICKS,
+        sets_per_round: EXCHANGE_SETS,
     })
 }
 
-/// Sets of processes per master for the exchange floor.
+/// Sets of processes per master for the exchange floor, after each round.
 const EXCHANGE_SETS: usize = 4;
 
 /// Ticks of each set.
 const EXCHANGE_TICKS: usize = 5_000;
+
+/// The exchange floor after a round of the bench's runs, with its hogs stopped meanwhile
+/// (`hogs` restarted after): the floor is iceoryx2's with nothing else on the machine.
+fn round_floor(
+    exe: &std::path::Path,
+    s: &tiltsim_scenario::scenario::Scenario,
+    hogs: &mut Option<super::bench_concurrent::Hogs>,
+    count: usize,
+    stop: &std::sync::atomic::AtomicBool,
+) -> Result<tiltsim_studies::bench::ExchangeFloors, tiltsim_studies::bench::BenchError> {
+    use tiltsim_studies::bench::BenchError;
+    let config = "iceoryx2's floor for the scenario's ticks".to_string();
+    let interrupted = || BenchError::Interrupted {
+        config: config.clone(),
+    };
+    let failed = |e: CliError| match e {
+        CliError::Interrupted(_) => interrupted(),
+        CliError::Failed(why) | CliError::Invalid(why) | CliError::Participant(why) => {
+            BenchError::Run {
+                config: config.clone(),
+                why: why.trim_start_matches("bench: ").to_string(),
+            }
+        }
+        e => BenchError::Run {
+            config: config.clone(),
+            why: e.to_string(),
+        },
+    };
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        return Err(interrupted());
+    }
+    *hogs = None;
+    let floors = exchange_floors(exe, s, stop).map_err(failed)?;
+    *hogs = Some(super::bench_concurrent::Hogs::start(count).map_err(failed)?);
+    Ok(floors)
+}
 
 /// A bench's failure: exit 130 for Ctrl-C, 1 otherwise.
 fn bench_error(e: tiltsim_studies::bench::BenchError) -> CliError {
@@ -442,8 +496,8 @@ pub fn exec(a: BenchArgs) -> CliResult {
     main_table(&a, &s, &exe, &scratch)
 }
 
-/// The main table: every configuration of `s`, the rounds the ratios compare, then the
-/// machine's floors and iceoryx2's floor for the scenario's ticks.
+/// The main table: every configuration of `s`, the rounds the ratios compare each followed by
+/// iceoryx2's floor for the scenario's ticks, then the machine's floors.
 fn main_table(
     a: &BenchArgs,
     s: &tiltsim_scenario::scenario::Scenario,
@@ -464,8 +518,15 @@ fn main_table(
         hogs: single_hog_count(&a.hogs)?,
         interrupt: tiltsim_rundir::signals::install(),
     };
-    let hogs = super::bench_concurrent::Hogs::start(setup.hogs)?;
-    let report = tiltsim_studies::bench::run(s, d, &setup, exe, scratch, |name| {
+    let mut hogs = Some(super::bench_concurrent::Hogs::start(setup.hogs)?);
+    let floors = |round: usize| {
+        eprintln!(
+            "  measuring iceoryx2's floor for the scenario's ticks, round {} ...",
+            round + 1
+        );
+        round_floor(exe, s, &mut hogs, setup.hogs, &setup.interrupt)
+    };
+    let report = tiltsim_studies::bench::run(s, d, &setup, exe, scratch, floors, |name| {
         eprintln!("  measuring {name} ...");
     });
     drop(hogs);
@@ -484,9 +545,6 @@ fn main_table(
     eprintln!("  measuring the machine's ping-pong floors ...");
     report.machine_floors = Some(machine_floors(exe, &setup.interrupt)?);
     stop_if_interrupted("while measuring the ping-pong floors")?;
-    eprintln!("  measuring iceoryx2's floor for the scenario's ticks ...");
-    report.set_exchange_floors(exchange_floors(exe, s)?);
-    stop_if_interrupted("while measuring the exchange floors")?;
     println!("{}", tiltsim_studies::bench_table::table(&report));
     if let Some(dir) = a.out.parent() {
         let _ = std::fs::create_dir_all(dir);
