@@ -122,14 +122,22 @@ fn footer(s: &mut String, r: &Report) {
 /// a floor.
 fn round_ratios(s: &mut String, r: &Report) {
     use std::fmt::Write as _;
+    let Some(f) = &r.exchange_floors else {
+        return;
+    };
     for c in r.configs.iter().filter(|c| c.overhead_over_floor.is_some()) {
         let each: Vec<String> = c
             .rounds
             .iter()
-            .map(|round| {
-                round
+            .enumerate()
+            .map(|(i, round)| {
+                let floor = f
+                    .round_best_us(c.master, i)
+                    .map_or("-".into(), |x| format!("{x:.2}"));
+                let ratio = round
                     .overhead_over_floor
-                    .map_or("-".into(), |x| format!("{x:.2}"))
+                    .map_or("-".into(), |x| format!("{x:.2}"));
+                format!("{:.2} / {floor} µs = {ratio}", round.overhead_p50_us)
             })
             .collect();
         let _ = writeln!(
@@ -138,7 +146,7 @@ fn round_ratios(s: &mut String, r: &Report) {
             c.transport,
             c.master,
             if c.realtime { " realtime" } else { "" },
-            each.join(", ")
+            each.join("; ")
         );
     }
 }

@@ -160,6 +160,19 @@ fn each_round_is_set_beside_the_floor_measured_right_after_it() {
             .map(|x| x.overhead_over_floor.map(|v| (v * 1000.0).round() / 1000.0))
             .collect::<Vec<_>>()
     };
+    // Under the table, each round's overhead, its floor and their ratio.
+    let table = crate::bench_table::table(&r);
+    assert!(
+        table.contains(
+            "ipc gauss-seidel, each round: 5.00 / 5.00 µs = 1.00; 7.70 / 7.00 µs = 1.10; \
+             4.95 / 4.50 µs = 1.10"
+        ),
+        "{table}"
+    );
+    assert!(
+        table.contains("ipc jacobi, each round: 5.50 / 5.00 µs = 1.10; 30.00 / 6.80 µs = -;"),
+        "{table}"
+    );
     let (gs, jacobi) = (&r.configs[0], &r.configs[1]);
     assert_eq!(each(gs), [Some(1.0), Some(1.1), Some(1.1)]);
     // The median of 1.0, 1.1, 1.1 (against the best set of all rounds, 4.5 µs, the slow

@@ -187,6 +187,17 @@ fn bench_measures_every_master_and_wait_strategy_and_both_transports() {
     }
     assert!(stdout.contains("machine floors"), "{stdout}");
     exchange_floors_follow_the_pattern_and_set_the_ratios(&r, configs);
+    // Each row set beside a floor lists its rounds under the table.
+    for c in configs
+        .iter()
+        .filter(|c| !c["overhead_over_floor"].is_null())
+    {
+        let line = format!(
+            "overhead over the floor measured right after it, ipc {}, each round: ",
+            c["master"].as_str().unwrap()
+        );
+        assert!(stdout.contains(&line), "{line}: {stdout}");
+    }
     // Each round's floor right after that round's runs; the configurations the ratios do not
     // compare after the first round's floor, before the second round.
     let at = |what: &str| {
