@@ -369,17 +369,24 @@ fn hello(
         clock_offset_ns: clock.0,
         clock_rtt_ns: clock.1,
     };
+    // The run's answer may be slow on a loaded host (its queryable shares Zenoh's threads with
+    // whatever else reaches it), and a hello is not repeated: the run admits a role once. So
+    // the answer is awaited as long as the run is looked for.
     let answer = session
         .get(keys::join(run, role))
         .payload(serde_json::to_vec(&hello).unwrap_or_default())
-        .timeout(Duration::from_secs(5))
+        .timeout(a.join_timeout.max(Duration::from_secs(5)))
         .wait()
         .map_err(zenoh_error("asking to join"))?
         .recv()
         .map_err(|_| {
             fail(
                 role,
-                format!("the run at {} did not answer the hello", a.connect),
+                format!(
+                    "the run at {} did not answer the hello within {:.0} s",
+                    a.connect,
+                    a.join_timeout.max(Duration::from_secs(5)).as_secs_f64()
+                ),
             )
         })?;
     let welcome: Welcome = answer

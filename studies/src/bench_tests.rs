@@ -1,5 +1,6 @@
 //! Tests of the bench report: withheld ratios and which rows are set beside which floor.
 use super::*;
+use cosim::ipc::placement::Reason;
 
 #[test]
 fn ratios_are_withheld_when_the_rounds_spread() {

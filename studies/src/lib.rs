@@ -10,6 +10,7 @@
 //! `tiltsim_rundir::budget`.
 
 pub mod bench;
+pub mod bench_floor;
 pub mod bench_fmu;
 pub mod bench_table;
 pub mod falsify;

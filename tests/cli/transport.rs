@@ -290,18 +290,26 @@ fn jacobi_over_ipc_gives_the_measured_heaviest_participant_a_cpu_of_its_own() {
     let plan = &summary(&measured)["timing"]["cpu_plan"];
     let cpus = cosim::ipc::allowed_cpus();
     if cpus.len() >= 2 {
-        assert_eq!(plan["own_cpu"], "actuator", "{plan}");
-        assert_eq!(plan["applied"], true, "{plan}");
-        assert_eq!(plan["heavy_cpu"], *cpus.last().unwrap(), "{plan}");
-        assert_eq!(plan["shared_cpu"], cpus[0], "{plan}");
         let c = &plan["compute_per_tick_us"];
         let (a, p, k) = (
             c["actuator"].as_f64().unwrap(),
             c["plant"].as_f64().unwrap(),
             c["controller"].as_f64().unwrap(),
         );
+        // The electrics are most of the compute on any machine.
         assert!(a > 0.5 * (a + p + k), "{plan}");
-        assert!(a >= plan["orchestrator_us"].as_f64().unwrap(), "{plan}");
+        // Whether they also cover the orchestrator's own work (about 1.5 µs against 5.5 µs
+        // on a quiet machine) is measured: on a machine loaded far past its CPUs the
+        // orchestrator's work, timed on the wall, can take longer, and then nobody moves.
+        if a >= plan["orchestrator_us"].as_f64().unwrap() {
+            assert_eq!(plan["own_cpu"], "actuator", "{plan}");
+            assert_eq!(plan["applied"], true, "{plan}");
+            assert_eq!(plan["heavy_cpu"], *cpus.last().unwrap(), "{plan}");
+            assert_eq!(plan["shared_cpu"], cpus[0], "{plan}");
+        } else {
+            assert!(plan["own_cpu"].is_null(), "{plan}");
+            assert_eq!(plan["applied"], false, "{plan}");
+        }
         // The passive vehicle's participants (~0.15 µs per tick at most) cannot hide the
         // orchestrator's work: nobody is moved.
         let light = on_a_pair("cpu-plan-light", "paper-passive.toml");
