@@ -386,6 +386,10 @@ fn round_floor(
     }
     *hogs = None;
     let floors = exchange_floors(exe, s, stop).map_err(failed)?;
+    // Ctrl-C while the last set's echoes were leaving: the floor is what it interrupted.
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        return Err(interrupted());
+    }
     *hogs = Some(super::bench_concurrent::Hogs::start(count).map_err(failed)?);
     Ok(floors)
 }
