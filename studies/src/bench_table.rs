@@ -3,7 +3,7 @@
 
 use cosim::ipc::placement::Reason;
 
-use crate::bench::Report;
+use crate::bench::{ExchangeFloors, Report};
 
 /// The report as a Markdown table.
 pub fn table(r: &Report) -> String {
@@ -114,17 +114,14 @@ fn footer(s: &mut String, r: &Report) {
             f.rounds(),
             f.ticks,
         );
-        round_ratios(s, r);
+        round_ratios(s, r, f);
     }
 }
 
 /// Each round's overhead over the best floor set measured right after it, per row set beside
 /// a floor.
-fn round_ratios(s: &mut String, r: &Report) {
+fn round_ratios(s: &mut String, r: &Report, f: &ExchangeFloors) {
     use std::fmt::Write as _;
-    let Some(f) = &r.exchange_floors else {
-        return;
-    };
     for c in r.configs.iter().filter(|c| c.overhead_over_floor.is_some()) {
         let each: Vec<String> = c
             .rounds

@@ -1,5 +1,7 @@
 //! `tiltsim bench`: every configuration measured, one JSON report.
 
+use std::process::Child;
+
 use tiltsim_suite::{run, scenario, spawn, temp_dir, wait_for, wait_with_limit};
 
 /// The bench report `r`'s walls are the medians of their rounds (the first the
@@ -493,37 +495,57 @@ fn bench_sets_the_real_time_ipc_runs_beside_hogs_against_one_process() {
     );
 }
 
-#[test]
-fn an_interrupted_bench_ends_its_run_and_writes_nothing() {
-    let dir = temp_dir("bench-interrupted");
+/// `tiltsim bench` of paper-passive for `duration` simulated seconds into a fresh directory
+/// named after `name`: the directory, the report it would write, the running bench.
+fn start_bench(name: &str, duration: &str) -> (std::path::PathBuf, std::path::PathBuf, Child) {
+    let dir = temp_dir(name);
     let out = dir.join("b.json");
     let sc = scenario("paper-passive.toml");
     let child = spawn(&[
         "bench",
         sc.to_str().unwrap(),
         "--duration",
-        "300",
+        duration,
         "--out",
         out.to_str().unwrap(),
     ]);
+    (dir, out, child)
+}
+
+/// Ctrl-C to the bench `child`: it exits 130 saying it was "interrupted while measuring
+/// `what`", the processes `helpers` it started are gone, and so are its shared-memory files
+/// (their prefix starts with its pid). Its stderr.
+fn interrupt(child: Child, what: &str, helpers: &[u32]) -> String {
+    let pid = child.id();
+    // SAFETY: signalling a child this test started.
+    unsafe { libc::kill(pid as i32, libc::SIGINT) };
+    let (code, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
+    assert_eq!(code, 130, "{err}");
+    assert!(
+        err.contains(&format!("interrupted while measuring {what}")),
+        "{err}"
+    );
+    for h in helpers {
+        assert!(
+            !std::path::Path::new(&format!("/proc/{h}")).exists(),
+            "the process {h} is left"
+        );
+    }
+    let left = tiltsim_suite::leftovers(&format!("tiltsim_{pid}_"));
+    assert!(left.is_empty(), "{left:?}");
+    err
+}
+
+#[test]
+fn an_interrupted_bench_ends_its_run_and_writes_nothing() {
+    let (dir, out, child) = start_bench("bench-interrupted", "300");
     // The second configuration (IPC, Gauss-Seidel) under way: Ctrl-C.
     let second = dir.join("b.runs").join("config-1");
     let started = wait_for(std::time::Duration::from_secs(300), || {
         second.exists().then_some(())
     });
     assert!(started.is_some(), "the second configuration did not start");
-    let pid = child.id();
-    // SAFETY: signalling a child this test started.
-    unsafe { libc::kill(pid as i32, libc::SIGINT) };
-    let (code, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
-    assert_eq!(code, 130, "{err}");
-    // The run's shared-memory files (its prefix starts with the bench's pid) are gone.
-    let left = tiltsim_suite::leftovers(&format!("tiltsim_{pid}_"));
-    assert!(left.is_empty(), "{left:?}");
-    assert!(
-        err.contains("interrupted while measuring ipc gauss-seidel adaptive"),
-        "{err}"
-    );
+    let err = interrupt(child, "ipc gauss-seidel adaptive", &[]);
     // The run ended as interrupted (not the 300 s it was asked for) and no other started.
     assert!(!err.contains("measuring ipc gauss-seidel spin"), "{err}");
     assert!(!out.exists() && !dir.join("b.runs").exists());
@@ -534,17 +556,7 @@ fn an_interrupted_bench_ends_its_run_and_writes_nothing() {
 /// once, naming the floor, ends the echoes, and writes nothing.
 #[test]
 fn an_interrupted_exchange_floor_ends_its_echoes_and_writes_nothing() {
-    let dir = temp_dir("exchange-floor-interrupted");
-    let out = dir.join("b.json");
-    let sc = scenario("paper-passive.toml");
-    let child = spawn(&[
-        "bench",
-        sc.to_str().unwrap(),
-        "--duration",
-        "5",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (dir, out, child) = start_bench("exchange-floor-interrupted", "5");
     let pid = child.id();
     // The floor's echoes are the bench's only children named as the bench (the runs'
     // participants have their own names; the ping-pong floor, at the end, has one echo).
@@ -564,22 +576,7 @@ fn an_interrupted_exchange_floor_ends_its_echoes_and_writes_nothing() {
         // SAFETY: signalling a grandchild this test's child started.
         unsafe { libc::kill(*e as i32, libc::SIGSTOP) };
     }
-    // SAFETY: signalling a child this test started.
-    unsafe { libc::kill(pid as i32, libc::SIGINT) };
-    let (code, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
-    assert_eq!(code, 130, "{err}");
-    assert!(
-        err.contains("interrupted while measuring iceoryx2's floor"),
-        "{err}"
-    );
-    for e in echoes {
-        assert!(
-            !std::path::Path::new(&format!("/proc/{e}")).exists(),
-            "the echo process {e} is left"
-        );
-    }
-    let left = tiltsim_suite::leftovers(&format!("tiltsim_{pid}_"));
-    assert!(left.is_empty(), "{left:?}");
+    interrupt(child, "iceoryx2's floor", &echoes);
     assert!(!out.exists() && !dir.join("b.runs").exists());
 }
 
@@ -604,20 +601,7 @@ fn an_interrupted_ping_pong_ends_its_echo_and_writes_nothing() {
         let (_, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
         panic!("no echo process started: {err}");
     };
-    // SAFETY: signalling a child this test started.
-    unsafe { libc::kill(pid as i32, libc::SIGINT) };
-    let (code, _, err) = wait_with_limit(child, std::time::Duration::from_secs(600));
-    assert_eq!(code, 130, "{err}");
-    assert!(
-        err.contains("interrupted while measuring the ping-pong floor"),
-        "{err}"
-    );
-    assert!(
-        !std::path::Path::new(&format!("/proc/{echo}")).exists(),
-        "the echo process {echo} is left"
-    );
-    let left = tiltsim_suite::leftovers(&format!("tiltsim_{pid}_"));
-    assert!(left.is_empty(), "{left:?}");
+    interrupt(child, "the ping-pong floor", &[echo]);
     assert!(!out.exists());
 }
 
